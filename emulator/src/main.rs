@@ -1,0 +1,3 @@
+fn main() {
+    println!("drive-emu: under construction");
+}
