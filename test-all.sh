@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# Run the whole test suite:
+#   1. host tests (protocol, emulator): cargo nextest run --workspace --exclude e2e
+#   2. end-to-end tests on a real virtual CAN bus (package e2e): built and archived here
+#      with `cargo nextest archive`, then run from the archive through ./vcan-setup.sh
+#      (natively where the kernel has CAN, inside user-mode Linux otherwise).
+# Exits non-zero if either phase fails (both always run). See docs/vcan.md.
+#
+# Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase; the
+# CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
+set -euo pipefail
+
+case "${1:-}" in
+    -h|--help) sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    "") ;;
+    *) echo "test-all.sh: no arguments expected (see --help)" >&2; exit 2 ;;
+esac
+
+cd "$(dirname "$(readlink -f "$0")")"
+ROOT=$PWD
+
+now() { date +%s.%N; }
+secs() { awk -v a="$1" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }'; }
+banner() { printf '\n==== %s\n' "$*"; }
+
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/test-all.XXXXXX")
+trap 'rm -rf "$tmp"' EXIT
+
+# ---- 1. host tests
+banner "host tests: cargo nextest run --workspace --exclude e2e"
+t=$(now); host_rc=0
+cargo nextest run --workspace --exclude e2e --no-fail-fast || host_rc=$?
+host_time=$(secs "$t")
+
+# ---- 2. vcan (e2e) tests
+banner "vcan tests: build + archive e2e on the host, run it through ./vcan-setup.sh"
+t=$(now); e2e_rc=0
+archive=$tmp/e2e.tar.zst
+mkdir "$tmp/extract"
+if cargo nextest archive -p e2e --archive-file "$archive"; then
+    # The emulator binary, for e2e tests that start it as a process (see docs/vcan.md).
+    if [[ -z ${DRIVE_EMU_BIN:-} ]]; then
+        tdir=$(cargo metadata --no-deps --format-version 1 2>/dev/null |
+            python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])' 2>/dev/null ||
+            echo "${CARGO_TARGET_DIR:-$ROOT/target}")
+        if [[ -x $tdir/debug/drive-emu ]]; then export DRIVE_EMU_BIN=$tdir/debug/drive-emu; fi
+    fi
+    build_time=$(secs "$t"); t=$(now)
+    ./vcan-setup.sh --ifaces 2 --timeout "${VCAN_TIMEOUT:-1800}" -- \
+        cargo nextest run --archive-file "$archive" --workspace-remap "$ROOT" \
+        --extract-to "$tmp/extract" --no-fail-fast || e2e_rc=$?
+    run_time=$(secs "$t")
+else
+    e2e_rc=$?
+    build_time=$(secs "$t"); run_time=0
+    echo "test-all.sh: building/archiving the e2e tests failed" >&2
+fi
+
+banner "summary"
+printf 'host tests: %s (%ss)\n' "$([[ $host_rc == 0 ]] && echo ok || echo "FAILED ($host_rc)")" "$host_time"
+printf 'vcan tests: %s (build+archive %ss, run via vcan-setup.sh %ss)\n' \
+    "$([[ $e2e_rc == 0 ]] && echo ok || echo "FAILED ($e2e_rc)")" "$build_time" "$run_time"
+if [[ $host_rc != 0 || $e2e_rc != 0 ]]; then exit 1; fi
