@@ -1,0 +1,94 @@
+//! Heartbeat producer (0x1017) and consumer (0x1016).
+
+/// Producer: sends the NMT state every 0x1017 ms.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Producer {
+    next_due_us: u64,
+}
+
+impl Producer {
+    /// Restart the period (boot, or 0x1017 written).
+    pub fn restart(&mut self, now_us: u64, period_ms: u16) {
+        self.next_due_us = now_us + period_ms as u64 * 1000;
+    }
+
+    /// True when a heartbeat is due now.
+    pub fn due(&mut self, now_us: u64, period_ms: u16) -> bool {
+        if period_ms == 0 {
+            return false;
+        }
+        if now_us >= self.next_due_us {
+            let p = period_ms as u64 * 1000;
+            // keep the grid; after a long gap, restart from now
+            self.next_due_us = if now_us - self.next_due_us > p { now_us + p } else { self.next_due_us + p };
+            return true;
+        }
+        false
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Slot {
+    node: u8,
+    time_ms: u16,
+    last_us: u64,
+    /// Monitoring starts at the first heartbeat received.
+    armed: bool,
+}
+
+/// Consumer: up to four monitored producers. A timeout is reported once, then monitoring
+/// waits for the next heartbeat of that node.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Consumer {
+    slots: [Slot; 4],
+}
+
+impl Consumer {
+    /// Configure slot `i` (0..4) from a 0x1016 entry.
+    pub fn configure(&mut self, i: usize, entry: u32) {
+        if let Some(s) = self.slots.get_mut(i) {
+            s.node = (entry >> 16) as u8;
+            s.time_ms = entry as u16;
+            s.armed = false;
+        }
+    }
+
+    /// A heartbeat (or boot-up) from `node` arrived.
+    pub fn on_heartbeat(&mut self, node: u8, now_us: u64) {
+        for s in self.slots.iter_mut() {
+            if s.time_ms != 0 && s.node == node && node != 0 && node < 128 {
+                s.last_us = now_us;
+                s.armed = true;
+            }
+        }
+    }
+
+    /// Returns the node id of a producer that just timed out.
+    pub fn poll(&mut self, now_us: u64) -> Option<u8> {
+        for s in self.slots.iter_mut() {
+            if s.armed && now_us.saturating_sub(s.last_us) > s.time_ms as u64 * 1000 {
+                s.armed = false;
+                return Some(s.node);
+            }
+        }
+        None
+    }
+
+    /// Whether any monitored producer is currently lost (timed out and not heard since).
+    pub fn is_monitoring(&self, node: u8) -> bool {
+        self.slots.iter().any(|s| s.node == node && s.time_ms != 0)
+    }
+}
+
+/// CiA 301: two 0x1016 entries with a non-zero time may not monitor the same node.
+pub fn conflicts(entries: &[u32; 4], i: usize, new: u32) -> bool {
+    let node = (new >> 16) as u8;
+    let t = new as u16;
+    if t == 0 || node == 0 {
+        return false;
+    }
+    entries
+        .iter()
+        .enumerate()
+        .any(|(k, &e)| k != i && (e >> 16) as u8 == node && e as u16 != 0)
+}

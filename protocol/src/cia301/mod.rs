@@ -1,0 +1,8 @@
+//! CiA 301 communication services, one file per service.
+
+pub mod emcy;
+pub mod heartbeat;
+pub mod nmt;
+pub mod pdo;
+pub mod sdo;
+pub mod sync;

@@ -1,0 +1,36 @@
+//! NMT slave: the node's communication state and the commands of the NMT master (COB-ID 0).
+//! Command decoding is canopen-rs's `NmtCommand::from_byte`.
+
+use crate::frame::CanFrame;
+pub use canopen_rs::NmtCommand;
+
+/// NMT state; the discriminant is the heartbeat state byte.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NmtState {
+    Initialising = 0x00,
+    Stopped = 0x04,
+    Operational = 0x05,
+    PreOperational = 0x7F,
+}
+
+/// Decode an NMT frame (COB-ID 0) addressed to `node_id` or to all nodes (0).
+pub fn decode(frame: &CanFrame, node_id: u8) -> Option<NmtCommand> {
+    if frame.id != 0 || frame.rtr || frame.len < 2 {
+        return None;
+    }
+    let target = frame.data[1];
+    if target != 0 && target != node_id {
+        return None;
+    }
+    NmtCommand::from_byte(frame.data[0]).ok()
+}
+
+/// The state a command leads to (resets return `Initialising`; the node then boots again).
+pub fn next_state(cmd: NmtCommand) -> NmtState {
+    match cmd {
+        NmtCommand::StartRemoteNode => NmtState::Operational,
+        NmtCommand::StopRemoteNode => NmtState::Stopped,
+        NmtCommand::EnterPreOperational => NmtState::PreOperational,
+        NmtCommand::ResetNode | NmtCommand::ResetCommunication => NmtState::Initialising,
+    }
+}

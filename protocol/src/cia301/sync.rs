@@ -1,0 +1,60 @@
+//! SYNC consumer: counter (0x1019) and supervision of the communication cycle period
+//! (0x1006). A SYNC missing for more than 1.5 periods is reported once as SYNC loss.
+
+/// Manufacturer-chosen EMCY code for SYNC loss: 0x8100 "communication, generic" (CiA 301
+/// defines none; CANopenNode uses the same). 0x8240 = unexpected SYNC data length.
+pub const EMCY_SYNC_LOSS: u16 = 0x8100;
+pub const EMCY_SYNC_LENGTH: u16 = 0x8240;
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SyncConsumer {
+    pub last_us: Option<u64>,
+    /// Interval between the last two SYNCs, us.
+    pub interval_us: u64,
+    pub lost: bool,
+    pub bad_length: bool,
+}
+
+/// Result of a SYNC frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SyncIn {
+    pub counter: Option<u8>,
+    /// The frame's length did not match 0x1019 (report EMCY 0x8240 once).
+    pub length_error: bool,
+    /// SYNC came back after a loss.
+    pub recovered: bool,
+}
+
+impl SyncConsumer {
+    pub fn on_sync(&mut self, now_us: u64, len: u8, byte0: u8, overflow: u8) -> SyncIn {
+        let expected = if overflow > 1 { 1 } else { 0 };
+        let bad = len != expected;
+        let length_error = bad && !self.bad_length;
+        self.bad_length = bad;
+        if let Some(l) = self.last_us {
+            self.interval_us = now_us.saturating_sub(l);
+        }
+        self.last_us = Some(now_us);
+        let recovered = self.lost;
+        self.lost = false;
+        SyncIn {
+            counter: if len >= 1 { Some(byte0) } else { None },
+            length_error,
+            recovered,
+        }
+    }
+
+    /// True once when SYNC has been missing for more than 1.5 x `period_us` (0 = off).
+    pub fn poll(&mut self, now_us: u64, period_us: u32) -> bool {
+        if period_us == 0 || self.lost {
+            return false;
+        }
+        if let Some(l) = self.last_us {
+            if now_us.saturating_sub(l) * 2 > period_us as u64 * 3 {
+                self.lost = true;
+                return true;
+            }
+        }
+        false
+    }
+}

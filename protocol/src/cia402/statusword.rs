@@ -1,0 +1,41 @@
+//! Statusword 0x6041: the state bits of CiA 402 and the common bits.
+
+use super::state_machine::State;
+
+pub const BIT_VOLTAGE_ENABLED: u16 = 1 << 4;
+pub const BIT_QUICK_STOP: u16 = 1 << 5;
+pub const BIT_WARNING: u16 = 1 << 7;
+pub const BIT_REMOTE: u16 = 1 << 9;
+pub const BIT_TARGET_REACHED: u16 = 1 << 10;
+pub const BIT_INTERNAL_LIMIT: u16 = 1 << 11;
+pub const BIT_OMS12: u16 = 1 << 12;
+pub const BIT_OMS13: u16 = 1 << 13;
+
+/// Bits 0-6 of the statusword for a state (mask 0x6F / 0x4F values of CiA 402).
+pub fn state_bits(s: State) -> u16 {
+    match s {
+        State::NotReadyToSwitchOn => 0x0000 | BIT_QUICK_STOP,
+        State::SwitchOnDisabled => 0x0040 | BIT_QUICK_STOP,
+        State::ReadyToSwitchOn => 0x0021 | BIT_VOLTAGE_ENABLED,
+        State::SwitchedOn => 0x0023 | BIT_VOLTAGE_ENABLED,
+        State::OperationEnabled => 0x0027 | BIT_VOLTAGE_ENABLED,
+        State::QuickStopActive => 0x0007 | BIT_VOLTAGE_ENABLED,
+        State::FaultReactionActive => 0x000F | BIT_QUICK_STOP,
+        State::Fault => 0x0008 | BIT_QUICK_STOP,
+    }
+}
+
+/// The state a statusword shows (for masters and tests).
+pub fn decode_state(sw: u16) -> Option<State> {
+    Some(match (sw & 0x4F, sw & 0x6F) {
+        (0x00, _) => State::NotReadyToSwitchOn,
+        (0x40, _) => State::SwitchOnDisabled,
+        (_, 0x21) => State::ReadyToSwitchOn,
+        (_, 0x23) => State::SwitchedOn,
+        (_, 0x27) => State::OperationEnabled,
+        (_, 0x07) => State::QuickStopActive,
+        (0x0F, _) => State::FaultReactionActive,
+        (0x08, _) => State::Fault,
+        _ => return None,
+    })
+}
