@@ -1,0 +1,344 @@
+//! Shared test fixtures: a simple drive model and a bus-side helper.
+#![allow(dead_code)]
+
+use drive_protocol::{
+    AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, FrameEvent, Node, ParamError, Setpoint,
+};
+
+pub const ID: u8 = 5;
+pub const DT_US: u64 = 1000;
+
+/// 65536 inc per motor rev, 1:1, 10 mm screw, user unit 1 um: 6.5536 inc per um.
+pub fn info() -> DriveInfo {
+    DriveInfo {
+        encoder_increments_per_rev: 65536,
+        gear_motor_revs: 1,
+        gear_shaft_revs: 1,
+        feed_user_units: 10_000,
+        feed_shaft_revs: 1,
+        rated_torque_mnm: 5000,
+        rated_current_ma: 8000,
+        max_motor_speed_rpm: 3000,
+        rotary: false,
+    }
+}
+
+pub const INC_PER_UU: f64 = 6.5536;
+
+/// An ideal axis with a first-order lag (position, speed) or an integrator (torque).
+#[derive(Clone, Debug)]
+pub struct SimDrive {
+    pub pos: f64,
+    pub vel: f64,
+    pub dt: f64,
+    pub tau: f64,
+    pub fault: Option<u16>,
+    pub fault_persists: bool,
+    pub home_switch_above: Option<f64>,
+    pub params: [f64; 14],
+    pub last: Option<DriveCommand>,
+    pub commands: u64,
+    pub direct_offset: f64,
+    /// Extra position lag (to provoke following errors).
+    pub stuck: bool,
+}
+
+impl Default for SimDrive {
+    fn default() -> Self {
+        SimDrive {
+            pos: 0.0,
+            vel: 0.0,
+            dt: DT_US as f64 * 1e-6,
+            tau: 0.002,
+            fault: None,
+            fault_persists: false,
+            home_switch_above: None,
+            params: [0.0; 14],
+            last: None,
+            commands: 0,
+            direct_offset: 0.0,
+            stuck: false,
+        }
+    }
+}
+
+pub fn param_slot(p: AxisParam) -> usize {
+    match p {
+        AxisParam::Backlash => 0,
+        AxisParam::Stiffness => 1,
+        AxisParam::Damping => 2,
+        AxisParam::LoadCoulombFriction => 3,
+        AxisParam::LoadViscousFriction => 4,
+        AxisParam::MotorCoulombFriction => 5,
+        AxisParam::ExternalLoad => 6,
+        AxisParam::Kv => 7,
+        AxisParam::SpeedKp => 8,
+        AxisParam::SpeedTi => 9,
+        AxisParam::MotorEncoderNoise => 10,
+        AxisParam::DirectEncoderNoise => 11,
+        AxisParam::DirectEncoderOffset => 12,
+        AxisParam::PositionFromDirect => 13,
+        _ => 13,
+    }
+}
+
+impl Drive for SimDrive {
+    fn info(&self) -> DriveInfo {
+        info()
+    }
+    fn feedback(&self) -> Feedback {
+        Feedback {
+            motor_position_inc: self.pos.round() as i64,
+            direct_position_inc: (self.pos + self.direct_offset).round() as i64,
+            position_from_direct: false,
+            motor_velocity_inc_per_s: self.vel,
+            velocity_demand_inc_per_s: self.vel,
+            torque_permille: 0.0,
+            current_permille: 0.0,
+            home_switch: self.home_switch_above.is_some_and(|h| self.pos >= h),
+            negative_limit_switch: false,
+            positive_limit_switch: false,
+            drive_fault: self.fault,
+        }
+    }
+    fn command(&mut self, c: &DriveCommand) {
+        self.commands += 1;
+        self.last = Some(*c);
+        let a = 1.0 - (-self.dt / self.tau).exp();
+        if self.stuck {
+            self.vel = 0.0;
+            return;
+        }
+        match c.setpoint {
+            Setpoint::Disabled => {
+                self.vel *= 0.5;
+                self.pos += self.vel * self.dt;
+            }
+            Setpoint::Position { position_inc, .. } => {
+                let new = self.pos + (position_inc - self.pos) * a;
+                self.vel = (new - self.pos) / self.dt;
+                self.pos = new;
+            }
+            Setpoint::Velocity { velocity_inc_per_s, .. } => {
+                self.vel += (velocity_inc_per_s - self.vel) * a;
+                self.pos += self.vel * self.dt;
+            }
+            Setpoint::Torque { torque_permille } => {
+                self.vel += torque_permille * 100.0 * self.dt;
+                self.pos += self.vel * self.dt;
+            }
+        }
+    }
+    fn param(&self, p: AxisParam) -> Result<f64, ParamError> {
+        Ok(self.params[param_slot(p)])
+    }
+    fn set_param(&mut self, p: AxisParam, v: f64) -> Result<(), ParamError> {
+        if p == AxisParam::Backlash && !(0.0..=0.001).contains(&v) {
+            return Err(ParamError::OutOfRange { min: 0.0, max: 0.001 });
+        }
+        self.params[param_slot(p)] = v;
+        Ok(())
+    }
+    fn reset_fault(&mut self) -> bool {
+        if self.fault_persists {
+            return false;
+        }
+        self.fault = None;
+        true
+    }
+}
+
+/// A node, its drive and the bus as the master sees it.
+pub struct Bench {
+    pub node: Node,
+    pub drive: SimDrive,
+    pub now: u64,
+    /// Frames the node sent, oldest first.
+    pub tx: Vec<CanFrame>,
+}
+
+pub fn f(id: u32, data: &[u8]) -> CanFrame {
+    CanFrame::new(id, data)
+}
+
+impl Bench {
+    pub fn new() -> Bench {
+        Bench::with_id(ID)
+    }
+
+    pub fn with_id(id: u8) -> Bench {
+        let mut node = Node::new(id, info()).unwrap();
+        node.boot(0);
+        let mut b = Bench { node, drive: SimDrive::default(), now: 0, tx: Vec::new() };
+        b.drain();
+        b
+    }
+
+    pub fn id(&self) -> u32 {
+        self.node.node_id() as u32
+    }
+
+    pub fn drain(&mut self) {
+        while let Some(f) = self.node.pop_tx() {
+            self.tx.push(f);
+        }
+    }
+
+    pub fn take(&mut self) -> Vec<CanFrame> {
+        self.drain();
+        std::mem::take(&mut self.tx)
+    }
+
+    /// Frames with a given COB-ID taken so far (and removes nothing).
+    pub fn sent(&self, id: u32) -> Vec<CanFrame> {
+        self.tx.iter().filter(|f| f.id == id).copied().collect()
+    }
+
+    pub fn tick(&mut self) {
+        self.now += DT_US;
+        self.node.poll(self.now, &mut self.drive);
+        self.drain();
+    }
+
+    pub fn ticks(&mut self, n: usize) {
+        for _ in 0..n {
+            self.tick();
+        }
+    }
+
+    /// Advance time to `t_us` in ticks.
+    pub fn run_until(&mut self, t_us: u64) {
+        while self.now + DT_US <= t_us {
+            self.tick();
+        }
+    }
+
+    pub fn send(&mut self, fr: CanFrame) -> FrameEvent {
+        let e = self.node.handle(&fr, self.now, &mut self.drive);
+        self.drain();
+        e
+    }
+
+    pub fn nmt(&mut self, cs: u8, target: u8) -> FrameEvent {
+        self.send(f(0, &[cs, target]))
+    }
+
+    pub fn start(&mut self) {
+        let id = self.id() as u8;
+        self.nmt(1, id);
+    }
+
+    pub fn sync(&mut self) -> FrameEvent {
+        self.send(f(0x80, &[]))
+    }
+
+    /// Send a raw SDO request and return the response frame(s).
+    pub fn sdo_raw(&mut self, req: [u8; 8]) -> Vec<CanFrame> {
+        self.take();
+        self.send(f(0x600 + self.id(), &req));
+        let id = 0x580 + self.id();
+        self.take().into_iter().filter(|f| f.id == id).collect()
+    }
+
+    pub fn sdo_write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), u32> {
+        assert!(data.len() <= 4 && !data.is_empty());
+        let i = index.to_le_bytes();
+        let mut req = [0x23 | (((4 - data.len()) as u8) << 2), i[0], i[1], sub, 0, 0, 0, 0];
+        req[4..4 + data.len()].copy_from_slice(data);
+        let r = self.sdo_raw(req);
+        assert_eq!(r.len(), 1, "one response to an expedited download");
+        let d = r[0].data;
+        assert_eq!(&d[1..4], &[i[0], i[1], sub], "multiplexer echoed");
+        match d[0] {
+            0x60 => Ok(()),
+            0x80 => Err(u32::from_le_bytes([d[4], d[5], d[6], d[7]])),
+            x => panic!("unexpected response {x:#x}"),
+        }
+    }
+
+    pub fn w8(&mut self, index: u16, sub: u8, v: u8) -> Result<(), u32> {
+        self.sdo_write(index, sub, &[v])
+    }
+    pub fn w16(&mut self, index: u16, sub: u8, v: u16) -> Result<(), u32> {
+        self.sdo_write(index, sub, &v.to_le_bytes())
+    }
+    pub fn w32(&mut self, index: u16, sub: u8, v: u32) -> Result<(), u32> {
+        self.sdo_write(index, sub, &v.to_le_bytes())
+    }
+
+    /// Read with expedited or segmented upload.
+    pub fn sdo_read(&mut self, index: u16, sub: u8) -> Result<Vec<u8>, u32> {
+        let i = index.to_le_bytes();
+        let r = self.sdo_raw([0x40, i[0], i[1], sub, 0, 0, 0, 0]);
+        assert_eq!(r.len(), 1);
+        let d = r[0].data;
+        if d[0] == 0x80 {
+            return Err(u32::from_le_bytes([d[4], d[5], d[6], d[7]]));
+        }
+        assert_eq!(&d[1..4], &[i[0], i[1], sub]);
+        if d[0] & 0x02 != 0 {
+            let n = if d[0] & 1 != 0 { 4 - ((d[0] >> 2) & 3) as usize } else { 4 };
+            return Ok(d[4..4 + n].to_vec());
+        }
+        let size = u32::from_le_bytes([d[4], d[5], d[6], d[7]]) as usize;
+        let mut out = Vec::new();
+        let mut t = 0u8;
+        loop {
+            let r = self.sdo_raw([0x60 | t, 0, 0, 0, 0, 0, 0, 0]);
+            let d = r[0].data;
+            if d[0] == 0x80 {
+                return Err(u32::from_le_bytes([d[4], d[5], d[6], d[7]]));
+            }
+            assert_eq!(d[0] & 0x10, t, "toggle");
+            let n = 7 - ((d[0] >> 1) & 7) as usize;
+            out.extend_from_slice(&d[1..1 + n]);
+            if d[0] & 1 != 0 {
+                break;
+            }
+            t ^= 0x10;
+        }
+        assert_eq!(out.len(), size);
+        Ok(out)
+    }
+
+    pub fn r32(&mut self, index: u16, sub: u8) -> u32 {
+        let v = self.sdo_read(index, sub).expect("read");
+        let mut b = [0u8; 4];
+        b[..v.len()].copy_from_slice(&v);
+        u32::from_le_bytes(b)
+    }
+
+    pub fn ri32(&mut self, index: u16, sub: u8) -> i32 {
+        let v = self.sdo_read(index, sub).expect("read");
+        match v.len() {
+            1 => v[0] as i8 as i32,
+            2 => i16::from_le_bytes([v[0], v[1]]) as i32,
+            _ => i32::from_le_bytes([v[0], v[1], v[2], v[3]]),
+        }
+    }
+
+    pub fn cw(&mut self, v: u16) {
+        self.w16(0x6040, 0, v).unwrap();
+    }
+
+    pub fn statusword(&mut self) -> u16 {
+        self.r32(0x6041, 0) as u16
+    }
+
+    /// Enable operation in `mode` via SDO (shutdown, switch on, enable).
+    pub fn enable(&mut self, mode: i8) {
+        self.w8(0x6060, 0, mode as u8).unwrap();
+        self.cw(0x06);
+        self.tick();
+        self.cw(0x07);
+        self.tick();
+        self.cw(0x0F);
+        self.tick();
+        assert_eq!(self.node.statusword() & 0x6F, 0x27, "operation enabled");
+    }
+
+    /// EMCY codes sent so far.
+    pub fn emcys(&self) -> Vec<u16> {
+        self.sent(0x80 + self.id()).iter().map(|f| u16::from_le_bytes([f.data[0], f.data[1]])).collect()
+    }
+}
