@@ -1,1 +1,206 @@
-//! (being written)
+//! The simulated CNC feed axis: motor with current loop, two-mass drive train with backlash,
+//! friction, gravity/counterbalance, external load, and two encoders.
+//!
+//! One [`Axis::substep`] runs the pipeline stages in order: current loop (motor torque) ->
+//! mechanics (one integration step) . Encoders are sampled by the controller at its own cycle
+//! ([`Axis::read_motor_encoder`], [`Axis::read_direct_encoder`]). Everything is SI; the load
+//! coordinate is m for a linear axis and rad for a rotary axis. No CANopen here.
+
+pub mod backlash;
+pub mod encoder;
+pub mod friction;
+pub mod mechanics;
+pub mod motor;
+
+pub use backlash::Contact;
+pub use encoder::{Encoder, EncoderParams, XorShift64};
+pub use friction::Friction;
+pub use mechanics::{MechParams, MechState, Mechanics, GRAVITY};
+pub use motor::{Motor, MotorParams};
+
+/// Everything needed to build an [`Axis`] (SI).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisParams {
+    pub mech: MechParams,
+    pub motor: MotorParams,
+    /// Motor encoder: counts per motor radian.
+    pub motor_encoder: EncoderParams,
+    /// Direct encoder (linear scale or table encoder): counts per load unit (m or rad).
+    pub direct_encoder: EncoderParams,
+    /// True for a rotary (table) axis, false for a linear axis.
+    pub rotary: bool,
+    /// Physics step, s.
+    pub step: f64,
+}
+
+/// Why an axis could not be built.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepTooCoarse {
+    pub step: f64,
+    pub max_step: f64,
+}
+
+impl std::fmt::Display for StepTooCoarse {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "physics step {:.3} us is too coarse for the drive-train stiffness: at most {:.3} us \
+             (omega_n h <= 0.5, c h / m_red <= 0.5)",
+            self.step * 1e6,
+            self.max_step * 1e6
+        )
+    }
+}
+
+impl std::error::Error for StepTooCoarse {}
+
+/// The axis: physics plus sensors.
+#[derive(Clone, Debug)]
+pub struct Axis {
+    pub mech: Mechanics,
+    pub motor: Motor,
+    pub motor_encoder: Encoder,
+    pub direct_encoder: Encoder,
+    rotary: bool,
+    step: f64,
+    external_load: f64,
+    time: f64,
+    steps: u64,
+}
+
+impl Axis {
+    /// Build the axis at rest, in contact-free centre of the gap, at position 0.
+    pub fn new(params: AxisParams) -> Result<Self, StepTooCoarse> {
+        let max_step = params.mech.max_step();
+        if !(params.step <= max_step) {
+            return Err(StepTooCoarse {
+                step: params.step,
+                max_step,
+            });
+        }
+        Ok(Axis {
+            mech: Mechanics::new(params.mech),
+            motor: Motor::new(params.motor, params.step),
+            motor_encoder: Encoder::new(params.motor_encoder),
+            direct_encoder: Encoder::new(params.direct_encoder),
+            rotary: params.rotary,
+            step: params.step,
+            external_load: 0.0,
+            time: 0.0,
+            steps: 0,
+        })
+    }
+
+    /// One physics step: current loop, then mechanics.
+    #[inline(always)]
+    pub fn substep(&mut self) {
+        let tau = self.motor.step();
+        self.mech.step(tau, self.external_load, self.step);
+        self.steps += 1;
+        self.time = self.steps as f64 * self.step;
+    }
+
+    /// Physics step, s.
+    pub fn step_size(&self) -> f64 {
+        self.step
+    }
+
+    /// Simulated time, s.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    pub fn is_rotary(&self) -> bool {
+        self.rotary
+    }
+
+    /// Kinematic ratio: motor rad per load unit (rad/m for linear, rad/rad for rotary axes).
+    pub fn ratio(&self) -> f64 {
+        self.mech.params.ratio
+    }
+
+    /// Sample the motor encoder (counts).
+    #[inline(always)]
+    pub fn read_motor_encoder(&mut self) -> i64 {
+        self.motor_encoder.read(self.mech.state.pos[0])
+    }
+
+    /// Sample the direct encoder (counts).
+    #[inline(always)]
+    pub fn read_direct_encoder(&mut self) -> i64 {
+        self.direct_encoder.read(self.mech.state.pos[1])
+    }
+
+    // ---- true state (for traces and tests only; controllers use the encoders) ----
+
+    /// True motor angle, rad.
+    pub fn motor_angle(&self) -> f64 {
+        self.mech.state.pos[0]
+    }
+    /// True motor speed, rad/s.
+    pub fn motor_speed(&self) -> f64 {
+        self.mech.state.vel[0]
+    }
+    /// True load position, m or rad.
+    pub fn load_position(&self) -> f64 {
+        self.mech.state.pos[1]
+    }
+    /// True load velocity, m/s or rad/s.
+    pub fn load_velocity(&self) -> f64 {
+        self.mech.state.vel[1]
+    }
+
+    /// Put both masses at `load_position` (m or rad), at rest, the gap centred.
+    pub fn set_position(&mut self, load_position: f64) {
+        self.mech.state.pos[1] = load_position;
+        self.mech.state.pos[0] = load_position * self.mech.params.ratio;
+        self.mech.state.vel = nalgebra::Vector2::zeros();
+    }
+
+    // ---- parameter setters (take effect at the next step) ----
+
+    pub fn external_load(&self) -> f64 {
+        self.external_load
+    }
+    /// External load force (N) or torque (N m) on the load, e.g. a cutting force.
+    pub fn set_external_load(&mut self, f: f64) {
+        self.external_load = f;
+    }
+    pub fn set_backlash(&mut self, backlash: f64) {
+        let mut p = self.mech.params;
+        p.contact.backlash = backlash;
+        self.mech.set_params(p);
+    }
+    /// Stiffness at the load; rejected (returns the limit) if the step would become too coarse.
+    pub fn set_stiffness(&mut self, stiffness: f64) -> Result<(), StepTooCoarse> {
+        let mut p = self.mech.params;
+        p.contact.stiffness = stiffness;
+        self.try_set_mech(p)
+    }
+    pub fn set_damping(&mut self, damping: f64) -> Result<(), StepTooCoarse> {
+        let mut p = self.mech.params;
+        p.contact.damping = damping;
+        self.try_set_mech(p)
+    }
+    pub fn set_load_friction(&mut self, friction: Friction) {
+        let mut p = self.mech.params;
+        p.load_friction = friction;
+        self.mech.set_params(p);
+    }
+    pub fn set_motor_friction(&mut self, friction: Friction) {
+        let mut p = self.mech.params;
+        p.motor_friction = friction;
+        self.mech.set_params(p);
+    }
+    fn try_set_mech(&mut self, p: MechParams) -> Result<(), StepTooCoarse> {
+        let max_step = p.max_step();
+        if !(self.step <= max_step) {
+            return Err(StepTooCoarse {
+                step: self.step,
+                max_step,
+            });
+        }
+        self.mech.set_params(p);
+        Ok(())
+    }
+}

@@ -1,1 +1,3 @@
-//! (being written)
+//! Command-line subcommands.
+
+pub mod sim;

@@ -1,0 +1,419 @@
+//! Backlash detection after Moosavian & MohammadiAsl: at constant commanded speed (set
+//! acceleration zero) a backlashed axis runs into a limit cycle whose fundamental, visible in
+//! the FFT of motor speed and motor current, lies between k_v/4 and k_v (Hz, k_v in 1/s; about
+//! 0.6 k_v) and does not depend on the gap, while its amplitude grows with the gap.
+//!
+//! Method, per constant-velocity window ([`super::windows`]):
+//! 1. fundamental of the motor speed and of the motor current in a search band wider than the
+//!    paper's (k_v/8 .. 2 k_v, below Nyquist/1.25), so a peak outside the band is seen and
+//!    rejected rather than missed;
+//! 2. displacement-equivalent amplitude of the speed fluctuation, `x = A_v / (2 pi f)` (um or
+//!    mdeg: the trace's position unit), and the peak's prominence over the band's median;
+//! 3. the window is flagged `backlash_suspected` when the peak is inside k_v/4 .. k_v, prominent,
+//!    and `x >= suspect_um`; `backlash` when also `x >= alarm_um`;
+//! 4. the verdict is the lowest level among the last `confirm_windows` windows (so one noisy
+//!    window neither raises nor clears an alarm); severity = x / alarm_um of those windows.
+//!
+//! Alongside: the amplitude trend over time (least squares, per hour), the first time each
+//! level was confirmed, and the difference between motor and direct encoder (mean per window,
+//! fluctuation, and the lost motion between opposite directions when both are present).
+
+use super::spectrum::SpectrumAnalyzer;
+use super::windows::{constant_velocity_windows, median_dt, Window, WindowOptions};
+use std::collections::HashMap;
+
+/// A trace as the detector needs it. Positions in one unit `u` (um for a linear axis, mdeg for a
+/// rotary one: the master's user units), velocities in u/s, current in any unit (per mille of
+/// rated current for the master's log, A for the simulator's trace).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct AxisTrace {
+    pub t_s: Vec<f64>,
+    pub set_velocity: Vec<f64>,
+    pub motor_velocity: Vec<f64>,
+    pub current: Vec<f64>,
+    pub motor_position: Vec<f64>,
+    pub direct_position: Vec<f64>,
+    /// Unit names for reports, e.g. ("um", "permille").
+    pub position_unit: String,
+    pub current_unit: String,
+}
+
+impl AxisTrace {
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+    /// Check that every column has the same length.
+    pub fn check(&self) -> Result<(), String> {
+        let n = self.t_s.len();
+        for (name, c) in [
+            ("set_velocity", &self.set_velocity),
+            ("motor_velocity", &self.motor_velocity),
+            ("current", &self.current),
+            ("motor_position", &self.motor_position),
+            ("direct_position", &self.direct_position),
+        ] {
+            if c.len() != n {
+                return Err(format!("column {name} has {} samples, time has {n}", c.len()));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Detector verdict.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    Ok,
+    BacklashSuspected,
+    Backlash,
+}
+
+impl Verdict {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Verdict::Ok => "ok",
+            Verdict::BacklashSuspected => "backlash_suspected",
+            Verdict::Backlash => "backlash",
+        }
+    }
+}
+
+/// Detector settings.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct DetectorConfig {
+    /// Position-loop gain, 1/s.
+    pub kv_per_s: f64,
+    /// Displacement-equivalent amplitude (trace position unit) for `backlash_suspected`.
+    pub suspect_um: f64,
+    /// ... and for `backlash`.
+    pub alarm_um: f64,
+    /// Peak amplitude over the median of the search band's spectrum, at least.
+    pub min_prominence: f64,
+    /// Windows in a row at a level before the verdict takes it.
+    pub confirm_windows: usize,
+    pub windows: WindowOptions,
+}
+
+impl DetectorConfig {
+    pub fn new(kv_per_s: f64) -> Self {
+        Self {
+            kv_per_s,
+            suspect_um: 1.0,
+            alarm_um: 3.0,
+            min_prominence: 8.0,
+            confirm_windows: 2,
+            windows: WindowOptions::default(),
+        }
+    }
+    /// The paper's band, Hz: k_v/4 .. k_v (eq. 11, 12).
+    pub fn band_hz(&self) -> (f64, f64) {
+        (self.kv_per_s / 4.0, self.kv_per_s)
+    }
+    /// Where peaks are searched, Hz.
+    pub fn search_band_hz(&self, sample_rate_hz: f64) -> (f64, f64) {
+        (
+            (self.kv_per_s / 8.0).max(0.5),
+            (2.0 * self.kv_per_s).min(sample_rate_hz / 2.5),
+        )
+    }
+}
+
+/// The analysis of one window.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct WindowResult {
+    pub t_start_s: f64,
+    pub t_end_s: f64,
+    pub start: usize,
+    pub end: usize,
+    pub set_velocity: f64,
+    /// Fundamental of the motor speed, Hz, and its amplitude (zero-to-peak, u/s).
+    pub speed_hz: Option<f64>,
+    pub speed_amplitude: f64,
+    /// Fundamental of the motor current, Hz, and its amplitude (current unit).
+    pub current_hz: Option<f64>,
+    pub current_amplitude: f64,
+    /// Displacement-equivalent amplitude of the speed fluctuation, position unit.
+    pub displacement_amplitude: f64,
+    pub prominence: f64,
+    pub in_band: bool,
+    /// Speed and current peaks agree within 10 %.
+    pub current_agrees: bool,
+    /// Mean and half peak-to-peak of motor minus direct position.
+    pub encoder_difference_mean: f64,
+    pub encoder_difference_half_pp: f64,
+    pub level: Verdict,
+}
+
+/// The detector's result for a trace.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct DetectorReport {
+    pub kv_per_s: f64,
+    pub band_hz: (f64, f64),
+    pub config: DetectorConfig,
+    pub verdict: Verdict,
+    /// Displacement amplitude of the deciding windows over `alarm_um` (1.0 = at the alarm).
+    pub severity: f64,
+    /// Median displacement amplitude of the deciding windows, position unit.
+    pub amplitude: f64,
+    /// Median fundamental of the flagged windows (None if none flagged), Hz.
+    pub frequency_hz: Option<f64>,
+    pub frequency_over_kv: Option<f64>,
+    /// Median fundamental of all windows, flagged or not, Hz.
+    pub dominant_hz: Option<f64>,
+    /// When each level was first confirmed (end of the confirming window), s.
+    pub first_suspected_s: Option<f64>,
+    pub first_backlash_s: Option<f64>,
+    /// Least-squares slope of the displacement amplitude over time, position unit per hour.
+    pub amplitude_trend_per_h: Option<f64>,
+    /// Mean(motor - direct) at positive minus at negative speed: the lost motion at reversal
+    /// (backlash plus elastic wind-up), position unit; None without both directions or when the
+    /// trace has no independent motor position.
+    pub lost_motion: Option<f64>,
+    pub position_unit: String,
+    pub windows: Vec<WindowResult>,
+}
+
+fn median(v: &mut [f64]) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    Some(if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    })
+}
+
+/// Least-squares slope of y over x.
+fn slope(x: &[f64], y: &[f64]) -> Option<f64> {
+    if x.len() < 2 {
+        return None;
+    }
+    let n = x.len() as f64;
+    let mx = x.iter().sum::<f64>() / n;
+    let my = y.iter().sum::<f64>() / n;
+    let sxx: f64 = x.iter().map(|a| (a - mx) * (a - mx)).sum();
+    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+/// Analyze one window (exposed for tests and plots).
+pub fn analyze_window(
+    trace: &AxisTrace,
+    w: &Window,
+    cfg: &DetectorConfig,
+    analyzers: &mut HashMap<usize, SpectrumAnalyzer>,
+) -> WindowResult {
+    let dt = median_dt(&trace.t_s[w.start..w.end]);
+    let fs = if dt > 0.0 { 1.0 / dt } else { 1.0 };
+    let band = cfg.search_band_hz(fs);
+    let n = w.len();
+    let an = analyzers
+        .entry(n)
+        .or_insert_with(|| SpectrumAnalyzer::new(n));
+    let speed = an.fundamental(&trace.motor_velocity[w.start..w.end], fs, band);
+    let prominence = match speed {
+        Some(p) => {
+            let df = fs / n as f64;
+            let lo = ((band.0 / df).ceil() as usize).max(1);
+            let hi = ((band.1 / df).floor() as usize).min(an.amplitudes().len() - 1);
+            let mut m: Vec<f64> = an.amplitudes()[lo..=hi.max(lo)].to_vec();
+            let med = median(&mut m).unwrap_or(0.0);
+            if med > 0.0 {
+                p.amplitude / med
+            } else {
+                f64::INFINITY
+            }
+        }
+        None => 0.0,
+    };
+    let current = an.fundamental(&trace.current[w.start..w.end], fs, band);
+    let (speed_hz, speed_amplitude) = speed.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
+    let (current_hz, current_amplitude) =
+        current.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
+    let displacement_amplitude = match speed_hz {
+        Some(f) if f > 0.0 => speed_amplitude / (2.0 * std::f64::consts::PI * f),
+        _ => 0.0,
+    };
+    let (lo, hi) = cfg.band_hz();
+    let in_band = speed_hz.is_some_and(|f| f >= lo && f <= hi);
+    let current_agrees = match (speed_hz, current_hz) {
+        (Some(a), Some(b)) => (a - b).abs() <= 0.1 * a,
+        _ => false,
+    };
+    // Motor minus direct encoder.
+    let diff: Vec<f64> = (w.start..w.end)
+        .map(|i| trace.motor_position[i] - trace.direct_position[i])
+        .collect();
+    let mean = diff.iter().sum::<f64>() / n.max(1) as f64;
+    let half_pp = super::spectrum::half_peak_to_peak(&diff);
+    let level = if in_band && prominence >= cfg.min_prominence {
+        if displacement_amplitude >= cfg.alarm_um {
+            Verdict::Backlash
+        } else if displacement_amplitude >= cfg.suspect_um {
+            Verdict::BacklashSuspected
+        } else {
+            Verdict::Ok
+        }
+    } else {
+        Verdict::Ok
+    };
+    WindowResult {
+        t_start_s: trace.t_s[w.start],
+        t_end_s: trace.t_s[w.end - 1],
+        start: w.start,
+        end: w.end,
+        set_velocity: w.velocity,
+        speed_hz,
+        speed_amplitude,
+        current_hz,
+        current_amplitude,
+        displacement_amplitude,
+        prominence,
+        in_band,
+        current_agrees,
+        encoder_difference_mean: mean,
+        encoder_difference_half_pp: half_pp,
+        level,
+    }
+}
+
+/// Run the detector on a trace.
+pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
+    let windows = constant_velocity_windows(&trace.t_s, &trace.set_velocity, &cfg.windows);
+    let mut analyzers = HashMap::new();
+    let results: Vec<WindowResult> = windows
+        .iter()
+        .filter(|w| w.len() >= 16)
+        .map(|w| analyze_window(trace, w, cfg, &mut analyzers))
+        .collect();
+    summarize(results, trace, cfg)
+}
+
+fn summarize(results: Vec<WindowResult>, trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
+    let k = cfg.confirm_windows.max(1);
+    // Confirmed level after each window: the lowest of the last k levels.
+    let mut first_suspected_s = None;
+    let mut first_backlash_s = None;
+    for i in 0..results.len() {
+        if i + 1 < k {
+            continue;
+        }
+        let lvl = results[i + 1 - k..=i].iter().map(|r| r.level).min().unwrap_or(Verdict::Ok);
+        if lvl >= Verdict::BacklashSuspected && first_suspected_s.is_none() {
+            first_suspected_s = Some(results[i].t_end_s);
+        }
+        if lvl >= Verdict::Backlash && first_backlash_s.is_none() {
+            first_backlash_s = Some(results[i].t_end_s);
+        }
+    }
+    let last = &results[results.len().saturating_sub(k)..];
+    let verdict = if results.len() >= k {
+        last.iter().map(|r| r.level).min().unwrap_or(Verdict::Ok)
+    } else {
+        Verdict::Ok
+    };
+    let amplitude = median(&mut last.iter().map(|r| r.displacement_amplitude).collect::<Vec<_>>())
+        .unwrap_or(0.0);
+    let severity = amplitude / cfg.alarm_um;
+    let frequency_hz = median(
+        &mut results
+            .iter()
+            .filter(|r| r.level > Verdict::Ok)
+            .filter_map(|r| r.speed_hz)
+            .collect::<Vec<_>>(),
+    );
+    let dominant_hz = median(&mut results.iter().filter_map(|r| r.speed_hz).collect::<Vec<_>>());
+    let ts: Vec<f64> = results.iter().map(|r| 0.5 * (r.t_start_s + r.t_end_s) / 3600.0).collect();
+    let amps: Vec<f64> = results.iter().map(|r| r.displacement_amplitude).collect();
+    let amplitude_trend_per_h = slope(&ts, &amps);
+    // Lost motion: needs an independent motor position (not a copy of the direct one).
+    let independent = trace
+        .motor_position
+        .iter()
+        .zip(&trace.direct_position)
+        .any(|(a, b)| a != b);
+    let mean_dir = |pos: bool| {
+        let v: Vec<f64> = results
+            .iter()
+            .filter(|r| (r.set_velocity > 0.0) == pos)
+            .map(|r| r.encoder_difference_mean)
+            .collect();
+        (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+    };
+    let lost_motion = match (independent, mean_dir(true), mean_dir(false)) {
+        (true, Some(p), Some(n)) => Some(p - n),
+        _ => None,
+    };
+    DetectorReport {
+        kv_per_s: cfg.kv_per_s,
+        band_hz: cfg.band_hz(),
+        config: *cfg,
+        verdict,
+        severity,
+        amplitude,
+        frequency_hz,
+        frequency_over_kv: frequency_hz.map(|f| f / cfg.kv_per_s),
+        dominant_hz,
+        first_suspected_s,
+        first_backlash_s,
+        amplitude_trend_per_h,
+        lost_motion,
+        position_unit: trace.position_unit.clone(),
+        windows: results,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A synthetic cruise with a limit cycle of displacement amplitude `x` at `f` Hz.
+    fn synth(x: f64, f: f64, secs: f64) -> AxisTrace {
+        let mut tr = AxisTrace::default();
+        let n = (secs * 1000.0) as usize;
+        let w = 2.0 * std::f64::consts::PI * f;
+        for i in 0..n {
+            let t = i as f64 * 1e-3;
+            let v = if t < 0.2 { 5000.0 * t } else { 1000.0 };
+            let osc = x * w * (w * t).cos();
+            let noise = ((i * 7919) % 13) as f64 * 0.01;
+            tr.t_s.push(t);
+            tr.set_velocity.push(v);
+            tr.motor_velocity.push(v + osc + noise);
+            tr.current.push(100.0 + 20.0 * (w * t).sin() + noise);
+            tr.motor_position.push(1000.0 * t + x * (w * t).sin());
+            tr.direct_position.push(1000.0 * t);
+        }
+        tr
+    }
+
+    #[test]
+    fn flags_a_limit_cycle_in_band_and_ignores_a_clean_cruise() {
+        let cfg = DetectorConfig::new(30.0);
+        let r = analyze(&synth(10.0, 18.0, 10.0), &cfg);
+        assert_eq!(r.verdict, Verdict::Backlash, "{r:#?}");
+        let f = r.frequency_hz.unwrap();
+        assert!((f - 18.0).abs() < 0.3, "{f}");
+        assert!((r.amplitude - 10.0).abs() < 1.0, "{}", r.amplitude);
+        let clean = analyze(&synth(0.0, 18.0, 10.0), &cfg);
+        assert_eq!(clean.verdict, Verdict::Ok);
+        assert_eq!(clean.frequency_hz, None);
+    }
+
+    #[test]
+    fn a_peak_outside_the_band_is_not_backlash() {
+        let cfg = DetectorConfig::new(30.0);
+        let r = analyze(&synth(10.0, 45.0, 10.0), &cfg);
+        assert!(r.windows.iter().all(|w| !w.in_band));
+        assert_eq!(r.verdict, Verdict::Ok);
+    }
+}

@@ -1,0 +1,215 @@
+//! The paper's experiment: an axis in closed position loop follows a constant-velocity
+//! set-point; after the start-up transient, the spectrum of the measured motor speed (and of
+//! the motor current) gives the vibration's fundamental frequency and amplitude.
+
+use crate::control::{Command, Servo, Setpoint, VelocityProfile};
+use crate::presets::{AxisConfig, ConfigError};
+
+use super::spectrum::{half_peak_to_peak, SpectrumAnalyzer};
+
+/// How to run the experiment. Velocities in axis units (mm/s or deg/s).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RunOptions {
+    /// Commanded constant velocity, mm/s (linear) or deg/s (rotary).
+    pub velocity: f64,
+    /// Simulated time, s.
+    pub duration: f64,
+    /// Acceleration of the start ramp, axis units/s^2 (<= 0: reach the velocity in 0.1 s).
+    pub accel: f64,
+    /// Keep the full trace (otherwise only the analysis window's signals).
+    pub record: bool,
+    /// Start disturbance: a velocity change of the load (axis units/s) given by a short
+    /// external force pulse (5 ms) right after the start ramp, like a knock on the carriage.
+    /// The backlash limit cycle is a hard excitation: it needs a disturbance to start.
+    pub kick: f64,
+}
+
+impl RunOptions {
+    pub fn new(velocity: f64, duration: f64) -> Self {
+        RunOptions {
+            velocity,
+            duration,
+            accel: 0.0,
+            record: false,
+            kick: 0.0,
+        }
+    }
+}
+
+/// Sampled signals, one row per position cycle. Positions and velocities in axis units
+/// (mm, mm/s or deg, deg/s), motor speed in rpm, torque N m, current A.
+#[derive(Clone, Debug, Default)]
+pub struct Trace {
+    pub time_s: Vec<f64>,
+    pub position_setpoint: Vec<f64>,
+    pub direct_position: Vec<f64>,
+    pub motor_position: Vec<f64>,
+    pub motor_velocity_rpm: Vec<f64>,
+    pub load_velocity: Vec<f64>,
+    pub torque_nm: Vec<f64>,
+    pub current_a: Vec<f64>,
+    pub following_error: Vec<f64>,
+}
+
+impl Trace {
+    fn with_capacity(n: usize) -> Self {
+        Trace {
+            time_s: Vec::with_capacity(n),
+            position_setpoint: Vec::with_capacity(n),
+            direct_position: Vec::with_capacity(n),
+            motor_position: Vec::with_capacity(n),
+            motor_velocity_rpm: Vec::with_capacity(n),
+            load_velocity: Vec::with_capacity(n),
+            torque_nm: Vec::with_capacity(n),
+            current_a: Vec::with_capacity(n),
+            following_error: Vec::with_capacity(n),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.time_s.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.time_s.is_empty()
+    }
+}
+
+/// What the experiment found.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct RunSummary {
+    pub preset: String,
+    pub unit: String,
+    pub velocity: f64,
+    pub kv_per_s: f64,
+    pub backlash: f64,
+    /// Fundamental frequency of the measured motor speed, Hz (None if the signal is flat).
+    pub fundamental_hz: Option<f64>,
+    pub f_over_kv: Option<f64>,
+    /// Amplitude of the fundamental line of the measured motor speed, rpm.
+    pub motor_velocity_amplitude_rpm: f64,
+    /// Half the peak-to-peak excursion of the measured motor speed, rpm.
+    pub motor_velocity_half_p2p_rpm: f64,
+    /// Fundamental frequency and amplitude of the motor current, Hz and A.
+    pub current_fundamental_hz: Option<f64>,
+    pub current_amplitude_a: f64,
+    /// Amplitude (half peak-to-peak) of the true load velocity, axis units/s.
+    pub load_velocity_half_p2p: f64,
+    /// Amplitude (half peak-to-peak) of the following error, axis units.
+    pub following_error_half_p2p: f64,
+    /// Mean motor speed in the window, rpm.
+    pub mean_motor_velocity_rpm: f64,
+    pub window_start_s: f64,
+    pub window_end_s: f64,
+}
+
+/// Trace (full if requested, else the analysis window only) and the summary.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    pub trace: Trace,
+    pub summary: RunSummary,
+}
+
+/// Search band for the fundamental, Hz: wide, so that the result is not forced into the
+/// paper's k_v/4 .. k_v band.
+pub const SEARCH_BAND_HZ: (f64, f64) = (1.0, 200.0);
+
+/// Run the constant-velocity experiment on a configured axis.
+pub fn constant_velocity_run(cfg: &AxisConfig, opts: &RunOptions) -> Result<RunResult, ConfigError> {
+    let built = cfg.build()?;
+    let unit = built.display_unit;
+    let mut servo = Servo::new(built.axis, built.control).map_err(|e| ConfigError {
+        key: "physics_step_us".into(),
+        reason: e.to_string(),
+    })?;
+    let dt = servo.cycle_time();
+    let v = opts.velocity * unit;
+    let accel = if opts.accel > 0.0 {
+        opts.accel * unit
+    } else {
+        (v / 0.1).abs().max(1e-12)
+    };
+    let ramp = (v / accel).abs();
+    let mut profile = VelocityProfile::constant(0.0, v, accel);
+    let n = (opts.duration / dt).round() as usize;
+    let skip = ramp + (0.4 * (opts.duration - ramp)).clamp(0.0, 1.5);
+    let first = ((skip / dt).ceil() as usize).min(n);
+    let mut trace = Trace::with_capacity(if opts.record { n } else { n - first });
+    let ratio = servo.axis.ratio();
+    let to_rpm = 30.0 / std::f64::consts::PI;
+    let kick_start = ((ramp / dt).ceil() as usize).min(n);
+    let kick_cycles = ((0.005 / dt).round() as usize).max(1);
+    let kick_force = built.axis.mech.load_mass * opts.kick * unit / (kick_cycles as f64 * dt);
+    for i in 0..n {
+        if opts.kick != 0.0 {
+            let on = i >= kick_start && i < kick_start + kick_cycles;
+            servo.axis.set_external_load(if on { kick_force } else { 0.0 });
+        }
+        let s = profile.next(dt);
+        servo.set_command(Command::new(Setpoint::Position {
+            position: s.position,
+            velocity_ff: 0.0,
+            torque_ff: 0.0,
+        }));
+        servo.step();
+        if opts.record || i >= first {
+            trace.time_s.push(servo.time());
+            trace.position_setpoint.push(s.position / unit);
+            trace
+                .direct_position
+                .push(servo.direct_encoder_position() / unit);
+            trace
+                .motor_position
+                .push(servo.motor_encoder_position() / unit);
+            trace.motor_velocity_rpm.push(servo.motor_velocity() * to_rpm);
+            trace.load_velocity.push(servo.axis.load_velocity() / unit);
+            trace.torque_nm.push(servo.torque());
+            trace.current_a.push(servo.current());
+            trace.following_error.push(servo.following_error() / unit);
+        }
+    }
+    let start = if opts.record { first } else { 0 };
+    let w = |x: &Vec<f64>| x[start..].to_vec();
+    let speed = w(&trace.motor_velocity_rpm);
+    let current = w(&trace.current_a);
+    let rate = 1.0 / dt;
+    let mut an = SpectrumAnalyzer::new(speed.len().max(8));
+    let (f, amp) = if speed.len() >= 8 {
+        match an.fundamental(&speed, rate, SEARCH_BAND_HZ) {
+            Some(p) => (Some(p.frequency_hz), p.amplitude),
+            None => (None, 0.0),
+        }
+    } else {
+        (None, 0.0)
+    };
+    let (fi, ampi) = if current.len() >= 8 {
+        match an.fundamental(&current, rate, SEARCH_BAND_HZ) {
+            Some(p) => (Some(p.frequency_hz), p.amplitude),
+            None => (None, 0.0),
+        }
+    } else {
+        (None, 0.0)
+    };
+    let kv = built.control.kv;
+    let mean_speed = speed.iter().sum::<f64>() / speed.len().max(1) as f64;
+    let summary = RunSummary {
+        preset: cfg.name.clone(),
+        unit: built.display_unit_name.to_string(),
+        velocity: opts.velocity,
+        kv_per_s: kv,
+        backlash: built.axis.mech.contact.backlash / unit,
+        fundamental_hz: f,
+        f_over_kv: f.map(|f| f / kv),
+        motor_velocity_amplitude_rpm: amp,
+        motor_velocity_half_p2p_rpm: half_peak_to_peak(&speed),
+        current_fundamental_hz: fi,
+        current_amplitude_a: ampi,
+        load_velocity_half_p2p: half_peak_to_peak(&w(&trace.load_velocity)),
+        following_error_half_p2p: half_peak_to_peak(&w(&trace.following_error)),
+        mean_motor_velocity_rpm: mean_speed,
+        window_start_s: first as f64 * dt,
+        window_end_s: n as f64 * dt,
+    };
+    let _ = ratio;
+    Ok(RunResult { trace, summary })
+}

@@ -1,0 +1,156 @@
+//! Constant-velocity windows: the stretches of a trace where the set acceleration is zero and
+//! the set speed is not, which is where the paper looks for the backlash limit cycle.
+
+/// How windows are cut.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct WindowOptions {
+    /// Set speeds below this (trace units/s) are standstill, not a window.
+    pub min_speed: f64,
+    /// Skipped at the start of each window: the transient after the acceleration ends, s.
+    pub settle_s: f64,
+    /// Shortest usable window after settling, s.
+    pub min_len_s: f64,
+    /// Longer stretches are cut into windows of this length (one measurement each), s.
+    pub max_len_s: f64,
+    /// Relative change of the set speed between samples still counted as constant.
+    pub rel_tol: f64,
+}
+
+impl Default for WindowOptions {
+    fn default() -> Self {
+        Self {
+            min_speed: 1.0,
+            settle_s: 0.4,
+            min_len_s: 1.0,
+            max_len_s: 4.0,
+            rel_tol: 1e-6,
+        }
+    }
+}
+
+/// A window: samples `start..end` of the trace, at set velocity `velocity`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Window {
+    pub start: usize,
+    pub end: usize,
+    pub velocity: f64,
+}
+
+impl Window {
+    pub fn len(&self) -> usize {
+        self.end - self.start
+    }
+    pub fn is_empty(&self) -> bool {
+        self.end == self.start
+    }
+}
+
+/// Median sample interval of `t` (s), 0 if fewer than two samples.
+pub fn median_dt(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// Find the constant-velocity windows. A time gap larger than 1.5 sample intervals (skipped
+/// idle time, lost samples) ends a window.
+pub fn constant_velocity_windows(t: &[f64], set_velocity: &[f64], o: &WindowOptions) -> Vec<Window> {
+    assert_eq!(t.len(), set_velocity.len());
+    let dt = median_dt(t);
+    let mut out = Vec::new();
+    if dt <= 0.0 {
+        return out;
+    }
+    let mut push_run = |a: usize, b: usize| {
+        // Run a..b (exclusive) at constant velocity: settle, then cut into windows.
+        let t0 = t[a] + o.settle_s;
+        let Some(s) = (a..b).find(|&i| t[i] >= t0) else {
+            return;
+        };
+        let mut start = s;
+        while start < b {
+            let limit = t[start] + o.max_len_s - 0.5 * dt;
+            let mut end = start;
+            while end < b && t[end] < limit {
+                end += 1;
+            }
+            if (end - start) as f64 * dt >= o.min_len_s - 0.5 * dt {
+                out.push(Window {
+                    start,
+                    end,
+                    velocity: set_velocity[start],
+                });
+            }
+            start = end;
+        }
+    };
+    let constant = |i: usize| {
+        let (v0, v1) = (set_velocity[i - 1], set_velocity[i]);
+        (v1 - v0).abs() <= o.rel_tol * v1.abs().max(1.0)
+            && v1.abs() >= o.min_speed
+            && t[i] - t[i - 1] <= 1.5 * dt
+    };
+    let mut run_start: Option<usize> = None;
+    for i in 1..t.len() {
+        match (constant(i), run_start) {
+            (true, None) => run_start = Some(i),
+            (false, Some(a)) => {
+                push_run(a, i);
+                run_start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(a) = run_start {
+        push_run(a, t.len());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finds_cruise_windows_after_the_ramps() {
+        // 1 kHz: 0.5 s ramp to 100, 3 s cruise, 0.5 s ramp to -100, 5 s cruise, stop.
+        let mut t = Vec::new();
+        let mut v = Vec::new();
+        for i in 0..10_000 {
+            let ts = i as f64 * 1e-3;
+            let vel = if ts < 0.5 {
+                200.0 * ts
+            } else if ts < 3.5 {
+                100.0
+            } else if ts < 4.0 {
+                100.0 - 400.0 * (ts - 3.5)
+            } else if ts < 9.0 {
+                -100.0
+            } else {
+                0.0
+            };
+            t.push(ts);
+            v.push(vel);
+        }
+        let w = constant_velocity_windows(&t, &v, &WindowOptions::default());
+        assert_eq!(w.len(), 2, "{w:?}");
+        assert_eq!(w[0].velocity, 100.0);
+        assert!((t[w[0].start] - 0.9).abs() < 3e-3);
+        assert!((t[w[0].end - 1] - 3.5).abs() < 3e-3);
+        assert_eq!(w[1].velocity, -100.0);
+        // 4.4 .. 8.4 s; the 0.6 s left before the stop is too short.
+        assert_eq!(w[1].len(), 4000);
+    }
+
+    #[test]
+    fn a_time_gap_splits_windows() {
+        let mut t: Vec<f64> = (0..3000).map(|i| i as f64 * 1e-3).collect();
+        t.extend((0..3000).map(|i| 100.0 + i as f64 * 1e-3));
+        let v = vec![50.0; t.len()];
+        let w = constant_velocity_windows(&t, &v, &WindowOptions::default());
+        assert_eq!(w.len(), 2);
+    }
+}
