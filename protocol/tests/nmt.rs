@@ -1,0 +1,88 @@
+//! NMT slave: boot-up, state changes, broadcast, resets.
+mod common;
+use common::*;
+use drive_protocol::{Cia402State, FrameEvent, NmtState};
+
+#[test]
+fn boot_up_message_and_pre_operational() {
+    let mut node = drive_protocol::Node::new(9, info()).unwrap();
+    assert_eq!(node.nmt_state(), NmtState::Initialising);
+    node.boot(0);
+    let f = node.pop_tx().unwrap();
+    assert_eq!((f.id, f.len, f.data[0]), (0x709, 1, 0x00));
+    assert_eq!(node.nmt_state(), NmtState::PreOperational);
+    assert!(drive_protocol::Node::new(0, info()).is_err());
+    assert!(drive_protocol::Node::new(128, info()).is_err());
+}
+
+#[test]
+fn start_stop_pre_operational_and_broadcast() {
+    let mut b = Bench::new();
+    b.nmt(0x01, ID);
+    assert_eq!(b.node.nmt_state(), NmtState::Operational);
+    b.nmt(0x02, 0); // broadcast stop
+    assert_eq!(b.node.nmt_state(), NmtState::Stopped);
+    // no SDO in stopped
+    assert!(b.sdo_raw([0x40, 0, 0x10, 0, 0, 0, 0, 0]).is_empty());
+    b.nmt(0x80, ID);
+    assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
+    // other nodes' commands are ignored
+    assert_eq!(b.nmt(0x01, ID + 1), FrameEvent::Ignored);
+    assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
+    // unknown command specifier and short frames are ignored
+    assert_eq!(b.nmt(0x55, ID), FrameEvent::Ignored);
+    assert_eq!(b.send(f(0, &[0x01])), FrameEvent::Ignored);
+    assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
+}
+
+#[test]
+fn pdos_only_in_operational() {
+    let mut b = Bench::new();
+    b.take();
+    b.sync();
+    b.tick();
+    assert!(b.take().iter().all(|f| !(0x180..0x500).contains(&(f.id & !0x7F))), "no TPDO in pre-op");
+    b.send(f(0x200 + ID as u32, &[0x06, 0]));
+    assert_eq!(b.r32(0x6040, 0), 0, "RPDO ignored in pre-op");
+    b.start();
+    b.send(f(0x200 + ID as u32, &[0x06, 0]));
+    assert_eq!(b.r32(0x6040, 0), 6, "RPDO1 applied in operational");
+    b.take();
+    b.sync();
+    let tx = b.take();
+    assert!(tx.iter().any(|f| f.id == 0x280 + ID as u32), "TPDO2 on SYNC");
+}
+
+#[test]
+fn reset_communication_and_reset_node() {
+    let mut b = Bench::new();
+    b.start();
+    b.w16(0x1017, 0, 100).unwrap();
+    b.w32(0x6081, 0, 777).unwrap();
+    b.enable(1);
+    b.take();
+    b.nmt(0x82, ID);
+    let tx = b.take();
+    assert!(tx.iter().any(|f| f.id == 0x700 + ID as u32 && f.data[0] == 0), "boot-up after reset comm");
+    assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
+    assert_eq!(b.r32(0x1017, 0), 0, "communication objects reset");
+    assert_eq!(b.r32(0x6081, 0), 777, "application objects kept");
+    assert_eq!(b.node.cia402_state(), Cia402State::OperationEnabled, "drive state kept");
+    b.take();
+    b.nmt(0x81, 0);
+    assert!(b.take().iter().any(|f| f.id == 0x700 + ID as u32 && f.data[0] == 0));
+    assert_ne!(b.r32(0x6081, 0), 777, "reset node resets everything");
+    b.tick();
+    assert_eq!(b.node.cia402_state(), Cia402State::SwitchOnDisabled);
+}
+
+#[test]
+fn frames_for_other_nodes_and_extended_ids_are_ignored() {
+    let mut b = Bench::new();
+    b.take();
+    let mut ext = f(0x600 + ID as u32, &[0x40, 0, 0x10, 0, 0, 0, 0, 0]);
+    ext.extended = true;
+    assert_eq!(b.send(ext), FrameEvent::Ignored);
+    assert_eq!(b.send(f(0x600 + ID as u32 + 1, &[0x40, 0, 0x10, 0, 0, 0, 0, 0])), FrameEvent::Ignored);
+    assert!(b.take().is_empty());
+}
