@@ -1,0 +1,196 @@
+//! PDOs: default mappings, dynamic remapping and its aborts, transmission types, inhibit time,
+//! event timer, synchronous RPDOs, wrong-length RPDOs.
+mod common;
+use common::*;
+
+const N: u32 = ID as u32;
+
+fn i32_at(d: &[u8], at: usize) -> i32 {
+    i32::from_le_bytes([d[at], d[at + 1], d[at + 2], d[at + 3]])
+}
+
+#[test]
+fn default_mappings() {
+    let mut b = Bench::new();
+    b.start();
+    b.tick();
+    b.take();
+    b.drive.pos = 6553.6 * 3.0; // 3000 um
+    b.tick();
+    b.sync();
+    let tx = b.take();
+    let t2 = tx.iter().find(|f| f.id == 0x280 + N).expect("TPDO2");
+    assert_eq!(t2.len, 6);
+    assert_eq!(u16::from_le_bytes([t2.data[0], t2.data[1]]) & 0x4F, 0x40);
+    assert_eq!(i32_at(&t2.data, 2), 3000);
+    assert_eq!(tx.iter().find(|f| f.id == 0x380 + N).unwrap().len, 6, "TPDO3 statusword + velocity");
+    let t4 = tx.iter().find(|f| f.id == 0x480 + N).unwrap();
+    assert_eq!(i32_at(&t4.data, 2), 3000, "TPDO4 carries 0x60E4 sub 1");
+    // TPDO1: statusword + mode display, on change
+    b.w8(0x6060, 0, 8).unwrap();
+    b.tick();
+    let t1 = b.take().into_iter().filter(|f| f.id == 0x180 + N).collect::<Vec<_>>();
+    assert_eq!(t1.len(), 1);
+    assert_eq!((t1[0].len, t1[0].data[2]), (3, 8));
+    // RPDO2: controlword + target position
+    b.send(f(0x300 + N, &[0x06, 0x00, 0x10, 0x27, 0, 0]));
+    b.sync();
+    assert_eq!(b.r32(0x6040, 0), 6);
+    assert_eq!(b.ri32(0x607A, 0), 10000);
+    // RPDO3: controlword + target velocity; RPDO4: controlword + target torque
+    b.send(f(0x400 + N, &[0x06, 0x00, 0xFF, 0xFF, 0xFF, 0xFF]));
+    b.send(f(0x500 + N, &[0x06, 0x00, 0x2C, 0x01]));
+    b.sync();
+    assert_eq!(b.ri32(0x60FF, 0), -1);
+    assert_eq!(b.ri32(0x6071, 0), 300);
+}
+
+#[test]
+fn remap_procedure() {
+    let mut b = Bench::new();
+    b.w32(0x1801, 1, 0x8000_0280 + N).unwrap();
+    b.w8(0x1A01, 0, 0).unwrap();
+    b.w32(0x1A01, 1, 0x6064_0020).unwrap();
+    b.w32(0x1A01, 2, 0x60F4_0020).unwrap();
+    b.w8(0x1A01, 0, 2).unwrap();
+    b.w32(0x1801, 1, 0x280 + N).unwrap();
+    b.start();
+    b.drive.pos = 65536.0;
+    b.tick();
+    b.take();
+    b.sync();
+    let t = b.take().into_iter().find(|f| f.id == 0x280 + N).unwrap();
+    assert_eq!(t.len, 8);
+    assert_eq!(i32_at(&t.data, 0), 10000);
+}
+
+#[test]
+fn remap_aborts() {
+    let mut b = Bench::new();
+    // mapping may not change while the PDO is valid
+    assert_eq!(b.w8(0x1A01, 0, 0), Err(0x0601_0000));
+    assert_eq!(b.w32(0x1A01, 1, 0x6064_0020), Err(0x0601_0000));
+    b.w32(0x1801, 1, 0x8000_0280 + N).unwrap();
+    // entries only while sub 0 is 0
+    assert_eq!(b.w32(0x1A01, 1, 0x6064_0020), Err(0x0601_0000));
+    b.w8(0x1A01, 0, 0).unwrap();
+    // not mappable: no PDO flag, not existing, wrong length, read-only into an RPDO
+    assert_eq!(b.w32(0x1A01, 1, 0x1000_0020), Err(0x0604_0041));
+    assert_eq!(b.w32(0x1A01, 1, 0x1234_0020), Err(0x0604_0041));
+    assert_eq!(b.w32(0x1A01, 1, 0x6064_0010), Err(0x0604_0041));
+    b.w32(0x1400, 1, 0x8000_0200 + N).unwrap();
+    b.w8(0x1600, 0, 0).unwrap();
+    assert_eq!(b.w32(0x1600, 1, 0x6041_0010), Err(0x0604_0041));
+    // more than 64 bits
+    for s in 1..=3 {
+        b.w32(0x1A01, s, 0x6064_0020).unwrap();
+    }
+    assert_eq!(b.w8(0x1A01, 0, 3), Err(0x0604_0042));
+    assert_eq!(b.w8(0x1A01, 0, 9), Err(0x0609_0031));
+    b.w8(0x1A01, 0, 2).unwrap();
+    // COB-ID of a valid PDO cannot change
+    b.w32(0x1801, 1, 0x280 + N).unwrap();
+    assert_eq!(b.w32(0x1801, 1, 0x290 + N), Err(0x0609_0030));
+    assert_eq!(b.w32(0x1801, 1, 0x2000_0000 | (0x280 + N)), Err(0x0609_0030), "29-bit");
+    // inhibit time only while invalid
+    assert_eq!(b.w16(0x1801, 3, 10), Err(0x0601_0000));
+    // RPDO transmission types 252/253 do not exist
+    assert_eq!(b.w8(0x1401, 2, 252), Err(0x0609_0030));
+}
+
+fn sync_n(b: &mut Bench, n: usize, id: u32) -> usize {
+    let mut count = 0;
+    for _ in 0..n {
+        b.take();
+        b.sync();
+        b.tick();
+        count += b.take().iter().filter(|f| f.id == id).count();
+    }
+    count
+}
+
+#[test]
+fn synchronous_types_0_and_n() {
+    let mut b = Bench::new();
+    b.w8(0x1801, 2, 3).unwrap();
+    b.w8(0x1802, 2, 0).unwrap();
+    b.start();
+    assert_eq!(sync_n(&mut b, 12, 0x280 + N), 4, "type 3: every third SYNC");
+    // type 0: only when the data changed
+    assert!(sync_n(&mut b, 5, 0x380 + N) <= 1);
+    b.drive.vel = 1000.0;
+    b.tick();
+    assert_eq!(sync_n(&mut b, 1, 0x380 + N), 1);
+}
+
+#[test]
+fn event_driven_with_inhibit_time_and_event_timer() {
+    let mut b = Bench::new();
+    // TPDO2 event-driven, inhibit 10 ms
+    b.w32(0x1801, 1, 0x8000_0280 + N).unwrap();
+    b.w8(0x1801, 2, 254).unwrap();
+    b.w16(0x1801, 3, 100).unwrap();
+    b.w32(0x1801, 1, 0x280 + N).unwrap();
+    // TPDO3 event timer 20 ms, data constant
+    b.w8(0x1802, 2, 255).unwrap();
+    b.w16(0x1802, 5, 20).unwrap();
+    b.start();
+    b.take();
+    let mut times = Vec::new();
+    for k in 0..100 {
+        b.drive.pos += 10.0; // position changes every tick
+        b.tick();
+        if b.take().iter().any(|f| f.id == 0x280 + N) {
+            times.push(k);
+        }
+        let _ = k;
+    }
+    assert!(times.len() >= 9 && times.len() <= 11, "{times:?}");
+    assert!(times.windows(2).all(|w| w[1] - w[0] >= 10), "inhibit time respected: {times:?}");
+    // event timer: TPDO3 every 20 ms although nothing changes
+    b.drive.vel = 0.0;
+    let mut n3 = 0;
+    for _ in 0..200 {
+        b.tick();
+        n3 += b.take().iter().filter(|f| f.id == 0x380 + N).count();
+    }
+    assert!((9..=11).contains(&n3), "{n3}");
+}
+
+#[test]
+fn synchronous_rpdo_applied_at_next_sync() {
+    let mut b = Bench::new();
+    b.start();
+    b.send(f(0x300 + N, &[0x00, 0x00, 0x39, 0x30, 0, 0]));
+    b.tick();
+    assert_eq!(b.ri32(0x607A, 0), 0, "not before SYNC");
+    b.sync();
+    assert_eq!(b.ri32(0x607A, 0), 12345);
+}
+
+#[test]
+fn wrong_length_rpdo_gives_emcy_8210() {
+    let mut b = Bench::new();
+    b.start();
+    b.send(f(0x200 + N, &[0x06]));
+    b.tick();
+    assert!(b.emcys().contains(&0x8210));
+    assert_eq!(b.r32(0x6040, 0), 0, "not applied");
+    let hist = b.r32(0x1003, 1);
+    assert_eq!(hist & 0xFFFF, 0x8210);
+}
+
+#[test]
+fn rtr_tpdo_type_253() {
+    let mut b = Bench::new();
+    b.w32(0x1801, 1, 0x8000_0280 + N).unwrap();
+    b.w8(0x1801, 2, 253).unwrap();
+    b.w32(0x1801, 1, 0x280 + N).unwrap();
+    b.start();
+    b.take();
+    b.sync();
+    b.tick();
+    assert!(b.take().iter().all(|f| f.id != 0x280 + N));
+    b.send(drive_protocol::CanFrame::remote(0x280 + N, 6));
+    assert_eq!(b.take().iter().filter(|f| f.id == 0x280 + N).count(), 1);
+}
