@@ -114,11 +114,13 @@ impl Ctx<'_> {
     pub fn to_inc_pos(&self, uu: f64) -> f64 {
         self.f.to_inc(uu) + self.origin
     }
-    /// Clamp a user-unit target to 0x607D (inactive when min >= max).
+    /// Clamp a user-unit target to 0x607D. Inactive when min >= max or when both are at the
+    /// ends of the I32 range (the default: positions may wrap).
     pub fn clamp_sw_limits(&self, uu: f64) -> (f64, bool) {
-        let lo = self.store.i32(o::SW_LIMIT_MIN) as f64;
-        let hi = self.store.i32(o::SW_LIMIT_MAX) as f64;
-        if lo < hi {
+        let lo_raw = self.store.i32(o::SW_LIMIT_MIN);
+        let hi_raw = self.store.i32(o::SW_LIMIT_MAX);
+        let (lo, hi) = (lo_raw as f64, hi_raw as f64);
+        if lo < hi && !(lo_raw == i32::MIN && hi_raw == i32::MAX) {
             let c = uu.clamp(lo, hi);
             (c, c != uu)
         } else {
