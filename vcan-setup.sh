@@ -290,12 +290,19 @@ run_uml() {
     local -a uml=(env TMPDIR="$memdir" "$kernel" "mem=$mem" root=/dev/root rootfstype=hostfs rootflags=/ rw
                   "init=$tmpdir/init" con=null con0=fd:3,fd:1 con1=fd:4,fd:2 ssl=null
                   quiet loglevel=0 selinux=0 ubd0=/dev/null)
+    (( TIMEOUT == 0 )) || uml=(timeout --kill-after=10 "$TIMEOUT" "${uml[@]}")
+    # linux.uml puts itself in its own process group, so a Ctrl-C does not reach it:
+    # run it in the background and forward INT/TERM/HUP (SIGTERM shuts it down).
+    local uml_pid interrupted=
+    "${uml[@]}" </dev/null 3</dev/null 4</dev/null &
+    uml_pid=$!
+    # shellcheck disable=SC2064
+    for sig in INT TERM HUP; do trap "interrupted=$sig; kill -TERM $uml_pid 2>/dev/null" "$sig"; done
     rc=0
-    if (( TIMEOUT > 0 )); then
-        timeout --kill-after=10 "$TIMEOUT" "${uml[@]}" </dev/null 3</dev/null 4</dev/null || rc=$?
-    else
-        "${uml[@]}" </dev/null 3</dev/null 4</dev/null || rc=$?
-    fi
+    wait "$uml_pid" || rc=$?
+    while kill -0 "$uml_pid" 2>/dev/null; do rc=0; wait "$uml_pid" || rc=$?; done
+    trap - INT TERM HUP
+    [[ -z $interrupted ]] || { echo "$PROG: interrupted (SIG$interrupted): user-mode Linux stopped" >&2; exit 130; }
     local total; total=$(elapsed "$t0")
 
     if [[ -f $tmpdir/status ]]; then

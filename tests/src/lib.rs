@@ -41,12 +41,28 @@ pub fn open_bus(ifname: &str) -> CanSocket {
         Err(e) => {
             let why = match e.raw_os_error() {
                 Some(97) => "this kernel has no CAN support (EAFNOSUPPORT)".to_string(),
+                Some(19) if !kernel_has_can() => {
+                    "this kernel has no CAN support (socket(AF_CAN) fails)".to_string()
+                }
                 Some(19) => format!("there is no interface {ifname} (ENODEV)"),
                 _ => format!("{e}"),
             };
             panic!("cannot open CAN interface {ifname}: {why}.\n  {HOWTO}");
         }
     }
+}
+
+/// Whether this kernel can open a raw CAN socket at all.
+pub fn kernel_has_can() -> bool {
+    // SAFETY: plain socket(2)/close(2) calls on an fd we own.
+    unsafe {
+        let fd = libc::socket(libc::AF_CAN, libc::SOCK_RAW, libc::CAN_RAW);
+        if fd < 0 {
+            return false;
+        }
+        libc::close(fd);
+    }
+    true
 }
 
 /// A standard (11-bit) data frame.
