@@ -56,7 +56,10 @@ impl AxisTrace {
             ("direct_position", &self.direct_position),
         ] {
             if c.len() != n {
-                return Err(format!("column {name} has {} samples, time has {n}", c.len()));
+                return Err(format!(
+                    "column {name} has {} samples, time has {n}",
+                    c.len()
+                ));
             }
         }
         Ok(())
@@ -236,7 +239,8 @@ pub fn analyze_window(
         None => 0.0,
     };
     let current = an.fundamental(&trace.current[w.start..w.end], fs, band);
-    let (speed_hz, speed_amplitude) = speed.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
+    let (speed_hz, speed_amplitude) =
+        speed.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
     let (current_hz, current_amplitude) =
         current.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
     let displacement_amplitude = match speed_hz {
@@ -298,7 +302,11 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     summarize(results, trace, cfg)
 }
 
-fn summarize(results: Vec<WindowResult>, trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
+fn summarize(
+    results: Vec<WindowResult>,
+    trace: &AxisTrace,
+    cfg: &DetectorConfig,
+) -> DetectorReport {
     let k = cfg.confirm_windows.max(1);
     // Confirmed level after each window: the lowest of the last k levels.
     let mut first_suspected_s = None;
@@ -307,7 +315,11 @@ fn summarize(results: Vec<WindowResult>, trace: &AxisTrace, cfg: &DetectorConfig
         if i + 1 < k {
             continue;
         }
-        let lvl = results[i + 1 - k..=i].iter().map(|r| r.level).min().unwrap_or(Verdict::Ok);
+        let lvl = results[i + 1 - k..=i]
+            .iter()
+            .map(|r| r.level)
+            .min()
+            .unwrap_or(Verdict::Ok);
         if lvl >= Verdict::BacklashSuspected && first_suspected_s.is_none() {
             first_suspected_s = Some(results[i].t_end_s);
         }
@@ -321,8 +333,13 @@ fn summarize(results: Vec<WindowResult>, trace: &AxisTrace, cfg: &DetectorConfig
     } else {
         Verdict::Ok
     };
-    let amplitude = median(&mut last.iter().map(|r| r.displacement_amplitude).collect::<Vec<_>>())
-        .unwrap_or(0.0);
+    let amplitude = median(
+        &mut last
+            .iter()
+            .map(|r| r.displacement_amplitude)
+            .collect::<Vec<_>>(),
+    )
+    .unwrap_or(0.0);
     let severity = amplitude / cfg.alarm_um;
     let frequency_hz = median(
         &mut results
@@ -331,8 +348,16 @@ fn summarize(results: Vec<WindowResult>, trace: &AxisTrace, cfg: &DetectorConfig
             .filter_map(|r| r.speed_hz)
             .collect::<Vec<_>>(),
     );
-    let dominant_hz = median(&mut results.iter().filter_map(|r| r.speed_hz).collect::<Vec<_>>());
-    let ts: Vec<f64> = results.iter().map(|r| 0.5 * (r.t_start_s + r.t_end_s) / 3600.0).collect();
+    let dominant_hz = median(
+        &mut results
+            .iter()
+            .filter_map(|r| r.speed_hz)
+            .collect::<Vec<_>>(),
+    );
+    let ts: Vec<f64> = results
+        .iter()
+        .map(|r| 0.5 * (r.t_start_s + r.t_end_s) / 3600.0)
+        .collect();
     let amps: Vec<f64> = results.iter().map(|r| r.displacement_amplitude).collect();
     let amplitude_trend_per_h = slope(&ts, &amps);
     // Lost motion: needs an independent motor position (not a copy of the direct one).

@@ -47,7 +47,11 @@ impl Window {
 
 /// Median sample interval of `t` (s), 0 if fewer than two samples.
 pub fn median_dt(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    let mut d: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
     if d.is_empty() {
         return 0.0;
     }
@@ -57,7 +61,11 @@ pub fn median_dt(t: &[f64]) -> f64 {
 
 /// Find the constant-velocity windows. A time gap larger than 1.5 sample intervals (skipped
 /// idle time, lost samples) ends a window.
-pub fn constant_velocity_windows(t: &[f64], set_velocity: &[f64], o: &WindowOptions) -> Vec<Window> {
+pub fn constant_velocity_windows(
+    t: &[f64],
+    set_velocity: &[f64],
+    o: &WindowOptions,
+) -> Vec<Window> {
     assert_eq!(t.len(), set_velocity.len());
     let dt = median_dt(t);
     let mut out = Vec::new();

@@ -1,1 +1,373 @@
-//! (being written)
+//! Reports: a JSON summary and PNG plots (plotters, bitmap backend only). Text is drawn with
+//! an embedded DejaVu Sans (`emulator/assets/DejaVuSans.ttf`, Bitstream Vera licence in
+//! `assets/DejaVuSans-LICENSE.txt`) registered with plotters' ab_glyph backend, so drawing needs
+//! no system font library (no fontconfig, no freetype).
+
+use crate::analysis::detector::{AxisTrace, DetectorReport, WindowResult};
+use crate::analysis::spectrum::SpectrumAnalyzer;
+use plotters::prelude::*;
+use plotters::style::{register_font, FontStyle};
+use std::path::{Path, PathBuf};
+
+const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+const W: u32 = 1000;
+const H: u32 = 600;
+
+fn font_ready() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // Cannot fail for the embedded font; if it did, plots would lack text only.
+        let _ = register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+type DynErr = Box<dyn std::error::Error>;
+
+fn err(e: impl std::fmt::Display) -> anyhow::Error {
+    anyhow::anyhow!("plot: {e}")
+}
+
+/// Write any serializable value as pretty JSON.
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
+    let s = serde_json::to_string_pretty(value)?;
+    std::fs::write(path, s + "\n")?;
+    Ok(())
+}
+
+fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for x in v.filter(|x| x.is_finite()) {
+        lo = lo.min(x);
+        hi = hi.max(x);
+    }
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    if hi - lo < 1e-12 {
+        return (lo - 1.0, hi + 1.0);
+    }
+    let m = 0.05 * (hi - lo);
+    (lo - m, hi + m)
+}
+
+/// Velocity (set and motor) and current over samples `a..b` of a trace.
+pub fn plot_traces(
+    path: &Path,
+    tr: &AxisTrace,
+    a: usize,
+    b: usize,
+    title: &str,
+) -> anyhow::Result<()> {
+    font_ready();
+    let draw = || -> Result<(), DynErr> {
+        let root = BitMapBackend::new(path, (W, H)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let (top, bottom) = root.split_vertically(H / 2);
+        let t = &tr.t_s[a..b];
+        let (t0, t1) = (t[0], t[t.len() - 1].max(t[0] + 1e-6));
+        let (vlo, vhi) = range(
+            tr.motor_velocity[a..b]
+                .iter()
+                .chain(&tr.set_velocity[a..b])
+                .copied(),
+        );
+        let mut c = ChartBuilder::on(&top)
+            .caption(title, ("sans-serif", 22))
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t0..t1, vlo..vhi)?;
+        c.configure_mesh()
+            .x_desc("time, s")
+            .y_desc(format!("velocity, {}/s", tr.position_unit))
+            .draw()?;
+        c.draw_series(LineSeries::new(
+            t.iter()
+                .copied()
+                .zip(tr.motor_velocity[a..b].iter().copied()),
+            &BLUE,
+        ))?
+        .label("motor")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        c.draw_series(LineSeries::new(
+            t.iter().copied().zip(tr.set_velocity[a..b].iter().copied()),
+            &BLACK,
+        ))?
+        .label("set")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+        c.configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .draw()?;
+        let (clo, chi) = range(tr.current[a..b].iter().copied());
+        let mut c = ChartBuilder::on(&bottom)
+            .margin(8)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t0..t1, clo..chi)?;
+        c.configure_mesh()
+            .x_desc("time, s")
+            .y_desc(format!("current, {}", tr.current_unit))
+            .draw()?;
+        c.draw_series(LineSeries::new(
+            t.iter().copied().zip(tr.current[a..b].iter().copied()),
+            &RED,
+        ))?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(err)
+}
+
+/// Amplitude spectra of motor speed and current in one window, k_v/4 .. k_v band shaded, the
+/// paper's 0.6 k_v marked.
+pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> anyhow::Result<()> {
+    font_ready();
+    let n = w.end - w.start;
+    let dt = (tr.t_s[w.end - 1] - tr.t_s[w.start]) / (n - 1).max(1) as f64;
+    let fs = 1.0 / dt.max(1e-9);
+    let mut an = SpectrumAnalyzer::new(n);
+    let fmax = (2.5 * kv).min(fs / 2.0);
+    let band = (0.5, fmax);
+    let mut spectra = Vec::new();
+    for sig in [&tr.motor_velocity, &tr.current] {
+        let _ = an.fundamental(&sig[w.start..w.end], fs, band);
+        let df = fs / n as f64;
+        let pts: Vec<(f64, f64)> = an
+            .amplitudes()
+            .iter()
+            .enumerate()
+            .map(|(i, a)| (i as f64 * df, *a))
+            .filter(|(f, _)| *f <= fmax)
+            .collect();
+        spectra.push(pts);
+    }
+    let draw = || -> Result<(), DynErr> {
+        let root = BitMapBackend::new(path, (W, H)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let halves = root.split_evenly((2, 1));
+        let labels = [
+            format!("motor speed, {}/s", tr.position_unit),
+            format!("current, {}", tr.current_unit),
+        ];
+        for (k, area) in halves.iter().enumerate() {
+            let pts = &spectra[k];
+            let (_, hi) = range(pts.iter().map(|p| p.1));
+            let hi = hi.max(1e-9);
+            let mut c = ChartBuilder::on(area)
+                .caption(
+                    if k == 0 {
+                        format!(
+                            "spectrum at {:.0} {}/s, t = {:.1} s; band k_v/4..k_v, k_v = {kv} 1/s",
+                            w.set_velocity, tr.position_unit, w.t_start_s
+                        )
+                    } else {
+                        String::new()
+                    },
+                    ("sans-serif", 20),
+                )
+                .margin(8)
+                .x_label_area_size(35)
+                .y_label_area_size(70)
+                .build_cartesian_2d(0.0..fmax, 0.0..hi)?;
+            c.configure_mesh()
+                .x_desc("frequency, Hz")
+                .y_desc(labels[k].as_str())
+                .draw()?;
+            c.draw_series(std::iter::once(Rectangle::new(
+                [(kv / 4.0, 0.0), (kv, hi)],
+                RGBColor(255, 230, 150).mix(0.5).filled(),
+            )))?;
+            c.draw_series(LineSeries::new(
+                [(0.6 * kv, 0.0), (0.6 * kv, hi)],
+                ShapeStyle::from(&GREEN).stroke_width(1),
+            ))?;
+            c.draw_series(LineSeries::new(pts.iter().copied(), &BLUE))?;
+            let f = if k == 0 { w.speed_hz } else { w.current_hz };
+            if let Some(f) = f {
+                let a = if k == 0 {
+                    w.speed_amplitude
+                } else {
+                    w.current_amplitude
+                };
+                c.draw_series(std::iter::once(Circle::new((f, a), 5, RED.filled())))?;
+                c.draw_series(std::iter::once(Text::new(
+                    format!("{f:.2} Hz"),
+                    (f, a),
+                    ("sans-serif", 16),
+                )))?;
+            }
+        }
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(err)
+}
+
+/// Displacement amplitude per window over time, with the thresholds, and optionally a
+/// parameter (e.g. the backlash the timeline set) on a second axis.
+pub fn plot_amplitude_trend(
+    path: &Path,
+    rep: &DetectorReport,
+    param: Option<(&str, &[(f64, f64)])>,
+) -> anyhow::Result<()> {
+    font_ready();
+    let draw = || -> Result<(), DynErr> {
+        let root = BitMapBackend::new(path, (W, H)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let pts: Vec<(f64, f64)> = rep
+            .windows
+            .iter()
+            .map(|w| (w.t_start_s / 60.0, w.displacement_amplitude))
+            .collect();
+        let (t0, t1) = range(pts.iter().map(|p| p.0));
+        let (_, hi) = range(pts.iter().map(|p| p.1).chain([rep.config.alarm_um * 1.2]));
+        let mut c = ChartBuilder::on(&root)
+            .caption(
+                format!(
+                    "limit-cycle amplitude per window; verdict {}",
+                    rep.verdict.as_str()
+                ),
+                ("sans-serif", 22),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .right_y_label_area_size(if param.is_some() { 70 } else { 0 })
+            .build_cartesian_2d(t0.min(0.0)..t1, 0.0..hi)?
+            .set_secondary_coord(t0.min(0.0)..t1, {
+                let (_, phi) = range(param.map_or(&[][..], |p| p.1).iter().map(|p| p.1));
+                0.0..phi.max(1e-9)
+            });
+        c.configure_mesh()
+            .x_desc("scenario time, min")
+            .y_desc(format!("displacement amplitude, {}", rep.position_unit))
+            .draw()?;
+        for (lvl, col) in [
+            (rep.config.suspect_um, RGBColor(230, 160, 0)),
+            (rep.config.alarm_um, RED),
+        ] {
+            c.draw_series(LineSeries::new(
+                [(t0.min(0.0), lvl), (t1, lvl)],
+                ShapeStyle::from(&col).stroke_width(1),
+            ))?;
+        }
+        c.draw_series(pts.iter().zip(&rep.windows).map(|(p, w)| {
+            let col = match w.level {
+                crate::analysis::detector::Verdict::Ok => BLUE,
+                crate::analysis::detector::Verdict::BacklashSuspected => RGBColor(230, 160, 0),
+                crate::analysis::detector::Verdict::Backlash => RED,
+            };
+            Circle::new(*p, 4, col.filled())
+        }))?;
+        if let Some((name, series)) = param {
+            c.configure_secondary_axes().y_desc(name).draw()?;
+            c.draw_secondary_series(LineSeries::new(
+                series.iter().map(|(t, v)| (t / 60.0, *v)),
+                ShapeStyle::from(&BLACK).stroke_width(1),
+            ))?;
+        }
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(err)
+}
+
+/// One machine's point for the paper's Fig. 11.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct KvPoint {
+    pub name: String,
+    pub kv_per_s: f64,
+    pub frequency_hz: f64,
+}
+
+/// Frequency against k_v with the paper's bounds k_v/4 and k_v and its fit 0.6 k_v (Fig. 11).
+pub fn plot_frequency_vs_kv(path: &Path, points: &[KvPoint]) -> anyhow::Result<()> {
+    font_ready();
+    let draw = || -> Result<(), DynErr> {
+        let root = BitMapBackend::new(path, (W, H)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let kmax = points.iter().map(|p| p.kv_per_s).fold(10.0, f64::max) * 1.2;
+        let mut c = ChartBuilder::on(&root)
+            .caption(
+                "vibration frequency vs position gain (paper Fig. 11)",
+                ("sans-serif", 22),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..kmax, 0.0..kmax)?;
+        c.configure_mesh()
+            .x_desc("k_v, 1/s")
+            .y_desc("f, Hz")
+            .draw()?;
+        for (slope, label, col) in [
+            (1.0, "f = k_v", RED),
+            (0.6, "f = 0.6 k_v", GREEN),
+            (0.25, "f = k_v/4", RED),
+        ] {
+            c.draw_series(LineSeries::new([(0.0, 0.0), (kmax, slope * kmax)], &col))?
+                .label(label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+        }
+        c.draw_series(
+            points
+                .iter()
+                .map(|p| Circle::new((p.kv_per_s, p.frequency_hz), 6, BLUE.filled())),
+        )?;
+        c.draw_series(points.iter().map(|p| {
+            Text::new(
+                p.name.clone(),
+                (p.kv_per_s, p.frequency_hz),
+                ("sans-serif", 16),
+            )
+        }))?;
+        c.configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(err)
+}
+
+/// The detector's plots for one trace into `dir` with file-name prefix `prefix`: traces and
+/// spectrum of the strongest window, amplitude along time. Returns the files written.
+pub fn detector_plots(
+    dir: &Path,
+    prefix: &str,
+    tr: &AxisTrace,
+    rep: &DetectorReport,
+    param: Option<(&str, &[(f64, f64)])>,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    let strongest = rep.windows.iter().max_by(|a, b| {
+        a.displacement_amplitude
+            .total_cmp(&b.displacement_amplitude)
+    });
+    if let Some(w) = strongest {
+        // Half a second either side of the window.
+        let dt = (tr.t_s[w.end - 1] - tr.t_s[w.start]) / (w.end - w.start).max(2) as f64;
+        let pad = if dt > 0.0 { (0.5 / dt) as usize } else { 0 };
+        let (a, b) = (w.start.saturating_sub(pad), (w.end + pad).min(tr.len()));
+        let p = dir.join(format!("{prefix}traces.png"));
+        plot_traces(
+            &p,
+            tr,
+            a,
+            b,
+            &format!("strongest window at t = {:.1} s", w.t_start_s),
+        )?;
+        out.push(p);
+        let p = dir.join(format!("{prefix}spectrum.png"));
+        plot_spectrum(&p, tr, w, rep.kv_per_s)?;
+        out.push(p);
+    }
+    if !rep.windows.is_empty() {
+        let p = dir.join(format!("{prefix}amplitude.png"));
+        plot_amplitude_trend(&p, rep, param)?;
+        out.push(p);
+    }
+    Ok(out)
+}

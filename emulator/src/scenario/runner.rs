@@ -1,0 +1,1 @@
+//! Offline scenario runner (phase 2).

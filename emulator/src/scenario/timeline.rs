@@ -1,0 +1,438 @@
+//! The timeline: events at scenario times or on conditions, and the parameter drivers (ramps,
+//! load profiles) they start. Independent of how the simulation is stepped: the offline runner,
+//! a live loop on a real bus, or a test can drive it. The caller supplies the scenario time
+//! and what it observed ([`Observation`]); the timeline tells which events are due.
+
+use super::file::{ProfileShape, SensorKind};
+use super::units::ParamKey;
+
+/// When an event fires.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Trigger {
+    /// At this scenario time, us.
+    At(u64),
+    /// `delay_us` after the drive is first seen in this CiA 402 state (master's decoding).
+    OnState { state: &'static str, delay_us: u64 },
+    /// `delay_us` after this EMCY code is first seen.
+    OnEmcy { code: u16, delay_us: u64 },
+}
+
+/// A CAN fault (applied by wrapping the drive's bus in `bus::fault::FaultyBus`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum CanFault {
+    Drop {
+        share: f64,
+        cob_id: Option<u32>,
+    },
+    Delay {
+        share: f64,
+        ticks: u32,
+        cob_id: Option<u32>,
+    },
+    /// Every SYNC frame lost.
+    SyncLoss,
+    /// Every heartbeat of the master lost.
+    HeartbeatLoss,
+}
+
+/// What an event does.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Action {
+    /// Set a parameter (file units) at once.
+    Set { key: &'static ParamKey, value: f64 },
+    /// Ramp a parameter linearly to `to` over `over_us` (from its value when the event fires,
+    /// or from `from`).
+    Ramp {
+        key: &'static ParamKey,
+        from: Option<f64>,
+        to: f64,
+        over_us: u64,
+    },
+    /// A periodic profile (cutting force): mean + amplitude * shape(f t), for `over_us` (or for
+    /// ever), then back to the value the parameter had before.
+    Profile {
+        key: &'static ParamKey,
+        shape: ProfileShape,
+        mean: f64,
+        amplitude: f64,
+        frequency_hz: f64,
+        over_us: Option<u64>,
+    },
+    /// Encoder fault: signal loss, count glitch, or restore.
+    Sensor { kind: SensorKind, counts: i64 },
+    /// CAN fault for `over_us` (or until a `Restore`).
+    Can {
+        fault: CanFault,
+        over_us: Option<u64>,
+    },
+    /// Remove every CAN fault.
+    CanRestore,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Event {
+    pub id: Option<String>,
+    pub trigger: Trigger,
+    pub action: Action,
+    /// Line in the scenario file (for messages).
+    pub line: usize,
+}
+
+impl Event {
+    /// A short human description.
+    pub fn describe(&self) -> String {
+        match &self.action {
+            Action::Set { key, value } => format!("set {} = {value}", key.key),
+            Action::Ramp {
+                key,
+                from,
+                to,
+                over_us,
+            } => format!(
+                "ramp {} {}-> {to} over {:.0} s",
+                key.key,
+                from.map(|f| format!("{f} ")).unwrap_or_default(),
+                *over_us as f64 * 1e-6
+            ),
+            Action::Profile {
+                key,
+                mean,
+                amplitude,
+                frequency_hz,
+                ..
+            } => format!(
+                "profile {} = {mean} +- {amplitude} at {frequency_hz} Hz",
+                key.key
+            ),
+            Action::Sensor { kind, counts } => format!("sensor {kind:?} {counts}"),
+            Action::Can { fault, .. } => format!("CAN {fault:?}"),
+            Action::CanRestore => "CAN restore".into(),
+        }
+    }
+}
+
+/// What the driving loop saw, for conditional triggers.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Observation<'a> {
+    /// CiA 402 state as the master decodes it, e.g. "OPERATION ENABLED".
+    pub state: Option<&'a str>,
+    /// EMCY codes received since the previous call.
+    pub new_emcy: &'a [u16],
+}
+
+/// Events and their firing times.
+#[derive(Debug, Clone)]
+pub struct Timeline {
+    events: Vec<Event>,
+    /// Scenario time at which each condition was met (armed), us.
+    armed: Vec<Option<u64>>,
+    fired: Vec<Option<u64>>,
+    due: Vec<usize>,
+}
+
+impl Timeline {
+    pub fn new(events: Vec<Event>) -> Self {
+        let n = events.len();
+        Self {
+            events,
+            armed: vec![None; n],
+            fired: vec![None; n],
+            due: Vec::with_capacity(n),
+        }
+    }
+
+    pub fn events(&self) -> &[Event] {
+        &self.events
+    }
+
+    /// Scenario time at which event `i` fired.
+    pub fn fired_at(&self, i: usize) -> Option<u64> {
+        self.fired[i]
+    }
+
+    /// Firing time of the event with this id.
+    pub fn fired_at_id(&self, id: &str) -> Option<u64> {
+        let i = self
+            .events
+            .iter()
+            .position(|e| e.id.as_deref() == Some(id))?;
+        self.fired[i]
+    }
+
+    /// Whether every time-triggered event has fired and no conditional one is pending arming.
+    pub fn all_fired(&self) -> bool {
+        self.fired.iter().all(Option::is_some)
+    }
+
+    /// The earliest scenario time at which something is scheduled and not yet fired (armed
+    /// conditions included), for loops that skip time.
+    pub fn next_due_us(&self) -> Option<u64> {
+        (0..self.events.len())
+            .filter(|&i| self.fired[i].is_none())
+            .filter_map(|i| match self.events[i].trigger {
+                Trigger::At(t) => Some(t),
+                Trigger::OnState { delay_us, .. } | Trigger::OnEmcy { delay_us, .. } => {
+                    self.armed[i].map(|a| a + delay_us)
+                }
+            })
+            .min()
+    }
+
+    /// Mark and return the events due at `now_us` (each fires once), in file order.
+    pub fn due(&mut self, now_us: u64, obs: &Observation) -> impl Iterator<Item = &Event> + '_ {
+        self.due.clear();
+        for i in 0..self.events.len() {
+            if self.fired[i].is_some() {
+                continue;
+            }
+            let at = match self.events[i].trigger {
+                Trigger::At(t) => Some(t),
+                Trigger::OnState { state, delay_us } => {
+                    if self.armed[i].is_none() && obs.state == Some(state) {
+                        self.armed[i] = Some(now_us);
+                    }
+                    self.armed[i].map(|a| a + delay_us)
+                }
+                Trigger::OnEmcy { code, delay_us } => {
+                    if self.armed[i].is_none() && obs.new_emcy.contains(&code) {
+                        self.armed[i] = Some(now_us);
+                    }
+                    self.armed[i].map(|a| a + delay_us)
+                }
+            };
+            if at.is_some_and(|t| t <= now_us) {
+                self.fired[i] = Some(now_us);
+                self.due.push(i);
+            }
+        }
+        self.due.iter().map(|&i| &self.events[i])
+    }
+}
+
+/// A running parameter driver.
+#[derive(Debug, Clone, PartialEq)]
+struct Driver {
+    key: &'static ParamKey,
+    start_us: u64,
+    kind: DriverKind,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum DriverKind {
+    Ramp {
+        from: f64,
+        to: f64,
+        over_us: u64,
+    },
+    Profile {
+        shape: ProfileShape,
+        mean: f64,
+        amplitude: f64,
+        frequency_hz: f64,
+        end_us: Option<u64>,
+        restore: f64,
+    },
+}
+
+/// Parameter ramps and profiles in force. Values are in file units ([`ParamKey`]); the
+/// caller converts with `key.scale` and applies them.
+#[derive(Debug, Clone, Default)]
+pub struct Drivers {
+    active: Vec<Driver>,
+}
+
+impl Drivers {
+    /// Start the driver of a `Ramp` or `Profile` action fired at `now_us`; `current` is the
+    /// parameter's value now (file units). A new driver replaces one on the same parameter.
+    /// Other actions are ignored.
+    pub fn start(&mut self, action: &Action, now_us: u64, current: f64) {
+        let (key, kind) = match *action {
+            Action::Ramp {
+                key,
+                from,
+                to,
+                over_us,
+            } => (
+                key,
+                DriverKind::Ramp {
+                    from: from.unwrap_or(current),
+                    to,
+                    over_us,
+                },
+            ),
+            Action::Profile {
+                key,
+                shape,
+                mean,
+                amplitude,
+                frequency_hz,
+                over_us,
+            } => (
+                key,
+                DriverKind::Profile {
+                    shape,
+                    mean,
+                    amplitude,
+                    frequency_hz,
+                    end_us: over_us.map(|o| now_us + o),
+                    restore: current,
+                },
+            ),
+            _ => return,
+        };
+        self.stop(key);
+        self.active.push(Driver {
+            key,
+            start_us: now_us,
+            kind,
+        });
+    }
+
+    /// Stop driving a parameter (a `Set` on it does this).
+    pub fn stop(&mut self, key: &'static ParamKey) {
+        self.active.retain(|d| d.key.param != key.param);
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.active.is_empty()
+    }
+
+    /// Whether any driver changes faster than a ramp (profiles need every tick).
+    pub fn has_profile(&self) -> bool {
+        self.active
+            .iter()
+            .any(|d| matches!(d.kind, DriverKind::Profile { .. }))
+    }
+
+    /// The value of every driven parameter at `now_us`; finished drivers give their final
+    /// value once more and are then dropped.
+    pub fn values(&mut self, now_us: u64, out: &mut Vec<(&'static ParamKey, f64)>) {
+        out.clear();
+        self.active.retain(|d| {
+            let t = now_us.saturating_sub(d.start_us);
+            let (v, done) = match d.kind {
+                DriverKind::Ramp { from, to, over_us } => {
+                    if over_us == 0 || t >= over_us {
+                        (to, true)
+                    } else {
+                        (from + (to - from) * t as f64 / over_us as f64, false)
+                    }
+                }
+                DriverKind::Profile {
+                    shape,
+                    mean,
+                    amplitude,
+                    frequency_hz,
+                    end_us,
+                    restore,
+                } => {
+                    if end_us.is_some_and(|e| now_us >= e) {
+                        (restore, true)
+                    } else {
+                        let ph = 2.0 * std::f64::consts::PI * frequency_hz * t as f64 * 1e-6;
+                        let s = match shape {
+                            ProfileShape::Sine => ph.sin(),
+                            ProfileShape::Teeth => ph.sin().max(0.0),
+                        };
+                        (mean + amplitude * s, false)
+                    }
+                }
+            };
+            out.push((d.key, v));
+            !done
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::units::param_key;
+
+    fn ev(trigger: Trigger, action: Action) -> Event {
+        Event {
+            id: None,
+            trigger,
+            action,
+            line: 1,
+        }
+    }
+
+    #[test]
+    fn timed_and_conditional_events_fire_once() {
+        let key = param_key("backlash_mm").unwrap();
+        let mut tl = Timeline::new(vec![
+            ev(Trigger::At(1000), Action::Set { key, value: 0.01 }),
+            ev(
+                Trigger::OnState {
+                    state: "OPERATION ENABLED",
+                    delay_us: 500,
+                },
+                Action::CanRestore,
+            ),
+            ev(
+                Trigger::OnEmcy {
+                    code: 0x7300,
+                    delay_us: 0,
+                },
+                Action::CanRestore,
+            ),
+        ]);
+        let none = Observation::default();
+        assert_eq!(tl.due(0, &none).count(), 0);
+        assert_eq!(tl.due(1000, &none).count(), 1);
+        assert_eq!(tl.due(2000, &none).count(), 0);
+        let enabled = Observation {
+            state: Some("OPERATION ENABLED"),
+            new_emcy: &[],
+        };
+        assert_eq!(tl.due(3000, &enabled).count(), 0);
+        assert_eq!(tl.next_due_us(), Some(3500));
+        assert_eq!(tl.due(3499, &none).count(), 0);
+        assert_eq!(tl.due(3500, &none).count(), 1);
+        let emcy = Observation {
+            state: None,
+            new_emcy: &[0x7300],
+        };
+        assert_eq!(tl.due(4000, &emcy).count(), 1);
+        assert!(tl.all_fired());
+        assert_eq!(tl.fired_at(1), Some(3500));
+    }
+
+    #[test]
+    fn ramps_interpolate_and_profiles_restore() {
+        let key = param_key("backlash_mm").unwrap();
+        let load = param_key("load_force_n").unwrap();
+        let mut d = Drivers::default();
+        let ramp = Action::Ramp {
+            key,
+            from: None,
+            to: 0.07,
+            over_us: 3_600_000_000,
+        };
+        d.start(&ramp, 0, 0.0);
+        let mut out = Vec::new();
+        d.values(1_800_000_000, &mut out);
+        assert!((out[0].1 - 0.035).abs() < 1e-12);
+        d.values(4_000_000_000, &mut out);
+        assert_eq!(out[0].1, 0.07);
+        d.values(5_000_000_000, &mut out);
+        assert!(out.is_empty());
+        let prof = Action::Profile {
+            key: load,
+            shape: ProfileShape::Teeth,
+            mean: 100.0,
+            amplitude: 50.0,
+            frequency_hz: 10.0,
+            over_us: Some(1_000_000),
+        };
+        d.start(&prof, 0, 7.0);
+        d.values(25_000, &mut out);
+        assert!((out[0].1 - 150.0).abs() < 1e-9);
+        d.values(75_000, &mut out);
+        assert!((out[0].1 - 100.0).abs() < 1e-9);
+        d.values(1_000_000, &mut out);
+        assert_eq!(out[0].1, 7.0);
+        assert!(d.is_empty());
+    }
+}

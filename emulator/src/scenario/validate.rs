@@ -1,0 +1,929 @@
+//! From the file's serde structures to a [`Scenario`]: which keys go together, which are
+//! required, units converted. Every error carries the span of the key or value at fault.
+
+use super::expect::{Expect, Expectation};
+use super::file::*;
+use super::timeline::{Action, CanFault, Event, Trigger};
+use super::units::AxisKind;
+use super::*;
+use crate::master::{MasterConfig, Step, MODE_CSP, MODE_CST, MODE_CSV, MODE_PP, MODE_PV};
+use crate::presets::{AxisConfig, AxisKind as PresetKind};
+use std::ops::Range;
+use toml::Spanned;
+
+struct Ctx<'a> {
+    src: &'a str,
+    file: &'a Path,
+    /// Units family seen so far in the motion program: (rotary, span of the first key).
+    units: Option<(bool, Range<usize>)>,
+}
+
+type R<T> = Result<T, ScenarioError>;
+
+impl Ctx<'_> {
+    fn err(
+        &self,
+        span: Range<usize>,
+        key: Option<&str>,
+        reason: impl Into<String>,
+    ) -> ScenarioError {
+        error_at(self.src, self.file, span, key, reason)
+    }
+    fn line(&self, span: &Range<usize>) -> usize {
+        line_col(self.src, span.start).0
+    }
+    /// Reject keys not in `allowed`.
+    fn only(
+        &self,
+        present: &[(&'static str, Range<usize>)],
+        allowed: &[&str],
+        what: &str,
+    ) -> R<()> {
+        for (k, span) in present {
+            if !allowed.contains(k) {
+                return Err(self.err(
+                    span.clone(),
+                    Some(k),
+                    format!(
+                        "`{k}` does not apply to {what} (allowed here: {})",
+                        allowed.join(", ")
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+    fn unit_family(&mut self, rotary: bool, key: &str, span: Range<usize>) -> R<()> {
+        match &self.units {
+            Some((r, first)) if *r != rotary => Err(self.err(
+                span,
+                Some(key),
+                format!(
+                    "mixes {} units with the {} units used at line {}",
+                    if rotary {
+                        "rotary (deg)"
+                    } else {
+                        "linear (mm)"
+                    },
+                    if *r { "rotary (deg)" } else { "linear (mm)" },
+                    self.line(first)
+                ),
+            )),
+            Some(_) => Ok(()),
+            None => {
+                self.units = Some((rotary, span));
+                Ok(())
+            }
+        }
+    }
+}
+
+fn positive(ctx: &Ctx, v: &Spanned<f64>, key: &str) -> R<f64> {
+    let x = *v.get_ref();
+    if !(x.is_finite() && x > 0.0) {
+        return Err(ctx.err(
+            v.span(),
+            Some(key),
+            format!("must be a positive number, got {x}"),
+        ));
+    }
+    Ok(x)
+}
+
+fn finite(ctx: &Ctx, v: &Spanned<f64>, key: &str) -> R<f64> {
+    let x = *v.get_ref();
+    if !x.is_finite() {
+        return Err(ctx.err(v.span(), Some(key), "must be a finite number"));
+    }
+    Ok(x)
+}
+
+/// Exactly one of the given optional keys: returns its index.
+fn exactly_one(
+    ctx: &Ctx,
+    at: Range<usize>,
+    keys: &[(&'static str, Option<Range<usize>>)],
+    what: &str,
+) -> R<usize> {
+    let given: Vec<usize> = (0..keys.len()).filter(|&i| keys[i].1.is_some()).collect();
+    let names = keys.iter().map(|k| k.0).collect::<Vec<_>>().join(", ");
+    match given.as_slice() {
+        [i] => Ok(*i),
+        [] => Err(ctx.err(at, Some(keys[0].0), format!("{what} needs one of: {names}"))),
+        [_, j, ..] => Err(ctx.err(
+            keys[*j].1.clone().unwrap(),
+            Some(keys[*j].0),
+            format!("{what} takes only one of: {names}"),
+        )),
+    }
+}
+
+fn mode(m: ModeName) -> i8 {
+    match m {
+        ModeName::Pp => MODE_PP,
+        ModeName::Pv => MODE_PV,
+        ModeName::Csp => MODE_CSP,
+        ModeName::Csv => MODE_CSV,
+        ModeName::Cst => MODE_CST,
+    }
+}
+
+/// Velocity (uu/s) from whichever velocity key is present.
+fn velocity(ctx: &mut Ctx, s: &RawStep, required: bool, signed: bool) -> R<Option<f64>> {
+    let keys = [
+        ("velocity_mm_min", &s.velocity_mm_min, 1000.0 / 60.0, false),
+        ("velocity_mm_s", &s.velocity_mm_s, 1000.0, false),
+        ("velocity_deg_s", &s.velocity_deg_s, 1000.0, true),
+        ("velocity_deg_min", &s.velocity_deg_min, 1000.0 / 60.0, true),
+        ("velocity_uu_s", &s.velocity_uu_s, 1.0, false),
+    ];
+    let spans: Vec<_> = keys
+        .iter()
+        .map(|k| (k.0, k.1.as_ref().map(|v| v.span())))
+        .collect();
+    if !required && spans.iter().all(|s| s.1.is_none()) {
+        return Ok(None);
+    }
+    let i = exactly_one(ctx, s.step.span(), &spans, "this step")?;
+    let (key, v, scale, rotary) = keys[i];
+    let v = v.as_ref().unwrap();
+    if key != "velocity_uu_s" {
+        ctx.unit_family(rotary, key, v.span())?;
+    }
+    let x = if signed {
+        finite(ctx, v, key)?
+    } else {
+        positive(ctx, v, key)?
+    };
+    Ok(Some(x * scale))
+}
+
+fn accel(ctx: &mut Ctx, s: &RawStep) -> R<f64> {
+    let keys = [
+        ("accel_mm_s2", &s.accel_mm_s2, false),
+        ("accel_deg_s2", &s.accel_deg_s2, true),
+        ("accel_uu_s2", &s.accel_uu_s2, false),
+    ];
+    let spans: Vec<_> = keys
+        .iter()
+        .map(|k| (k.0, k.1.as_ref().map(|v| v.span())))
+        .collect();
+    let i = exactly_one(ctx, s.step.span(), &spans, "this step")?;
+    let (key, v, rotary) = keys[i];
+    let v = v.as_ref().unwrap();
+    if key == "accel_uu_s2" {
+        return positive(ctx, v, key);
+    }
+    ctx.unit_family(rotary, key, v.span())?;
+    Ok(positive(ctx, v, key)? * 1000.0)
+}
+
+fn required<'a, T>(
+    ctx: &Ctx,
+    v: &'a Option<Spanned<T>>,
+    key: &str,
+    at: &Spanned<StepKind>,
+) -> R<&'a T> {
+    v.as_ref().map(|x| x.get_ref()).ok_or_else(|| {
+        ctx.err(
+            at.span(),
+            Some(key),
+            format!("a `{:?}` step needs `{key}`", at.get_ref()).to_lowercase(),
+        )
+    })
+}
+
+fn steps(
+    ctx: &mut Ctx,
+    raw: &[Spanned<RawStep>],
+    out: &mut Vec<ProgramStep>,
+    depth: usize,
+) -> R<()> {
+    for s in raw {
+        let s = s.get_ref();
+        let kind = *s.step.get_ref();
+        let present = s.present();
+        let what = format!("a `{}` step", format!("{kind:?}").to_lowercase());
+        let vel = &[
+            "velocity_mm_min",
+            "velocity_mm_s",
+            "velocity_deg_s",
+            "velocity_deg_min",
+            "velocity_uu_s",
+        ][..];
+        let acc = &["accel_mm_s2", "accel_deg_s2", "accel_uu_s2"][..];
+        let dur_us = |ctx: &Ctx| -> R<u64> {
+            let d = required(ctx, &s.duration, "duration", &s.step)?;
+            if d.us() == 0 {
+                return Err(ctx.err(
+                    s.duration.as_ref().unwrap().span(),
+                    Some("duration"),
+                    "must be longer than 0 s",
+                ));
+            }
+            Ok(d.us())
+        };
+        match kind {
+            StepKind::Enable | StepKind::SetMode => {
+                ctx.only(&present, &["mode"], &what)?;
+                let m = mode(*required(ctx, &s.mode, "mode", &s.step)?);
+                out.push(ProgramStep::Master(if kind == StepKind::Enable {
+                    Step::Enable { mode: m }
+                } else {
+                    Step::SetMode { mode: m }
+                }));
+            }
+            StepKind::MoveTo => {
+                ctx.only(
+                    &present,
+                    &[vel, acc, &["target_mm", "target_deg", "target_uu"]].concat(),
+                    &what,
+                )?;
+                let targets = [
+                    ("target_mm", s.target_mm.as_ref().map(|v| v.span())),
+                    ("target_deg", s.target_deg.as_ref().map(|v| v.span())),
+                    ("target_uu", s.target_uu.as_ref().map(|v| v.span())),
+                ];
+                let i = exactly_one(ctx, s.step.span(), &targets, &what)?;
+                let (key, t, scale) = match i {
+                    0 => ("target_mm", s.target_mm.as_ref().unwrap(), 1000.0),
+                    1 => ("target_deg", s.target_deg.as_ref().unwrap(), 1000.0),
+                    _ => ("target_uu", s.target_uu.as_ref().unwrap(), 1.0),
+                };
+                if i < 2 {
+                    ctx.unit_family(i == 1, key, t.span())?;
+                }
+                let uu = finite(ctx, t, key)? * scale;
+                if uu.abs() > i32::MAX as f64 {
+                    return Err(ctx.err(t.span(), Some(key), "outside the 32-bit position range"));
+                }
+                let v = velocity(ctx, s, true, false)?.unwrap();
+                let a = accel(ctx, s)?;
+                out.push(ProgramStep::Master(Step::MoveTo {
+                    target_uu: uu.round() as i32,
+                    velocity_uu_s: v.round().max(1.0) as u32,
+                    accel_uu_s2: a.round().max(1.0) as u32,
+                }));
+            }
+            StepKind::Cruise => {
+                ctx.only(&present, &[vel, acc, &["duration"]].concat(), &what)?;
+                let v = velocity(ctx, s, true, true)?.unwrap();
+                let a = accel(ctx, s)?;
+                let d = dur_us(ctx)?;
+                out.push(ProgramStep::Master(Step::Cruise {
+                    velocity_uu_s: v,
+                    accel_uu_s2: a,
+                    duration_s: d as f64 * 1e-6,
+                }));
+            }
+            StepKind::Dwell | StepKind::Idle => {
+                ctx.only(&present, &["duration"], &what)?;
+                let d = dur_us(ctx)?;
+                out.push(if kind == StepKind::Dwell {
+                    ProgramStep::Master(Step::Dwell {
+                        duration_s: d as f64 * 1e-6,
+                    })
+                } else {
+                    ProgramStep::Idle { duration_us: d }
+                });
+            }
+            StepKind::WriteSdo => {
+                ctx.only(&present, &["index", "sub", "value", "len"], &what)?;
+                let index = *required(ctx, &s.index, "index", &s.step)?;
+                let value = *required(ctx, &s.value, "value", &s.step)?;
+                let len = *required(ctx, &s.len, "len", &s.step)?;
+                if !matches!(len, 1 | 2 | 4) {
+                    return Err(ctx.err(
+                        s.len.as_ref().unwrap().span(),
+                        Some("len"),
+                        "must be 1, 2 or 4 bytes",
+                    ));
+                }
+                out.push(ProgramStep::Master(Step::WriteSdo {
+                    index,
+                    sub: s.sub.as_ref().map_or(0, |x| *x.get_ref()),
+                    value: value as u32,
+                    len,
+                }));
+            }
+            StepKind::StopHeartbeat | StepKind::StopSync | StepKind::Disable => {
+                ctx.only(&present, &[], &what)?;
+                out.push(ProgramStep::Master(match kind {
+                    StepKind::StopHeartbeat => Step::StopHeartbeat,
+                    StepKind::StopSync => Step::StopSync,
+                    _ => Step::Disable,
+                }));
+            }
+            StepKind::Repeat => {
+                ctx.only(&present, &["times", "body"], &what)?;
+                let times = *required(ctx, &s.times, "times", &s.step)?;
+                let body = s.body.as_ref().ok_or_else(|| {
+                    ctx.err(
+                        s.step.span(),
+                        Some("body"),
+                        "a `repeat` step needs `body`, a list of steps",
+                    )
+                })?;
+                if body.is_empty() || times == 0 {
+                    return Err(ctx.err(
+                        s.step.span(),
+                        Some("body"),
+                        "a `repeat` needs times >= 1 and a non-empty body",
+                    ));
+                }
+                if depth > 3 {
+                    return Err(ctx.err(
+                        s.step.span(),
+                        Some("body"),
+                        "repeats nest at most 4 deep",
+                    ));
+                }
+                let mut inner = Vec::new();
+                steps(ctx, body, &mut inner, depth + 1)?;
+                if inner.len() as u64 * u64::from(times) > 1_000_000 {
+                    return Err(ctx.err(
+                        s.times.as_ref().unwrap().span(),
+                        Some("times"),
+                        "the program would exceed a million steps",
+                    ));
+                }
+                for _ in 0..times {
+                    out.extend(inner.iter().cloned());
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn param_value(ctx: &Ctx, key: &ParamKey, v: &Spanned<f64>, name: &str) -> R<f64> {
+    let x = finite(ctx, v, name)?;
+    if x < key.min {
+        return Err(ctx.err(
+            v.span(),
+            Some(name),
+            format!("{} must be at least {}, got {x}", key.key, key.min),
+        ));
+    }
+    Ok(x)
+}
+
+fn event(ctx: &mut Ctx, e: &Spanned<RawEvent>) -> R<Event> {
+    let span = e.span();
+    let e = e.get_ref();
+    let sp = |o: Option<Range<usize>>| o;
+    macro_rules! s {
+        ($f:ident) => {
+            sp(e.$f.as_ref().map(|x| x.span()))
+        };
+    }
+    // Trigger.
+    let trig = exactly_one(
+        ctx,
+        span.clone(),
+        &[
+            ("at", s!(at)),
+            ("on_state", s!(on_state)),
+            ("on_emcy", s!(on_emcy)),
+        ],
+        "an event",
+    )?;
+    let delay = e.after.as_ref().map_or(0, |a| a.get_ref().us());
+    if trig == 0 {
+        if let Some(a) = &e.after {
+            return Err(ctx.err(
+                a.span(),
+                Some("after"),
+                "`after` delays a condition (on_state, on_emcy); with `at` give the time directly",
+            ));
+        }
+    }
+    let trigger = match trig {
+        0 => Trigger::At(e.at.as_ref().unwrap().get_ref().us()),
+        1 => Trigger::OnState {
+            state: e.on_state.as_ref().unwrap().get_ref().0,
+            delay_us: delay,
+        },
+        _ => Trigger::OnEmcy {
+            code: e.on_emcy.as_ref().unwrap().get_ref().0,
+            delay_us: delay,
+        },
+    };
+    // Action.
+    let which = exactly_one(
+        ctx,
+        span.clone(),
+        &[
+            ("set", s!(set)),
+            ("ramp", s!(ramp)),
+            ("profile", s!(profile)),
+            ("sensor", s!(sensor)),
+            ("can", s!(can)),
+        ],
+        "an event",
+    )?;
+    let mut present: Vec<(&'static str, Range<usize>)> = Vec::new();
+    macro_rules! p {
+        ($($f:ident),*) => {$( if let Some(x) = &e.$f { present.push((stringify!($f), x.span())); } )*};
+    }
+    p!(
+        value,
+        from,
+        to,
+        over,
+        shape,
+        mean,
+        amplitude,
+        frequency_hz,
+        counts,
+        share,
+        ticks,
+        cob_id
+    );
+    let need = |ctx: &Ctx, v: Option<Range<usize>>, key: &str, what: &str| -> R<()> {
+        if v.is_none() {
+            return Err(ctx.err(span.clone(), Some(key), format!("{what} needs `{key}`")));
+        }
+        Ok(())
+    };
+    let action = match which {
+        0 => {
+            ctx.only(&present, &["value"], "a `set` event")?;
+            need(ctx, s!(value), "value", "a `set` event")?;
+            let key = e.set.as_ref().unwrap().get_ref().0;
+            Action::Set {
+                key,
+                value: param_value(ctx, key, e.value.as_ref().unwrap(), "value")?,
+            }
+        }
+        1 => {
+            ctx.only(&present, &["from", "to", "over"], "a `ramp` event")?;
+            need(ctx, s!(to), "to", "a `ramp` event")?;
+            need(ctx, s!(over), "over", "a `ramp` event")?;
+            let key = e.ramp.as_ref().unwrap().get_ref().0;
+            Action::Ramp {
+                key,
+                from: e
+                    .from
+                    .as_ref()
+                    .map(|f| param_value(ctx, key, f, "from"))
+                    .transpose()?,
+                to: param_value(ctx, key, e.to.as_ref().unwrap(), "to")?,
+                over_us: e.over.as_ref().unwrap().get_ref().us(),
+            }
+        }
+        2 => {
+            ctx.only(
+                &present,
+                &["shape", "mean", "amplitude", "frequency_hz", "over"],
+                "a `profile` event",
+            )?;
+            need(ctx, s!(amplitude), "amplitude", "a `profile` event")?;
+            need(ctx, s!(frequency_hz), "frequency_hz", "a `profile` event")?;
+            let key = e.profile.as_ref().unwrap().get_ref().0;
+            Action::Profile {
+                key,
+                shape: e
+                    .shape
+                    .as_ref()
+                    .map_or(ProfileShape::Sine, |s| *s.get_ref()),
+                mean: e
+                    .mean
+                    .as_ref()
+                    .map(|m| finite(ctx, m, "mean"))
+                    .transpose()?
+                    .unwrap_or(0.0),
+                amplitude: finite(ctx, e.amplitude.as_ref().unwrap(), "amplitude")?,
+                frequency_hz: positive(ctx, e.frequency_hz.as_ref().unwrap(), "frequency_hz")?,
+                over_us: e.over.as_ref().map(|o| o.get_ref().us()),
+            }
+        }
+        3 => {
+            let kind = *e.sensor.as_ref().unwrap().get_ref();
+            let glitch = matches!(
+                kind,
+                SensorKind::MotorEncoderGlitch | SensorKind::DirectEncoderGlitch
+            );
+            if glitch {
+                ctx.only(&present, &["counts"], "an encoder glitch")?;
+                need(ctx, s!(counts), "counts", "an encoder glitch")?;
+            } else {
+                ctx.only(&present, &[], "this sensor event")?;
+            }
+            Action::Sensor {
+                kind,
+                counts: e.counts.as_ref().map_or(0, |c| *c.get_ref()),
+            }
+        }
+        _ => {
+            let kind = *e.can.as_ref().unwrap().get_ref();
+            let over_us = e.over.as_ref().map(|o| o.get_ref().us());
+            let cob = e.cob_id.as_ref().map(|c| c.get_ref().0);
+            let share = e.share.as_ref().map(|s| s.get_ref().0);
+            match kind {
+                CanKind::Drop => {
+                    ctx.only(&present, &["share", "cob_id", "over"], "a CAN drop")?;
+                    need(ctx, s!(share), "share", "a CAN drop")?;
+                    Action::Can {
+                        fault: CanFault::Drop {
+                            share: share.unwrap(),
+                            cob_id: cob,
+                        },
+                        over_us,
+                    }
+                }
+                CanKind::Delay => {
+                    ctx.only(
+                        &present,
+                        &["share", "ticks", "cob_id", "over"],
+                        "a CAN delay",
+                    )?;
+                    need(ctx, s!(share), "share", "a CAN delay")?;
+                    need(ctx, s!(ticks), "ticks", "a CAN delay")?;
+                    Action::Can {
+                        fault: CanFault::Delay {
+                            share: share.unwrap(),
+                            ticks: *e.ticks.as_ref().unwrap().get_ref(),
+                            cob_id: cob,
+                        },
+                        over_us,
+                    }
+                }
+                CanKind::SyncLoss | CanKind::HeartbeatLoss => {
+                    ctx.only(&present, &["over"], "a CAN loss")?;
+                    Action::Can {
+                        fault: if kind == CanKind::SyncLoss {
+                            CanFault::SyncLoss
+                        } else {
+                            CanFault::HeartbeatLoss
+                        },
+                        over_us,
+                    }
+                }
+                CanKind::Restore => {
+                    ctx.only(&present, &[], "a CAN restore")?;
+                    Action::CanRestore
+                }
+            }
+        }
+    };
+    // Parameter keys must fit the program's units family.
+    if let Action::Set { key, .. } | Action::Ramp { key, .. } | Action::Profile { key, .. } =
+        &action
+    {
+        let name_span = s!(set).or(s!(ramp)).or(s!(profile)).unwrap();
+        if key.axis != AxisKind::Any {
+            ctx.unit_family(key.axis == AxisKind::Rotary, key.key, name_span)?;
+        }
+    }
+    Ok(Event {
+        id: e.id.as_ref().map(|i| i.get_ref().clone()),
+        trigger,
+        action,
+        line: ctx.line(&span),
+    })
+}
+
+fn expectation(ctx: &mut Ctx, x: &Spanned<RawExpect>, ids: &[String]) -> R<Expect> {
+    let span = x.span();
+    let x = x.get_ref();
+    macro_rules! s {
+        ($f:ident) => {
+            x.$f.as_ref().map(|v| v.span())
+        };
+    }
+    let kinds = [
+        ("emcy", s!(emcy)),
+        ("no_emcy", s!(no_emcy)),
+        ("state", s!(state)),
+        ("following_error_max_mm", s!(following_error_max_mm)),
+        ("following_error_max_deg", s!(following_error_max_deg)),
+        ("verdict", s!(verdict)),
+        ("frequency_hz", s!(frequency_hz)),
+        (
+            "frequency_over_kv_min",
+            s!(frequency_over_kv_min).or(s!(frequency_over_kv_max)),
+        ),
+        ("program", s!(program)),
+    ];
+    let which = exactly_one(ctx, span.clone(), &kinds, "an expectation")?;
+    let mut present: Vec<(&'static str, Range<usize>)> = Vec::new();
+    macro_rules! p {
+        ($($f:ident),*) => {$( if let Some(v) = &x.$f { present.push((stringify!($f), v.span())); } )*};
+    }
+    p!(
+        within,
+        after,
+        at,
+        from,
+        until,
+        by,
+        not_before,
+        tolerance_pct
+    );
+    if which != 7 {
+        p!(frequency_over_kv_max);
+    }
+    let t = |v: &Option<Spanned<Time>>| v.as_ref().map(|t| t.get_ref().us());
+    let what = match which {
+        0 => {
+            ctx.only(&present, &["within", "after"], "an `emcy` expectation")?;
+            if let Some(a) = &x.after {
+                if !ids.contains(a.get_ref()) {
+                    return Err(ctx.err(
+                        a.span(),
+                        Some("after"),
+                        format!("no event has id `{}`", a.get_ref()),
+                    ));
+                }
+            }
+            Expectation::Emcy {
+                code: x.emcy.as_ref().unwrap().get_ref().0,
+                within_us: t(&x.within),
+                after: x.after.as_ref().map(|a| a.get_ref().clone()),
+            }
+        }
+        1 => {
+            ctx.only(&present, &["from", "until"], "a `no_emcy` expectation")?;
+            if !*x.no_emcy.as_ref().unwrap().get_ref() {
+                return Err(ctx.err(
+                    s!(no_emcy).unwrap(),
+                    Some("no_emcy"),
+                    "write `no_emcy = true` or leave it out",
+                ));
+            }
+            Expectation::NoEmcy {
+                from_us: t(&x.from).unwrap_or(0),
+                until_us: t(&x.until),
+            }
+        }
+        2 => {
+            ctx.only(&present, &["at"], "a `state` expectation")?;
+            Expectation::State {
+                state: x.state.as_ref().unwrap().get_ref().0,
+                at_us: t(&x.at),
+            }
+        }
+        3 | 4 => {
+            ctx.only(
+                &present,
+                &["from", "until"],
+                "a following-error expectation",
+            )?;
+            let (key, v, rotary) = if which == 3 {
+                (
+                    "following_error_max_mm",
+                    x.following_error_max_mm.as_ref().unwrap(),
+                    false,
+                )
+            } else {
+                (
+                    "following_error_max_deg",
+                    x.following_error_max_deg.as_ref().unwrap(),
+                    true,
+                )
+            };
+            ctx.unit_family(rotary, key, v.span())?;
+            Expectation::FollowingError {
+                max_uu: positive(ctx, v, key)? * 1000.0,
+                from_us: t(&x.from).unwrap_or(0),
+                until_us: t(&x.until),
+            }
+        }
+        5 => {
+            ctx.only(&present, &["by", "not_before"], "a `verdict` expectation")?;
+            Expectation::Verdict {
+                verdict: *x.verdict.as_ref().unwrap().get_ref(),
+                by_us: t(&x.by),
+                not_before_us: t(&x.not_before),
+            }
+        }
+        6 => {
+            ctx.only(&present, &["tolerance_pct"], "a `frequency_hz` expectation")?;
+            Expectation::FrequencyHz {
+                hz: positive(ctx, x.frequency_hz.as_ref().unwrap(), "frequency_hz")?,
+                tolerance_pct: x
+                    .tolerance_pct
+                    .as_ref()
+                    .map(|v| positive(ctx, v, "tolerance_pct"))
+                    .transpose()?
+                    .unwrap_or(5.0),
+            }
+        }
+        7 => {
+            ctx.only(&present, &[], "a `frequency_over_kv` expectation")?;
+            let min = x
+                .frequency_over_kv_min
+                .as_ref()
+                .map(|v| finite(ctx, v, "frequency_over_kv_min"))
+                .transpose()?;
+            let max = x
+                .frequency_over_kv_max
+                .as_ref()
+                .map(|v| finite(ctx, v, "frequency_over_kv_max"))
+                .transpose()?;
+            let (min, max) = (min.unwrap_or(0.0), max.unwrap_or(f64::INFINITY));
+            if min > max {
+                return Err(ctx.err(
+                    s!(frequency_over_kv_min).unwrap(),
+                    Some("frequency_over_kv_min"),
+                    "is above frequency_over_kv_max",
+                ));
+            }
+            Expectation::FrequencyOverKv { min, max }
+        }
+        _ => {
+            ctx.only(&present, &[], "a `program` expectation")?;
+            Expectation::Program(*x.program.as_ref().unwrap().get_ref())
+        }
+    };
+    Ok(Expect {
+        what,
+        line: ctx.line(&span),
+    })
+}
+
+pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> {
+    let mut ctx = Ctx {
+        src,
+        file,
+        units: None,
+    };
+    let name = raw.name.get_ref().trim().to_string();
+    if name.is_empty()
+        || !name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.')
+    {
+        return Err(ctx.err(
+            raw.name.span(),
+            Some("name"),
+            "must be non-empty and use only letters, digits, - _ . (it names the output directory)",
+        ));
+    }
+    // Machine.
+    let m = raw.machine.get_ref();
+    let presets: Vec<String> = match (&m.preset, &m.presets) {
+        (Some(p), None) => vec![p.get_ref().clone()],
+        (None, Some(ps)) if !ps.get_ref().is_empty() => {
+            ps.get_ref().iter().map(|p| p.get_ref().clone()).collect()
+        }
+        (None, _) => {
+            return Err(ctx.err(
+                raw.machine.span(),
+                Some("machine.preset"),
+                "[machine] needs `preset` (or a non-empty `presets` list for a sweep)",
+            ))
+        }
+        (Some(_), Some(ps)) => {
+            return Err(ctx.err(
+                ps.span(),
+                Some("machine.presets"),
+                "give `preset` or `presets`, not both",
+            ))
+        }
+    };
+    let mut overrides = Vec::new();
+    for (k, v) in &m.overrides {
+        overrides.push((k.to_string(), v.get_ref().to_string()));
+    }
+    // Master and timing.
+    let d = MasterConfig::default();
+    let mr = &raw.master;
+    let master = MasterConfig {
+        node_id: mr.node_id.unwrap_or(d.node_id),
+        master_id: mr.master_id.unwrap_or(d.master_id),
+        sync_period_us: mr.sync_period_us.unwrap_or(d.sync_period_us),
+        heartbeat_ms: mr.heartbeat_ms.unwrap_or(d.heartbeat_ms),
+        drive_heartbeat_ms: mr.drive_heartbeat_ms.unwrap_or(d.drive_heartbeat_ms),
+        step_timeout_us: mr.step_timeout.map_or(d.step_timeout_us, |t| t.us()),
+    };
+    let mspan = raw.machine.span();
+    if !(1..=127).contains(&master.node_id) || !(1..=127).contains(&master.master_id) {
+        return Err(ctx.err(mspan, Some("master.node_id"), "node IDs are 1..127"));
+    }
+    if master.sync_period_us < 100 {
+        return Err(ctx.err(mspan, Some("master.sync_period_us"), "at least 100 us"));
+    }
+    let tick_us = u64::from(mr.tick_us.unwrap_or(master.sync_period_us));
+    if tick_us == 0 || u64::from(master.sync_period_us) % tick_us != 0 {
+        return Err(ctx.err(mspan, Some("master.tick_us"), "must divide the SYNC period"));
+    }
+    // Program.
+    let mut program = Vec::new();
+    steps(&mut ctx, &raw.motion, &mut program, 0)?;
+    if !matches!(
+        program.first(),
+        Some(ProgramStep::Master(Step::Enable { .. }))
+    ) && !program.is_empty()
+    {
+        let at = raw.motion.first().map(|s| s.span()).unwrap_or(0..0);
+        return Err(ctx.err(
+            at,
+            Some("motion[0].step"),
+            "the motion program must start with an `enable` step",
+        ));
+    }
+    // Events.
+    let mut events = Vec::new();
+    let mut ids: Vec<String> = Vec::new();
+    for e in &raw.event {
+        let ev = event(&mut ctx, e)?;
+        if let Some(id) = &ev.id {
+            if ids.contains(id) {
+                let sp = e.get_ref().id.as_ref().unwrap().span();
+                return Err(ctx.err(sp, Some("id"), format!("event id `{id}` used twice")));
+            }
+            ids.push(id.clone());
+        }
+        events.push(ev);
+    }
+    let mut expectations = Vec::new();
+    for x in &raw.expect {
+        expectations.push(expectation(&mut ctx, x, &ids)?);
+    }
+    // Resolve every preset with the overrides, so a bad value is reported here, with its line.
+    let mut configs = Vec::new();
+    for (i, p) in presets.iter().enumerate() {
+        let pspan = match (&m.preset, &m.presets) {
+            (Some(s), _) => s.span(),
+            (_, Some(list)) => list.get_ref()[i].span(),
+            _ => unreachable!(),
+        };
+        let key = if m.preset.is_some() {
+            "preset"
+        } else {
+            "presets"
+        };
+        let mut cfg =
+            AxisConfig::from_preset(p).map_err(|e| ctx.err(pspan.clone(), Some(key), e.reason))?;
+        for (k, v) in &m.overrides {
+            cfg = cfg
+                .with_override(k, &v.get_ref().to_string())
+                .map_err(|e| ctx.err(v.span(), Some(k), format!("{} (preset {p})", e.reason)))?;
+        }
+        let rotary = cfg.kind == PresetKind::Rotary;
+        if let Some((r, first)) = &ctx.units {
+            if *r != rotary {
+                return Err(ctx.err(
+                    pspan,
+                    Some(key),
+                    format!(
+                        "preset {p} is a {} axis but the file uses {} units at line {} (use the *_uu keys for sweeps over both kinds)",
+                        if rotary { "rotary" } else { "linear" },
+                        if *r { "rotary (deg)" } else { "linear (mm)" },
+                        ctx.line(first)
+                    ),
+                ));
+            }
+        }
+        configs.push(cfg);
+    }
+    // Detector.
+    let rd = &raw.detector;
+    let pos =
+        |v: &Option<Spanned<f64>>, k: &str| v.as_ref().map(|v| positive(&ctx, v, k)).transpose();
+    let detector = DetectorSpec {
+        enabled: rd.enabled.unwrap_or(true),
+        kv_per_s: pos(&rd.kv_per_s, "kv_per_s")?,
+        suspect_um: pos(&rd.suspect_um, "suspect_um")?,
+        alarm_um: pos(&rd.alarm_um, "alarm_um")?,
+        min_window_s: rd.min_window.as_ref().map(|t| t.get_ref().secs()),
+        settle_s: rd.settle.as_ref().map(|t| t.get_ref().secs()),
+        confirm_windows: rd
+            .confirm_windows
+            .as_ref()
+            .map(|c| (*c.get_ref()).max(1) as usize),
+    };
+    if let (Some(s), Some(a)) = (detector.suspect_um, detector.alarm_um) {
+        if s > a {
+            return Err(ctx.err(
+                rd.suspect_um.as_ref().unwrap().span(),
+                Some("detector.suspect_um"),
+                "is above alarm_um",
+            ));
+        }
+    }
+    Ok(Scenario {
+        name,
+        description: raw.description,
+        path: file.to_path_buf(),
+        machine: MachineSpec {
+            presets,
+            overrides,
+            configs,
+            rotary_units: ctx.units.as_ref().map(|u| u.0),
+        },
+        run: RunSpec {
+            master,
+            tick_us,
+            seed: raw.seed.unwrap_or(1),
+            duration_us: raw.duration.map(|d| d.get_ref().us()),
+            fast_forward_idle: raw.fast_forward_idle.unwrap_or(true),
+        },
+        program,
+        events,
+        expectations,
+        detector,
+    })
+}

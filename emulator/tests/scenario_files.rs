@@ -1,0 +1,205 @@
+//! Scenario files: every shipped file parses; every kind of bad input is reported with file,
+//! line, key and reason.
+
+use drive_emu::scenario::{self, ProgramStep, ScenarioError};
+use std::path::{Path, PathBuf};
+
+fn scenarios_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios")
+}
+
+const GOOD: &str = r#"
+name = "t"
+[machine]
+preset = "cnc1"
+backlash_mm = 0.02
+
+[[motion]]
+step = "enable"
+mode = "csp"
+
+[[motion]]
+step = "cruise"
+velocity_mm_min = 1000.0
+accel_mm_s2 = 500.0
+duration = "2 s"
+
+[[event]]
+id = "w"
+at = "1 s"
+ramp = "backlash_mm"
+to = 0.05
+over = "10 min"
+
+[[expect]]
+emcy = "0x7300"
+after = "w"
+within = "50 ms"
+"#;
+
+/// Parse `GOOD` with `from` replaced by `to` and return the error.
+fn bad(from: &str, to: &str) -> ScenarioError {
+    assert!(GOOD.contains(from), "test bug: `{from}` not in GOOD");
+    let src = GOOD.replacen(from, to, 1);
+    match scenario::parse(&src, Path::new("bad.toml")) {
+        Ok(_) => panic!("accepted:\n{src}"),
+        Err(e) => e,
+    }
+}
+
+fn line_of(src: &str, needle: &str) -> usize {
+    src.lines().position(|l| l.contains(needle)).unwrap() + 1
+}
+
+/// The message names the file, the line, the key and the reason.
+fn check(e: &ScenarioError, key: &str, reason: &str) {
+    let msg = e.to_string();
+    assert!(
+        msg.starts_with(&format!("bad.toml:{}:", e.line)) && e.line > 0,
+        "{msg}"
+    );
+    assert!(
+        e.key.ends_with(key),
+        "key `{}` should end with `{key}`: {msg}",
+        e.key
+    );
+    assert!(msg.contains(&format!("key `{}`", e.key)), "{msg}");
+    assert!(msg.contains(reason), "reason `{reason}` missing: {msg}");
+}
+
+#[test]
+fn the_good_example_parses() {
+    let s = scenario::parse(GOOD, Path::new("good.toml")).unwrap();
+    assert_eq!(s.name, "t");
+    assert_eq!(s.program.len(), 2);
+    assert_eq!(s.events.len(), 1);
+    assert_eq!(s.expectations.len(), 1);
+    assert_eq!(s.machine.configs.len(), 1);
+    assert_eq!(s.machine.rotary_units, Some(false));
+}
+
+#[test]
+fn every_shipped_scenario_parses() {
+    let mut n = 0;
+    for entry in std::fs::read_dir(scenarios_dir()).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().is_some_and(|e| e == "toml") {
+            let s = scenario::load(&p).unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!(
+                p.file_stem().unwrap().to_str().unwrap(),
+                s.name,
+                "file name and scenario name differ"
+            );
+            assert!(!s.expectations.is_empty(), "{} expects nothing", s.name);
+            n += 1;
+        }
+    }
+    assert!(n >= 7, "{n} scenarios");
+}
+
+#[test]
+fn wear_ramp_idles_are_fast_forwarded() {
+    let s = scenario::load(&scenarios_dir().join("cnc1-wear-ramp.toml")).unwrap();
+    let idles = s
+        .program
+        .iter()
+        .filter(|p| matches!(p, ProgramStep::Idle { .. }))
+        .count();
+    assert_eq!(idles, 13);
+    let (steps, skip) = s.master_program(0.1);
+    assert_eq!(steps.len(), s.program.len());
+    let skipped: u64 = skip.iter().sum();
+    assert_eq!(skipped, 13 * (300_000_000 - 100_000));
+}
+
+#[test]
+fn unknown_key_is_rejected_with_its_line() {
+    let e = bad("accel_mm_s2 = 500.0", "acel_mm_s2 = 500.0");
+    assert_eq!(e.line, line_of(GOOD, "accel_mm_s2"));
+    check(&e, "acel_mm_s2", "unknown field `acel_mm_s2`");
+    // Top level and in [machine] too.
+    let e = bad("name = \"t\"", "name = \"t\"\ncolour = 1");
+    assert_eq!((e.line, e.key.as_str()), (3, "colour"), "{e}");
+    let e = bad("backlash_mm = 0.02", "backlash_mmm = 0.02");
+    assert_eq!(e.line, line_of(GOOD, "backlash_mm = 0.02"));
+    check(&e, "backlash_mmm", "unknown machine key `backlash_mmm`");
+}
+
+#[test]
+fn bad_time_or_unit_is_rejected() {
+    let e = bad("duration = \"2 s\"", "duration = \"2 sec\"");
+    assert_eq!(e.line, line_of(GOOD, "duration = \"2 s\""));
+    check(&e, "duration", "unknown unit `sec`");
+    let e = bad("duration = \"2 s\"", "duration = 2");
+    check(&e, "duration", "has no unit");
+    let e = bad("over = \"10 min\"", "over = \"-10 min\"");
+    assert_eq!(e.line, line_of(GOOD, "over = "));
+    check(&e, "over", "negative");
+    let e = bad("duration = \"2 s\"", "duration = \"0 s\"");
+    check(&e, "duration", "longer than 0");
+    // Units family: a rotary key in a linear program.
+    let e = bad("velocity_mm_min = 1000.0", "velocity_deg_s = 10.0");
+    assert_eq!(e.line, line_of(GOOD, "accel_mm_s2"));
+    check(
+        &e,
+        "accel_mm_s2",
+        &format!(
+            "mixes linear (mm) units with the rotary (deg) units used at line {}",
+            line_of(GOOD, "velocity_mm_min")
+        ),
+    );
+    // A value the preset rejects.
+    let e = bad("backlash_mm = 0.02", "backlash_mm = -0.02");
+    assert_eq!(e.line, line_of(GOOD, "backlash_mm = 0.02"));
+    check(&e, "backlash_mm", "must be >= 0");
+}
+
+#[test]
+fn unknown_parameter_is_rejected() {
+    let e = bad("ramp = \"backlash_mm\"", "ramp = \"backlash_inch\"");
+    assert_eq!(e.line, line_of(GOOD, "ramp = "));
+    check(&e, "ramp", "unknown parameter `backlash_inch`");
+    let e = bad("preset = \"cnc1\"", "preset = \"cnc9\"");
+    assert_eq!(e.line, line_of(GOOD, "preset = "));
+    check(&e, "preset", "unknown preset `cnc9`");
+    let e = bad("to = 0.05", "to = -0.05");
+    check(&e, "to", "at least 0");
+}
+
+#[test]
+fn bad_event_is_rejected() {
+    // No action.
+    let e = bad("ramp = \"backlash_mm\"\n", "");
+    assert_eq!(e.line, line_of(GOOD, "[[event]]"), "{e}");
+    check(&e, "set", "an event needs one of: set, ramp");
+    // Two triggers.
+    let e = bad("at = \"1 s\"", "at = \"1 s\"\non_state = \"fault\"");
+    check(&e, "on_state", "takes only one of: at, on_state");
+    // A key that does not belong to the action.
+    let e = bad("over = \"10 min\"", "over = \"10 min\"\namplitude = 3.0");
+    assert_eq!(e.line, line_of(GOOD, "over = ") + 1);
+    check(&e, "amplitude", "does not apply to a `ramp` event");
+    // Missing required key.
+    let e = bad("to = 0.05\n", "");
+    check(&e, "to", "needs `to`");
+    // Unknown state, bad EMCY code, unknown expectation reference.
+    let e = bad("at = \"1 s\"", "on_state = \"running\"");
+    check(&e, "on_state", "unknown CiA 402 state `running`");
+    let e = bad("emcy = \"0x7300\"", "emcy = \"0x17300\"");
+    check(&e, "emcy", "not a 16-bit EMCY code");
+    let e = bad("after = \"w\"", "after = \"nope\"");
+    check(&e, "after", "no event has id `nope`");
+    // Unknown step kind and a key foreign to the step.
+    let e = bad("step = \"cruise\"", "step = \"cruse\"");
+    check(&e, "step", "unknown variant `cruse`");
+    let e = bad("mode = \"csp\"", "mode = \"csp\"\nduration = \"1 s\"");
+    check(&e, "duration", "does not apply to a `enable` step");
+}
+
+#[test]
+fn syntax_errors_and_unreadable_files_are_reported() {
+    let e = bad("mode = \"csp\"", "mode = \"csp");
+    assert_eq!(e.line, line_of(GOOD, "mode = "));
+    let e = scenario::load(Path::new("/nonexistent/x.toml")).unwrap_err();
+    assert!(e.to_string().contains("cannot read"), "{e}");
+}
