@@ -1,0 +1,90 @@
+//! Steady state (SYNC, RPDOs, TPDOs, heartbeat producer and consumer, expedited SDO, CiA 402
+//! in CSP) does not allocate: a counting global allocator proves it.
+mod common;
+use common::*;
+use drive_protocol::{CanFrame, Node};
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+thread_local! {
+    static ACTIVE: Cell<bool> = const { Cell::new(false) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        if ACTIVE.with(|a| a.get()) {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        if ACTIVE.with(|a| a.get()) {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn cycle(node: &mut Node, drive: &mut SimDrive, now: &mut u64, k: u32, sent: &mut usize) {
+    let id = ID as u32;
+    let target = (k as i32 * 10).to_le_bytes();
+    node.handle(&CanFrame::new(0x300 + id, &[0x0F, 0, target[0], target[1], target[2], target[3]]), *now, drive);
+    node.handle(&CanFrame::new(0x80, &[]), *now, drive);
+    if k % 10 == 0 {
+        node.handle(&CanFrame::new(0x77F, &[0x05]), *now, drive);
+        node.handle(&CanFrame::new(0x600 + id, &[0x2B, 0x40, 0x60, 0, 0x0F, 0, 0, 0]), *now, drive);
+        node.handle(&CanFrame::new(0x600 + id, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]), *now, drive);
+    }
+    *now += 1000;
+    node.poll(*now, drive);
+    while node.pop_tx().is_some() {
+        *sent += 1;
+    }
+}
+
+#[test]
+fn steady_state_does_not_allocate() {
+    let mut b = Bench::new();
+    b.w16(0x1017, 0, 10).unwrap();
+    b.w32(0x1016, 1, (0x7F << 16) | 100).unwrap();
+    b.w8(0x1802, 2, 254).unwrap(); // one event-driven TPDO too
+    b.start();
+    b.enable(8);
+    let mut node = b.node;
+    let mut drive = b.drive;
+    let mut now = b.now;
+    let mut sent = 0;
+    for k in 0..100 {
+        cycle(&mut node, &mut drive, &mut now, k, &mut sent);
+    }
+    ALLOCS.store(0, Ordering::SeqCst);
+    sent = 0;
+    ACTIVE.with(|a| a.set(true));
+    for k in 100..2100 {
+        cycle(&mut node, &mut drive, &mut now, k, &mut sent);
+    }
+    ACTIVE.with(|a| a.set(false));
+    assert!(sent > 2000 * 2, "the node was busy: {sent} frames");
+    assert_eq!(ALLOCS.load(Ordering::SeqCst), 0, "allocations in steady state");
+    assert_eq!(node.cia402_state(), drive_protocol::Cia402State::OperationEnabled);
+}
+
+#[test]
+fn the_counter_counts() {
+    ALLOCS.store(0, Ordering::SeqCst);
+    ACTIVE.with(|a| a.set(true));
+    let v: Vec<u8> = Vec::with_capacity(10);
+    ACTIVE.with(|a| a.set(false));
+    drop(v);
+    assert!(ALLOCS.load(Ordering::SeqCst) >= 1);
+}
