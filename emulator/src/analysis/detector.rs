@@ -66,6 +66,73 @@ impl AxisTrace {
     }
 }
 
+impl AxisTrace {
+    /// From the simulator's trace (`analysis::Trace`, axis units mm or deg): positions to user
+    /// units (um / mdeg), set velocity from the set-point, motor velocity from the motor
+    /// speed (rpm) scaled by the kinematic ratio estimated from the motor-encoder position.
+    pub fn from_sim(
+        t_s: &[f64],
+        setpoint: &[f64],
+        motor_position: &[f64],
+        direct_position: &[f64],
+        motor_rpm: &[f64],
+        current_a: &[f64],
+        rotary: bool,
+    ) -> Self {
+        let n = t_s.len();
+        let uu = |v: &[f64]| v.iter().map(|x| x * 1000.0).collect::<Vec<_>>();
+        let deriv = |x: &[f64]| {
+            let mut d = vec![0.0; n];
+            for i in 1..n {
+                let dt = t_s[i] - t_s[i - 1];
+                d[i] = if dt > 0.0 { (x[i] - x[i - 1]) / dt } else { d[i - 1] };
+            }
+            if n > 1 {
+                d[0] = d[1];
+            }
+            d
+        };
+        let motor_position = uu(motor_position);
+        let set_velocity: Vec<f64> = deriv(&uu(setpoint))
+            .into_iter()
+            // The set-point is stored with finite precision: round the noise away so constant
+            // segments are exactly constant.
+            .map(|v| (v * 1e3).round() / 1e3)
+            .collect();
+        let mv = deriv(&motor_position);
+        let (sa, sb): (f64, f64) = mv
+            .iter()
+            .zip(motor_rpm)
+            .filter(|(_, r)| r.abs() > 1e-9)
+            .fold((0.0, 0.0), |(a, b), (v, r)| (a + v * r, b + r * r));
+        let k = if sb > 0.0 { sa / sb } else { 0.0 };
+        Self {
+            t_s: t_s.to_vec(),
+            set_velocity,
+            motor_velocity: motor_rpm.iter().map(|r| r * k).collect(),
+            current: current_a.to_vec(),
+            motor_position,
+            direct_position: uu(direct_position),
+            position_unit: if rotary { "mdeg" } else { "um" }.into(),
+            current_unit: "A".into(),
+        }
+    }
+
+    /// From the reference master's sample log (user units, per mille current).
+    pub fn from_samples(samples: &[crate::master::Sample], rotary: bool) -> Self {
+        Self {
+            t_s: samples.iter().map(|s| s.t_s).collect(),
+            set_velocity: samples.iter().map(|s| s.setpoint_velocity_uu_s).collect(),
+            motor_velocity: samples.iter().map(|s| f64::from(s.velocity_uu_s)).collect(),
+            current: samples.iter().map(|s| f64::from(s.current_permille)).collect(),
+            motor_position: samples.iter().map(|s| f64::from(s.position_uu)).collect(),
+            direct_position: samples.iter().map(|s| f64::from(s.direct_position_uu)).collect(),
+            position_unit: if rotary { "mdeg" } else { "um" }.into(),
+            current_unit: "permille".into(),
+        }
+    }
+}
+
 /// Detector verdict.
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,

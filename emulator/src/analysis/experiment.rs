@@ -21,7 +21,9 @@ pub struct RunOptions {
     /// Start disturbance: a velocity change of the load (axis units/s) given by a short
     /// external force pulse (5 ms) right after the start ramp, like a knock on the carriage.
     /// The backlash limit cycle is a hard excitation: it needs a disturbance to start.
-    pub kick: f64,
+    /// `None`: 0.6 x the commanded velocity (enough to enter the limit cycle of every preset
+    /// at k_v = 15..60 1/s); `Some(0.0)`: no disturbance.
+    pub kick: Option<f64>,
 }
 
 impl RunOptions {
@@ -31,7 +33,7 @@ impl RunOptions {
             duration,
             accel: 0.0,
             record: false,
-            kick: 0.0,
+            kick: None,
         }
     }
 }
@@ -139,9 +141,10 @@ pub fn constant_velocity_run(cfg: &AxisConfig, opts: &RunOptions) -> Result<RunR
     let to_rpm = 30.0 / std::f64::consts::PI;
     let kick_start = ((ramp / dt).ceil() as usize).min(n);
     let kick_cycles = ((0.005 / dt).round() as usize).max(1);
-    let kick_force = built.axis.mech.load_mass * opts.kick * unit / (kick_cycles as f64 * dt);
+    let kick = opts.kick.unwrap_or(0.6 * opts.velocity);
+    let kick_force = built.axis.mech.load_mass * kick * unit / (kick_cycles as f64 * dt);
     for i in 0..n {
-        if opts.kick != 0.0 {
+        if kick != 0.0 {
             let on = i >= kick_start && i < kick_start + kick_cycles;
             servo.axis.set_external_load(if on { kick_force } else { 0.0 });
         }

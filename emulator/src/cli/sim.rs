@@ -28,9 +28,10 @@ pub struct SimArgs {
     #[arg(long, default_value_t = 0.0)]
     pub accel: f64,
     /// Start disturbance: load velocity change (axis units/s) from a 5 ms force pulse after the
-    /// start ramp.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub kick: f64,
+    /// start ramp (default 0.6 x velocity; 0 = none). The backlash limit cycle is a hard
+    /// excitation: it needs a disturbance to start.
+    #[arg(long, allow_negative_numbers = true)]
+    pub kick: Option<f64>,
     /// Write the full trace as CSV to this file.
     #[arg(long)]
     pub trace: Option<PathBuf>,
