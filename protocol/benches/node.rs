@@ -57,12 +57,20 @@ fn operational(drive: &mut Ideal) -> (Node, u64) {
     let id = ID as u32;
     n.handle(&CanFrame::new(0, &[1, ID]), now, drive);
     n.handle(&CanFrame::new(0x600 + id, &[0x2F, 0x60, 0x60, 0, 8, 0, 0, 0]), now, drive);
+    // TPDO1 synchronous too, so every SYNC emits 4 TPDOs
+    n.handle(&CanFrame::new(0x600 + id, &[0x2F, 0x00, 0x18, 2, 1, 0, 0, 0]), now, drive);
     for cw in [0x06u8, 0x07, 0x0F] {
         n.handle(&CanFrame::new(0x200 + id, &[cw, 0]), now, drive);
         now += 1000;
         n.poll(now, drive);
     }
     while n.pop_tx().is_some() {}
+    n.handle(&CanFrame::new(0x80, &[]), now, drive);
+    let mut tpdos = 0;
+    while let Some(f) = n.pop_tx() {
+        tpdos += (0x180..0x500).contains(&(f.id & !0x7F)) as usize;
+    }
+    assert_eq!(tpdos, 4, "4 TPDOs per SYNC");
     (n, now)
 }
 
