@@ -4,7 +4,9 @@
 //! cargo bench -p drive-protocol --bench node -- --warm-up-time 1 --measurement-time 3
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use drive_protocol::{AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, Node, ParamError};
+use drive_protocol::{
+    AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, Node, ParamError,
+};
 
 const ID: u8 = 3;
 
@@ -18,7 +20,11 @@ impl Drive for Ideal {
         info()
     }
     fn feedback(&self) -> Feedback {
-        Feedback { motor_position_inc: self.pos as i64, direct_position_inc: self.pos as i64, ..Feedback::default() }
+        Feedback {
+            motor_position_inc: self.pos as i64,
+            direct_position_inc: self.pos as i64,
+            ..Feedback::default()
+        }
     }
     fn command(&mut self, c: &DriveCommand) {
         if let drive_protocol::Setpoint::Position { position_inc, .. } = c.setpoint {
@@ -56,9 +62,17 @@ fn operational(drive: &mut Ideal) -> (Node, u64) {
     let mut now = 0;
     let id = ID as u32;
     n.handle(&CanFrame::new(0, &[1, ID]), now, drive);
-    n.handle(&CanFrame::new(0x600 + id, &[0x2F, 0x60, 0x60, 0, 8, 0, 0, 0]), now, drive);
+    n.handle(
+        &CanFrame::new(0x600 + id, &[0x2F, 0x60, 0x60, 0, 8, 0, 0, 0]),
+        now,
+        drive,
+    );
     // TPDO1 synchronous too, so every SYNC emits 4 TPDOs
-    n.handle(&CanFrame::new(0x600 + id, &[0x2F, 0x00, 0x18, 2, 1, 0, 0, 0]), now, drive);
+    n.handle(
+        &CanFrame::new(0x600 + id, &[0x2F, 0x00, 0x18, 2, 1, 0, 0, 0]),
+        now,
+        drive,
+    );
     for cw in [0x06u8, 0x07, 0x0F] {
         n.handle(&CanFrame::new(0x200 + id, &[cw, 0]), now, drive);
         now += 1000;
@@ -83,7 +97,11 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             k = k.wrapping_add(1);
             let t = k.to_le_bytes();
-            node.handle(&CanFrame::new(0x300 + id, &[0x0F, 0, t[0], t[1], t[2], t[3]]), now, &mut drive);
+            node.handle(
+                &CanFrame::new(0x300 + id, &[0x0F, 0, t[0], t[1], t[2], t[3]]),
+                now,
+                &mut drive,
+            );
             node.handle(&CanFrame::new(0x80, &[]), now, &mut drive);
             let mut n = 0;
             while let Some(f) = node.pop_tx() {
@@ -97,7 +115,11 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             k = k.wrapping_add(1);
             let t = k.to_le_bytes();
-            node.handle(&CanFrame::new(0x300 + id, &[0x0F, 0, t[0], t[1], t[2], t[3]]), now, &mut drive);
+            node.handle(
+                &CanFrame::new(0x300 + id, &[0x0F, 0, t[0], t[1], t[2], t[3]]),
+                now,
+                &mut drive,
+            );
             node.handle(&CanFrame::new(0x80, &[]), now, &mut drive);
             now += 1000;
             node.poll(now, &mut drive);
@@ -110,13 +132,21 @@ fn bench(c: &mut Criterion) {
     });
     c.bench_function("expedited SDO round trip (read 0x6041)", |b| {
         b.iter(|| {
-            node.handle(&CanFrame::new(0x600 + id, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]), now, &mut drive);
+            node.handle(
+                &CanFrame::new(0x600 + id, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]),
+                now,
+                &mut drive,
+            );
             black_box(node.pop_tx())
         })
     });
     c.bench_function("expedited SDO round trip (write 0x6081)", |b| {
         b.iter(|| {
-            node.handle(&CanFrame::new(0x600 + id, &[0x23, 0x81, 0x60, 0, 0x10, 0x27, 0, 0]), now, &mut drive);
+            node.handle(
+                &CanFrame::new(0x600 + id, &[0x23, 0x81, 0x60, 0, 0x10, 0x27, 0, 0]),
+                now,
+                &mut drive,
+            );
             black_box(node.pop_tx())
         })
     });

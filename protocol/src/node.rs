@@ -144,7 +144,11 @@ impl<D: Drive> ObjectAccess for Access<'_, D> {
             return Err(abort::WRITE_ONLY);
         }
         if let Some(p) = params::param_at(index) {
-            let scale = if self.core.info.rotary { p.rotary_scale } else { p.scale };
+            let scale = if self.core.info.rotary {
+                p.rotary_scale
+            } else {
+                p.scale
+            };
             let v = self.drive.param(p.param).map_err(|e| param_error(e, 0.0))?;
             buf[..4].copy_from_slice(&((v * scale) as f32).to_le_bytes());
             return Ok(4);
@@ -172,16 +176,27 @@ impl<D: Drive> ObjectAccess for Access<'_, D> {
         let obj = &OBJECTS[row];
         let raw = obj.decode(data);
         if let Some(p) = params::param_at(index) {
-            let scale = if self.core.info.rotary { p.rotary_scale } else { p.scale };
+            let scale = if self.core.info.rotary {
+                p.rotary_scale
+            } else {
+                p.scale
+            };
             let v = f32::from_bits(raw) as f64;
             if !v.is_finite() {
                 return Err(abort::VALUE_RANGE);
             }
             let si = v / scale;
-            return self.drive.set_param(p.param, si).map_err(|e| param_error(e, si));
+            return self
+                .drive
+                .set_param(p.param, si)
+                .map_err(|e| param_error(e, si));
         }
         if let Err(high) = obj.check_limits(raw) {
-            return Err(if high { abort::VALUE_HIGH } else { abort::VALUE_LOW });
+            return Err(if high {
+                abort::VALUE_HIGH
+            } else {
+                abort::VALUE_LOW
+            });
         }
         self.core.write_checked(row, index, sub, raw)
     }
@@ -226,6 +241,8 @@ impl Core {
     }
 
     /// Semantic checks and side effects of an SDO write (limits and type already checked).
+    /// One arm per object with a rule; the `if`s stay inside the arms for readability.
+    #[allow(clippy::collapsible_match)]
     fn write_checked(&mut self, row: usize, index: u16, sub: u8, raw: u32) -> Result<(), u32> {
         if let Some((k, tx, mapping)) = pdo_slot(index) {
             let valid = self.pdo_valid(k, tx);
@@ -353,7 +370,11 @@ impl Core {
         let cob = self.store.u32(c + 1);
         let ttype = self.store.u32(c + 2) as u8;
         let count = self.store.u32(m) as usize;
-        let p = if tx { &mut self.tpdo[k] } else { &mut self.rpdo[k] };
+        let p = if tx {
+            &mut self.tpdo[k]
+        } else {
+            &mut self.rpdo[k]
+        };
         p.cob = cob;
         p.ttype = ttype;
         match pdo::compile(&self.store, m, count, tx) {
@@ -433,7 +454,9 @@ impl Core {
 
     fn on_sync(&mut self, frame: &CanFrame, now_us: u64) -> FrameEvent {
         let overflow = self.store.u32(R_1019) as u8;
-        let s = self.sync.on_sync(now_us, frame.len, frame.data[0], overflow);
+        let s = self
+            .sync
+            .on_sync(now_us, frame.len, frame.data[0], overflow);
         if self.emcy_allowed() {
             if s.length_error {
                 self.report(EMCY_SYNC_LENGTH, [frame.len, 0, 0, 0, 0]);
@@ -515,7 +538,10 @@ impl Node {
             now_us: 0,
         };
         core.refresh_all();
-        Ok(Node { sdo: SdoServer::default(), core })
+        Ok(Node {
+            sdo: SdoServer::default(),
+            core,
+        })
     }
 
     /// Queue the boot-up message and enter pre-operational.
@@ -582,6 +608,10 @@ impl Node {
             };
         }
         let nmt = self.core.nmt;
+        let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
+        if id == sync_cob && !frame.rtr {
+            return self.core.on_sync(frame, now_us);
+        }
         if nmt == NmtState::Stopped {
             if (0x701..=0x77F).contains(&id) && !frame.rtr && frame.len >= 1 {
                 self.heartbeat_in(id as u8, now_us);
@@ -589,16 +619,15 @@ impl Node {
             }
             return FrameEvent::Ignored;
         }
-        let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
-        if id == sync_cob && !frame.rtr {
-            return self.core.on_sync(frame, now_us);
-        }
         if id == 0x600 + self.core.node_id as u32 {
             if frame.rtr || frame.len != 8 {
                 return FrameEvent::Ignored;
             }
             let mut outv: heapless::Vec<[u8; 8], 16> = heapless::Vec::new();
-            let mut acc = Access { core: &mut self.core, drive };
+            let mut acc = Access {
+                core: &mut self.core,
+                drive,
+            };
             self.sdo.handle(&frame.data, now_us, &mut acc, &mut |f| {
                 let _ = outv.push(f);
             });
@@ -695,12 +724,10 @@ impl Node {
             c.push(f);
         }
         // heartbeat consumer
-        if c.nmt != NmtState::Stopped {
-            if let Some(n) = c.hbc.poll(now_us) {
-                c.hb_lost = true;
-                c.emcy.raise(&mut c.store, EMCY_HEARTBEAT, [n, 0, 0, 0, 0]);
-                c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
-            }
+        if let Some(n) = c.hbc.poll(now_us) {
+            c.hb_lost = true;
+            c.emcy.raise(&mut c.store, EMCY_HEARTBEAT, [n, 0, 0, 0, 0]);
+            c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
         }
         // SYNC supervision
         if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
@@ -713,7 +740,9 @@ impl Node {
         // CiA 402
         let period = csp_period_us(&c.store, c.sync.interval_us);
         let sync_at = c.pending_sync.take();
-        let out = c.cia.step(&mut c.store, &fb, now_us, sync_at, period, drive);
+        let out = c
+            .cia
+            .step(&mut c.store, &fb, now_us, sync_at, period, drive);
         if let Some(code) = out.new_fault {
             c.emcy.raise(&mut c.store, code, [0; 5]);
         }
@@ -751,6 +780,11 @@ impl Node {
                 c.push(f);
             }
         }
+    }
+
+    /// Timeout of a stalled SDO transfer (default 1 s).
+    pub fn set_sdo_timeout_us(&mut self, timeout_us: u64) {
+        self.sdo.timeout_us = timeout_us;
     }
 
     /// The next frame to send.
@@ -843,4 +877,3 @@ fn csp_period_us(store: &Store, measured_us: u64) -> u64 {
         measured_us
     }
 }
-

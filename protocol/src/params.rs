@@ -21,8 +21,22 @@ pub struct ParamDef {
 const DEG: f64 = 180.0 / core::f64::consts::PI;
 const ARCSEC: f64 = DEG * 3600.0;
 
-const fn p(index: u16, param: AxisParam, name: &'static str, scale: f64, rotary_name: &'static str, rotary_scale: f64) -> ParamDef {
-    ParamDef { index, param, name, scale, rotary_name, rotary_scale }
+const fn p(
+    index: u16,
+    param: AxisParam,
+    name: &'static str,
+    scale: f64,
+    rotary_name: &'static str,
+    rotary_scale: f64,
+) -> ParamDef {
+    ParamDef {
+        index,
+        param,
+        name,
+        scale,
+        rotary_name,
+        rotary_scale,
+    }
 }
 
 #[rustfmt::skip]

@@ -38,12 +38,27 @@ static GLOBAL: Counting = Counting;
 fn cycle(node: &mut Node, drive: &mut SimDrive, now: &mut u64, k: u32, sent: &mut usize) {
     let id = ID as u32;
     let target = (k as i32 * 10).to_le_bytes();
-    node.handle(&CanFrame::new(0x300 + id, &[0x0F, 0, target[0], target[1], target[2], target[3]]), *now, drive);
+    node.handle(
+        &CanFrame::new(
+            0x300 + id,
+            &[0x0F, 0, target[0], target[1], target[2], target[3]],
+        ),
+        *now,
+        drive,
+    );
     node.handle(&CanFrame::new(0x80, &[]), *now, drive);
-    if k % 10 == 0 {
+    if k.is_multiple_of(10) {
         node.handle(&CanFrame::new(0x77F, &[0x05]), *now, drive);
-        node.handle(&CanFrame::new(0x600 + id, &[0x2B, 0x40, 0x60, 0, 0x0F, 0, 0, 0]), *now, drive);
-        node.handle(&CanFrame::new(0x600 + id, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]), *now, drive);
+        node.handle(
+            &CanFrame::new(0x600 + id, &[0x2B, 0x40, 0x60, 0, 0x0F, 0, 0, 0]),
+            *now,
+            drive,
+        );
+        node.handle(
+            &CanFrame::new(0x600 + id, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]),
+            *now,
+            drive,
+        );
     }
     *now += 1000;
     node.poll(*now, drive);
@@ -75,8 +90,15 @@ fn steady_state_does_not_allocate() {
     }
     ACTIVE.with(|a| a.set(false));
     assert!(sent > 2000 * 2, "the node was busy: {sent} frames");
-    assert_eq!(ALLOCS.load(Ordering::SeqCst), 0, "allocations in steady state");
-    assert_eq!(node.cia402_state(), drive_protocol::Cia402State::OperationEnabled);
+    assert_eq!(
+        ALLOCS.load(Ordering::SeqCst),
+        0,
+        "allocations in steady state"
+    );
+    assert_eq!(
+        node.cia402_state(),
+        drive_protocol::Cia402State::OperationEnabled
+    );
 }
 
 #[test]

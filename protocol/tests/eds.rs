@@ -27,7 +27,11 @@ fn python_canopen_loads_the_eds() {
     if out.status.code() == Some(2) {
         panic!("python canopen missing: run `pip install -r tests/requirements.txt` (canopen==2.4.1)\n{stderr}");
     }
-    assert!(out.status.success(), "EDS check failed:\n{stderr}\n{}", String::from_utf8_lossy(&out.stdout));
+    assert!(
+        out.status.success(),
+        "EDS check failed:\n{stderr}\n{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -70,5 +70,8 @@ fn emcy_cob_id_and_disable() {
     b.take();
     b.drive.fault = Some(0x7300);
     b.tick();
-    assert!(b.take().iter().all(|f| f.id & 0x780 != 0x080), "EMCY disabled by bit 31");
+    assert!(
+        b.take().iter().all(|f| f.id & 0x780 != 0x080),
+        "EMCY disabled by bit 31"
+    );
 }

@@ -10,7 +10,11 @@ fn producer_sends_state_every_period() {
     b.take();
     b.run_until(1_000_000);
     let hb = b.sent(0x700 + ID as u32);
-    assert!((9..=11).contains(&hb.len()), "{} heartbeats in 1 s", hb.len());
+    assert!(
+        (9..=11).contains(&hb.len()),
+        "{} heartbeats in 1 s",
+        hb.len()
+    );
     assert!(hb.iter().all(|f| f.len == 1 && f.data[0] == 0x7F));
     b.start();
     b.take();
@@ -20,7 +24,10 @@ fn producer_sends_state_every_period() {
     b.take();
     b.run_until(1_400_000);
     let hb = b.sent(0x700 + ID as u32);
-    assert!(!hb.is_empty() && hb.iter().all(|f| f.data[0] == 0x04), "heartbeat continues in stopped");
+    assert!(
+        !hb.is_empty() && hb.iter().all(|f| f.data[0] == 0x04),
+        "heartbeat continues in stopped"
+    );
 }
 
 fn lose_master(option: u16) -> Bench {
@@ -44,7 +51,11 @@ fn lost_master_raises_emcy_and_fault() {
     let mut b = lose_master(1);
     assert!(b.emcys().contains(&0x8130), "EMCY 0x8130");
     assert_eq!(b.node.cia402_state(), Cia402State::Fault);
-    assert_eq!(b.r32(0x1001, 0) & 0x11, 0x11, "generic + communication bits");
+    assert_eq!(
+        b.r32(0x1001, 0) & 0x11,
+        0x11,
+        "generic + communication bits"
+    );
 }
 
 #[test]

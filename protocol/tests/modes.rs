@@ -32,7 +32,10 @@ fn pp_handshake_trapezoid_and_target_reached() {
     assert!(sw & (1 << 10) == 0, "not yet reached");
     b.cw(0x0F);
     b.tick();
-    assert!(b.node.statusword() & (1 << 12) == 0, "ack cleared with bit 4");
+    assert!(
+        b.node.statusword() & (1 << 12) == 0,
+        "ack cleared with bit 4"
+    );
     // 5 mm at 10 mm/s with 0.1 s ramps: ~0.6 s; check the speed never exceeds the profile
     let mut vmax: f64 = 0.0;
     let mut prev = demand(&b);
@@ -42,7 +45,10 @@ fn pp_handshake_trapezoid_and_target_reached() {
         vmax = vmax.max((d - prev) / 1e-3 / INC_PER_UU);
         prev = d;
     }
-    assert!(vmax <= 10_000.0 * 1.01 && vmax > 9_000.0, "peak {vmax} um/s");
+    assert!(
+        vmax <= 10_000.0 * 1.01 && vmax > 9_000.0,
+        "peak {vmax} um/s"
+    );
     assert_eq!(b.node.position_actual(), 5000);
     assert!(b.node.statusword() & (1 << 10) != 0, "target reached");
     // relative move of -1000
@@ -58,7 +64,10 @@ fn pp_handshake_trapezoid_and_target_reached() {
     b.w32(0x607A, 0, 9000).unwrap();
     b.cw(0x1F);
     b.tick();
-    assert!(b.node.statusword() & (1 << 11) != 0, "internal limit active");
+    assert!(
+        b.node.statusword() & (1 << 11) != 0,
+        "internal limit active"
+    );
     b.ticks(400);
     assert_eq!(b.node.position_actual(), 4500);
 }
@@ -80,7 +89,10 @@ fn pp_change_set_immediately_vs_buffered() {
         b.tick();
         max_pos = max_pos.max(b.node.position_actual());
     }
-    assert!(max_pos >= 9_990, "first target reached before the buffered one: {max_pos}");
+    assert!(
+        max_pos >= 9_990,
+        "first target reached before the buffered one: {max_pos}"
+    );
     assert!(b.node.position_actual().abs() <= 5);
     // immediately: a new target replaces the running one
     b.cw(0x0F);
@@ -111,7 +123,10 @@ fn halt_decelerates_and_holds_then_resumes() {
     let held = b.node.position_actual();
     b.ticks(100);
     assert_eq!(b.node.position_actual(), held, "holding");
-    assert!(b.node.statusword() & (1 << 10) != 0, "halt: target reached when standing");
+    assert!(
+        b.node.statusword() & (1 << 10) != 0,
+        "halt: target reached when standing"
+    );
     assert!(held < 20_000);
     b.cw(0x1F);
     b.ticks(2500);
@@ -135,7 +150,10 @@ fn pv_ramp_window_and_speed_zero() {
     assert!(b.node.statusword() & (1 << 10) == 0);
     assert!(b.node.statusword() & (1 << 12) == 0);
     b.ticks(300);
-    assert!(b.node.statusword() & (1 << 10) != 0, "in the velocity window");
+    assert!(
+        b.node.statusword() & (1 << 10) != 0,
+        "in the velocity window"
+    );
     // halt ramps to zero
     b.cw(0x10F);
     b.ticks(500);
@@ -169,11 +187,21 @@ fn csp_interpolates_between_sync_targets() {
     for s in &steps[4..] {
         assert!((s - 100.0).abs() < 0.5, "step {s} in {steps:?}");
     }
-    assert_eq!(b.node.statusword() & (1 << 12), 1 << 12, "drive follows the command value");
+    assert_eq!(
+        b.node.statusword() & (1 << 12),
+        1 << 12,
+        "drive follows the command value"
+    );
     // velocity feed-forward = slope, plus 0x60B1
     match b.drive.last.unwrap().setpoint {
-        Setpoint::Position { velocity_ff_inc_per_s, .. } => {
-            assert!((velocity_ff_inc_per_s / INC_PER_UU - 100_000.0).abs() < 10.0 || velocity_ff_inc_per_s == 0.0)
+        Setpoint::Position {
+            velocity_ff_inc_per_s,
+            ..
+        } => {
+            assert!(
+                (velocity_ff_inc_per_s / INC_PER_UU - 100_000.0).abs() < 10.0
+                    || velocity_ff_inc_per_s == 0.0
+            )
         }
         _ => unreachable!(),
     }
@@ -192,12 +220,18 @@ fn csp_target_wraps_around_i32() {
     b.w8(0x6060, 0, 8).unwrap();
     b.tick();
     let t0 = b.ri32(0x607A, 0);
-    assert!((t0 - near).abs() <= 1, "0x607A set to the position on entering CSP");
+    assert!(
+        (t0 - near).abs() <= 1,
+        "0x607A set to the position on entering CSP"
+    );
     let before = demand(&b);
     b.w32(0x607A, 0, near.wrapping_add(200) as u32).unwrap();
     b.tick();
     let after = demand(&b);
-    assert!((after - before - 200.0 * INC_PER_UU).abs() < 2.0 * INC_PER_UU, "moved +200, not -2^32");
+    assert!(
+        (after - before - 200.0 * INC_PER_UU).abs() < 2.0 * INC_PER_UU,
+        "moved +200, not -2^32"
+    );
 }
 
 #[test]
@@ -210,7 +244,10 @@ fn csv_and_cst_with_offsets() {
     b.w16(0x60B2, 0, 50).unwrap();
     b.tick();
     match b.drive.last.unwrap().setpoint {
-        Setpoint::Velocity { velocity_inc_per_s, torque_ff_permille } => {
+        Setpoint::Velocity {
+            velocity_inc_per_s,
+            torque_ff_permille,
+        } => {
             assert!((velocity_inc_per_s - 1500.0 * INC_PER_UU).abs() < 1e-6);
             assert_eq!(torque_ff_permille, 50.0);
         }
@@ -327,7 +364,11 @@ fn following_error_faults_with_emcy_8611() {
     b.tick();
     assert!(b.r32(0x60F4, 0) as i32 >= 900);
     b.ticks(3);
-    assert_eq!(b.node.cia402_state(), Cia402State::OperationEnabled, "within the time-out");
+    assert_eq!(
+        b.node.cia402_state(),
+        Cia402State::OperationEnabled,
+        "within the time-out"
+    );
     b.ticks(5);
     assert!(b.emcys().contains(&0x8611));
     assert_eq!(b.node.cia402_state(), Cia402State::Fault);

@@ -41,7 +41,12 @@ fn pdos_only_in_operational() {
     b.take();
     b.sync();
     b.tick();
-    assert!(b.take().iter().all(|f| !(0x180..0x500).contains(&(f.id & !0x7F))), "no TPDO in pre-op");
+    assert!(
+        b.take()
+            .iter()
+            .all(|f| !(0x180..0x500).contains(&(f.id & !0x7F))),
+        "no TPDO in pre-op"
+    );
     b.send(f(0x200 + ID as u32, &[0x06, 0]));
     assert_eq!(b.r32(0x6040, 0), 0, "RPDO ignored in pre-op");
     b.start();
@@ -50,7 +55,10 @@ fn pdos_only_in_operational() {
     b.take();
     b.sync();
     let tx = b.take();
-    assert!(tx.iter().any(|f| f.id == 0x280 + ID as u32), "TPDO2 on SYNC");
+    assert!(
+        tx.iter().any(|f| f.id == 0x280 + ID as u32),
+        "TPDO2 on SYNC"
+    );
 }
 
 #[test]
@@ -63,14 +71,25 @@ fn reset_communication_and_reset_node() {
     b.take();
     b.nmt(0x82, ID);
     let tx = b.take();
-    assert!(tx.iter().any(|f| f.id == 0x700 + ID as u32 && f.data[0] == 0), "boot-up after reset comm");
+    assert!(
+        tx.iter()
+            .any(|f| f.id == 0x700 + ID as u32 && f.data[0] == 0),
+        "boot-up after reset comm"
+    );
     assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
     assert_eq!(b.r32(0x1017, 0), 0, "communication objects reset");
     assert_eq!(b.r32(0x6081, 0), 777, "application objects kept");
-    assert_eq!(b.node.cia402_state(), Cia402State::OperationEnabled, "drive state kept");
+    assert_eq!(
+        b.node.cia402_state(),
+        Cia402State::OperationEnabled,
+        "drive state kept"
+    );
     b.take();
     b.nmt(0x81, 0);
-    assert!(b.take().iter().any(|f| f.id == 0x700 + ID as u32 && f.data[0] == 0));
+    assert!(b
+        .take()
+        .iter()
+        .any(|f| f.id == 0x700 + ID as u32 && f.data[0] == 0));
     assert_ne!(b.r32(0x6081, 0), 777, "reset node resets everything");
     b.tick();
     assert_eq!(b.node.cia402_state(), Cia402State::SwitchOnDisabled);
@@ -83,6 +102,9 @@ fn frames_for_other_nodes_and_extended_ids_are_ignored() {
     let mut ext = f(0x600 + ID as u32, &[0x40, 0, 0x10, 0, 0, 0, 0, 0]);
     ext.extended = true;
     assert_eq!(b.send(ext), FrameEvent::Ignored);
-    assert_eq!(b.send(f(0x600 + ID as u32 + 1, &[0x40, 0, 0x10, 0, 0, 0, 0, 0])), FrameEvent::Ignored);
+    assert_eq!(
+        b.send(f(0x600 + ID as u32 + 1, &[0x40, 0, 0x10, 0, 0, 0, 0, 0])),
+        FrameEvent::Ignored
+    );
     assert!(b.take().is_empty());
 }

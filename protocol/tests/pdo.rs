@@ -23,13 +23,21 @@ fn default_mappings() {
     assert_eq!(t2.len, 6);
     assert_eq!(u16::from_le_bytes([t2.data[0], t2.data[1]]) & 0x4F, 0x40);
     assert_eq!(i32_at(&t2.data, 2), 3000);
-    assert_eq!(tx.iter().find(|f| f.id == 0x380 + N).unwrap().len, 6, "TPDO3 statusword + velocity");
+    assert_eq!(
+        tx.iter().find(|f| f.id == 0x380 + N).unwrap().len,
+        6,
+        "TPDO3 statusword + velocity"
+    );
     let t4 = tx.iter().find(|f| f.id == 0x480 + N).unwrap();
     assert_eq!(i32_at(&t4.data, 2), 3000, "TPDO4 carries 0x60E4 sub 1");
     // TPDO1: statusword + mode display, on change
     b.w8(0x6060, 0, 8).unwrap();
     b.tick();
-    let t1 = b.take().into_iter().filter(|f| f.id == 0x180 + N).collect::<Vec<_>>();
+    let t1 = b
+        .take()
+        .into_iter()
+        .filter(|f| f.id == 0x180 + N)
+        .collect::<Vec<_>>();
     assert_eq!(t1.len(), 1);
     assert_eq!((t1[0].len, t1[0].data[2]), (3, 8));
     // RPDO2: controlword + target position
@@ -91,7 +99,11 @@ fn remap_aborts() {
     // COB-ID of a valid PDO cannot change
     b.w32(0x1801, 1, 0x280 + N).unwrap();
     assert_eq!(b.w32(0x1801, 1, 0x290 + N), Err(0x0609_0030));
-    assert_eq!(b.w32(0x1801, 1, 0x2000_0000 | (0x280 + N)), Err(0x0609_0030), "29-bit");
+    assert_eq!(
+        b.w32(0x1801, 1, 0x2000_0000 | (0x280 + N)),
+        Err(0x0609_0030),
+        "29-bit"
+    );
     // inhibit time only while invalid
     assert_eq!(b.w16(0x1801, 3, 10), Err(0x0601_0000));
     // RPDO transmission types 252/253 do not exist
@@ -146,7 +158,10 @@ fn event_driven_with_inhibit_time_and_event_timer() {
         let _ = k;
     }
     assert!(times.len() >= 9 && times.len() <= 11, "{times:?}");
-    assert!(times.windows(2).all(|w| w[1] - w[0] >= 10), "inhibit time respected: {times:?}");
+    assert!(
+        times.windows(2).all(|w| w[1] - w[0] >= 10),
+        "inhibit time respected: {times:?}"
+    );
     // event timer: TPDO3 every 20 ms although nothing changes
     b.drive.vel = 0.0;
     let mut n3 = 0;

@@ -17,12 +17,29 @@ fn frame_strategy() -> impl Strategy<Value = (CanFrame, u32, bool)> {
         0u32..0x800,
         any::<u32>(),
     ];
-    (id, any::<bool>(), any::<bool>(), 0u8..=8, any::<[u8; 8]>(), 0u32..20_000, any::<bool>()).prop_map(
-        |(id, ext, rtr, len, data, dt, poll)| {
-            // bias SDO/NMT bytes toward valid command specifiers
-            (CanFrame { id, extended: ext && id % 7 == 0, rtr: rtr && id % 5 == 0, len, data }, dt, poll)
-        },
+    (
+        id,
+        any::<bool>(),
+        any::<bool>(),
+        0u8..=8,
+        any::<[u8; 8]>(),
+        0u32..20_000,
+        any::<bool>(),
     )
+        .prop_map(|(id, ext, rtr, len, data, dt, poll)| {
+            // bias SDO/NMT bytes toward valid command specifiers
+            (
+                CanFrame {
+                    id,
+                    extended: ext && id % 7 == 0,
+                    rtr: rtr && id % 5 == 0,
+                    len,
+                    data,
+                },
+                dt,
+                poll,
+            )
+        })
 }
 
 proptest! {

@@ -33,7 +33,13 @@ fn segmented_upload_of_a_string() {
     assert_eq!(String::from_utf8(v).unwrap(), "drive-emulator CiA402 servo");
 }
 
-fn seg_download(b: &mut Bench, index: u16, sub: u8, data: &[u8], size: Option<u32>) -> Result<(), u32> {
+fn seg_download(
+    b: &mut Bench,
+    index: u16,
+    sub: u8,
+    data: &[u8],
+    size: Option<u32>,
+) -> Result<(), u32> {
     let i = index.to_le_bytes();
     let mut req = [0x20 | size.is_some() as u8, i[0], i[1], sub, 0, 0, 0, 0];
     if let Some(s) = size {
@@ -67,14 +73,29 @@ fn segmented_download() {
     seg_download(&mut b, 0x607A, 0, &1234567i32.to_le_bytes(), Some(4)).unwrap();
     assert_eq!(b.ri32(0x607A, 0), 1234567);
     // size indicated but data differs: length mismatch
-    assert_eq!(seg_download(&mut b, 0x607A, 0, &[1, 2, 3, 4, 5, 6, 7, 8], Some(4)), Err(0x0607_0010));
+    assert_eq!(
+        seg_download(&mut b, 0x607A, 0, &[1, 2, 3, 4, 5, 6, 7, 8], Some(4)),
+        Err(0x0607_0010)
+    );
     // no size, more data than the object: too long
-    assert_eq!(seg_download(&mut b, 0x607A, 0, &[1, 2, 3, 4, 5, 6], None), Err(0x0607_0012));
+    assert_eq!(
+        seg_download(&mut b, 0x607A, 0, &[1, 2, 3, 4, 5, 6], None),
+        Err(0x0607_0012)
+    );
     // declared size too small / too big for the object
-    assert_eq!(seg_download(&mut b, 0x607A, 0, &[1, 2], Some(2)), Err(0x0607_0013));
-    assert_eq!(seg_download(&mut b, 0x607A, 0, &[0; 8], Some(8)), Err(0x0607_0012));
+    assert_eq!(
+        seg_download(&mut b, 0x607A, 0, &[1, 2], Some(2)),
+        Err(0x0607_0013)
+    );
+    assert_eq!(
+        seg_download(&mut b, 0x607A, 0, &[0; 8], Some(8)),
+        Err(0x0607_0012)
+    );
     // more data than the server buffer: out of memory
-    assert_eq!(seg_download(&mut b, 0x607A, 0, &[0; 80], None), Err(0x0504_0005));
+    assert_eq!(
+        seg_download(&mut b, 0x607A, 0, &[0; 80], None),
+        Err(0x0504_0005)
+    );
 }
 
 #[test]
@@ -114,7 +135,8 @@ fn block_upload() {
     let mut b = Bench::new();
     let r = b.sdo_raw([0xA4, 0x08, 0x10, 0, 127, 0, 0, 0]);
     assert_eq!(r[0].data[0], 0xC6, "initiate response with CRC and size");
-    let size = u32::from_le_bytes([r[0].data[4], r[0].data[5], r[0].data[6], r[0].data[7]]) as usize;
+    let size =
+        u32::from_le_bytes([r[0].data[4], r[0].data[5], r[0].data[6], r[0].data[7]]) as usize;
     let segs = b.sdo_raw([0xA3, 0, 0, 0, 0, 0, 0, 0]);
     let mut data = Vec::new();
     for (k, s) in segs.iter().enumerate() {
@@ -127,8 +149,14 @@ fn block_upload() {
     let unused = ((r[0].data[0] >> 2) & 7) as usize;
     data.truncate(data.len() - unused);
     assert_eq!(data.len(), size);
-    assert_eq!(canopen_rs::sdo::block::crc16(&data), u16::from_le_bytes([r[0].data[1], r[0].data[2]]));
-    assert_eq!(String::from_utf8(data).unwrap(), "drive-emulator CiA402 servo");
+    assert_eq!(
+        canopen_rs::sdo::block::crc16(&data),
+        u16::from_le_bytes([r[0].data[1], r[0].data[2]])
+    );
+    assert_eq!(
+        String::from_utf8(data).unwrap(),
+        "drive-emulator CiA402 servo"
+    );
     assert!(b.sdo_raw([0xA1, 0, 0, 0, 0, 0, 0, 0]).is_empty());
     // the server is idle again
     assert_eq!(b.r32(0x1000, 0), 0x0002_0192);
@@ -137,8 +165,14 @@ fn block_upload() {
 #[test]
 fn block_upload_invalid_block_size() {
     let mut b = Bench::new();
-    assert_eq!(abort_of(&b.sdo_raw([0xA4, 0x08, 0x10, 0, 0, 0, 0, 0])), 0x0504_0002);
-    assert_eq!(abort_of(&b.sdo_raw([0xA4, 0x08, 0x10, 0, 128, 0, 0, 0])), 0x0504_0002);
+    assert_eq!(
+        abort_of(&b.sdo_raw([0xA4, 0x08, 0x10, 0, 0, 0, 0, 0])),
+        0x0504_0002
+    );
+    assert_eq!(
+        abort_of(&b.sdo_raw([0xA4, 0x08, 0x10, 0, 128, 0, 0, 0])),
+        0x0504_0002
+    );
 }
 
 #[test]
@@ -156,24 +190,41 @@ fn timeout_of_a_stalled_transfer() {
     b.run_until(900_000);
     assert!(b.sent(0x580 + ID as u32).is_empty(), "no abort before 1 s");
     b.run_until(1_100_000);
-    let r = b.take().into_iter().filter(|f| f.id == 0x580 + ID as u32).collect::<Vec<_>>();
+    let r = b
+        .take()
+        .into_iter()
+        .filter(|f| f.id == 0x580 + ID as u32)
+        .collect::<Vec<_>>();
     assert_eq!(abort_of(&r), 0x0504_0000);
 }
 
 #[test]
 fn bad_command_specifier() {
     let mut b = Bench::new();
-    assert_eq!(abort_of(&b.sdo_raw([0xE0, 0, 0x10, 0, 0, 0, 0, 0])), 0x0504_0001);
+    assert_eq!(
+        abort_of(&b.sdo_raw([0xE0, 0, 0x10, 0, 0, 0, 0, 0])),
+        0x0504_0001
+    );
     // a segment without a transfer
-    assert_eq!(abort_of(&b.sdo_raw([0x60, 0, 0, 0, 0, 0, 0, 0])), 0x0504_0001);
-    assert_eq!(abort_of(&b.sdo_raw([0x00, 0, 0, 0, 0, 0, 0, 0])), 0x0504_0001);
+    assert_eq!(
+        abort_of(&b.sdo_raw([0x60, 0, 0, 0, 0, 0, 0, 0])),
+        0x0504_0001
+    );
+    assert_eq!(
+        abort_of(&b.sdo_raw([0x00, 0, 0, 0, 0, 0, 0, 0])),
+        0x0504_0001
+    );
 }
 
 #[test]
 fn access_and_existence_aborts() {
     let mut b = Bench::new();
     assert_eq!(b.w32(0x1000, 0, 1), Err(0x0601_0002), "write of read-only");
-    assert_eq!(b.sdo_read(0x2101, 0), Err(0x0601_0001), "read of write-only");
+    assert_eq!(
+        b.sdo_read(0x2101, 0),
+        Err(0x0601_0001),
+        "read of write-only"
+    );
     assert_eq!(b.sdo_read(0x5555, 0), Err(0x0602_0000));
     assert_eq!(b.sdo_read(0x1018, 9), Err(0x0609_0011));
     assert_eq!(b.w8(0x6081, 0, 1), Err(0x0607_0013), "too short");
@@ -189,8 +240,16 @@ fn value_aborts() {
     assert_eq!(b.w16(0x605A, 0, 9), Err(0x0609_0031), "above high limit");
     assert_eq!(b.w16(0x605D, 0, 0), Err(0x0609_0032), "below low limit");
     assert_eq!(b.w8(0x6060, 0, 5), Err(0x0609_0030), "unsupported mode");
-    assert_eq!(b.w8(0x1003, 0, 3), Err(0x0609_0030), "only 0 clears the history");
-    assert_eq!(b.w8(0x1800, 2, 245), Err(0x0609_0030), "reserved transmission type");
+    assert_eq!(
+        b.w8(0x1003, 0, 3),
+        Err(0x0609_0030),
+        "only 0 clears the history"
+    );
+    assert_eq!(
+        b.w8(0x1800, 2, 245),
+        Err(0x0609_0030),
+        "reserved transmission type"
+    );
     // software limits: max < min
     b.w32(0x607D, 1, 1000).unwrap();
     assert_eq!(b.w32(0x607D, 2, 500), Err(0x0609_0036));
@@ -201,7 +260,11 @@ fn value_aborts() {
 #[test]
 fn store_restore_and_device_state() {
     let mut b = Bench::new();
-    assert_eq!(b.w32(0x1010, 1, 0x1234), Err(0x0800_0020), "wrong signature");
+    assert_eq!(
+        b.w32(0x1010, 1, 0x1234),
+        Err(0x0800_0020),
+        "wrong signature"
+    );
     assert_eq!(b.w32(0x1011, 1, 0x1234), Err(0x0800_0020));
     b.w16(0x1017, 0, 123).unwrap();
     b.w32(0x1010, 1, 0x6576_6173).unwrap(); // "save"

@@ -84,12 +84,26 @@ fn every_state_times_every_command() {
             let (mask, val) = expected_sw(want);
             assert_eq!(sw & mask, val, "{from:?} + {name}: statusword {sw:#06x}");
             assert_eq!(sw & 0x0200, 0x0200, "remote bit");
-            let voltage = matches!(want, ReadyToSwitchOn | SwitchedOn | OperationEnabled | QuickStopActive);
-            assert_eq!(sw & 0x10 != 0, voltage, "{from:?} + {name}: voltage enabled bit");
-            assert_eq!(sw & 0x20 == 0, want == QuickStopActive, "{from:?} + {name}: quick stop bit");
+            let voltage = matches!(
+                want,
+                ReadyToSwitchOn | SwitchedOn | OperationEnabled | QuickStopActive
+            );
+            assert_eq!(
+                sw & 0x10 != 0,
+                voltage,
+                "{from:?} + {name}: voltage enabled bit"
+            );
+            assert_eq!(
+                sw & 0x20 == 0,
+                want == QuickStopActive,
+                "{from:?} + {name}: quick stop bit"
+            );
             let enabled = matches!(want, OperationEnabled | QuickStopActive);
             assert_eq!(
-                !matches!(b.drive.last.unwrap().setpoint, drive_protocol::Setpoint::Disabled),
+                !matches!(
+                    b.drive.last.unwrap().setpoint,
+                    drive_protocol::Setpoint::Disabled
+                ),
                 enabled,
                 "{from:?} + {name}: power stage"
             );
@@ -135,7 +149,10 @@ fn quick_stop_option_2_ends_in_switch_on_disabled_after_ramp() {
     b.ticks(200);
     assert_eq!(b.node.cia402_state(), S::QuickStopActive, "still ramping");
     let v_mid = b.drive.vel / INC_PER_UU;
-    assert!((v_mid - 10_000.0).abs() < 1500.0, "half speed after 0.2 s: {v_mid}");
+    assert!(
+        (v_mid - 10_000.0).abs() < 1500.0,
+        "half speed after 0.2 s: {v_mid}"
+    );
     b.ticks(250);
     assert_eq!(b.node.cia402_state(), S::SwitchOnDisabled);
 }
@@ -152,7 +169,11 @@ fn shutdown_with_slow_down_option_ramps_before_disabling() {
     b.ticks(100);
     b.cw(0x06);
     b.tick();
-    assert_eq!(b.node.cia402_state(), S::OperationEnabled, "ramping down first");
+    assert_eq!(
+        b.node.cia402_state(),
+        S::OperationEnabled,
+        "ramping down first"
+    );
     b.ticks(150);
     assert_eq!(b.node.cia402_state(), S::ReadyToSwitchOn);
 }

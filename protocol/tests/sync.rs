@@ -21,7 +21,11 @@ fn sync_event_and_counter() {
     b.w32(0x1005, 0, 0x81).unwrap();
     assert_eq!(b.send(f(0x81, &[1])), FrameEvent::Sync { counter: Some(1) });
     assert_ne!(b.send(f(0x80, &[1])), FrameEvent::Sync { counter: Some(1) });
-    assert_eq!(b.w32(0x1005, 0, 0x4000_0080), Err(0x0609_0030), "we do not produce SYNC");
+    assert_eq!(
+        b.w32(0x1005, 0, 0x4000_0080),
+        Err(0x0609_0030),
+        "we do not produce SYNC"
+    );
 }
 
 #[test]

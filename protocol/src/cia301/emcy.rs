@@ -65,7 +65,10 @@ impl Emcy {
             let v = store.u32(R_1003 + s);
             store.set(R_1003 + s + 1, v);
         }
-        store.set(R_1003 + 1, code as u32 | (u16::from_le_bytes([info[0], info[1]]) as u32) << 16);
+        store.set(
+            R_1003 + 1,
+            code as u32 | (u16::from_le_bytes([info[0], info[1]]) as u32) << 16,
+        );
         store.set(R_1003, (n + 1).min(8) as u32);
         let msg = EmergencyMessage::new(code, ErrorRegister(reg), info);
         self.push(msg.encode());

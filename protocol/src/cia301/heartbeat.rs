@@ -20,7 +20,11 @@ impl Producer {
         if now_us >= self.next_due_us {
             let p = period_ms as u64 * 1000;
             // keep the grid; after a long gap, restart from now
-            self.next_due_us = if now_us - self.next_due_us > p { now_us + p } else { self.next_due_us + p };
+            self.next_due_us = if now_us - self.next_due_us > p {
+                now_us + p
+            } else {
+                self.next_due_us + p
+            };
             return true;
         }
         false

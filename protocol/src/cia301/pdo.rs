@@ -47,16 +47,28 @@ pub fn check_entry(entry: u32, tx: bool) -> Result<Mapped, u32> {
         return Err(abort::NOT_MAPPABLE);
     };
     let o = &OBJECTS[row];
-    let access_ok = if tx { o.access.readable() } else { o.access.writable() };
+    let access_ok = if tx {
+        o.access.readable()
+    } else {
+        o.access.writable()
+    };
     if !o.pdo || !access_ok || o.dtype.size() == 0 || bits as usize != o.dtype.size() * 8 {
         return Err(abort::NOT_MAPPABLE);
     }
-    Ok(Mapped { row: row as u16, bytes: bits / 8 })
+    Ok(Mapped {
+        row: row as u16,
+        bytes: bits / 8,
+    })
 }
 
 /// Build a PDO's mapping from the store (`count` entries starting at row `map_row + 1`).
 /// Fails with 0x06040041 / 0x06040042.
-pub fn compile(store: &Store, map_row: usize, count: usize, tx: bool) -> Result<([Mapped; 8], u8, u8), u32> {
+pub fn compile(
+    store: &Store,
+    map_row: usize,
+    count: usize,
+    tx: bool,
+) -> Result<([Mapped; 8], u8, u8), u32> {
     let mut map = [Mapped::default(); 8];
     let mut len = 0usize;
     let count = count.min(8);

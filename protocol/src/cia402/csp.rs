@@ -36,7 +36,11 @@ impl Csp {
             return (self.next, 0.0);
         }
         let frac = (t.saturating_sub(self.t_sync) as f64 / self.period_us as f64).min(1.0);
-        let v = if frac < 1.0 { (self.next - self.prev) / (self.period_us as f64 * 1e-6) } else { 0.0 };
+        let v = if frac < 1.0 {
+            (self.next - self.prev) / (self.period_us as f64 * 1e-6)
+        } else {
+            0.0
+        };
         (self.prev + (self.next - self.prev) * frac, v)
     }
 
@@ -56,7 +60,8 @@ impl Csp {
             self.t_sync = t;
             self.period_us = period_us;
         } else {
-            let stale = self.period_us == 0 || ctx.now.saturating_sub(self.t_sync) > 3 * self.period_us;
+            let stale =
+                self.period_us == 0 || ctx.now.saturating_sub(self.t_sync) > 3 * self.period_us;
             if stale && changed {
                 self.prev = tgt;
                 self.next = tgt;

@@ -12,7 +12,9 @@ pub fn step(ctx: &mut Ctx) -> ModeOut {
     ctx.axis.vel = ctx.act_vel;
     ctx.axis.pos = ctx.act_inc;
     ModeOut {
-        setpoint: Setpoint::Torque { torque_permille: tc },
+        setpoint: Setpoint::Torque {
+            torque_permille: tc,
+        },
         target_reached: false,
         oms12: !ctx.halt,
         oms13: false,

@@ -25,7 +25,12 @@ impl Factor {
         feed: u32,
         feed_revs: u32,
     ) -> Option<Factor> {
-        if enc_inc == 0 || enc_revs == 0 || gear_motor == 0 || gear_shaft == 0 || feed == 0 || feed_revs == 0
+        if enc_inc == 0
+            || enc_revs == 0
+            || gear_motor == 0
+            || gear_shaft == 0
+            || feed == 0
+            || feed_revs == 0
         {
             return None;
         }

@@ -6,6 +6,7 @@
 //! - 33 / 34: index pulse of the motor encoder, searched at 0x6099 sub 2 in negative (33) or
 //!   positive (34) direction. The index is where the motor position crosses a multiple of
 //!   0x608F sub 1 increments.
+//!
 //! Accelerations use 0x609A. After the home is found the axis stops with 0x609A and the
 //! position actual at home equals the home offset 0x607C. Statusword bit 12 = homing attained,
 //! bit 13 = homing error (unsupported method), bit 10 = target reached (standing).
@@ -19,8 +20,14 @@ use crate::drive::Setpoint;
 enum Phase {
     #[default]
     Idle,
-    Switch { dir: f64, start_level: bool },
-    Index { dir: f64, start_rev: i64 },
+    Switch {
+        dir: f64,
+        start_level: bool,
+    },
+    Index {
+        dir: f64,
+        start_rev: i64,
+    },
     Stopping,
     Done,
     Error,
@@ -53,13 +60,27 @@ impl Hm {
                     self.attained = true;
                     Phase::Done
                 }
-                19 => Phase::Switch { dir: if sw { -1.0 } else { 1.0 }, start_level: sw },
-                20 => Phase::Switch { dir: if sw { 1.0 } else { -1.0 }, start_level: sw },
-                33 => Phase::Index { dir: -1.0, start_rev: ctx.fb.motor_position_inc.div_euclid(res) },
-                34 => Phase::Index { dir: 1.0, start_rev: ctx.fb.motor_position_inc.div_euclid(res) },
+                19 => Phase::Switch {
+                    dir: if sw { -1.0 } else { 1.0 },
+                    start_level: sw,
+                },
+                20 => Phase::Switch {
+                    dir: if sw { 1.0 } else { -1.0 },
+                    start_level: sw,
+                },
+                33 => Phase::Index {
+                    dir: -1.0,
+                    start_rev: ctx.fb.motor_position_inc.div_euclid(res),
+                },
+                34 => Phase::Index {
+                    dir: 1.0,
+                    start_rev: ctx.fb.motor_position_inc.div_euclid(res),
+                },
                 _ => Phase::Error,
             };
-        } else if ctx.cw & BIT_HOMING_START == 0 && matches!(self.phase, Phase::Switch { .. } | Phase::Index { .. }) {
+        } else if ctx.cw & BIT_HOMING_START == 0
+            && matches!(self.phase, Phase::Switch { .. } | Phase::Index { .. })
+        {
             // homing interrupted
             self.phase = Phase::Stopping;
         }
@@ -84,7 +105,11 @@ impl Hm {
                 let rev = m.div_euclid(res);
                 if rev != start_rev {
                     // crossed the index at rev*res (positive) or start_rev*res (negative)
-                    let index_inc = if rev > start_rev { rev * res } else { start_rev * res };
+                    let index_inc = if rev > start_rev {
+                        rev * res
+                    } else {
+                        start_rev * res
+                    };
                     let home_act = ctx.act_inc - (m - index_inc) as f64;
                     ctx.new_origin = Some(home_act - home_offset_inc);
                     self.attained = true;
@@ -111,7 +136,8 @@ impl Hm {
                 velocity_ff_inc_per_s: ctx.axis.vel,
                 torque_ff_permille: 0.0,
             },
-            target_reached: standing && matches!(self.phase, Phase::Idle | Phase::Done | Phase::Error),
+            target_reached: standing
+                && matches!(self.phase, Phase::Idle | Phase::Done | Phase::Error),
             oms12: self.attained && self.phase == Phase::Done,
             oms13: self.phase == Phase::Error,
             limit: false,

@@ -3,8 +3,8 @@
 //! error monitoring. Everything runs once per tick in [`Cia402::step`] on the object store.
 
 pub mod controlword;
-pub mod cst;
 pub mod csp;
+pub mod cst;
 pub mod csv;
 pub mod factor;
 pub mod hm;
@@ -217,7 +217,9 @@ impl Cia402 {
 
     /// Request FAULT REACTION ACTIVE at the next tick (0x6007 reaction, injected fault).
     pub fn request_fault(&mut self, code: u16) {
-        if !matches!(self.state, State::Fault | State::FaultReactionActive) && self.pending_fault.is_none() {
+        if !matches!(self.state, State::Fault | State::FaultReactionActive)
+            && self.pending_fault.is_none()
+        {
             self.pending_fault = Some(code);
         }
     }
@@ -225,11 +227,25 @@ impl Cia402 {
     /// React to a lost master / lost SYNC as 0x6007 says. Returns true if it raises a fault.
     pub fn comm_loss(&mut self, store: &Store, code: u16) -> bool {
         match store.i32(o::ABORT_CONN) {
-            1 if matches!(self.state, State::OperationEnabled | State::QuickStopActive | State::SwitchedOn | State::ReadyToSwitchOn) => {
+            1 if matches!(
+                self.state,
+                State::OperationEnabled
+                    | State::QuickStopActive
+                    | State::SwitchedOn
+                    | State::ReadyToSwitchOn
+            ) =>
+            {
                 self.request_fault(code);
                 true
             }
-            2 if matches!(self.state, State::OperationEnabled | State::QuickStopActive | State::SwitchedOn | State::ReadyToSwitchOn) => {
+            2 if matches!(
+                self.state,
+                State::OperationEnabled
+                    | State::QuickStopActive
+                    | State::SwitchedOn
+                    | State::ReadyToSwitchOn
+            ) =>
+            {
                 self.state = State::SwitchOnDisabled;
                 false
             }
@@ -291,8 +307,16 @@ impl Cia402 {
         ) {
             self.factor = f;
         }
-        let act_inc = if fb.position_from_direct { fb.direct_position_inc } else { fb.motor_position_inc } as f64;
-        let act_vel = if fb.motor_velocity_inc_per_s.is_finite() { fb.motor_velocity_inc_per_s } else { 0.0 };
+        let act_inc = if fb.position_from_direct {
+            fb.direct_position_inc
+        } else {
+            fb.motor_position_inc
+        } as f64;
+        let act_vel = if fb.motor_velocity_inc_per_s.is_finite() {
+            fb.motor_velocity_inc_per_s
+        } else {
+            0.0
+        };
         let cw = store.u32(o::CONTROLWORD) as u16;
         let cmd = controlword::decode(cw, self.prev_cw);
         let mut out = StepOut {
@@ -362,15 +386,25 @@ impl Cia402 {
             axis: self.axis,
             new_origin: None,
         };
-        ctx.halt_dec = if halt_opt == 1 { ctx.acc(o::PROFILE_DEC) } else { ctx.acc(o::QS_DEC) };
+        ctx.halt_dec = if halt_opt == 1 {
+            ctx.acc(o::PROFILE_DEC)
+        } else {
+            ctx.acc(o::QS_DEC)
+        };
         let entered_oe = self.state == State::OperationEnabled && was != State::OperationEnabled;
         if !self.state.enabled() {
-            ctx.axis = Axis { pos: act_inc, vel: act_vel };
+            ctx.axis = Axis {
+                pos: act_inc,
+                vel: act_vel,
+            };
         }
         if entered_oe {
             self.mode_display = requested;
             if was != State::QuickStopActive {
-                ctx.axis = Axis { pos: act_inc, vel: 0.0 };
+                ctx.axis = Axis {
+                    pos: act_inc,
+                    vel: 0.0,
+                };
             }
             self.enter_mode(&mut ctx, requested);
         }
@@ -393,7 +427,8 @@ impl Cia402 {
                         self.mode_display = requested;
                         self.enter_mode(&mut ctx, requested);
                     }
-                    ctx.halt = cw & BIT_HALT != 0 && matches!(self.mode_display, mode::PP | mode::PV | mode::HM);
+                    ctx.halt = cw & BIT_HALT != 0
+                        && matches!(self.mode_display, mode::PP | mode::PV | mode::HM);
                     mo = match self.mode_display {
                         mode::PP => self.pp.step(&mut ctx),
                         mode::PV => self.pv.step(&mut ctx),
@@ -433,7 +468,11 @@ impl Cia402 {
             }
             State::FaultReactionActive => {
                 let opt = ctx.store.i32(o::FAULT_OPTION);
-                let dec = if opt == 1 { ctx.acc(o::PROFILE_DEC) } else { ctx.acc(o::QS_DEC) };
+                let dec = if opt == 1 {
+                    ctx.acc(o::PROFILE_DEC)
+                } else {
+                    ctx.acc(o::QS_DEC)
+                };
                 if opt == 0 || ctx.axis.stop(dec, dt) {
                     self.state = State::Fault;
                 } else {
@@ -454,18 +493,29 @@ impl Cia402 {
         }
 
         // ---- following error ----
-        let fe_inc = if mo.position_mode { ctx.axis.pos - act_inc } else { 0.0 };
+        let fe_inc = if mo.position_mode {
+            ctx.axis.pos - act_inc
+        } else {
+            0.0
+        };
         let fe_uu = self.factor.to_uu(fe_inc);
         let window = ctx.store.u32(o::FE_WINDOW);
         let over = mo.position_mode && window != u32::MAX && fe_uu.abs() > window as f64;
-        if self.fe_timer.update(over, now_us, ctx.store.u32(o::FE_TIME)) && self.state == State::OperationEnabled {
+        if self
+            .fe_timer
+            .update(over, now_us, ctx.store.u32(o::FE_TIME))
+            && self.state == State::OperationEnabled
+        {
             self.fe_flag = true;
             self.state = State::FaultReactionActive;
             self.fault_code = EMCY_FOLLOWING_ERROR;
             ctx.store.set(o::ERROR_CODE, EMCY_FOLLOWING_ERROR as u32);
             out.new_fault = Some(EMCY_FOLLOWING_ERROR);
             // hold where the axis is
-            ctx.axis = Axis { pos: act_inc, vel: act_vel };
+            ctx.axis = Axis {
+                pos: act_inc,
+                vel: act_vel,
+            };
             mo.setpoint = hold(&ctx.axis);
         }
         self.following_error_uu = fe_uu;
@@ -503,15 +553,26 @@ impl Cia402 {
         st.set_i32(o::POS_INTERNAL, fb.motor_position_inc as i32);
         st.set_i32(o::POS_ACTUAL, self.position_actual_uu);
         st.set_i32(o::VEL_SENSOR, sat_i32(act_vel));
-        st.set_i32(o::VEL_DEMAND, sat_i32(f.to_uu(fb.velocity_demand_inc_per_s)));
+        st.set_i32(
+            o::VEL_DEMAND,
+            sat_i32(f.to_uu(fb.velocity_demand_inc_per_s)),
+        );
         st.set_i32(o::VEL_ACTUAL, sat_i32(f.to_uu(act_vel)));
-        st.set_i32(o::TORQUE_ACTUAL, sat_i32(fb.torque_permille).clamp(-32768, 32767));
-        st.set_i32(o::CURRENT_ACTUAL, sat_i32(fb.current_permille).clamp(-32768, 32767));
+        st.set_i32(
+            o::TORQUE_ACTUAL,
+            sat_i32(fb.torque_permille).clamp(-32768, 32767),
+        );
+        st.set_i32(
+            o::CURRENT_ACTUAL,
+            sat_i32(fb.current_permille).clamp(-32768, 32767),
+        );
         st.set_i32(o::DIRECT_POS, sat_i32(to_uu(fb.direct_position_inc as f64)));
         st.set_i32(o::FE_ACTUAL, sat_i32(fe_uu));
         st.set(
             o::DIGITAL_INPUTS,
-            fb.negative_limit_switch as u32 | (fb.positive_limit_switch as u32) << 1 | (fb.home_switch as u32) << 2,
+            fb.negative_limit_switch as u32
+                | (fb.positive_limit_switch as u32) << 1
+                | (fb.home_switch as u32) << 2,
         );
         self.axis = ctx.axis;
         self.prev_cw = cw;

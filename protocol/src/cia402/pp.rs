@@ -79,7 +79,9 @@ impl Pp {
             }
             let window = ctx.f.to_inc(ctx.store.u32(o::POS_WINDOW) as f64);
             let inside = !self.moving && (self.target_inc - ctx.act_inc).abs() <= window;
-            reached_now = self.reached.update(inside, ctx.now, ctx.store.u32(o::POS_WINDOW_TIME));
+            reached_now = self
+                .reached
+                .update(inside, ctx.now, ctx.store.u32(o::POS_WINDOW_TIME));
         }
         out.target_reached = reached_now;
         out.oms12 = self.ack;

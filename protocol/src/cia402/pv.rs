@@ -23,7 +23,8 @@ impl Pv {
         let target = target.clamp(-max, max);
         let limit = target != ctx.f.to_inc(target_uu);
         if ctx.halt {
-            ctx.axis.ramp_velocity(0.0, ctx.halt_dec, ctx.halt_dec, ctx.dt);
+            ctx.axis
+                .ramp_velocity(0.0, ctx.halt_dec, ctx.halt_dec, ctx.dt);
         } else {
             let acc = ctx.acc(o::PROFILE_ACC);
             let dec = ctx.acc(o::PROFILE_DEC);
@@ -40,8 +41,14 @@ impl Pv {
                 velocity_inc_per_s: ctx.axis.vel,
                 torque_ff_permille: 0.0,
             },
-            target_reached: self.reached.update(inside, ctx.now, ctx.store.u32(o::VEL_WINDOW_TIME)),
-            oms12: self.zero.update(ctx.act_vel.abs() <= thr, ctx.now, ctx.store.u32(o::VEL_THRESHOLD_TIME)),
+            target_reached: self
+                .reached
+                .update(inside, ctx.now, ctx.store.u32(o::VEL_WINDOW_TIME)),
+            oms12: self.zero.update(
+                ctx.act_vel.abs() <= thr,
+                ctx.now,
+                ctx.store.u32(o::VEL_THRESHOLD_TIME),
+            ),
             oms13: false,
             limit,
             position_mode: false,

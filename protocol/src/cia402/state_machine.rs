@@ -19,7 +19,10 @@ pub enum State {
 impl State {
     /// The power stage produces torque in these states.
     pub fn enabled(self) -> bool {
-        matches!(self, State::OperationEnabled | State::QuickStopActive | State::FaultReactionActive)
+        matches!(
+            self,
+            State::OperationEnabled | State::QuickStopActive | State::FaultReactionActive
+        )
     }
 }
 
@@ -41,7 +44,9 @@ pub fn transition(s: State, cmd: Command, quick_stop_option: i16) -> Option<(Sta
         (SwitchedOn, Command::DisableVoltage | Command::QuickStop) => (SwitchOnDisabled, 10),
         (OperationEnabled, Command::QuickStop) => (QuickStopActive, 11),
         (QuickStopActive, Command::DisableVoltage) => (SwitchOnDisabled, 12),
-        (QuickStopActive, Command::EnableOperation) if (5..=8).contains(&quick_stop_option) => (OperationEnabled, 16),
+        (QuickStopActive, Command::EnableOperation) if (5..=8).contains(&quick_stop_option) => {
+            (OperationEnabled, 16)
+        }
         (Fault, Command::FaultReset) => (SwitchOnDisabled, 15),
         _ => return None,
     })

@@ -14,7 +14,7 @@ pub const BIT_OMS13: u16 = 1 << 13;
 /// Bits 0-6 of the statusword for a state (mask 0x6F / 0x4F values of CiA 402).
 pub fn state_bits(s: State) -> u16 {
     match s {
-        State::NotReadyToSwitchOn => 0x0000 | BIT_QUICK_STOP,
+        State::NotReadyToSwitchOn => BIT_QUICK_STOP,
         State::SwitchOnDisabled => 0x0040 | BIT_QUICK_STOP,
         State::ReadyToSwitchOn => 0x0021 | BIT_VOLTAGE_ENABLED,
         State::SwitchedOn => 0x0023 | BIT_VOLTAGE_ENABLED,

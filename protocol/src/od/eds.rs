@@ -39,7 +39,11 @@ fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo) {
             let _ = writeln!(s, "DefaultValue=$NODEID+0x{b:X}");
         }
         _ => {
-            let _ = writeln!(s, "DefaultValue={}", fmt_value(o, default_value(o, node_id, info)));
+            let _ = writeln!(
+                s,
+                "DefaultValue={}",
+                fmt_value(o, default_value(o, node_id, info))
+            );
         }
     }
     if let Some(l) = o.low {
@@ -56,7 +60,9 @@ fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo) {
 pub fn export(node_id: u8, info: &DriveInfo) -> String {
     let mut s = String::with_capacity(64 * 1024);
     let _ = valid_ttype(0, true);
-    s.push_str("[FileInfo]\nFileName=drive-emulator.eds\nFileVersion=1\nFileRevision=0\nEDSVersion=4.0\n");
+    s.push_str(
+        "[FileInfo]\nFileName=drive-emulator.eds\nFileVersion=1\nFileRevision=0\nEDSVersion=4.0\n",
+    );
     s.push_str("Description=Emulated CiA 402 servo drive (generated from the object table)\n");
     s.push_str("CreatedBy=drive-protocol\n\n");
     s.push_str("[DeviceInfo]\nVendorName=drive-emulator\nVendorNumber=0\nProductName=drive-emulator CiA402 servo\n");
@@ -64,7 +70,9 @@ pub fn export(node_id: u8, info: &DriveInfo) -> String {
     for b in ["10", "20", "50", "125", "250", "500", "800", "1000"] {
         let _ = writeln!(s, "BaudRate_{b}=1");
     }
-    s.push_str("SimpleBootUpMaster=0\nSimpleBootUpSlave=1\nGranularity=8\nDynamicChannelsSupported=0\n");
+    s.push_str(
+        "SimpleBootUpMaster=0\nSimpleBootUpSlave=1\nGranularity=8\nDynamicChannelsSupported=0\n",
+    );
     s.push_str("GroupMessaging=0\nNrOfRXPDO=4\nNrOfTXPDO=4\nLSS_Supported=0\n\n");
     s.push_str("[DummyUsage]\nDummy0001=0\nDummy0002=0\nDummy0003=0\nDummy0004=0\nDummy0005=0\nDummy0006=0\nDummy0007=0\n\n");
 
@@ -77,7 +85,11 @@ pub fn export(node_id: u8, info: &DriveInfo) -> String {
         .copied()
         .filter(|i| !mandatory.contains(i) && !(0x2000..0x6000).contains(i))
         .collect();
-    let manufacturer: Vec<u16> = indices.iter().copied().filter(|i| (0x2000..0x6000).contains(i)).collect();
+    let manufacturer: Vec<u16> = indices
+        .iter()
+        .copied()
+        .filter(|i| (0x2000..0x6000).contains(i))
+        .collect();
     for (section, list) in [
         ("MandatoryObjects", mandatory.to_vec()),
         ("OptionalObjects", optional),
@@ -98,7 +110,11 @@ pub fn export(node_id: u8, info: &DriveInfo) -> String {
         } else {
             let _ = writeln!(s, "[{index:04X}]");
             let _ = writeln!(s, "ParameterName={}", first.parent);
-            let _ = writeln!(s, "ObjectType=0x{}", if first.otype == ObjType::Array { 8 } else { 9 });
+            let _ = writeln!(
+                s,
+                "ObjectType=0x{}",
+                if first.otype == ObjType::Array { 8 } else { 9 }
+            );
             let _ = writeln!(s, "SubNumber={}", rows.len());
             s.push('\n');
             for o in rows {

@@ -2,7 +2,8 @@
 #![allow(dead_code)]
 
 use drive_protocol::{
-    AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, FrameEvent, Node, ParamError, Setpoint,
+    AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, FrameEvent, Node, ParamError,
+    Setpoint,
 };
 
 pub const ID: u8 = 5;
@@ -119,7 +120,9 @@ impl Drive for SimDrive {
                 self.vel = (new - self.pos) / self.dt;
                 self.pos = new;
             }
-            Setpoint::Velocity { velocity_inc_per_s, .. } => {
+            Setpoint::Velocity {
+                velocity_inc_per_s, ..
+            } => {
                 self.vel += (velocity_inc_per_s - self.vel) * a;
                 self.pos += self.vel * self.dt;
             }
@@ -134,7 +137,10 @@ impl Drive for SimDrive {
     }
     fn set_param(&mut self, p: AxisParam, v: f64) -> Result<(), ParamError> {
         if p == AxisParam::Backlash && !(0.0..=0.001).contains(&v) {
-            return Err(ParamError::OutOfRange { min: 0.0, max: 0.001 });
+            return Err(ParamError::OutOfRange {
+                min: 0.0,
+                max: 0.001,
+            });
         }
         self.params[param_slot(p)] = v;
         Ok(())
@@ -169,7 +175,12 @@ impl Bench {
     pub fn with_id(id: u8) -> Bench {
         let mut node = Node::new(id, info()).unwrap();
         node.boot(0);
-        let mut b = Bench { node, drive: SimDrive::default(), now: 0, tx: Vec::new() };
+        let mut b = Bench {
+            node,
+            drive: SimDrive::default(),
+            now: 0,
+            tx: Vec::new(),
+        };
         b.drain();
         b
     }
@@ -243,7 +254,16 @@ impl Bench {
     pub fn sdo_write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), u32> {
         assert!(data.len() <= 4 && !data.is_empty());
         let i = index.to_le_bytes();
-        let mut req = [0x23 | (((4 - data.len()) as u8) << 2), i[0], i[1], sub, 0, 0, 0, 0];
+        let mut req = [
+            0x23 | (((4 - data.len()) as u8) << 2),
+            i[0],
+            i[1],
+            sub,
+            0,
+            0,
+            0,
+            0,
+        ];
         req[4..4 + data.len()].copy_from_slice(data);
         let r = self.sdo_raw(req);
         assert_eq!(r.len(), 1, "one response to an expedited download");
@@ -277,7 +297,11 @@ impl Bench {
         }
         assert_eq!(&d[1..4], &[i[0], i[1], sub]);
         if d[0] & 0x02 != 0 {
-            let n = if d[0] & 1 != 0 { 4 - ((d[0] >> 2) & 3) as usize } else { 4 };
+            let n = if d[0] & 1 != 0 {
+                4 - ((d[0] >> 2) & 3) as usize
+            } else {
+                4
+            };
             return Ok(d[4..4 + n].to_vec());
         }
         let size = u32::from_le_bytes([d[4], d[5], d[6], d[7]]) as usize;
@@ -339,6 +363,9 @@ impl Bench {
 
     /// EMCY codes sent so far.
     pub fn emcys(&self) -> Vec<u16> {
-        self.sent(0x80 + self.id()).iter().map(|f| u16::from_le_bytes([f.data[0], f.data[1]])).collect()
+        self.sent(0x80 + self.id())
+            .iter()
+            .map(|f| u16::from_le_bytes([f.data[0], f.data[1]]))
+            .collect()
     }
 }

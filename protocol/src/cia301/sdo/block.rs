@@ -32,7 +32,12 @@ pub(crate) struct UpState {
 }
 
 impl SdoServer {
-    pub(super) fn block_download(&mut self, req: &[u8; 8], od: &mut impl ObjectAccess, out: &mut impl FnMut([u8; 8])) {
+    pub(super) fn block_download(
+        &mut self,
+        req: &[u8; 8],
+        od: &mut impl ObjectAccess,
+        out: &mut impl FnMut([u8; 8]),
+    ) {
         match self.state {
             State::Idle if req[0] & 0x01 == 0 => {
                 self.index = u16::from_le_bytes([req[1], req[2]]);
@@ -50,7 +55,12 @@ impl SdoServer {
                     return self.fail(abort::OUT_OF_MEMORY, out);
                 }
                 self.len = 0;
-                self.state = State::BlockDownload(DownState { expected: 1, crc, size, waiting_end: false });
+                self.state = State::BlockDownload(DownState {
+                    expected: 1,
+                    crc,
+                    size,
+                    waiting_end: false,
+                });
                 let mut f = mux(0xA4, self.index, self.sub);
                 f[4] = DOWN_BLKSIZE;
                 out(f);
@@ -78,7 +88,13 @@ impl SdoServer {
         }
     }
 
-    pub(super) fn block_download_segment(&mut self, mut st: DownState, req: &[u8; 8], _od: &mut impl ObjectAccess, out: &mut impl FnMut([u8; 8])) {
+    pub(super) fn block_download_segment(
+        &mut self,
+        mut st: DownState,
+        req: &[u8; 8],
+        _od: &mut impl ObjectAccess,
+        out: &mut impl FnMut([u8; 8]),
+    ) {
         let seq = req[0] & 0x7F;
         let last = req[0] & 0x80 != 0;
         if seq == 0 || seq > DOWN_BLKSIZE {
@@ -104,7 +120,12 @@ impl SdoServer {
         self.state = State::BlockDownload(st);
     }
 
-    pub(super) fn block_upload(&mut self, req: &[u8; 8], od: &mut impl ObjectAccess, out: &mut impl FnMut([u8; 8])) {
+    pub(super) fn block_upload(
+        &mut self,
+        req: &[u8; 8],
+        od: &mut impl ObjectAccess,
+        out: &mut impl FnMut([u8; 8]),
+    ) {
         let cs = req[0] & 0x03;
         match (self.state, cs) {
             (State::Idle, 0) => {
@@ -153,7 +174,11 @@ impl SdoServer {
                     st.ending = true;
                     let unused = ((7 - self.len % 7) % 7) as u8;
                     let unused = if self.len == 0 { 7 } else { unused };
-                    let crc = if st.crc { crc16(&self.buf[..self.len]) } else { 0 };
+                    let crc = if st.crc {
+                        crc16(&self.buf[..self.len])
+                    } else {
+                        0
+                    };
                     let c = crc.to_le_bytes();
                     out([0xC1 | (unused << 2), c[0], c[1], 0, 0, 0, 0, 0]);
                     self.state = State::BlockUpload(st);

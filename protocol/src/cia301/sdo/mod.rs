@@ -123,7 +123,13 @@ impl SdoServer {
     }
 
     /// Handle one request frame (8 data bytes; shorter frames are ignored by the caller).
-    pub fn handle(&mut self, req: &[u8; 8], now_us: u64, od: &mut impl ObjectAccess, out: &mut impl FnMut([u8; 8])) {
+    pub fn handle(
+        &mut self,
+        req: &[u8; 8],
+        now_us: u64,
+        od: &mut impl ObjectAccess,
+        out: &mut impl FnMut([u8; 8]),
+    ) {
         self.last_us = now_us;
         // Block download sub-block segments carry no command specifier.
         if let State::BlockDownload(st) = self.state {
@@ -165,11 +171,20 @@ impl SdoServer {
         }
     }
 
-    fn download_initiate(&mut self, req: &[u8; 8], od: &mut impl ObjectAccess, out: &mut impl FnMut([u8; 8])) {
+    fn download_initiate(
+        &mut self,
+        req: &[u8; 8],
+        od: &mut impl ObjectAccess,
+        out: &mut impl FnMut([u8; 8]),
+    ) {
         let e = req[0] & 0x02 != 0;
         let s = req[0] & 0x01 != 0;
         if e {
-            let n = if s { 4 - ((req[0] >> 2) & 3) as usize } else { 4 };
+            let n = if s {
+                4 - ((req[0] >> 2) & 3) as usize
+            } else {
+                4
+            };
             let res = od.check_write(self.index, self.sub, if s { Some(n) } else { None });
             let res = res.and_then(|_| {
                 // without a size, the object's own size (<= 4) is taken
@@ -177,7 +192,9 @@ impl SdoServer {
                 let n = if s {
                     n
                 } else {
-                    od.read(self.index, self.sub, &mut probe).map(|l| l.clamp(1, 4)).unwrap_or(4)
+                    od.read(self.index, self.sub, &mut probe)
+                        .map(|l| l.clamp(1, 4))
+                        .unwrap_or(4)
                 };
                 od.write(self.index, self.sub, &req[4..4 + n])
             });
@@ -201,12 +218,20 @@ impl SdoServer {
                 return self.fail(abort::OUT_OF_MEMORY, out);
             }
             self.len = 0;
-            self.state = State::SegDownload { toggle: false, size };
+            self.state = State::SegDownload {
+                toggle: false,
+                size,
+            };
             out(mux(0x60, self.index, self.sub));
         }
     }
 
-    fn download_segment(&mut self, req: &[u8; 8], od: &mut impl ObjectAccess, out: &mut impl FnMut([u8; 8])) {
+    fn download_segment(
+        &mut self,
+        req: &[u8; 8],
+        od: &mut impl ObjectAccess,
+        out: &mut impl FnMut([u8; 8]),
+    ) {
         let State::SegDownload { toggle, size } = self.state else {
             return self.fail(abort::COMMAND, out);
         };
@@ -235,7 +260,10 @@ impl SdoServer {
             }
         } else {
             out([0x20 | if t { 0x10 } else { 0 }, 0, 0, 0, 0, 0, 0, 0]);
-            self.state = State::SegDownload { toggle: !toggle, size };
+            self.state = State::SegDownload {
+                toggle: !toggle,
+                size,
+            };
         }
     }
 
@@ -255,7 +283,10 @@ impl SdoServer {
                 let mut f = mux(0x41, self.index, self.sub);
                 f[4..8].copy_from_slice(&(n as u32).to_le_bytes());
                 out(f);
-                self.state = State::SegUpload { toggle: false, pos: 0 };
+                self.state = State::SegUpload {
+                    toggle: false,
+                    pos: 0,
+                };
             }
         }
     }
@@ -277,7 +308,10 @@ impl SdoServer {
         self.state = if last {
             State::Idle
         } else {
-            State::SegUpload { toggle: !toggle, pos: pos + n }
+            State::SegUpload {
+                toggle: !toggle,
+                pos: pos + n,
+            }
         };
     }
 }
