@@ -55,3 +55,14 @@ fn eds_is_generated_from_the_table() {
     let eds = drive_protocol::Node::new(7, info).unwrap().export_eds();
     assert!(eds.contains("ParameterName=backlash_deg"));
 }
+
+#[test]
+fn docs_objects_md_is_current() {
+    let md = drive_protocol::od::eds::objects_markdown(common::ID, &common::info());
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/objects.md");
+    if std::env::var_os("UPDATE_OBJECTS_MD").is_some() {
+        std::fs::write(path, &md).unwrap();
+    }
+    let on_disk = std::fs::read_to_string(path).unwrap_or_default();
+    assert!(on_disk == md, "docs/objects.md is stale: run UPDATE_OBJECTS_MD=1 cargo test -p drive-protocol --test eds");
+}

@@ -58,7 +58,7 @@ impl TimedWindow {
             return false;
         }
         let s = *self.since.get_or_insert(now_us);
-        now_us - s >= time_ms as u64 * 1000
+        now_us.saturating_sub(s) >= time_ms as u64 * 1000
     }
 }
 

@@ -151,3 +151,43 @@ pub fn objects_json() -> String {
     s.push(']');
     s
 }
+
+/// A Markdown list of every object (docs/objects.md is this text; a test keeps it current).
+pub fn objects_markdown(node_id: u8, info: &DriveInfo) -> String {
+    let mut s = String::from(
+        "# Object dictionary\n\nGenerated from `protocol/src/od/table.rs` (do not edit; run \
+         `UPDATE_OBJECTS_MD=1 cargo test -p drive-protocol --test eds`). Defaults shown for the \
+         test drive of `protocol/tests/common` (65536 inc/rev, 10 mm screw, user unit 1 um) and \
+         node ID 5.\n\n| Index | Sub | Name | Type | Access | PDO | Default | Limits |\n\
+         |---|---|---|---|---|---|---|---|\n",
+    );
+    for o in OBJECTS {
+        let name = if o.otype == ObjType::Var {
+            name_of(o, info).to_string()
+        } else {
+            format!("{}: {}", o.parent, o.name)
+        };
+        let default = match o.default {
+            Def::Str(t) => format!("\"{t}\""),
+            Def::NodeId(b) => format!("$NODEID+0x{b:X}"),
+            _ => fmt_value(o, default_value(o, node_id, info)),
+        };
+        let limits = match (o.low, o.high) {
+            (Some(l), Some(h)) => format!("{l}..={h}"),
+            _ => String::new(),
+        };
+        let _ = writeln!(
+            s,
+            "| 0x{:04X} | {} | {} | {:?} | {} | {} | {} | {} |",
+            o.index,
+            o.sub,
+            name,
+            o.dtype,
+            o.access.eds(),
+            if o.pdo { "yes" } else { "" },
+            default,
+            limits
+        );
+    }
+    s
+}
