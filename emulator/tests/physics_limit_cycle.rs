@@ -38,7 +38,10 @@ fn no_backlash_no_sustained_oscillation() {
     let cfg = preset("cnc1", &[("backlash_mm", "0".into())]);
     let r = run(&cfg, velocity_of("cnc1"), 5.0, false).summary;
     let mean = r.mean_motor_velocity_rpm.abs();
-    assert!(mean > 90.0, "axis does not move at the commanded speed: {mean} rpm");
+    assert!(
+        mean > 90.0,
+        "axis does not move at the commanded speed: {mean} rpm"
+    );
     assert!(
         r.motor_velocity_amplitude_rpm < 0.002 * mean,
         "fundamental {} rpm at {mean} rpm",
@@ -90,7 +93,10 @@ fn cnc1_frequency_independent_of_backlash_amplitude_grows() {
         "frequency varies with backlash: {freqs:?}"
     );
     for w in amps.windows(2) {
-        assert!(w[1] > w[0], "amplitude does not grow with backlash: {amps:?}");
+        assert!(
+            w[1] > w[0],
+            "amplitude does not grow with backlash: {amps:?}"
+        );
     }
 }
 

@@ -117,7 +117,10 @@ pub struct RunResult {
 pub const SEARCH_BAND_HZ: (f64, f64) = (1.0, 200.0);
 
 /// Run the constant-velocity experiment on a configured axis.
-pub fn constant_velocity_run(cfg: &AxisConfig, opts: &RunOptions) -> Result<RunResult, ConfigError> {
+pub fn constant_velocity_run(
+    cfg: &AxisConfig,
+    opts: &RunOptions,
+) -> Result<RunResult, ConfigError> {
     let built = cfg.build()?;
     let unit = built.display_unit;
     let mut servo = Servo::new(built.axis, built.control).map_err(|e| ConfigError {
@@ -146,7 +149,9 @@ pub fn constant_velocity_run(cfg: &AxisConfig, opts: &RunOptions) -> Result<RunR
     for i in 0..n {
         if kick != 0.0 {
             let on = i >= kick_start && i < kick_start + kick_cycles;
-            servo.axis.set_external_load(if on { kick_force } else { 0.0 });
+            servo
+                .axis
+                .set_external_load(if on { kick_force } else { 0.0 });
         }
         let s = profile.next(dt);
         servo.set_command(Command::new(Setpoint::Position {
@@ -164,7 +169,9 @@ pub fn constant_velocity_run(cfg: &AxisConfig, opts: &RunOptions) -> Result<RunR
             trace
                 .motor_position
                 .push(servo.motor_encoder_position() / unit);
-            trace.motor_velocity_rpm.push(servo.motor_velocity() * to_rpm);
+            trace
+                .motor_velocity_rpm
+                .push(servo.motor_velocity() * to_rpm);
             trace.load_velocity.push(servo.axis.load_velocity() / unit);
             trace.torque_nm.push(servo.torque());
             trace.current_a.push(servo.current());

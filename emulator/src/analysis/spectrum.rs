@@ -45,9 +45,7 @@ impl SpectrumAnalyzer {
         let mut planner = RealFftPlanner::<f64>::new();
         let fft = planner.plan_fft_forward(len);
         let window: Vec<f64> = (0..len)
-            .map(|i| {
-                0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / len as f64).cos()
-            })
+            .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / len as f64).cos())
             .collect();
         let window_sum = window.iter().sum();
         let input = fft.make_input_vec();
@@ -88,7 +86,11 @@ impl SpectrumAnalyzer {
         sample_rate_hz: f64,
         band: (f64, f64),
     ) -> Option<Peak> {
-        assert_eq!(signal.len(), self.len, "signal length differs from the plan");
+        assert_eq!(
+            signal.len(),
+            self.len,
+            "signal length differs from the plan"
+        );
         let n = self.len as f64;
         // Least-squares linear trend.
         let tm = 0.5 * (n - 1.0);
@@ -128,18 +130,20 @@ impl SpectrumAnalyzer {
         }
         let (a, c) = (self.magnitude[k - 1], self.magnitude[k + 1]);
         // Gaussian (log-parabolic) interpolation; fall back to the bin if a side is zero.
-        let (delta, peak) = if a > 0.0 && c > 0.0 {
+        let delta = if a > 0.0 && c > 0.0 {
             let (la, lb, lc) = (a.ln(), b.ln(), c.ln());
             let den = la - 2.0 * lb + lc;
             if den < 0.0 {
-                let d = 0.5 * (la - lc) / den;
-                (d, (lb - 0.25 * (la - lc) * d).exp())
+                (0.5 * (la - lc) / den).clamp(-0.5, 0.5)
             } else {
-                (0.0, b)
+                0.0
             }
         } else {
-            (0.0, b)
+            0.0
         };
+        // Scalloping correction: the Hann window's response at `delta` bins off centre,
+        // relative to its centre, is sinc(delta) / (1 - delta^2).
+        let peak = b / hann_gain(delta);
         Some(Peak {
             frequency_hz: (k as f64 + delta) * df,
             amplitude: peak,
@@ -147,6 +151,15 @@ impl SpectrumAnalyzer {
             resolution_hz: df,
         })
     }
+}
+
+/// Hann window amplitude response at `delta` bins from a line, relative to the centre.
+fn hann_gain(delta: f64) -> f64 {
+    if delta.abs() < 1e-9 {
+        return 1.0;
+    }
+    let x = std::f64::consts::PI * delta;
+    (x.sin() / x) / (1.0 - delta * delta)
 }
 
 /// One-shot: strongest line of `signal` within `band` Hz (see [`SpectrumAnalyzer`]).

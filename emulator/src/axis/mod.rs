@@ -72,7 +72,7 @@ impl Axis {
     /// Build the axis at rest, in contact-free centre of the gap, at position 0.
     pub fn new(params: AxisParams) -> Result<Self, StepTooCoarse> {
         let max_step = params.mech.max_step();
-        if !(params.step <= max_step) {
+        if params.step.is_nan() || params.step > max_step {
             return Err(StepTooCoarse {
                 step: params.step,
                 max_step,
@@ -194,7 +194,7 @@ impl Axis {
     }
     fn try_set_mech(&mut self, p: MechParams) -> Result<(), StepTooCoarse> {
         let max_step = p.max_step();
-        if !(self.step <= max_step) {
+        if self.step.is_nan() || self.step > max_step {
             return Err(StepTooCoarse {
                 step: self.step,
                 max_step,

@@ -211,10 +211,9 @@ impl Cascade {
                 return;
             }
             Setpoint::Torque { torque } => torque.clamp(-limit, limit),
-            Setpoint::Position { torque_ff, .. } | Setpoint::Velocity { torque_ff, .. } => {
-                self.speed
-                    .update(self.out.velocity_demand, w, torque_ff, limit)
-            }
+            Setpoint::Position { torque_ff, .. } | Setpoint::Velocity { torque_ff, .. } => self
+                .speed
+                .update(self.out.velocity_demand, w, torque_ff, limit),
         };
         self.out.torque_demand = torque;
         axis.motor.set_demand(torque);

@@ -32,7 +32,7 @@ pub struct ConfigError {
 }
 
 impl ConfigError {
-    fn new(key: &str, reason: impl Into<String>) -> Self {
+    pub fn new(key: &str, reason: impl Into<String>) -> Self {
         ConfigError {
             key: key.to_string(),
             reason: reason.into(),
@@ -157,7 +157,10 @@ pub struct BuiltConfig {
 
 fn positive(key: &str, v: f64) -> Result<f64, ConfigError> {
     if !v.is_finite() {
-        Err(ConfigError::new(key, format!("must be a finite number, got {v}")))
+        Err(ConfigError::new(
+            key,
+            format!("must be a finite number, got {v}"),
+        ))
     } else if v <= 0.0 {
         Err(ConfigError::new(key, format!("must be > 0, got {v}")))
     } else {
@@ -167,7 +170,10 @@ fn positive(key: &str, v: f64) -> Result<f64, ConfigError> {
 
 fn non_negative(key: &str, v: f64) -> Result<f64, ConfigError> {
     if !v.is_finite() {
-        Err(ConfigError::new(key, format!("must be a finite number, got {v}")))
+        Err(ConfigError::new(
+            key,
+            format!("must be a finite number, got {v}"),
+        ))
     } else if v < 0.0 {
         Err(ConfigError::new(key, format!("must be >= 0, got {v}")))
     } else {
@@ -224,7 +230,9 @@ impl AxisConfig {
         let mut table = toml::Table::try_from(self)
             .map_err(|e| ConfigError::new(key, format!("internal: {e}")))?;
         let parsed: toml::Value = match toml::from_str::<toml::Table>(&format!("v = {value}")) {
-            Ok(mut t) => t.remove("v").unwrap_or(toml::Value::String(value.to_string())),
+            Ok(mut t) => t
+                .remove("v")
+                .unwrap_or(toml::Value::String(value.to_string())),
             Err(_) => toml::Value::String(value.to_string()),
         };
         // Integer-typed fields accept integers only; let a float like "1e6" through for them.
@@ -349,15 +357,22 @@ impl AxisConfig {
             ("backlash_mm", self.backlash_mm),
             ("backlash_deg", self.backlash_deg),
         )?;
-        let backlash =
-            non_negative(if rotary { "backlash_deg" } else { "backlash_mm" }, backlash)? * unit;
+        let backlash = non_negative(
+            if rotary {
+                "backlash_deg"
+            } else {
+                "backlash_mm"
+            },
+            backlash,
+        )? * unit;
         let stiffness = pick(
             kind,
             ("stiffness_n_per_um", self.stiffness_n_per_um),
             ("stiffness_nm_per_arcsec", self.stiffness_nm_per_arcsec),
         )?;
         let stiffness = if rotary {
-            positive("stiffness_nm_per_arcsec", stiffness)? * (180.0 * 3600.0 / std::f64::consts::PI)
+            positive("stiffness_nm_per_arcsec", stiffness)?
+                * (180.0 * 3600.0 / std::f64::consts::PI)
         } else {
             positive("stiffness_n_per_um", stiffness)? * 1e6
         };
@@ -417,8 +432,14 @@ impl AxisConfig {
         let stribeck = if static_ratio > 1.0 {
             let v = pick(
                 kind,
-                ("stribeck_velocity_mm_per_s", self.stribeck_velocity_mm_per_s),
-                ("stribeck_velocity_deg_per_s", self.stribeck_velocity_deg_per_s),
+                (
+                    "stribeck_velocity_mm_per_s",
+                    self.stribeck_velocity_mm_per_s,
+                ),
+                (
+                    "stribeck_velocity_deg_per_s",
+                    self.stribeck_velocity_deg_per_s,
+                ),
             )?;
             positive(
                 if rotary {
@@ -443,7 +464,8 @@ impl AxisConfig {
                 format!("must be >= rated_current_a ({rated_current}), got {max_current}"),
             ));
         }
-        let max_speed = positive("max_speed_rpm", self.max_speed_rpm)? * std::f64::consts::PI / 30.0;
+        let max_speed =
+            positive("max_speed_rpm", self.max_speed_rpm)? * std::f64::consts::PI / 30.0;
         let fc_hz = positive("current_bandwidth_hz", self.current_bandwidth_hz)?;
         let motor_fc = non_negative("motor_coulomb_friction_nm", self.motor_coulomb_friction_nm)?;
         let motor_fv = non_negative(
@@ -487,9 +509,14 @@ impl AxisConfig {
             })?;
             1.0 / (positive("direct_encoder_resolution_nm", r)? * 1e-9)
         };
-        let motor_noise = non_negative("motor_encoder_noise_counts", self.motor_encoder_noise_counts)?;
-        let direct_noise =
-            non_negative("direct_encoder_noise_counts", self.direct_encoder_noise_counts)?;
+        let motor_noise = non_negative(
+            "motor_encoder_noise_counts",
+            self.motor_encoder_noise_counts,
+        )?;
+        let direct_noise = non_negative(
+            "direct_encoder_noise_counts",
+            self.direct_encoder_noise_counts,
+        )?;
         let offset = if rotary {
             if self.direct_encoder_offset_um != 0.0 {
                 return Err(ConfigError::new(
@@ -497,7 +524,11 @@ impl AxisConfig {
                     "not valid for a rotary axis (use `direct_encoder_offset_mdeg`)",
                 ));
             }
-            finite("direct_encoder_offset_mdeg", self.direct_encoder_offset_mdeg)? * 1e-3 * unit
+            finite(
+                "direct_encoder_offset_mdeg",
+                self.direct_encoder_offset_mdeg,
+            )? * 1e-3
+                * unit
         } else {
             if self.direct_encoder_offset_mdeg != 0.0 {
                 return Err(ConfigError::new(
@@ -620,7 +651,10 @@ fn finite(key: &str, v: f64) -> Result<f64, ConfigError> {
     if v.is_finite() {
         Ok(v)
     } else {
-        Err(ConfigError::new(key, format!("must be a finite number, got {v}")))
+        Err(ConfigError::new(
+            key,
+            format!("must be a finite number, got {v}"),
+        ))
     }
 }
 
