@@ -85,7 +85,11 @@ impl AxisTrace {
             let mut d = vec![0.0; n];
             for i in 1..n {
                 let dt = t_s[i] - t_s[i - 1];
-                d[i] = if dt > 0.0 { (x[i] - x[i - 1]) / dt } else { d[i - 1] };
+                d[i] = if dt > 0.0 {
+                    (x[i] - x[i - 1]) / dt
+                } else {
+                    d[i - 1]
+                };
             }
             if n > 1 {
                 d[0] = d[1];
@@ -124,9 +128,15 @@ impl AxisTrace {
             t_s: samples.iter().map(|s| s.t_s).collect(),
             set_velocity: samples.iter().map(|s| s.setpoint_velocity_uu_s).collect(),
             motor_velocity: samples.iter().map(|s| f64::from(s.velocity_uu_s)).collect(),
-            current: samples.iter().map(|s| f64::from(s.current_permille)).collect(),
+            current: samples
+                .iter()
+                .map(|s| f64::from(s.current_permille))
+                .collect(),
             motor_position: samples.iter().map(|s| f64::from(s.position_uu)).collect(),
-            direct_position: samples.iter().map(|s| f64::from(s.direct_position_uu)).collect(),
+            direct_position: samples
+                .iter()
+                .map(|s| f64::from(s.direct_position_uu))
+                .collect(),
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
         }
@@ -374,7 +384,8 @@ fn summarize(
     trace: &AxisTrace,
     cfg: &DetectorConfig,
 ) -> DetectorReport {
-    let k = cfg.confirm_windows.max(1);
+    // A trace with fewer windows than `confirm_windows` is judged on all it has.
+    let k = cfg.confirm_windows.min(results.len()).max(1);
     // Confirmed level after each window: the lowest of the last k levels.
     let mut first_suspected_s = None;
     let mut first_backlash_s = None;
@@ -395,7 +406,7 @@ fn summarize(
         }
     }
     let last = &results[results.len().saturating_sub(k)..];
-    let verdict = if results.len() >= k {
+    let verdict = if !results.is_empty() {
         last.iter().map(|r| r.level).min().unwrap_or(Verdict::Ok)
     } else {
         Verdict::Ok

@@ -1,3 +1,4 @@
 //! Command-line subcommands.
 
+pub mod analyze;
 pub mod sim;
