@@ -6,7 +6,8 @@
 #![no_main]
 
 use drive_protocol::{
-    AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, FrameEvent, Node, ParamError, Setpoint,
+    AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, FrameEvent, Node, ParamError,
+    Setpoint,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -48,7 +49,9 @@ impl Drive for Model {
                 self.vel = (position_inc - self.pos) * 1000.0;
                 self.pos = position_inc;
             }
-            Setpoint::Velocity { velocity_inc_per_s, .. } if velocity_inc_per_s.is_finite() => {
+            Setpoint::Velocity {
+                velocity_inc_per_s, ..
+            } if velocity_inc_per_s.is_finite() => {
                 self.vel = velocity_inc_per_s;
                 self.pos += velocity_inc_per_s * 1e-3;
             }
@@ -61,7 +64,10 @@ impl Drive for Model {
     }
     fn set_param(&mut self, _: AxisParam, v: f64) -> Result<(), ParamError> {
         if v.abs() > 1e6 {
-            Err(ParamError::OutOfRange { min: -1e6, max: 1e6 })
+            Err(ParamError::OutOfRange {
+                min: -1e6,
+                max: 1e6,
+            })
         } else {
             Ok(())
         }
@@ -81,7 +87,11 @@ fuzz_target!(|data: &[u8]| {
     for chunk in data.chunks_exact(13) {
         let raw_id = u16::from_le_bytes([chunk[0], chunk[1]]) as u32;
         // fold IDs onto this node's channels half of the time
-        let id = if chunk[2] & 0x80 != 0 { (raw_id & 0x780) | ID as u32 } else { raw_id & 0x7FF };
+        let id = if chunk[2] & 0x80 != 0 {
+            (raw_id & 0x780) | ID as u32
+        } else {
+            raw_id & 0x7FF
+        };
         let f = CanFrame {
             id,
             extended: chunk[2] & 0x01 != 0,
@@ -103,7 +113,11 @@ fuzz_target!(|data: &[u8]| {
     now += 2_000_000;
     node.poll(now, &mut drive);
     while node.pop_tx().is_some() {}
-    let ev = node.handle(&CanFrame::new(0x600 + ID as u32, &[0x40, 0, 0x10, 0, 0, 0, 0, 0]), now, &mut drive);
+    let ev = node.handle(
+        &CanFrame::new(0x600 + ID as u32, &[0x40, 0, 0x10, 0, 0, 0, 0, 0]),
+        now,
+        &mut drive,
+    );
     assert_eq!(ev, FrameEvent::Handled);
     let mut answered = false;
     while let Some(f) = node.pop_tx() {

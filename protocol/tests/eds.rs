@@ -64,5 +64,8 @@ fn docs_objects_md_is_current() {
         std::fs::write(path, &md).unwrap();
     }
     let on_disk = std::fs::read_to_string(path).unwrap_or_default();
-    assert!(on_disk == md, "docs/objects.md is stale: run UPDATE_OBJECTS_MD=1 cargo test -p drive-protocol --test eds");
+    assert!(
+        on_disk == md,
+        "docs/objects.md is stale: run UPDATE_OBJECTS_MD=1 cargo test -p drive-protocol --test eds"
+    );
 }
