@@ -108,3 +108,47 @@ fn frames_for_other_nodes_and_extended_ids_are_ignored() {
     );
     assert!(b.take().is_empty());
 }
+
+#[test]
+fn two_nodes_share_a_bus() {
+    let mut a = Bench::with_id(3);
+    let mut b = Bench::with_id(4);
+    a.take();
+    b.take();
+    for fr in [
+        f(0, &[0x01, 0]),
+        f(0x603, &[0x40, 0x18, 0x10, 4, 0, 0, 0, 0]),
+    ] {
+        a.send(fr);
+        b.send(fr);
+    }
+    assert_eq!(a.node.nmt_state(), NmtState::Operational);
+    assert_eq!(b.node.nmt_state(), NmtState::Operational);
+    let ta = a.take();
+    assert_eq!(ta.len(), 1);
+    assert_eq!((ta[0].id, ta[0].data[4]), (0x583, 3));
+    assert!(b.take().is_empty(), "node 4 ignores node 3's SDO");
+}
+
+#[test]
+fn full_tx_queue_is_counted_not_fatal() {
+    let mut node = drive_protocol::Node::new(ID, info()).unwrap();
+    let mut drive = SimDrive::default();
+    node.boot(0);
+    for _ in 0..200 {
+        node.handle(
+            &f(0x600 + ID as u32, &[0x40, 0, 0x10, 0, 0, 0, 0, 0]),
+            0,
+            &mut drive,
+        );
+    }
+    assert_eq!(node.tx_pending(), drive_protocol::TX_QUEUE);
+    assert_eq!(node.tx_overflows(), 201 - drive_protocol::TX_QUEUE as u32);
+    node.set_runtime_stats(Default::default());
+    assert_eq!(
+        node.object_raw(0x2100, 7),
+        Some(201 - drive_protocol::TX_QUEUE as u32)
+    );
+    while node.pop_tx().is_some() {}
+    node.poll(1000, &mut drive);
+}
