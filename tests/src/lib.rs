@@ -211,7 +211,7 @@ impl Drop for Peer {
 
 /// Generous timeouts: inside user-mode Linux everything is slower and noisy (no timing
 /// assertions in e2e tests; these are only upper bounds to avoid hanging).
-pub const PEER_TIMEOUT: Duration = Duration::from_secs(30);
+pub const PEER_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// Path of the `drive-emu` binary for tests that start the emulator as a process:
 /// `$DRIVE_EMU_BIN` (test-all.sh sets it when the binary has been built), else

@@ -60,9 +60,9 @@ iface = sys.argv[1]
 with can.Bus(interface="socketcan", channel=iface,
              can_filters=[{"can_id": 0x322, "can_mask": 0x7FF}]) as bus:
     print("READY", flush=True)
-    msg = bus.recv(timeout=30)
+    msg = bus.recv(timeout=60)
     if msg is None:
-        sys.exit("python-can: no frame 0x322 within 30 s")
+        sys.exit("python-can: no frame 0x322 within 60 s")
     print("GOT %03X#%s" % (msg.arbitration_id, bytes(msg.data).hex().upper()), flush=True)
     bus.send(can.Message(arbitration_id=0x323, data=bytes(reversed(msg.data)), is_extended_id=False))
 "#;
