@@ -90,7 +90,10 @@ impl Encoder {
         if self.params.noise_counts > 0.0 {
             c += self.params.noise_counts * self.rng.normal();
         }
-        self.last = c.floor() as i64 + self.glitch;
+        // floor without a libm call (no SSE4.1 on the baseline target).
+        let t = c as i64;
+        let floor = if (t as f64) > c { t - 1 } else { t };
+        self.last = floor + self.glitch;
         self.last
     }
 

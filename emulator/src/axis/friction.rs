@@ -46,6 +46,31 @@ impl Friction {
         v_c / (1.0 + self.viscous * inv_m * h)
     }
 
+    /// [`Friction::step_velocity`] with the step constants precomputed: `dt_inv_m = h / m`,
+    /// `viscous_factor = 1 / (1 + b h / m)` (see [`Friction::viscous_factor`]).
+    #[inline(always)]
+    pub fn step_velocity_pre(
+        &self,
+        v: f64,
+        f_other: f64,
+        dt_inv_m: f64,
+        viscous_factor: f64,
+    ) -> f64 {
+        let v_free = v + f_other * dt_inv_m;
+        let dv_c = self.coulomb_at(v) * dt_inv_m;
+        let v_c = if v_free.abs() <= dv_c {
+            0.0
+        } else {
+            v_free - dv_c.copysign(v_free)
+        };
+        v_c * viscous_factor
+    }
+
+    /// `1 / (1 + b h / m)` for [`Friction::step_velocity_pre`].
+    pub fn viscous_factor(&self, dt_inv_m: f64) -> f64 {
+        1.0 / (1.0 + self.viscous * dt_inv_m)
+    }
+
     /// Friction force (for reporting) at speed `v`; zero when stuck.
     pub fn force_at(&self, v: f64) -> f64 {
         if v == 0.0 {

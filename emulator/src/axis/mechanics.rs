@@ -113,6 +113,12 @@ pub struct Mechanics {
     inv_m: f64,
     static_load_force: f64,
     last_contact: f64,
+    // Step constants, recomputed when the step or the parameters change.
+    h: f64,
+    h_inv_jm: f64,
+    h_inv_m: f64,
+    visc_m: f64,
+    visc_l: f64,
 }
 
 impl Mechanics {
@@ -125,6 +131,11 @@ impl Mechanics {
             inv_m: 0.0,
             static_load_force: 0.0,
             last_contact: 0.0,
+            h: 0.0,
+            h_inv_jm: 0.0,
+            h_inv_m: 0.0,
+            visc_m: 1.0,
+            visc_l: 1.0,
         };
         m.set_params(params);
         m
@@ -137,6 +148,20 @@ impl Mechanics {
         self.inv_jm = 1.0 / params.motor_inertia;
         self.inv_m = 1.0 / params.load_mass;
         self.static_load_force = params.gravity_force + params.counterbalance_force;
+        let h = self.h;
+        self.h = f64::NAN;
+        self.prepare(h);
+    }
+
+    #[inline(always)]
+    fn prepare(&mut self, h: f64) {
+        if h != self.h {
+            self.h = h;
+            self.h_inv_jm = h * self.inv_jm;
+            self.h_inv_m = h * self.inv_m;
+            self.visc_m = self.params.motor_friction.viscous_factor(self.h_inv_jm);
+            self.visc_l = self.params.load_friction.viscous_factor(self.h_inv_m);
+        }
     }
 
     /// Deflection of the drive train at the load: `phi_m / ratio - x_load`.
@@ -182,14 +207,15 @@ impl Mechanics {
             pos: self.state.pos + self.state.vel * half,
             vel: self.state.vel,
         };
+        self.prepare(h);
         let f = self.forces(&mid, motor_torque, external);
         let p = &self.params;
-        let wm = p
-            .motor_friction
-            .step_velocity(mid.vel[0], f.motor, self.inv_jm, h);
+        let wm =
+            p.motor_friction
+                .step_velocity_pre(mid.vel[0], f.motor, self.h_inv_jm, self.visc_m);
         let vl = p
             .load_friction
-            .step_velocity(mid.vel[1], f.load, self.inv_m, h);
+            .step_velocity_pre(mid.vel[1], f.load, self.h_inv_m, self.visc_l);
         self.state.vel = Vector2::new(wm, vl);
         self.state.pos = mid.pos + self.state.vel * half;
         self.last_contact = f.contact;

@@ -64,7 +64,6 @@ pub struct Axis {
     rotary: bool,
     step: f64,
     external_load: f64,
-    time: f64,
     steps: u64,
 }
 
@@ -86,7 +85,6 @@ impl Axis {
             rotary: params.rotary,
             step: params.step,
             external_load: 0.0,
-            time: 0.0,
             steps: 0,
         })
     }
@@ -97,7 +95,6 @@ impl Axis {
         let tau = self.motor.step();
         self.mech.step(tau, self.external_load, self.step);
         self.steps += 1;
-        self.time = self.steps as f64 * self.step;
     }
 
     /// Physics step, s.
@@ -107,7 +104,7 @@ impl Axis {
 
     /// Simulated time, s.
     pub fn time(&self) -> f64 {
-        self.time
+        self.steps as f64 * self.step
     }
 
     pub fn is_rotary(&self) -> bool {

@@ -59,6 +59,9 @@ pub struct SpeedController {
     pub ti: f64,
     cycle: f64,
     integral: f64,
+    // Cached integral gain per cycle and the (kp, ti) it was computed for.
+    ki: f64,
+    ki_for: (f64, f64),
 }
 
 impl SpeedController {
@@ -68,6 +71,8 @@ impl SpeedController {
             ti,
             cycle,
             integral: 0.0,
+            ki: 0.0,
+            ki_for: (f64::NAN, f64::NAN),
         }
     }
 
@@ -78,11 +83,15 @@ impl SpeedController {
     pub fn update(&mut self, set: f64, actual: f64, torque_ff: f64, limit: f64) -> f64 {
         let e = set - actual;
         let p = self.kp * e;
-        let ki = if self.ti > 0.0 && self.ti.is_finite() {
-            self.kp * self.cycle / self.ti
-        } else {
-            0.0
-        };
+        if self.ki_for != (self.kp, self.ti) {
+            self.ki_for = (self.kp, self.ti);
+            self.ki = if self.ti > 0.0 && self.ti.is_finite() {
+                self.kp * self.cycle / self.ti
+            } else {
+                0.0
+            };
+        }
+        let ki = self.ki;
         let candidate = self.integral + ki * e;
         let u = p + candidate + torque_ff;
         if u > limit {
