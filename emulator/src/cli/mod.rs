@@ -1,4 +1,5 @@
 //! Command-line subcommands.
 
 pub mod analyze;
+pub mod run;
 pub mod sim;

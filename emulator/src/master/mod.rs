@@ -1,1 +1,650 @@
-//! (being written)
+//! The built-in reference CiA 402 master: what a PLC or CNC does on the bus, in a few hundred
+//! lines, sans-IO like the node (frames and time in, frames out).
+//!
+//! It resets the node, configures its PDOs over SDO as CiA 301 prescribes (invalidate, clear,
+//! map, count, validate), starts it, produces SYNC and its own heartbeat, takes the drive
+//! through the CiA 402 state machine and runs a motion program: profile-position moves, or an
+//! interpolator streaming cyclic synchronous positions (what a CNC's interpolator does) or
+//! velocities. Every SYNC it records what the drive reported in its TPDOs, so the demo and the
+//! scenarios analyse the axis exactly as an external controller would see it: from the wire.
+//!
+//! Positions are in the drive's user units (uu; by our factor-group default 1 um on a linear
+//! axis, 0.001 deg on a rotary one), velocities in uu/s.
+
+pub mod sdo_client;
+
+use crate::bus::CanFrame;
+use sdo_client::{SdoClient, SdoResult};
+use std::collections::VecDeque;
+
+/// CiA 402 operation modes the master uses (0x6060 values).
+pub const MODE_PP: i8 = 1;
+pub const MODE_PV: i8 = 3;
+pub const MODE_CSP: i8 = 8;
+pub const MODE_CSV: i8 = 9;
+pub const MODE_CST: i8 = 10;
+
+#[derive(Debug, Clone)]
+pub struct MasterConfig {
+    /// The drive's node ID.
+    pub node_id: u8,
+    /// Our own node ID for the heartbeat the drive consumes.
+    pub master_id: u8,
+    pub sync_period_us: u32,
+    /// Our heartbeat period; the drive's consumer time (0x1016) is set to 2.5 periods.
+    pub heartbeat_ms: u16,
+    /// The drive's heartbeat (0x1017), ms.
+    pub drive_heartbeat_ms: u16,
+    /// How long any single step (SDO, state change, PP move) may take.
+    pub step_timeout_us: u64,
+}
+
+impl Default for MasterConfig {
+    fn default() -> Self {
+        Self {
+            node_id: 5,
+            master_id: 0x7F,
+            sync_period_us: 1000,
+            heartbeat_ms: 100,
+            drive_heartbeat_ms: 100,
+            step_timeout_us: 2_000_000,
+        }
+    }
+}
+
+/// One step of a motion program.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Step {
+    /// Select the mode (SDO 0x6060, confirmed by 0x6061) and switch on to OPERATION ENABLED.
+    Enable { mode: i8 },
+    /// Change the mode while enabled.
+    SetMode { mode: i8 },
+    /// Profile-position move (PP), absolute, waiting for target reached.
+    MoveTo {
+        target_uu: i32,
+        velocity_uu_s: u32,
+        accel_uu_s2: u32,
+    },
+    /// Cyclic synchronous motion (CSP/CSV): ramp the interpolator's velocity to
+    /// `velocity_uu_s` with `accel_uu_s2`, then hold; the step lasts `duration_s` in all.
+    Cruise {
+        velocity_uu_s: f64,
+        accel_uu_s2: f64,
+        duration_s: f64,
+    },
+    /// Wait, still producing SYNC and set-points.
+    Dwell { duration_s: f64 },
+    /// Expedited SDO download of `len` bytes.
+    WriteSdo {
+        index: u16,
+        sub: u8,
+        value: u32,
+        len: u8,
+    },
+    /// Stop sending our heartbeat (to test the drive's heartbeat consumer).
+    StopHeartbeat,
+    /// Stop producing SYNC.
+    StopSync,
+    /// Controlword "disable voltage".
+    Disable,
+}
+
+/// What the drive reported at one SYNC (the latest TPDO values), plus our own set-point.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Sample {
+    pub t_s: f64,
+    pub statusword: u16,
+    pub mode_display: i8,
+    pub target_uu: f64,
+    pub setpoint_velocity_uu_s: f64,
+    pub position_uu: i32,
+    pub direct_position_uu: i32,
+    pub velocity_uu_s: i32,
+    pub torque_permille: i16,
+    pub current_permille: i16,
+    pub following_error_uu: i32,
+}
+
+/// An EMCY message seen on the bus.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct Emcy {
+    pub t_us: u64,
+    pub node_id: u8,
+    pub code: u16,
+    pub error_register: u8,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Phase {
+    Reset,
+    WaitBoot { since_us: u64 },
+    Configure(usize),
+    Program(usize),
+    Done,
+    Failed(String),
+}
+
+/// Per-step progress.
+#[derive(Debug, Clone, Copy, Default)]
+struct StepState {
+    started_us: u64,
+    stage: u8,
+    sdo_sent: bool,
+}
+
+/// Decode the CiA 402 state from a statusword (DOMAIN.md section 4 masks).
+pub fn state_name(sw: u16) -> &'static str {
+    match (sw & 0x4F, sw & 0x6F) {
+        (0x00, _) => "NOT READY TO SWITCH ON",
+        (0x40, _) => "SWITCH ON DISABLED",
+        (_, 0x21) => "READY TO SWITCH ON",
+        (_, 0x23) => "SWITCHED ON",
+        (_, 0x27) => "OPERATION ENABLED",
+        (_, 0x07) => "QUICK STOP ACTIVE",
+        (0x0F, _) => "FAULT REACTION ACTIVE",
+        (0x08, _) => "FAULT",
+        _ => "UNKNOWN",
+    }
+}
+
+/// The PDO configuration the master writes: (index, sub, value, len).
+fn pdo_configuration(node: u8, sync_period_us: u32, cfg: &MasterConfig) -> Vec<(u16, u8, u32, u8)> {
+    let n = u32::from(node);
+    let mut w = vec![
+        (0x1017, 0, u32::from(cfg.drive_heartbeat_ms), 2),
+        (
+            0x1016,
+            1,
+            (u32::from(cfg.master_id) << 16) | (u32::from(cfg.heartbeat_ms) * 5 / 2),
+            4,
+        ),
+        (0x1006, 0, sync_period_us, 4),
+        // Interpolation period for CSP: value * 10^index s.
+        (0x60C2, 1, sync_period_us / 1000, 1),
+        (0x60C2, 2, (-3i8) as u8 as u32, 1),
+    ];
+    let mut map = |comm: u16, mapping: u16, cob: u32, entries: &[u32]| {
+        w.push((comm, 1, cob | 0x8000_0000, 4));
+        w.push((comm, 2, 1, 1)); // synchronous, every SYNC
+        w.push((mapping, 0, 0, 1));
+        for (i, e) in entries.iter().enumerate() {
+            w.push((mapping, i as u8 + 1, *e, 4));
+        }
+        w.push((mapping, 0, entries.len() as u32, 1));
+        w.push((comm, 1, cob, 4));
+    };
+    // RPDO1: controlword + target position; RPDO2: target velocity + target torque.
+    map(0x1400, 0x1600, 0x200 + n, &[0x6040_0010, 0x607A_0020]);
+    map(0x1401, 0x1601, 0x300 + n, &[0x60FF_0020, 0x6071_0010]);
+    // TPDO1: statusword + position actual; TPDO2: velocity + torque actual + mode display;
+    // TPDO3: direct encoder + current; TPDO4: following error.
+    map(0x1800, 0x1A00, 0x180 + n, &[0x6041_0010, 0x6064_0020]);
+    map(0x1801, 0x1A01, 0x280 + n, &[0x606C_0020, 0x6077_0010, 0x6061_0008]);
+    map(0x1802, 0x1A02, 0x380 + n, &[0x60E4_0120, 0x6078_0010]);
+    map(0x1803, 0x1A03, 0x480 + n, &[0x60F4_0020]);
+    w
+}
+
+/// The reference master for one drive.
+pub struct Master {
+    cfg: MasterConfig,
+    program: Vec<Step>,
+    configuration: Vec<(u16, u8, u32, u8)>,
+    phase: Phase,
+    step: StepState,
+    sdo: SdoClient,
+    tx: VecDeque<CanFrame>,
+    next_sync_us: u64,
+    sync_on: bool,
+    next_heartbeat_us: u64,
+    heartbeat_on: bool,
+    controlword: u16,
+    /// Interpolator (CSP/CSV): set-point position and velocity.
+    target_uu: f64,
+    velocity_uu_s: f64,
+    target_torque: i16,
+    mode: i8,
+    latest: Sample,
+    have_actual: bool,
+    samples: Vec<Sample>,
+    emcys: Vec<Emcy>,
+    log: Vec<(u64, String)>,
+}
+
+impl Master {
+    pub fn new(cfg: MasterConfig, program: Vec<Step>) -> Self {
+        let configuration = pdo_configuration(cfg.node_id, cfg.sync_period_us, &cfg);
+        let sdo = SdoClient::new(cfg.node_id, 500_000);
+        Self {
+            cfg,
+            program,
+            configuration,
+            phase: Phase::Reset,
+            step: StepState::default(),
+            sdo,
+            tx: VecDeque::new(),
+            next_sync_us: 0,
+            sync_on: false,
+            next_heartbeat_us: 0,
+            heartbeat_on: false,
+            controlword: 0,
+            target_uu: 0.0,
+            velocity_uu_s: 0.0,
+            target_torque: 0,
+            mode: 0,
+            latest: Sample::default(),
+            have_actual: false,
+            samples: Vec::new(),
+            emcys: Vec::new(),
+            log: Vec::new(),
+        }
+    }
+
+    pub fn samples(&self) -> &[Sample] {
+        &self.samples
+    }
+    pub fn emcys(&self) -> &[Emcy] {
+        &self.emcys
+    }
+    /// Timestamped messages about what the master did (for the demo's narration).
+    pub fn log(&self) -> &[(u64, String)] {
+        &self.log
+    }
+    pub fn latest(&self) -> &Sample {
+        &self.latest
+    }
+    pub fn finished(&self) -> bool {
+        matches!(self.phase, Phase::Done | Phase::Failed(_))
+    }
+    pub fn error(&self) -> Option<&str> {
+        match &self.phase {
+            Phase::Failed(e) => Some(e),
+            _ => None,
+        }
+    }
+    /// Index of the program step being executed (program.len() when done).
+    pub fn current_step(&self) -> usize {
+        match self.phase {
+            Phase::Program(i) => i,
+            Phase::Done => self.program.len(),
+            _ => 0,
+        }
+    }
+
+    pub fn pop_tx(&mut self) -> Option<CanFrame> {
+        self.tx.pop_front()
+    }
+
+    fn say(&mut self, now_us: u64, msg: impl Into<String>) {
+        self.log.push((now_us, msg.into()));
+    }
+
+    fn fail(&mut self, now_us: u64, msg: String) {
+        self.say(now_us, format!("FAILED: {msg}"));
+        self.phase = Phase::Failed(msg);
+    }
+
+    /// Feed a frame received from the bus.
+    pub fn handle(&mut self, frame: &CanFrame, now_us: u64) {
+        if frame.extended || frame.rtr {
+            return;
+        }
+        let n = u32::from(self.cfg.node_id);
+        let d = &frame.data;
+        let len = usize::from(frame.len);
+        let i32_at = |o: usize| i32::from_le_bytes([d[o], d[o + 1], d[o + 2], d[o + 3]]);
+        let i16_at = |o: usize| i16::from_le_bytes([d[o], d[o + 1]]);
+        match frame.id {
+            id if id == 0x580 + n => {
+                self.sdo.handle(frame);
+            }
+            id if id == 0x700 + n => {
+                if len >= 1 && d[0] == 0x00 {
+                    if let Phase::WaitBoot { .. } = self.phase {
+                        self.say(now_us, "drive booted (boot-up message)");
+                        self.phase = Phase::Configure(0);
+                    }
+                }
+            }
+            id if id == 0x80 + n && len >= 3 => self.emcys.push(Emcy {
+                t_us: now_us,
+                node_id: self.cfg.node_id,
+                code: u16::from_le_bytes([d[0], d[1]]),
+                error_register: d[2],
+            }),
+            id if id == 0x180 + n && len == 6 => {
+                self.latest.statusword = u16::from_le_bytes([d[0], d[1]]);
+                self.latest.position_uu = i32_at(2);
+                self.have_actual = true;
+            }
+            id if id == 0x280 + n && len == 7 => {
+                self.latest.velocity_uu_s = i32_at(0);
+                self.latest.torque_permille = i16_at(4);
+                self.latest.mode_display = d[6] as i8;
+            }
+            id if id == 0x380 + n && len == 6 => {
+                self.latest.direct_position_uu = i32_at(0);
+                self.latest.current_permille = i16_at(4);
+            }
+            id if id == 0x480 + n && len == 4 => {
+                self.latest.following_error_uu = i32_at(0);
+            }
+            _ => {}
+        }
+    }
+
+    fn sdo_step(&mut self, now_us: u64, index: u16, sub: u8, value: u32, len: u8) -> Option<bool> {
+        if !self.step.sdo_sent {
+            let f = self.sdo.write(now_us, index, sub, value, len);
+            self.tx.push_back(f);
+            self.step.sdo_sent = true;
+            return None;
+        }
+        match self.sdo.poll(now_us)? {
+            SdoResult::Written | SdoResult::Read(_) => Some(true),
+            SdoResult::Aborted(code) => {
+                self.fail(
+                    now_us,
+                    format!("SDO write {index:04X}sub{sub} = {value} aborted: {code:#010X}"),
+                );
+                Some(false)
+            }
+            SdoResult::TimedOut => {
+                self.fail(now_us, format!("SDO write {index:04X}sub{sub} timed out"));
+                Some(false)
+            }
+        }
+    }
+
+    fn next_step(&mut self, now_us: u64, i: usize) {
+        self.step = StepState {
+            started_us: now_us,
+            ..Default::default()
+        };
+        self.phase = if i + 1 >= self.program.len() {
+            self.say(now_us, "program finished");
+            Phase::Done
+        } else {
+            Phase::Program(i + 1)
+        };
+    }
+
+    /// Advance by time: run the program, produce SYNC, RPDOs and heartbeat.
+    pub fn poll(&mut self, now_us: u64) {
+        match self.phase.clone() {
+            Phase::Reset => {
+                self.tx.push_back(CanFrame::new(0x000, &[0x82, self.cfg.node_id]));
+                self.say(now_us, format!("NMT reset communication of node {}", self.cfg.node_id));
+                self.phase = Phase::WaitBoot { since_us: now_us };
+            }
+            Phase::WaitBoot { since_us } => {
+                if now_us - since_us > self.cfg.step_timeout_us {
+                    self.fail(now_us, "no boot-up message from the drive".into());
+                }
+            }
+            Phase::Configure(k) => {
+                if k >= self.configuration.len() {
+                    self.tx.push_back(CanFrame::new(0x000, &[0x01, self.cfg.node_id]));
+                    self.say(now_us, "PDOs mapped; NMT start; SYNC and heartbeat on");
+                    self.sync_on = true;
+                    self.heartbeat_on = true;
+                    self.next_sync_us = now_us;
+                    self.next_heartbeat_us = now_us;
+                    self.step = StepState {
+                        started_us: now_us,
+                        ..Default::default()
+                    };
+                    self.phase = if self.program.is_empty() {
+                        Phase::Done
+                    } else {
+                        Phase::Program(0)
+                    };
+                } else {
+                    let (index, sub, value, len) = self.configuration[k];
+                    if let Some(true) = self.sdo_step(now_us, index, sub, value, len) {
+                        self.step.sdo_sent = false;
+                        self.phase = Phase::Configure(k + 1);
+                    }
+                }
+            }
+            Phase::Program(i) => {
+                let step = self.program[i].clone();
+                self.run_step(now_us, i, &step);
+            }
+            Phase::Done | Phase::Failed(_) => {}
+        }
+        self.produce(now_us);
+    }
+
+    fn timed_out(&self, now_us: u64) -> bool {
+        now_us - self.step.started_us > self.cfg.step_timeout_us
+    }
+
+    fn run_step(&mut self, now_us: u64, i: usize, step: &Step) {
+        let sw = self.latest.statusword;
+        match *step {
+            Step::Enable { mode } | Step::SetMode { mode } => {
+                let enable = matches!(step, Step::Enable { .. });
+                match self.step.stage {
+                    0 => {
+                        if let Some(true) = self.sdo_step(now_us, 0x6060, 0, mode as u8 as u32, 1) {
+                            self.mode = mode;
+                            self.step.stage = 1;
+                        }
+                    }
+                    1 if self.latest.mode_display == mode && self.have_actual => {
+                        // Start from where the axis is, so enabling never jumps.
+                        self.target_uu = f64::from(self.latest.position_uu);
+                        self.velocity_uu_s = 0.0;
+                        self.step.stage = if enable { 2 } else { 9 };
+                    }
+                    2 => {
+                        // Fault reset first if needed, then shutdown, switch on, enable.
+                        let state = state_name(sw);
+                        self.controlword = match state {
+                            "FAULT" => {
+                                if self.controlword & 0x80 != 0 {
+                                    0x00
+                                } else {
+                                    0x80
+                                }
+                            }
+                            "SWITCH ON DISABLED" => 0x06,
+                            "READY TO SWITCH ON" => 0x07,
+                            "SWITCHED ON" => 0x0F,
+                            "OPERATION ENABLED" => {
+                                self.step.stage = 9;
+                                0x0F
+                            }
+                            _ => self.controlword,
+                        };
+                        if state != "OPERATION ENABLED" {
+                            self.target_uu = f64::from(self.latest.position_uu);
+                        }
+                    }
+                    9 => {
+                        self.say(
+                            now_us,
+                            format!("drive in {} in mode {}", state_name(sw), self.mode),
+                        );
+                        self.next_step(now_us, i);
+                        return;
+                    }
+                    _ => {}
+                }
+                if self.timed_out(now_us) {
+                    self.fail(
+                        now_us,
+                        format!(
+                            "{step:?} not reached: statusword {sw:#06X} ({}), mode display {}",
+                            state_name(sw),
+                            self.latest.mode_display
+                        ),
+                    );
+                }
+            }
+            Step::MoveTo {
+                target_uu,
+                velocity_uu_s,
+                accel_uu_s2,
+            } => {
+                let sdo = [
+                    (0x6081, velocity_uu_s),
+                    (0x6083, accel_uu_s2),
+                    (0x6084, accel_uu_s2),
+                ];
+                let stage = usize::from(self.step.stage);
+                if stage < sdo.len() {
+                    let (idx, v) = sdo[stage];
+                    if let Some(true) = self.sdo_step(now_us, idx, 0, v, 4) {
+                        self.step.sdo_sent = false;
+                        self.step.stage += 1;
+                    }
+                } else if stage == 3 {
+                    self.target_uu = f64::from(target_uu);
+                    self.controlword = 0x0F | 0x10; // new set-point
+                    self.step.stage = 4;
+                } else if stage == 4 && sw & 0x1000 != 0 {
+                    self.controlword = 0x0F; // acknowledge seen: clear bit 4
+                    self.step.stage = 5;
+                } else if stage == 5 && sw & 0x1000 == 0 && sw & 0x0400 != 0 {
+                    self.say(now_us, format!("PP move to {target_uu} uu: target reached"));
+                    self.next_step(now_us, i);
+                    return;
+                }
+                if self.timed_out(now_us) {
+                    self.fail(now_us, format!("PP move to {target_uu} uu: target not reached"));
+                }
+            }
+            Step::Cruise { duration_s, .. } | Step::Dwell { duration_s } => {
+                if self.step.stage == 0 {
+                    self.step.stage = 1;
+                    self.say(now_us, format!("{step:?}"));
+                }
+                if (now_us - self.step.started_us) as f64 >= duration_s * 1e6 {
+                    self.next_step(now_us, i);
+                }
+            }
+            Step::WriteSdo {
+                index,
+                sub,
+                value,
+                len,
+            } => {
+                if let Some(true) = self.sdo_step(now_us, index, sub, value, len) {
+                    self.say(now_us, format!("wrote {index:04X}sub{sub} = {value}"));
+                    self.next_step(now_us, i);
+                }
+            }
+            Step::StopHeartbeat => {
+                self.heartbeat_on = false;
+                self.say(now_us, "master heartbeat stopped");
+                self.next_step(now_us, i);
+            }
+            Step::StopSync => {
+                self.sync_on = false;
+                self.say(now_us, "SYNC stopped");
+                self.next_step(now_us, i);
+            }
+            Step::Disable => {
+                self.controlword = 0x00;
+                self.velocity_uu_s = 0.0;
+                self.next_step(now_us, i);
+            }
+        }
+    }
+
+    /// Commanded interpolator velocity for the current step, with its ramp rate.
+    fn interpolator_command(&self) -> Option<(f64, f64)> {
+        match self.phase {
+            Phase::Program(i) => match self.program[i] {
+                Step::Cruise {
+                    velocity_uu_s,
+                    accel_uu_s2,
+                    ..
+                } => Some((velocity_uu_s, accel_uu_s2)),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
+    fn produce(&mut self, now_us: u64) {
+        let n = u32::from(self.cfg.node_id);
+        if self.heartbeat_on && now_us >= self.next_heartbeat_us {
+            self.tx
+                .push_back(CanFrame::new(0x700 + u32::from(self.cfg.master_id), &[0x05]));
+            self.next_heartbeat_us += u64::from(self.cfg.heartbeat_ms) * 1000;
+        }
+        if !(self.sync_on && now_us >= self.next_sync_us) {
+            return;
+        }
+        let dt = f64::from(self.cfg.sync_period_us) * 1e-6;
+        self.next_sync_us += u64::from(self.cfg.sync_period_us);
+        // The interpolator: ramp towards the commanded velocity, integrate the position.
+        if let Some((v_cmd, accel)) = self.interpolator_command() {
+            let dv = (v_cmd - self.velocity_uu_s).clamp(-accel * dt, accel * dt);
+            self.velocity_uu_s += dv;
+        }
+        if self.mode == MODE_CSP || self.mode == MODE_CSV {
+            self.target_uu += self.velocity_uu_s * dt;
+        }
+        // Record what the drive reported for the previous cycle, with the set-point it had.
+        let mut s = self.latest;
+        s.t_s = now_us as f64 * 1e-6;
+        s.target_uu = self.target_uu;
+        s.setpoint_velocity_uu_s = self.velocity_uu_s;
+        self.samples.push(s);
+
+        let pos = (self.target_uu.round() as i64).clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        let mut r1 = [0u8; 6];
+        r1[..2].copy_from_slice(&self.controlword.to_le_bytes());
+        r1[2..].copy_from_slice(&pos.to_le_bytes());
+        self.tx.push_back(CanFrame::new(0x200 + n, &r1));
+        let vel = self.velocity_uu_s.round() as i32;
+        let mut r2 = [0u8; 6];
+        r2[..4].copy_from_slice(&vel.to_le_bytes());
+        r2[4..].copy_from_slice(&self.target_torque.to_le_bytes());
+        self.tx.push_back(CanFrame::new(0x300 + n, &r2));
+        self.tx.push_back(CanFrame::new(0x080, &[]));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn statusword_decoding_follows_the_standard_masks() {
+        assert_eq!(state_name(0x0250), "SWITCH ON DISABLED");
+        assert_eq!(state_name(0x0231), "READY TO SWITCH ON");
+        assert_eq!(state_name(0x0233), "SWITCHED ON");
+        assert_eq!(state_name(0x0237), "OPERATION ENABLED");
+        assert_eq!(state_name(0x0217), "QUICK STOP ACTIVE");
+        assert_eq!(state_name(0x0208), "FAULT");
+        assert_eq!(state_name(0x021F), "FAULT REACTION ACTIVE");
+    }
+
+    #[test]
+    fn pdo_configuration_follows_the_cia301_remap_order() {
+        let w = pdo_configuration(5, 1000, &MasterConfig::default());
+        let pos = |e: (u16, u8, u32, u8)| w.iter().position(|x| *x == e).unwrap();
+        // TPDO1: invalidate, clear, map, count, validate.
+        let inval = pos((0x1800, 1, 0x8000_0185, 4));
+        let clear = pos((0x1A00, 0, 0, 1));
+        let entry = pos((0x1A00, 1, 0x6041_0010, 4));
+        let count = pos((0x1A00, 0, 2, 1));
+        let valid = pos((0x1800, 1, 0x185, 4));
+        assert!(inval < clear && clear < entry && entry < count && count < valid);
+    }
+
+    #[test]
+    fn master_starts_with_reset_and_waits_for_boot() {
+        let mut m = Master::new(MasterConfig::default(), vec![]);
+        m.poll(0);
+        let f = m.pop_tx().unwrap();
+        assert_eq!((f.id, f.len, f.data[0], f.data[1]), (0, 2, 0x82, 5));
+        m.poll(3_000_000);
+        assert!(m.error().unwrap().contains("boot-up"));
+    }
+}

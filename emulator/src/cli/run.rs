@@ -1,0 +1,236 @@
+//! `drive-emu run`: the drive(s) on a real or virtual CAN bus, at a fixed rate.
+
+use crate::bus::socketcan::SocketCanBus;
+use crate::presets::AxisConfig;
+use crate::runtime::axis_drive::AxisDrive;
+use crate::runtime::clock::MonotonicClock;
+use crate::runtime::machine::{self, AxisEntry, MachineFile};
+use crate::runtime::realtime::{self, RealtimeRequest};
+use crate::runtime::{AxisSlot, Runtime};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use drive_protocol::{Drive, Node};
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
+use std::sync::Arc;
+
+#[derive(Args, Debug, Clone)]
+pub struct RunArgs {
+    /// CAN interface (can0, vcan0, ...).
+    #[arg(long, default_value = "vcan0")]
+    pub iface: String,
+    /// Node ID of the (single) drive, 1..=127. Ignored with --config.
+    #[arg(long, default_value_t = 5)]
+    pub node: u8,
+    /// Preset of the (single) axis: cnc1 ... cnc5. Ignored with --config.
+    #[arg(long, default_value = "cnc1")]
+    pub preset: String,
+    /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Machine file with several axes (see README); replaces --node/--preset/--set.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Loop rate, Hz (250..8000).
+    #[arg(long, default_value_t = 1000)]
+    pub tick_hz: u32,
+    /// Lock-step: simulated time advances by --sync-period-us at each SYNC received, not by
+    /// the wall clock.
+    #[arg(long)]
+    pub lockstep: bool,
+    /// SYNC period for lock-step, us.
+    #[arg(long, default_value_t = 1000)]
+    pub sync_period_us: u64,
+    /// SCHED_FIFO priority for the loop thread (needs CAP_SYS_NICE); 0 = normal scheduling.
+    #[arg(long, default_value_t = 80)]
+    pub rt_priority: i32,
+    /// Pin the loop thread to this CPU.
+    #[arg(long)]
+    pub cpu: Option<usize>,
+    /// Do not lock memory (mlockall).
+    #[arg(long)]
+    pub no_mlock: bool,
+    /// Stop after this many seconds (default: until Ctrl-C / SIGTERM).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Print the final statistics as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Build the nodes and drives of a machine.
+pub fn build_axes(entries: &[AxisEntry]) -> Result<Vec<AxisSlot<AxisDrive>>> {
+    entries
+        .iter()
+        .map(|e| {
+            let mut cfg = AxisConfig::from_preset(&e.preset)
+                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+            for (k, v) in &e.set {
+                cfg = cfg
+                    .with_override(k, &machine::value_text(v))
+                    .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+            }
+            let drive = AxisDrive::from_config(&cfg)
+                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+            let node = Node::new(e.node_id, drive.info())
+                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+            Ok(AxisSlot { node, drive })
+        })
+        .collect()
+}
+
+/// The machine described by the command line (one axis) or by --config.
+pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
+    if let Some(path) = &args.config {
+        return machine::load(path);
+    }
+    let mut set = std::collections::BTreeMap::new();
+    for s in &args.set {
+        let Some((k, v)) = s.split_once('=') else {
+            bail!("--set {s}: an override must be written key=value");
+        };
+        let value = toml::from_str::<toml::Table>(&format!("v = {v}"))
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or_else(|| toml::Value::String(v.to_string()));
+        set.insert(k.trim().to_string(), value);
+    }
+    let m = MachineFile {
+        tick_hz: args.tick_hz,
+        axes: vec![AxisEntry {
+            node_id: args.node,
+            preset: args.preset.clone(),
+            set,
+        }],
+    };
+    machine::validate(&m)?;
+    Ok(m)
+}
+
+/// What the loop thread publishes for the status line: plain atomics, no locks.
+#[derive(Default)]
+struct Status {
+    statusword: AtomicU64,
+    mode: AtomicI64,
+    nmt: AtomicU64,
+    position_uu: AtomicI64,
+    following_error_uu: AtomicI64,
+    overruns: AtomicU64,
+    ticks: AtomicU64,
+    link_up: AtomicBool,
+}
+
+pub fn run(args: &RunArgs) -> Result<()> {
+    let machine = machine_from_args(args)?;
+    let axes = build_axes(&machine.axes)?;
+    let bus = SocketCanBus::open(&args.iface)?;
+    let period_us = 1_000_000 / u64::from(machine.tick_hz);
+    let n_axes = axes.len();
+    let mut rt = Runtime::new(bus, axes, period_us);
+
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = Arc::clone(&stop);
+        ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed))
+            .context("cannot install the Ctrl-C / SIGTERM handler")?;
+    }
+    if let Some(d) = args.duration {
+        let stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_secs_f64(d));
+            stop.store(true, Ordering::Relaxed);
+        });
+    }
+    let status = Arc::new(Status::default());
+    let request = RealtimeRequest {
+        fifo_priority: (args.rt_priority > 0).then_some(args.rt_priority),
+        cpu: args.cpu,
+        lock_memory: !args.no_mlock,
+    };
+    let lockstep = args.lockstep.then_some(args.sync_period_us);
+    eprintln!(
+        "drive-emu: {} axis(es) on {} at {} Hz{}: {}",
+        n_axes,
+        args.iface,
+        machine.tick_hz,
+        if lockstep.is_some() { " (lock-step on SYNC)" } else { "" },
+        machine
+            .axes
+            .iter()
+            .map(|a| format!("node {} = {}", a.node_id, a.preset))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+
+    let loop_thread = {
+        let stop = Arc::clone(&stop);
+        let status = Arc::clone(&status);
+        std::thread::Builder::new()
+            .name("drive-emu-loop".into())
+            .spawn(move || {
+                let report = realtime::apply(&request);
+                for w in &report.warnings {
+                    eprintln!("drive-emu: warning: {w}");
+                }
+                eprintln!("drive-emu: loop thread: {report}");
+                rt.boot();
+                let observe = |rt: &Runtime<SocketCanBus, AxisDrive>| {
+                    let n = &rt.axes[0].node;
+                    status.statusword.store(u64::from(n.statusword()), Ordering::Relaxed);
+                    status.mode.store(i64::from(n.mode()), Ordering::Relaxed);
+                    status.nmt.store(n.nmt_state() as u64, Ordering::Relaxed);
+                    status
+                        .position_uu
+                        .store(i64::from(n.position_actual()), Ordering::Relaxed);
+                    status
+                        .following_error_uu
+                        .store(n.following_error().round() as i64, Ordering::Relaxed);
+                    status.overruns.store(rt.stats.overruns, Ordering::Relaxed);
+                    status.ticks.store(rt.stats.ticks, Ordering::Relaxed);
+                    status.link_up.store(rt.bus.link_up(), Ordering::Relaxed);
+                };
+                match lockstep {
+                    Some(sync_us) => rt.run_lockstep(sync_us, &stop, observe),
+                    None => rt.run_realtime(&mut MonotonicClock::new(), &stop, observe),
+                }
+                rt
+            })?
+    };
+
+    let tty = std::io::stdout().is_terminal();
+    while !stop.load(Ordering::Relaxed) && !loop_thread.is_finished() {
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        if tty {
+            let sw = status.statusword.load(Ordering::Relaxed) as u16;
+            print!(
+                "\r{} | {} mode {} | pos {} uu | ferr {} uu | ticks {} overruns {}{}   ",
+                args.iface,
+                crate::master::state_name(sw),
+                status.mode.load(Ordering::Relaxed),
+                status.position_uu.load(Ordering::Relaxed),
+                status.following_error_uu.load(Ordering::Relaxed),
+                status.ticks.load(Ordering::Relaxed),
+                status.overruns.load(Ordering::Relaxed),
+                if status.link_up.load(Ordering::Relaxed) {
+                    ""
+                } else {
+                    " | LINK DOWN"
+                },
+            );
+            let _ = std::io::stdout().flush();
+        }
+    }
+    let rt = loop_thread
+        .join()
+        .map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
+    if tty {
+        println!();
+    }
+    let summary = rt.stats.summary();
+    eprintln!("drive-emu: stopped. {summary}");
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    }
+    Ok(())
+}

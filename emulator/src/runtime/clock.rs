@@ -1,0 +1,122 @@
+//! Time sources for the loop: the monotonic wall clock with absolute-deadline sleeps, and a
+//! virtual clock for offline and lock-step runs. Times are microseconds since the clock's start.
+
+/// A source of "now" and a way to wait for a deadline.
+pub trait Clock {
+    /// Microseconds since the clock started.
+    fn now_us(&self) -> u64;
+    /// Wait until `deadline_us` (absolute). Returns the time on waking.
+    fn sleep_until(&mut self, deadline_us: u64) -> u64;
+}
+
+/// `CLOCK_MONOTONIC` with `clock_nanosleep(TIMER_ABSTIME)`: deadlines do not drift with the
+/// time spent working, and a late wake-up does not push the next deadline.
+#[derive(Debug)]
+pub struct MonotonicClock {
+    origin_ns: i128,
+}
+
+fn monotonic_ns() -> i128 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC always exists on Linux.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    ts.tv_sec as i128 * 1_000_000_000 + ts.tv_nsec as i128
+}
+
+impl MonotonicClock {
+    pub fn new() -> Self {
+        Self {
+            origin_ns: monotonic_ns(),
+        }
+    }
+}
+
+impl Default for MonotonicClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Clock for MonotonicClock {
+    fn now_us(&self) -> u64 {
+        ((monotonic_ns() - self.origin_ns).max(0) / 1000) as u64
+    }
+
+    fn sleep_until(&mut self, deadline_us: u64) -> u64 {
+        let abs_ns = self.origin_ns + deadline_us as i128 * 1000;
+        let ts = libc::timespec {
+            tv_sec: (abs_ns / 1_000_000_000) as libc::time_t,
+            tv_nsec: (abs_ns % 1_000_000_000) as libc::c_long,
+        };
+        loop {
+            // SAFETY: `ts` is a valid timespec; the remainder pointer may be null with
+            // TIMER_ABSTIME.
+            let rc = unsafe {
+                libc::clock_nanosleep(
+                    libc::CLOCK_MONOTONIC,
+                    libc::TIMER_ABSTIME,
+                    &ts,
+                    std::ptr::null_mut(),
+                )
+            };
+            // EINTR (a signal such as SIGINT): sleep again to the same absolute deadline;
+            // the loop checks its stop flag after waking.
+            if rc != libc::EINTR {
+                break;
+            }
+        }
+        self.now_us()
+    }
+}
+
+/// A clock that only moves when told: offline runs and lock-step. Sleeping jumps to the deadline.
+#[derive(Debug, Default, Clone)]
+pub struct VirtualClock {
+    now_us: u64,
+}
+
+impl VirtualClock {
+    pub fn new() -> Self {
+        Self::default()
+    }
+    pub fn advance_to(&mut self, t_us: u64) {
+        self.now_us = self.now_us.max(t_us);
+    }
+}
+
+impl Clock for VirtualClock {
+    fn now_us(&self) -> u64 {
+        self.now_us
+    }
+    fn sleep_until(&mut self, deadline_us: u64) -> u64 {
+        self.advance_to(deadline_us);
+        self.now_us
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn monotonic_sleep_until_never_returns_early() {
+        let mut c = MonotonicClock::new();
+        let start = c.now_us();
+        for k in 1..=5u64 {
+            let deadline = start + k * 2_000;
+            let woke = c.sleep_until(deadline);
+            assert!(woke >= deadline, "woke at {woke} before deadline {deadline}");
+        }
+    }
+
+    #[test]
+    fn virtual_clock_moves_only_forward() {
+        let mut c = VirtualClock::new();
+        assert_eq!(c.sleep_until(1_000), 1_000);
+        c.advance_to(500);
+        assert_eq!(c.now_us(), 1_000);
+    }
+}
