@@ -2,4 +2,5 @@
 
 pub mod analyze;
 pub mod run;
+pub mod scenario;
 pub mod sim;

@@ -77,6 +77,12 @@ fn secs(us: u64) -> f64 {
     us as f64 * 1e-6
 }
 
+/// Seconds, at most three decimals, no trailing zeros.
+fn fs(us: u64) -> String {
+    let s = format!("{:.3}", secs(us));
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 impl Expectation {
     pub fn describe(&self) -> String {
         match self {
@@ -87,7 +93,7 @@ impl Expectation {
             } => {
                 let mut s = format!("EMCY {code:#06X}");
                 if let Some(w) = within_us {
-                    s += &format!(" within {} s", secs(*w));
+                    s += &format!(" within {} s", fs(*w));
                 }
                 if let Some(a) = after {
                     s += &format!(" after event `{a}`");
@@ -96,14 +102,14 @@ impl Expectation {
             }
             Expectation::NoEmcy { from_us, until_us } => format!(
                 "no EMCY from {} s{}",
-                secs(*from_us),
+                fs(*from_us),
                 until_us
-                    .map(|u| format!(" until {} s", secs(u)))
+                    .map(|u| format!(" until {} s", fs(u)))
                     .unwrap_or_default()
             ),
             Expectation::State { state, at_us } => format!(
                 "state {state} {}",
-                at_us.map_or("at the end".into(), |t| format!("at {} s", secs(t)))
+                at_us.map_or("at the end".into(), |t| format!("at {} s", fs(t)))
             ),
             Expectation::FollowingError { max_uu, .. } => {
                 format!("|following error| <= {max_uu} uu while enabled")
@@ -115,10 +121,10 @@ impl Expectation {
             } => {
                 let mut s = format!("detector verdict {}", verdict.as_str());
                 if let Some(b) = by_us {
-                    s += &format!(" by {} s", secs(*b));
+                    s += &format!(" by {} s", fs(*b));
                 }
                 if let Some(b) = not_before_us {
-                    s += &format!(", nothing flagged before {} s", secs(*b));
+                    s += &format!(", nothing flagged before {} s", fs(*b));
                 }
                 s
             }
