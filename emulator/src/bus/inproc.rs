@@ -70,7 +70,7 @@ impl CanBus for InProcEndpoint {
 
 #[cfg(test)]
 mod tests {
-        use super::*;
+    use super::*;
 
     #[test]
     fn frames_reach_every_other_endpoint_in_order_but_not_the_sender() {

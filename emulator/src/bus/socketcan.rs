@@ -26,7 +26,12 @@ pub struct OpenError {
 
 impl std::fmt::Display for OpenError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let hint = match self.source.raw_os_error() {
+        let errno = match self.source.raw_os_error() {
+            // Opening looks the interface up first, so a kernel without CAN says ENODEV too.
+            Some(libc::ENODEV) if !kernel_has_can() => Some(libc::EAFNOSUPPORT),
+            other => other,
+        };
+        let hint = match errno {
             Some(libc::EAFNOSUPPORT) => {
                 " (this kernel has no CAN support; run inside user-mode Linux with \
                  ./vcan-setup.sh -- COMMAND, or use the embedded demo: drive-emu demo)"
@@ -37,13 +42,30 @@ impl std::fmt::Display for OpenError {
             }
             _ => "",
         };
-        write!(f, "cannot open CAN interface {}: {}{}", self.iface, self.source, hint)
+        write!(
+            f,
+            "cannot open CAN interface {}: {}{}",
+            self.iface, self.source, hint
+        )
     }
 }
 
 impl std::error::Error for OpenError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         Some(&self.source)
+    }
+}
+
+/// True if this kernel can open a raw CAN socket at all.
+pub fn kernel_has_can() -> bool {
+    // SAFETY: plain socket(2) call; the descriptor is closed at once.
+    let fd = unsafe { libc::socket(libc::AF_CAN, libc::SOCK_RAW, libc::CAN_RAW) };
+    if fd >= 0 {
+        // SAFETY: `fd` is a descriptor we own.
+        unsafe { libc::close(fd) };
+        true
+    } else {
+        false
     }
 }
 

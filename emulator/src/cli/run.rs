@@ -154,7 +154,11 @@ pub fn run(args: &RunArgs) -> Result<()> {
         n_axes,
         args.iface,
         machine.tick_hz,
-        if lockstep.is_some() { " (lock-step on SYNC)" } else { "" },
+        if lockstep.is_some() {
+            " (lock-step on SYNC)"
+        } else {
+            ""
+        },
         machine
             .axes
             .iter()
@@ -177,7 +181,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
                 rt.boot();
                 let observe = |rt: &Runtime<SocketCanBus, AxisDrive>| {
                     let n = &rt.axes[0].node;
-                    status.statusword.store(u64::from(n.statusword()), Ordering::Relaxed);
+                    status
+                        .statusword
+                        .store(u64::from(n.statusword()), Ordering::Relaxed);
                     status.mode.store(i64::from(n.mode()), Ordering::Relaxed);
                     status.nmt.store(n.nmt_state() as u64, Ordering::Relaxed);
                     status

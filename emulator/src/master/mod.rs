@@ -179,7 +179,12 @@ fn pdo_configuration(node: u8, sync_period_us: u32, cfg: &MasterConfig) -> Vec<(
     // TPDO1: statusword + position actual; TPDO2: velocity + torque actual + mode display;
     // TPDO3: direct encoder + current; TPDO4: following error.
     map(0x1800, 0x1A00, 0x180 + n, &[0x6041_0010, 0x6064_0020]);
-    map(0x1801, 0x1A01, 0x280 + n, &[0x606C_0020, 0x6077_0010, 0x6061_0008]);
+    map(
+        0x1801,
+        0x1A01,
+        0x280 + n,
+        &[0x606C_0020, 0x6077_0010, 0x6061_0008],
+    );
     map(0x1802, 0x1A02, 0x380 + n, &[0x60E4_0120, 0x6078_0010]);
     map(0x1803, 0x1A03, 0x480 + n, &[0x60F4_0020]);
     w
@@ -373,8 +378,12 @@ impl Master {
     pub fn poll(&mut self, now_us: u64) {
         match self.phase.clone() {
             Phase::Reset => {
-                self.tx.push_back(CanFrame::new(0x000, &[0x82, self.cfg.node_id]));
-                self.say(now_us, format!("NMT reset communication of node {}", self.cfg.node_id));
+                self.tx
+                    .push_back(CanFrame::new(0x000, &[0x82, self.cfg.node_id]));
+                self.say(
+                    now_us,
+                    format!("NMT reset communication of node {}", self.cfg.node_id),
+                );
                 self.phase = Phase::WaitBoot { since_us: now_us };
             }
             Phase::WaitBoot { since_us } => {
@@ -384,7 +393,8 @@ impl Master {
             }
             Phase::Configure(k) => {
                 if k >= self.configuration.len() {
-                    self.tx.push_back(CanFrame::new(0x000, &[0x01, self.cfg.node_id]));
+                    self.tx
+                        .push_back(CanFrame::new(0x000, &[0x01, self.cfg.node_id]));
                     self.say(now_us, "PDOs mapped; NMT start; SYNC and heartbeat on");
                     self.sync_on = true;
                     self.heartbeat_on = true;
@@ -513,7 +523,10 @@ impl Master {
                     return;
                 }
                 if self.timed_out(now_us) {
-                    self.fail(now_us, format!("PP move to {target_uu} uu: target not reached"));
+                    self.fail(
+                        now_us,
+                        format!("PP move to {target_uu} uu: target not reached"),
+                    );
                 }
             }
             Step::Cruise { duration_s, .. } | Step::Dwell { duration_s } => {
@@ -572,8 +585,10 @@ impl Master {
     fn produce(&mut self, now_us: u64) {
         let n = u32::from(self.cfg.node_id);
         if self.heartbeat_on && now_us >= self.next_heartbeat_us {
-            self.tx
-                .push_back(CanFrame::new(0x700 + u32::from(self.cfg.master_id), &[0x05]));
+            self.tx.push_back(CanFrame::new(
+                0x700 + u32::from(self.cfg.master_id),
+                &[0x05],
+            ));
             self.next_heartbeat_us += u64::from(self.cfg.heartbeat_ms) * 1000;
         }
         if !(self.sync_on && now_us >= self.next_sync_us) {

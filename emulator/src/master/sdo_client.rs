@@ -60,7 +60,10 @@ impl SdoClient {
     pub fn read(&mut self, now_us: u64, index: u16, sub: u8) -> CanFrame {
         let [i0, i1] = index.to_le_bytes();
         self.start(now_us, index, sub, true);
-        CanFrame::new(0x600 + u32::from(self.node_id), &[0x40, i0, i1, sub, 0, 0, 0, 0])
+        CanFrame::new(
+            0x600 + u32::from(self.node_id),
+            &[0x40, i0, i1, sub, 0, 0, 0, 0],
+        )
     }
 
     fn start(&mut self, now_us: u64, index: u16, sub: u8, upload: bool) {
@@ -93,7 +96,11 @@ impl SdoClient {
             c if p.upload && c & 0xE0 == 0x40 && c & 0x02 != 0 => {
                 let unused = if c & 0x01 != 0 { (c >> 2) & 0x3 } else { 0 };
                 let bytes = 4 - unused as u32;
-                let mask = if bytes == 4 { u32::MAX } else { (1u32 << (8 * bytes)) - 1 };
+                let mask = if bytes == 4 {
+                    u32::MAX
+                } else {
+                    (1u32 << (8 * bytes)) - 1
+                };
                 SdoResult::Read(value & mask)
             }
             // A segmented upload answer: more than 4 bytes, which this client does not read.

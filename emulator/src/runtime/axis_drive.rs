@@ -219,10 +219,13 @@ impl Drive for AxisDrive {
             AxisParam::SpeedTi => s.cascade.params.speed_ti,
             AxisParam::MotorEncoderNoise => s.axis.motor_encoder.params.noise_counts,
             AxisParam::DirectEncoderNoise => {
-                s.axis.direct_encoder.params.noise_counts / s.axis.direct_encoder.params.counts_per_unit
+                s.axis.direct_encoder.params.noise_counts
+                    / s.axis.direct_encoder.params.counts_per_unit
             }
             AxisParam::DirectEncoderOffset => s.axis.direct_encoder.params.offset,
-            AxisParam::PositionFromDirect => f64::from(u8::from(s.cascade.params.position_from_direct)),
+            AxisParam::PositionFromDirect => {
+                f64::from(u8::from(s.cascade.params.position_from_direct))
+            }
             _ => return Err(ParamError::Unsupported),
         })
     }
@@ -236,11 +239,13 @@ impl Drive for AxisDrive {
             AxisParam::Backlash => s.axis.set_backlash(check(value, 0.0, max_gap)?),
             AxisParam::Stiffness => {
                 let k = check(value, f64::MIN_POSITIVE, f64::MAX)?;
-                s.axis.set_stiffness(k).map_err(|e| ParamError::OutOfRange {
-                    min: 0.0,
-                    // The stable step scales with 1/sqrt(k).
-                    max: k * (e.max_step / e.step).powi(2),
-                })?;
+                s.axis
+                    .set_stiffness(k)
+                    .map_err(|e| ParamError::OutOfRange {
+                        min: 0.0,
+                        // The stable step scales with 1/sqrt(k).
+                        max: k * (e.max_step / e.step).powi(2),
+                    })?;
             }
             AxisParam::Damping => {
                 let c = check(value, 0.0, f64::MAX)?;
@@ -251,7 +256,11 @@ impl Drive for AxisDrive {
             }
             AxisParam::LoadCoulombFriction => {
                 let mut f = s.axis.mech.params.load_friction;
-                let ratio = if f.coulomb > 0.0 { f.static_ / f.coulomb } else { 1.0 };
+                let ratio = if f.coulomb > 0.0 {
+                    f.static_ / f.coulomb
+                } else {
+                    1.0
+                };
                 f.coulomb = check(value, 0.0, 1e7)?;
                 f.static_ = f.coulomb * ratio.max(1.0);
                 s.axis.set_load_friction(f);
@@ -263,7 +272,11 @@ impl Drive for AxisDrive {
             }
             AxisParam::MotorCoulombFriction => {
                 let mut f = s.axis.mech.params.motor_friction;
-                let ratio = if f.coulomb > 0.0 { f.static_ / f.coulomb } else { 1.0 };
+                let ratio = if f.coulomb > 0.0 {
+                    f.static_ / f.coulomb
+                } else {
+                    1.0
+                };
                 f.coulomb = check(value, 0.0, 1e4)?;
                 f.static_ = f.coulomb * ratio.max(1.0);
                 s.axis.set_motor_friction(f);
@@ -281,10 +294,14 @@ impl Drive for AxisDrive {
             AxisParam::MotorEncoderNoise => s.axis.motor_encoder.set_noise(check(value, 0.0, 1e6)?),
             AxisParam::DirectEncoderNoise => {
                 let cpu = s.axis.direct_encoder.params.counts_per_unit;
-                s.axis.direct_encoder.set_noise(check(value, 0.0, max_gap)? * cpu)
+                s.axis
+                    .direct_encoder
+                    .set_noise(check(value, 0.0, max_gap)? * cpu)
             }
             AxisParam::DirectEncoderOffset => {
-                s.axis.direct_encoder.set_offset(check(value, -max_gap * 100.0, max_gap * 100.0)?)
+                s.axis
+                    .direct_encoder
+                    .set_offset(check(value, -max_gap * 100.0, max_gap * 100.0)?)
             }
             AxisParam::PositionFromDirect => {
                 s.set_position_from_direct(check(value, 0.0, 1.0)? >= 0.5)
@@ -361,7 +378,10 @@ mod tests {
         }
         let fb = d.feedback();
         let err_m = (fb.direct_position_inc as f64 - target_inc) / d.inc_per_load();
-        assert!(err_m.abs() < 1e-6, "direct encoder {err_m} m from the target after 2 s");
+        assert!(
+            err_m.abs() < 1e-6,
+            "direct encoder {err_m} m from the target after 2 s"
+        );
     }
 
     #[test]
@@ -389,7 +409,10 @@ mod tests {
         d.set_signal_lost(Encoder::Direct, true);
         d.advance(1000);
         assert_eq!(d.feedback().drive_fault, Some(ERROR_SENSOR));
-        assert!(!d.reset_fault(), "fault reset must fail while the signal is lost");
+        assert!(
+            !d.reset_fault(),
+            "fault reset must fail while the signal is lost"
+        );
         d.set_signal_lost(Encoder::Direct, false);
         assert_eq!(d.feedback().drive_fault, Some(ERROR_SENSOR), "latched");
         assert!(d.reset_fault());

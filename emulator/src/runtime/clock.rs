@@ -108,7 +108,10 @@ mod tests {
         for k in 1..=5u64 {
             let deadline = start + k * 2_000;
             let woke = c.sleep_until(deadline);
-            assert!(woke >= deadline, "woke at {woke} before deadline {deadline}");
+            assert!(
+                woke >= deadline,
+                "woke at {woke} before deadline {deadline}"
+            );
         }
     }
 

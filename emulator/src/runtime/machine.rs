@@ -62,7 +62,11 @@ pub fn validate(m: &MachineFile) -> Result<()> {
     let mut seen = std::collections::BTreeSet::new();
     for (i, a) in m.axes.iter().enumerate() {
         if !(1..=127).contains(&a.node_id) {
-            bail!("axis {} key `node_id`: {} is outside 1..=127", i + 1, a.node_id);
+            bail!(
+                "axis {} key `node_id`: {} is outside 1..=127",
+                i + 1,
+                a.node_id
+            );
         }
         if !seen.insert(a.node_id) {
             bail!("axis {} key `node_id`: {} is used twice", i + 1, a.node_id);
@@ -114,14 +118,23 @@ mod tests {
 
     #[test]
     fn errors_name_file_key_and_reason() {
-        let e = parse("[[axis]]\nnode_id = 5\npreset = \"cnc1\"\nspeed = 3\n", "m.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("m.toml") && e.contains("speed") && e.contains("line 4"), "{e}");
+        let e = parse(
+            "[[axis]]\nnode_id = 5\npreset = \"cnc1\"\nspeed = 3\n",
+            "m.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("m.toml") && e.contains("speed") && e.contains("line 4"),
+            "{e}"
+        );
         let e = format!(
             "{:#}",
-            parse("tick_hz = 100\n[[axis]]\nnode_id = 5\npreset = \"cnc1\"\n", "m.toml")
-                .unwrap_err()
+            parse(
+                "tick_hz = 100\n[[axis]]\nnode_id = 5\npreset = \"cnc1\"\n",
+                "m.toml"
+            )
+            .unwrap_err()
         );
         assert!(e.contains("tick_hz") && e.contains("250"), "{e}");
         let e = format!(

@@ -133,7 +133,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
     }
 
     /// Copy the loop statistics into every node's statistics object (0x2100).
-    fn publish_stats(&mut self) {
+    pub fn publish_stats(&mut self) {
         let s = self.stats.summary();
         let rs = RuntimeStats {
             ticks: s.ticks as u32,

@@ -46,16 +46,30 @@ impl<D: SimulatedDrive> OfflineRun<D> {
 
     /// One tick: the master acts, the drives act, the master hears the answers.
     pub fn step(&mut self) {
-        let now = self.runtime.sim_time_us;
-        self.master.poll(now);
+        self.master_send();
+        self.runtime.tick();
+        self.master_receive();
+    }
+
+    /// The master's half of a tick before the drives run: it acts and puts its frames on the bus.
+    pub fn master_send(&mut self) {
+        self.master.poll(self.runtime.sim_time_us);
         while let Some(f) = self.master.pop_tx() {
             // The in-process bus never refuses a send.
             let _ = self.master_bus.send(&f);
         }
-        self.runtime.tick();
+    }
+
+    /// The master's half of a tick after the drives ran: it hears their answers.
+    pub fn master_receive(&mut self) {
         while let Ok(Some(f)) = self.master_bus.recv() {
             self.master.handle(&f, self.runtime.sim_time_us);
         }
+    }
+
+    /// Put a frame on the bus as if another peer had sent it.
+    pub fn inject(&mut self, frame: &crate::bus::CanFrame) {
+        let _ = self.master_bus.send(frame);
     }
 
     /// Run until the master's program is finished (or failed), or `limit_us` of simulated time.

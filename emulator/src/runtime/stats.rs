@@ -70,7 +70,13 @@ impl LoopStats {
     }
 
     pub fn summary(&self) -> StatsSummary {
-        let q = |h: &Histogram<u64>, p: f64| if h.is_empty() { 0 } else { h.value_at_quantile(p) };
+        let q = |h: &Histogram<u64>, p: f64| {
+            if h.is_empty() {
+                0
+            } else {
+                h.value_at_quantile(p)
+            }
+        };
         StatsSummary {
             period_us: self.period_us,
             ticks: self.ticks,
@@ -80,10 +86,18 @@ impl LoopStats {
             rx_errors: self.rx_errors,
             lateness_p50_us: q(&self.lateness_us, 0.5),
             lateness_p99_us: q(&self.lateness_us, 0.99),
-            lateness_max_us: if self.lateness_us.is_empty() { 0 } else { self.lateness_us.max() },
+            lateness_max_us: if self.lateness_us.is_empty() {
+                0
+            } else {
+                self.lateness_us.max()
+            },
             work_p50_us: q(&self.work_us, 0.5),
             work_p99_us: q(&self.work_us, 0.99),
-            work_max_us: if self.work_us.is_empty() { 0 } else { self.work_us.max() },
+            work_max_us: if self.work_us.is_empty() {
+                0
+            } else {
+                self.work_us.max()
+            },
         }
     }
 }

@@ -1,0 +1,255 @@
+//! `drive-emu demo`: the whole product in one process, no CAN hardware needed.
+//!
+//! The built-in reference master and the emulated drive talk CANopen over the in-process bus,
+//! in lock-step with a virtual clock: NMT reset, PDO remapping over SDO, CiA 402 enable, a
+//! profile-position move, then cyclic synchronous position at constant speed (what a CNC's
+//! interpolator sends). It runs twice, without and with backlash, and analyses what the master
+//! received in its TPDOs: the backlash limit cycle appears in motor speed and current at a
+//! frequency set by k_v, not by the gap.
+
+use crate::analysis::spectrum::fundamental;
+use crate::master::{Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
+use crate::presets::AxisConfig;
+use crate::runtime::axis_drive::AxisDrive;
+use crate::runtime::offline::OfflineRun;
+use crate::runtime::AxisSlot;
+use anyhow::{bail, Result};
+use clap::Args;
+use drive_protocol::{Drive, Node};
+
+#[derive(Args, Debug, Clone)]
+pub struct DemoArgs {
+    /// Axis preset: cnc1 ... cnc5.
+    #[arg(long, default_value = "cnc1")]
+    pub preset: String,
+    /// Worn backlash for the second run, mm (linear) or deg (rotary).
+    #[arg(long, default_value_t = 0.05)]
+    pub backlash: f64,
+    /// Constant speed of the CSP segment, mm/s (linear) or deg/s (rotary).
+    #[arg(long, default_value_t = 10.0)]
+    pub velocity: f64,
+    /// Duration of the constant-speed segment, s.
+    #[arg(long, default_value_t = 4.0)]
+    pub cruise_s: f64,
+    /// Print the result as JSON instead of the narrated report.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The analysis of one run, from what the master received.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RunReport {
+    pub backlash: f64,
+    pub kv_per_s: f64,
+    pub fundamental_hz: Option<f64>,
+    /// Amplitude of the fundamental in the speed actual value (0x606C), axis units/s.
+    pub velocity_amplitude: f64,
+    /// Amplitude of the fundamental in the current actual value (0x6078), per mille of rated.
+    pub current_amplitude_permille: f64,
+    pub emcy_codes: Vec<u16>,
+    #[serde(skip)]
+    pub window: Vec<Sample>,
+    #[serde(skip)]
+    pub log: Vec<(u64, String)>,
+}
+
+/// Axis unit (mm or deg) in the drive's user units.
+const UU_PER_AXIS_UNIT: f64 = 1000.0;
+
+pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
+    let base = AxisConfig::from_preset(&args.preset)?;
+    let key = if base.backlash_deg.is_some() {
+        "backlash_deg"
+    } else {
+        "backlash_mm"
+    };
+    let cfg = base.with_override(key, &backlash.to_string())?;
+    let drive = AxisDrive::from_config(&cfg)?;
+    let node = Node::new(5, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let v_uu = args.velocity * UU_PER_AXIS_UNIT;
+    let program = vec![
+        Step::Enable { mode: MODE_PP },
+        Step::MoveTo {
+            target_uu: (20.0 * UU_PER_AXIS_UNIT) as i32,
+            velocity_uu_s: (5.0 * v_uu) as u32,
+            accel_uu_s2: (50.0 * v_uu) as u32,
+        },
+        Step::SetMode { mode: MODE_CSP },
+        Step::Cruise {
+            velocity_uu_s: v_uu,
+            accel_uu_s2: 10.0 * v_uu,
+            duration_s: args.cruise_s,
+        },
+        Step::Cruise {
+            velocity_uu_s: 0.0,
+            accel_uu_s2: 10.0 * v_uu,
+            duration_s: 0.5,
+        },
+        Step::Disable,
+    ];
+    let master = Master::new(MasterConfig::default(), program);
+    let mut run = OfflineRun::new(vec![AxisSlot { node, drive }], 1000, master);
+    run.run_program(60_000_000);
+    if let Some(e) = run.master.error() {
+        bail!("the reference master failed: {e}");
+    }
+    // The constant-speed window: set-point velocity at its target, after a 1 s settling time.
+    let samples = run.master.samples();
+    let first = samples
+        .iter()
+        .position(|s| (s.setpoint_velocity_uu_s - v_uu).abs() < 1e-6)
+        .unwrap_or(0);
+    let t0 = samples.get(first).map_or(0.0, |s| s.t_s) + 1.0;
+    let window: Vec<Sample> = samples[first..]
+        .iter()
+        .take_while(|s| (s.setpoint_velocity_uu_s - v_uu).abs() < 1e-6)
+        .filter(|s| s.t_s >= t0)
+        .copied()
+        .collect();
+    let kv = cfg.kv_per_s;
+    let band = (kv / 4.0, kv);
+    let vel: Vec<f64> = window.iter().map(|s| f64::from(s.velocity_uu_s)).collect();
+    let cur: Vec<f64> = window
+        .iter()
+        .map(|s| f64::from(s.current_permille))
+        .collect();
+    let fs = 1e6 / f64::from(MasterConfig::default().sync_period_us);
+    // A peak below 0.5 % of the commanded speed is quantisation noise, not a vibration.
+    let pv = fundamental(&vel, fs, band).filter(|p| p.amplitude > 5e-3 * v_uu.abs());
+    let pc = fundamental(&cur, fs, band).filter(|_| pv.is_some());
+    Ok(RunReport {
+        backlash,
+        kv_per_s: kv,
+        fundamental_hz: pv.as_ref().map(|p| p.frequency_hz),
+        velocity_amplitude: pv.map_or(0.0, |p| p.amplitude) / UU_PER_AXIS_UNIT,
+        current_amplitude_permille: pc.map_or(0.0, |p| p.amplitude),
+        emcy_codes: run.master.emcys().iter().map(|e| e.code).collect(),
+        window,
+        log: run.master.log().to_vec(),
+    })
+}
+
+/// A few lines of text chart: `values` scaled into `rows` rows.
+fn chart(values: &[f64], rows: usize) -> Vec<String> {
+    let (lo, hi) = values
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let span = (hi - lo).max(1e-9);
+    (0..rows)
+        .rev()
+        .map(|r| {
+            values
+                .iter()
+                .map(|&v| {
+                    let level = ((v - lo) / span * (rows as f64 - 1.0)).round() as usize;
+                    if level == r {
+                        '*'
+                    } else {
+                        ' '
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+pub fn run(args: &DemoArgs) -> Result<()> {
+    let unit = if AxisConfig::from_preset(&args.preset)?
+        .backlash_deg
+        .is_some()
+    {
+        "deg"
+    } else {
+        "mm"
+    };
+    let healthy = run_once(args, 0.0)?;
+    let worn = run_once(args, args.backlash)?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "preset": args.preset,
+                "velocity": args.velocity,
+                "unit": unit,
+                "runs": [healthy, worn],
+            }))?
+        );
+        return Ok(());
+    }
+    println!(
+        "drive-emu demo: a CiA 402 master and an emulated {} drive (node 5) on an in-process CAN bus",
+        args.preset
+    );
+    println!("(lock-step, virtual clock: every frame goes through the real CANopen stack)\n");
+    println!(
+        "What the master did, run with {} {unit} backlash:",
+        args.backlash
+    );
+    for (t, msg) in &worn.log {
+        println!("  t={:>7.3} s  {msg}", *t as f64 * 1e-6);
+    }
+    println!(
+        "\nMotor speed (0x606C, from TPDO) at {} {unit}/s, 0.3 s of the constant-speed window:",
+        args.velocity
+    );
+    for (label, r) in [("no backlash", &healthy), ("worn", &worn)] {
+        let v: Vec<f64> = r
+            .window
+            .iter()
+            .take(300)
+            .step_by(4)
+            .map(|s| f64::from(s.velocity_uu_s) / UU_PER_AXIS_UNIT)
+            .collect();
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+        println!(
+            "  {label} ({} {unit}): {lo:.2} .. {hi:.2} {unit}/s",
+            r.backlash
+        );
+        for line in chart(&v, 5) {
+            println!("    |{line}|");
+        }
+    }
+    println!("\nSpectrum of the constant-speed window (band k_v/4 .. k_v):");
+    println!(
+        "  {:<12} {:>10} {:>12} {:>16} {:>18} {:>14}",
+        "backlash",
+        "k_v [1/s]",
+        "f [Hz]",
+        format!("speed amp [{unit}/s]"),
+        "current amp [‰]",
+        "f / k_v"
+    );
+    for r in [&healthy, &worn] {
+        let name = format!("{} {unit}", r.backlash);
+        match r.fundamental_hz {
+            Some(f) => println!(
+                "  {:<12} {:>10.1} {:>12.2} {:>16.3} {:>18.1} {:>14.2}",
+                name,
+                r.kv_per_s,
+                f,
+                r.velocity_amplitude,
+                r.current_amplitude_permille,
+                f / r.kv_per_s
+            ),
+            None => println!(
+                "  {:<12} {:>10.1} {:>12} {:>16} {:>18} {:>14}",
+                name, r.kv_per_s, "none", "< 0.5 %", "-", "-"
+            ),
+        }
+    }
+    match (worn.fundamental_hz, healthy.fundamental_hz) {
+        (Some(f), None) => println!(
+            "\nWith {} {unit} backlash the axis vibrates at {f:.1} Hz (k_v = {} 1/s; the paper: \
+             k_v/4 < f < k_v, about 0.6 k_v); the healthy axis runs smooth.",
+            args.backlash, worn.kv_per_s
+        ),
+        _ => println!(
+            "\nNo clear backlash signature in this run (worn: {:?} Hz, healthy: {:?} Hz).",
+            worn.fundamental_hz, healthy.fundamental_hz
+        ),
+    }
+    println!("Next: drive-emu sim --preset cnc1 --velocity 16.7 --json; drive-emu run --iface vcan0 (see README).");
+    Ok(())
+}
