@@ -37,14 +37,23 @@ banner "vcan tests: build + archive e2e on the host, run it through ./vcan-setup
 t=$(now); e2e_rc=0
 archive=$tmp/e2e.tar.zst
 mkdir "$tmp/extract"
-if cargo nextest archive -p e2e --archive-file "$archive"; then
-    # The emulator binary, for e2e tests that start it as a process (see docs/vcan.md).
-    if [[ -z ${DRIVE_EMU_BIN:-} ]]; then
-        tdir=$(cargo metadata --no-deps --format-version 1 2>/dev/null |
-            python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])' 2>/dev/null ||
-            echo "${CARGO_TARGET_DIR:-$ROOT/target}")
-        if [[ -x $tdir/debug/drive-emu ]]; then export DRIVE_EMU_BIN=$tdir/debug/drive-emu; fi
+# The emulator binary, for e2e tests that start it as a process (e2e::drive_emu_bin(),
+# see docs/vcan.md): built here, before the archive, in whatever target dir cargo uses
+# (CARGO_TARGET_DIR or the workspace's target/), unless DRIVE_EMU_BIN names one already.
+emu_ok=1
+if [[ -z ${DRIVE_EMU_BIN:-} ]]; then
+    if cargo build -p drive-emu --bin drive-emu; then
+        tdir=$(cargo metadata --no-deps --format-version 1 |
+            python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])') ||
+            tdir=${CARGO_TARGET_DIR:-$ROOT/target}
+        export DRIVE_EMU_BIN=$tdir/debug/drive-emu
+        [[ -x $DRIVE_EMU_BIN ]] || { echo "test-all.sh: $DRIVE_EMU_BIN missing after the build" >&2; emu_ok=0; }
+    else
+        echo "test-all.sh: building drive-emu failed" >&2; emu_ok=0
     fi
+fi
+if [[ $emu_ok == 1 ]] && cargo nextest archive -p e2e --archive-file "$archive"; then
+    echo "test-all.sh: DRIVE_EMU_BIN=$DRIVE_EMU_BIN"
     build_time=$(secs "$t"); t=$(now)
     ./vcan-setup.sh --ifaces 2 --timeout "${VCAN_TIMEOUT:-1800}" -- \
         cargo nextest run --archive-file "$archive" --workspace-remap "$ROOT" \

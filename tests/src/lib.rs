@@ -231,3 +231,261 @@ pub fn drive_emu_bin() -> PathBuf {
     );
     p
 }
+
+// ---------------------------------------------------------------------------------------
+// The emulator as a child process, and a minimal CANopen master for the emulator tests.
+
+use std::sync::{Arc, Mutex};
+
+/// `drive-emu run ...` as a child process. Its stderr is collected (and echoed to ours, so
+/// it shows in the test log); [`Emu::stop`] sends SIGTERM and returns exit status and
+/// output. Killed on drop if still running.
+pub struct Emu {
+    child: Option<Child>,
+    stderr: Arc<Mutex<Vec<String>>>,
+    stdout: Arc<Mutex<Vec<String>>>,
+    readers: Vec<thread::JoinHandle<()>>,
+}
+
+fn collect(
+    name: &'static str,
+    r: impl std::io::Read + Send + 'static,
+    into: Arc<Mutex<Vec<String>>>,
+) -> thread::JoinHandle<()> {
+    thread::spawn(move || {
+        for line in BufReader::new(r).lines().map_while(Result::ok) {
+            eprintln!("[drive-emu {name}] {line}");
+            into.lock().unwrap().push(line);
+        }
+    })
+}
+
+/// What a stopped emulator left behind.
+#[derive(Debug)]
+pub struct EmuExit {
+    pub status: std::process::ExitStatus,
+    pub stderr: String,
+    pub stdout: String,
+}
+
+impl Emu {
+    /// Start `drive-emu run --rt-priority 0 --no-mlock ARGS...` (no real-time scheduling,
+    /// no mlock: the tests run unprivileged and in UML).
+    pub fn spawn(args: &[&str]) -> Emu {
+        let bin = drive_emu_bin();
+        let mut cmd = Command::new(&bin);
+        cmd.args(["run", "--rt-priority", "0", "--no-mlock"])
+            .args(args)
+            .env("RUST_BACKTRACE", "1")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        let mut child = cmd
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {} ({cmd:?}): {e}", bin.display()));
+        let stderr = Arc::new(Mutex::new(Vec::new()));
+        let stdout = Arc::new(Mutex::new(Vec::new()));
+        let readers = vec![
+            collect("stderr", child.stderr.take().unwrap(), Arc::clone(&stderr)),
+            collect("stdout", child.stdout.take().unwrap(), Arc::clone(&stdout)),
+        ];
+        Emu {
+            child: Some(child),
+            stderr,
+            stdout,
+            readers,
+        }
+    }
+
+    /// True while the process runs.
+    pub fn alive(&mut self) -> bool {
+        matches!(self.child.as_mut().map(|c| c.try_wait()), Some(Ok(None)))
+    }
+
+    /// stderr so far.
+    pub fn stderr_now(&self) -> String {
+        self.stderr.lock().unwrap().join("\n")
+    }
+
+    /// SIGTERM, wait (up to 30 s, then SIGKILL), collect the output.
+    pub fn stop(mut self) -> EmuExit {
+        let mut child = self.child.take().expect("running");
+        // SAFETY: kill(2) on our own child's pid.
+        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let status = loop {
+            if let Some(st) = child.try_wait().expect("try_wait") {
+                break st;
+            }
+            if Instant::now() >= deadline {
+                eprintln!("drive-emu did not stop within 30 s of SIGTERM: killing it");
+                let _ = child.kill();
+                break child.wait().expect("wait");
+            }
+            thread::sleep(Duration::from_millis(20));
+        };
+        for r in self.readers.drain(..) {
+            let _ = r.join();
+        }
+        EmuExit {
+            status,
+            stderr: self.stderr.lock().unwrap().join("\n"),
+            stdout: self.stdout.lock().unwrap().join("\n"),
+        }
+    }
+
+    /// [`Emu::stop`], asserting a clean exit (status 0, no panic); returns the exit record.
+    pub fn stop_clean(self) -> EmuExit {
+        let exit = self.stop();
+        assert!(
+            !exit.stderr.contains("panicked"),
+            "drive-emu panicked; stderr:\n{}",
+            exit.stderr
+        );
+        assert!(
+            exit.status.success(),
+            "drive-emu exited with {} after SIGTERM; stderr:\n{}",
+            exit.status,
+            exit.stderr
+        );
+        assert!(
+            exit.stderr.contains("drive-emu: stopped."),
+            "drive-emu printed no statistics on SIGTERM; stderr:\n{}",
+            exit.stderr
+        );
+        exit
+    }
+}
+
+impl Drop for Emu {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Write `text` to a fresh file under the temp directory; returns its path.
+pub fn temp_file(name: &str, text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("drive-emu-e2e-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let p = dir.join(name);
+    std::fs::write(&p, text).expect("write temp file");
+    p
+}
+
+/// Send one frame, panicking on error (with the frame in the message).
+pub fn send(sock: &CanSocket, id: u16, data: &[u8]) {
+    sock.write_frame(&frame(id, data))
+        .unwrap_or_else(|e| panic!("sending {id:03X}#{data:02X?}: {e}"));
+}
+
+/// NMT command `cs` to `node` (0 = all).
+pub fn nmt(sock: &CanSocket, cs: u8, node: u8) {
+    send(sock, 0x000, &[cs, node]);
+}
+
+/// Wait for the boot-up message (0x700+node, one byte 0x00).
+pub fn wait_bootup(sock: &CanSocket, node: u8, timeout: Duration) -> bool {
+    recv_matching(sock, timeout, |f| {
+        id_data(f) == (0x700 + u32::from(node), vec![0x00])
+    })
+    .is_some()
+}
+
+/// An SDO transfer that did not succeed: an abort (code) or no answer.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SdoError {
+    Abort(u32),
+    Timeout,
+    Unexpected(Vec<u8>),
+}
+
+/// SDO answer timeout in the tests (an upper bound only).
+pub const SDO_TIMEOUT: Duration = Duration::from_secs(5);
+
+fn sdo_request(sock: &CanSocket, node: u8, req: [u8; 8]) -> Result<Vec<u8>, SdoError> {
+    let tx = 0x600 + u16::from(node);
+    let rx = 0x580 + u32::from(node);
+    send(sock, tx, &req);
+    let ans = recv_matching(sock, SDO_TIMEOUT, |f| {
+        let (id, d) = id_data(f);
+        // An answer to this request: same multiplexer, or a segment answer (no mux).
+        id == rx && d.len() == 8 && (req[0] & 0xE0 == 0x60 || req[0] & 0xE0 == 0x00 || d[1..4] == req[1..4])
+    })
+    .ok_or(SdoError::Timeout)?;
+    let d = id_data(&ans).1;
+    if d[0] == 0x80 {
+        return Err(SdoError::Abort(u32::from_le_bytes([d[4], d[5], d[6], d[7]])));
+    }
+    Ok(d)
+}
+
+/// SDO upload (expedited or segmented) of `index:sub` from `node`.
+pub fn sdo_upload(sock: &CanSocket, node: u8, index: u16, sub: u8) -> Result<Vec<u8>, SdoError> {
+    let [il, ih] = index.to_le_bytes();
+    let d = sdo_request(sock, node, [0x40, il, ih, sub, 0, 0, 0, 0])?;
+    if d[0] & 0xE0 != 0x40 {
+        return Err(SdoError::Unexpected(d));
+    }
+    if d[0] & 0x02 != 0 {
+        // expedited
+        let n = if d[0] & 0x01 != 0 { 4 - usize::from((d[0] >> 2) & 3) } else { 4 };
+        return Ok(d[4..4 + n].to_vec());
+    }
+    // segmented
+    let total = if d[0] & 0x01 != 0 {
+        Some(u32::from_le_bytes([d[4], d[5], d[6], d[7]]) as usize)
+    } else {
+        None
+    };
+    let mut out = Vec::new();
+    let mut toggle = 0u8;
+    loop {
+        let s = sdo_request(sock, node, [0x60 | toggle, 0, 0, 0, 0, 0, 0, 0])?;
+        if s[0] & 0xE0 != 0x00 || s[0] & 0x10 != toggle {
+            return Err(SdoError::Unexpected(s));
+        }
+        let n = 7 - usize::from((s[0] >> 1) & 7);
+        out.extend_from_slice(&s[1..1 + n]);
+        if s[0] & 0x01 != 0 {
+            break;
+        }
+        toggle ^= 0x10;
+    }
+    if let Some(t) = total {
+        if t != out.len() {
+            return Err(SdoError::Unexpected(out));
+        }
+    }
+    Ok(out)
+}
+
+/// Expedited SDO download (1..=4 bytes) of `data` to `index:sub` of `node`.
+pub fn sdo_download(
+    sock: &CanSocket,
+    node: u8,
+    index: u16,
+    sub: u8,
+    data: &[u8],
+) -> Result<(), SdoError> {
+    assert!((1..=4).contains(&data.len()), "expedited: 1..=4 bytes");
+    let [il, ih] = index.to_le_bytes();
+    let mut req = [0x23 | (((4 - data.len()) as u8) << 2), il, ih, sub, 0, 0, 0, 0];
+    req[4..4 + data.len()].copy_from_slice(data);
+    let d = sdo_request(sock, node, req)?;
+    if d[0] != 0x60 {
+        return Err(SdoError::Unexpected(d));
+    }
+    Ok(())
+}
+
+/// Upload of a U32 (or shorter unsigned) object as u32.
+pub fn sdo_u32(sock: &CanSocket, node: u8, index: u16, sub: u8) -> u32 {
+    let d = sdo_upload(sock, node, index, sub)
+        .unwrap_or_else(|e| panic!("SDO upload {index:04X}:{sub} from node {node}: {e:?}"));
+    let mut b = [0u8; 4];
+    b[..d.len().min(4)].copy_from_slice(&d[..d.len().min(4)]);
+    u32::from_le_bytes(b)
+}
