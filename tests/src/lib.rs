@@ -412,12 +412,16 @@ fn sdo_request(sock: &CanSocket, node: u8, req: [u8; 8]) -> Result<Vec<u8>, SdoE
     let ans = recv_matching(sock, SDO_TIMEOUT, |f| {
         let (id, d) = id_data(f);
         // An answer to this request: same multiplexer, or a segment answer (no mux).
-        id == rx && d.len() == 8 && (req[0] & 0xE0 == 0x60 || req[0] & 0xE0 == 0x00 || d[1..4] == req[1..4])
+        id == rx
+            && d.len() == 8
+            && (req[0] & 0xE0 == 0x60 || req[0] & 0xE0 == 0x00 || d[1..4] == req[1..4])
     })
     .ok_or(SdoError::Timeout)?;
     let d = id_data(&ans).1;
     if d[0] == 0x80 {
-        return Err(SdoError::Abort(u32::from_le_bytes([d[4], d[5], d[6], d[7]])));
+        return Err(SdoError::Abort(u32::from_le_bytes([
+            d[4], d[5], d[6], d[7],
+        ])));
     }
     Ok(d)
 }
@@ -431,7 +435,11 @@ pub fn sdo_upload(sock: &CanSocket, node: u8, index: u16, sub: u8) -> Result<Vec
     }
     if d[0] & 0x02 != 0 {
         // expedited
-        let n = if d[0] & 0x01 != 0 { 4 - usize::from((d[0] >> 2) & 3) } else { 4 };
+        let n = if d[0] & 0x01 != 0 {
+            4 - usize::from((d[0] >> 2) & 3)
+        } else {
+            4
+        };
         return Ok(d[4..4 + n].to_vec());
     }
     // segmented
@@ -472,7 +480,16 @@ pub fn sdo_download(
 ) -> Result<(), SdoError> {
     assert!((1..=4).contains(&data.len()), "expedited: 1..=4 bytes");
     let [il, ih] = index.to_le_bytes();
-    let mut req = [0x23 | (((4 - data.len()) as u8) << 2), il, ih, sub, 0, 0, 0, 0];
+    let mut req = [
+        0x23 | (((4 - data.len()) as u8) << 2),
+        il,
+        ih,
+        sub,
+        0,
+        0,
+        0,
+        0,
+    ];
     req[4..4 + data.len()].copy_from_slice(data);
     let d = sdo_request(sock, node, req)?;
     if d[0] != 0x60 {

@@ -10,12 +10,10 @@
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use e2e::socketcan::{
-    CanFrame, CanRemoteFrame, EmbeddedFrame, ExtendedId, Socket, StandardId,
-};
+use e2e::socketcan::{CanFrame, EmbeddedFrame, ExtendedId, Socket, StandardId};
 use e2e::{
-    frame, id_data, iface, nmt, open_bus, recv_matching, sdo_download, sdo_u32, sdo_upload,
-    send, temp_file, wait_bootup, Emu, Peer, SdoError, PEER_TIMEOUT,
+    id_data, iface, nmt, open_bus, recv_matching, sdo_download, sdo_u32, sdo_upload, send,
+    temp_file, wait_bootup, Emu, Peer, SdoError, PEER_TIMEOUT,
 };
 
 const DEVICE_TYPE: u32 = 0x0002_0192;
@@ -46,10 +44,16 @@ fn start_candump(ifname: &str, sock: &e2e::socketcan::CanSocket, marker: u16) ->
     let needle = format!("{marker:03X}#");
     loop {
         send(sock, marker, &[0xAA]);
-        if dump.wait_line(&needle, Duration::from_millis(200)).is_some() {
+        if dump
+            .wait_line(&needle, Duration::from_millis(200))
+            .is_some()
+        {
             return dump;
         }
-        assert!(Instant::now() < deadline, "candump never saw our marker frame on {ifname}");
+        assert!(
+            Instant::now() < deadline,
+            "candump never saw our marker frame on {ifname}"
+        );
     }
 }
 
@@ -99,8 +103,10 @@ fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
     for i in 0..SYNCS {
         send(&sock, 0x080, &[]);
         // pace like a master: wait for the last synchronous TPDO of this SYNC
-        recv_matching(&sock, PEER_TIMEOUT, |f| id_data(f).0 == 0x480 + u32::from(NODE))
-            .unwrap_or_else(|| panic!("no TPDO4 0x48C after SYNC {i}"));
+        recv_matching(&sock, PEER_TIMEOUT, |f| {
+            id_data(f).0 == 0x480 + u32::from(NODE)
+        })
+        .unwrap_or_else(|| panic!("no TPDO4 0x48C after SYNC {i}"));
     }
     assert_eq!(sdo_u32(&sock, NODE, 0x1000, 0), DEVICE_TYPE);
     send(&sock, 0x7A2, &[0x02]);
@@ -151,7 +157,12 @@ fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
     let seq: Vec<String> = frames
         .iter()
         .filter(|(id, _)| *id >= 0x500 || *id == 0)
-        .map(|(id, d)| format!("{id:03X}#{}", d.iter().map(|b| format!("{b:02X}")).collect::<String>()))
+        .map(|(id, d)| {
+            format!(
+                "{id:03X}#{}",
+                d.iter().map(|b| format!("{b:02X}")).collect::<String>()
+            )
+        })
         .collect();
     eprintln!("sequence: {}", seq.join(" "));
     // 100 ms of drive time at a 10 ms period: 10 heartbeats, +-1 for where the period
@@ -172,7 +183,11 @@ fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
         (9..=11).contains(&hb_op),
         "{hb_op} heartbeats 70C#05 for {SYNCS} SYNCs of 1 ms at {HB_MS} ms"
     );
-    assert_eq!(count(pre, hb, Some(&[0x05])), 0, "heartbeat 70C#05 before NMT start");
+    assert_eq!(
+        count(pre, hb, Some(&[0x05])),
+        0,
+        "heartbeat 70C#05 before NMT start"
+    );
     let first_op_hb = frames.iter().position(|f| *f == (hb, vec![0x05])).unwrap();
     assert_eq!(
         count(&frames[first_op_hb..], hb, Some(&[0x7F])),
@@ -185,14 +200,21 @@ fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
         "node 12 on 0x70C: one boot-up, then heartbeats 0x7F / 0x05 only"
     );
     for base in [0x180, 0x280, 0x380, 0x480] {
-        assert_eq!(count(pre, base + node, None), 0, "TPDO {:03X} in pre-operational", base + node);
+        assert_eq!(
+            count(pre, base + node, None),
+            0,
+            "TPDO {:03X} in pre-operational",
+            base + node
+        );
     }
     // synchronous TPDOs (types 1): one per SYNC, 6 bytes (statusword + I32)
     for base in [0x280, 0x380, 0x480] {
         let id = base + node;
         assert_eq!(count(op, id, None), SYNCS, "TPDO {id:03X}: one per SYNC");
         assert!(
-            op.iter().filter(|(i, _)| *i == id).all(|(_, d)| d.len() == 6),
+            op.iter()
+                .filter(|(i, _)| *i == id)
+                .all(|(_, d)| d.len() == 6),
             "TPDO {id:03X} is statusword + 32-bit value, 6 bytes"
         );
         // the k-th TPDO comes after the k-th SYNC
@@ -203,7 +225,10 @@ fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
                 syncs += 1;
             } else if *i == id {
                 tpdos += 1;
-                assert!(tpdos <= syncs, "TPDO {id:03X} #{tpdos} before SYNC #{tpdos}");
+                assert!(
+                    tpdos <= syncs,
+                    "TPDO {id:03X} #{tpdos} before SYNC #{tpdos}"
+                );
             }
         }
     }
@@ -211,12 +236,304 @@ fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
     let tpdo1 = count(op, 0x180 + node, None);
     assert!(tpdo1 >= 1, "no TPDO1 18C after NMT start");
     // SDO answers: on 0x58C only, one per request (3 uploads/downloads in pre-op + 1 in op)
-    assert_eq!(count(&frames, 0x580 + node, None), 4, "SDO answers on 0x58C");
     assert_eq!(
-        count(&frames, 0x580 + node, Some(&[0x43, 0x00, 0x10, 0x00, 0x92, 0x01, 0x02, 0x00])),
+        count(&frames, 0x580 + node, None),
+        4,
+        "SDO answers on 0x58C"
+    );
+    assert_eq!(
+        count(
+            &frames,
+            0x580 + node,
+            Some(&[0x43, 0x00, 0x10, 0x00, 0x92, 0x01, 0x02, 0x00])
+        ),
         2,
         "upload of 0x1000 answered 43 00 10 00 92 01 02 00"
     );
     assert_eq!(count(&frames, 0x80 + node, None), 0, "no EMCY expected");
 }
 
+/// xorshift64*: a reproducible stream of garbage without a dependency.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+    fn bytes(&mut self, n: usize) -> Vec<u8> {
+        (0..n).map(|_| self.next() as u8).collect()
+    }
+}
+
+/// SDO upload that tolerates one abort or lost answer (a garbage SDO may have left a
+/// transfer open, which the server may abort at our next request): the node must answer
+/// something at the first try and give the right value within three.
+fn sdo_answers_after(sock: &e2e::socketcan::CanSocket, node: u8) {
+    let first = sdo_upload(sock, node, 0x1000, 0);
+    assert_ne!(
+        first,
+        Err(SdoError::Timeout),
+        "node {node}: no SDO answer at all"
+    );
+    let mut last = first.clone();
+    for _ in 0..3 {
+        if last == Ok(DEVICE_TYPE.to_le_bytes().to_vec()) {
+            if first != last {
+                eprintln!("note: first SDO upload after the disturbance gave {first:?}");
+            }
+            return;
+        }
+        last = sdo_upload(sock, node, 0x1000, 0);
+    }
+    panic!("node {node}: SDO upload of 0x1000 gave {first:?} then {last:?}");
+}
+
+/// Malformed traffic for a few seconds: random standard ids and lengths, RTR frames,
+/// extended ids, garbage SDO requests to the node, NMT frames with bad lengths. The
+/// emulator must stay up, answer SDO afterwards and exit 0 on SIGTERM without a panic.
+#[test]
+fn flood_of_malformed_frames_does_not_hurt() {
+    const NODE: u8 = 13;
+    const FLOOD: Duration = Duration::from_secs(3);
+    let ifname = iface(1);
+    let sock = open_bus(&ifname);
+    let mut emu = Emu::spawn(&["--iface", &ifname, "--node", "13", "--preset", "cnc1"]);
+    assert!(
+        wait_bootup(&sock, NODE, PEER_TIMEOUT),
+        "no boot-up from node 13"
+    );
+    assert_eq!(sdo_u32(&sock, NODE, 0x1000, 0), DEVICE_TYPE);
+
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let start = Instant::now();
+    let (mut sent, mut refused) = (0u64, 0u64);
+    let mut kinds = [0u64; 6];
+    while start.elapsed() < FLOOD {
+        let kind = rng.below(6) as usize;
+        let len = rng.below(9) as usize;
+        let f: CanFrame = match kind {
+            // random standard id, random length
+            0 => CanFrame::new(
+                StandardId::new(rng.below(0x800) as u16).unwrap(),
+                &rng.bytes(len),
+            ),
+            // remote frames, also on the node's own COB-IDs
+            1 => {
+                let id = if rng.below(2) == 0 {
+                    rng.below(0x800) as u16
+                } else {
+                    [0x18D, 0x28D, 0x58D, 0x60D, 0x70D, 0x000, 0x080][rng.below(7) as usize]
+                };
+                CanFrame::new_remote(StandardId::new(id).unwrap(), len)
+            }
+            // extended ids (some whose low 11 bits are the node's COB-IDs)
+            2 => {
+                let raw = if rng.below(2) == 0 {
+                    rng.below(1 << 29) as u32
+                } else {
+                    (rng.below(1 << 18) as u32) << 11 | 0x60D
+                };
+                CanFrame::new(ExtendedId::new(raw).unwrap(), &rng.bytes(len))
+            }
+            // SDO requests with garbage (random command specifier, index, length)
+            3 => {
+                let mut d = rng.bytes(len);
+                if len >= 4 && rng.below(2) == 0 {
+                    // a plausible index so the garbage reaches the object dictionary
+                    let idx: u16 = [
+                        0x1000, 0x1017, 0x1600, 0x1A00, 0x1800, 0x6040, 0x607A, 0x2000, 0x2101,
+                        0x1008,
+                    ][rng.below(10) as usize];
+                    d[1..3].copy_from_slice(&idx.to_le_bytes());
+                }
+                CanFrame::new(StandardId::new(0x60D).unwrap(), &d)
+            }
+            // NMT with wrong lengths (never the 2 bytes of a real command)
+            4 => {
+                let l = [0usize, 1, 3, 4, 5, 8][rng.below(6) as usize];
+                let mut d = rng.bytes(l);
+                if l >= 2 && rng.below(2) == 0 {
+                    d[1] = NODE;
+                }
+                CanFrame::new(StandardId::new(0x000).unwrap(), &d)
+            }
+            // SYNC with odd lengths, EMCY/heartbeat look-alikes with our node id
+            _ => {
+                let id =
+                    [0x080, 0x08D, 0x70D, 0x58D, 0x20D, 0x30D, 0x40D, 0x50D][rng.below(8) as usize];
+                CanFrame::new(StandardId::new(id).unwrap(), &rng.bytes(len))
+            }
+        }
+        .expect("valid frame");
+        kinds[kind] += 1;
+        match sock.write_frame(&f) {
+            Ok(()) => sent += 1,
+            Err(_) => {
+                // ENOBUFS: the queue is full; let it drain
+                refused += 1;
+                std::thread::sleep(Duration::from_micros(200));
+            }
+        }
+        if sent % 512 == 0 {
+            assert!(
+                emu.alive(),
+                "drive-emu died during the flood; stderr:\n{}",
+                emu.stderr_now()
+            );
+        }
+    }
+    eprintln!("flood: {sent} frames sent ({refused} refused by the socket), by kind {kinds:?}");
+    assert!(
+        sent > 1000,
+        "the flood was too thin to mean anything: {sent} frames"
+    );
+    assert!(
+        emu.alive(),
+        "drive-emu died during the flood; stderr:\n{}",
+        emu.stderr_now()
+    );
+
+    // The flood may have stopped the node (NMT garbage): back to pre-operational, then SDO.
+    std::thread::sleep(Duration::from_millis(300));
+    nmt(&sock, 0x80, NODE);
+    sdo_answers_after(&sock, NODE);
+    assert_eq!(
+        sdo_u32(&sock, NODE, 0x1018, 4),
+        u32::from(NODE),
+        "serial number = node id"
+    );
+    assert!(emu.alive());
+    emu.stop_clean();
+}
+
+/// `ip link set IFACE down` and up again under a running emulator: it keeps running,
+/// answers SDO when the link is back, and its statistics show the trouble (dropped TX
+/// frames or receive errors; no exact numbers asserted).
+#[test]
+fn link_down_and_up_is_survived() {
+    const NODE: u8 = 14;
+    let ifname = iface(1);
+    let sock = open_bus(&ifname);
+    let mut emu = Emu::spawn(&["--iface", &ifname, "--node", "14", "--preset", "cnc1"]);
+    assert!(
+        wait_bootup(&sock, NODE, PEER_TIMEOUT),
+        "no boot-up from node 14"
+    );
+    // heartbeats every 10 ms: the emulator has something to send while the link is down
+    sdo_download(&sock, NODE, 0x1017, 0, &10u16.to_le_bytes()).expect("write 0x1017");
+    assert!(
+        recv_matching(&sock, PEER_TIMEOUT, |f| id_data(f) == (0x70E, vec![0x7F])).is_some(),
+        "no heartbeat 70E#7F"
+    );
+    drop(sock);
+
+    let ip = |state: &str| {
+        let out = Command::new("ip")
+            .args(["link", "set", &ifname, state])
+            .output()
+            .expect("run ip(8)");
+        assert!(
+            out.status.success(),
+            "ip link set {ifname} {state}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    ip("down");
+    std::thread::sleep(Duration::from_secs(1));
+    let alive_while_down = emu.alive();
+    ip("up");
+    assert!(
+        alive_while_down,
+        "drive-emu died with the link down; stderr:\n{}",
+        emu.stderr_now()
+    );
+
+    let sock = open_bus(&ifname);
+    assert!(
+        recv_matching(&sock, PEER_TIMEOUT, |f| id_data(f) == (0x70E, vec![0x7F])).is_some(),
+        "no heartbeat 70E#7F after the link came back; stderr:\n{}",
+        emu.stderr_now()
+    );
+    sdo_answers_after(&sock, NODE);
+    // give the loop time to refresh 0x2100 (every 256 ticks), then read it (reported only)
+    std::thread::sleep(Duration::from_millis(600));
+    let dropped_obj = sdo_u32(&sock, NODE, 0x2100, 6);
+    assert!(emu.alive());
+    let exit = emu.stop_clean();
+    let stat = |name: &str| -> u64 {
+        let s = &exit.stderr;
+        let at = s
+            .find(name)
+            .unwrap_or_else(|| panic!("no `{name}` in the statistics:\n{s}"));
+        s[at + name.len()..]
+            .split(|c: char| !c.is_ascii_digit())
+            .find(|t| !t.is_empty())
+            .and_then(|t| t.parse().ok())
+            .unwrap_or_else(|| panic!("no number after `{name}`:\n{s}"))
+    };
+    let (tx_dropped, rx_errors) = (stat("tx dropped "), stat("rx errors "));
+    eprintln!(
+        "link down/up: tx dropped {tx_dropped}, rx errors {rx_errors}, 0x2100:6 = {dropped_obj}"
+    );
+    assert!(
+        tx_dropped + rx_errors > 0,
+        "the statistics show no trace of the link being down:\n{}",
+        exit.stderr
+    );
+}
+
+/// Two axes in one process from a machine file: both boot and answer SDO, each with its
+/// own node id and preset.
+#[test]
+fn machine_file_with_two_axes() {
+    let ifname = iface(0);
+    let sock = open_bus(&ifname);
+    let cfg = temp_file(
+        "two-axes.toml",
+        "tick_hz = 1000\n\n[[axis]]\nnode_id = 20\npreset = \"cnc1\"\n\n[[axis]]\nnode_id = 21\npreset = \"cnc3\"\n",
+    );
+    let emu = Emu::spawn(&["--iface", &ifname, "--config", cfg.to_str().unwrap()]);
+    let mut booted = [false; 2];
+    let deadline = Instant::now() + PEER_TIMEOUT;
+    while booted != [true, true] && Instant::now() < deadline {
+        if let Some(f) = recv_matching(&sock, Duration::from_millis(200), |f| {
+            let (id, d) = id_data(f);
+            (id == 0x714 || id == 0x715) && d == [0x00]
+        }) {
+            booted[(id_data(&f).0 - 0x714) as usize] = true;
+        }
+    }
+    assert_eq!(
+        booted,
+        [true, true],
+        "boot-up 714#00 / 715#00; stderr:\n{}",
+        emu.stderr_now()
+    );
+    for node in [20u8, 21] {
+        assert_eq!(
+            sdo_u32(&sock, node, 0x1000, 0),
+            DEVICE_TYPE,
+            "node {node} 0x1000"
+        );
+        assert_eq!(
+            sdo_u32(&sock, node, 0x1018, 4),
+            u32::from(node),
+            "node {node} serial"
+        );
+    }
+    // cnc1 is a linear axis (10 mm lead screw: feed in um), cnc3 a rotary table (feed in
+    // 0.001 deg per revolution of the driving shaft): different factor groups.
+    let feed20 = sdo_u32(&sock, 20, 0x6092, 1);
+    let feed21 = sdo_u32(&sock, 21, 0x6092, 1);
+    eprintln!("feed constants: node 20 {feed20}, node 21 {feed21}");
+    assert_ne!(
+        feed20, feed21,
+        "both axes report the same feed constant: one preset for both?"
+    );
+    emu.stop_clean();
+}
