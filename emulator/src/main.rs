@@ -1,4 +1,5 @@
 use clap::{Parser, Subcommand};
+use std::process::ExitCode;
 
 use drive_emu::cli;
 
@@ -12,25 +13,32 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Run a preset axis offline at constant velocity and analyse its vibration.
-    Sim(cli::sim::SimArgs),
+    /// Master and drive in one process, no CAN hardware: enable, move, and the backlash
+    /// vibration seen from the wire.
+    Demo(cli::demo::DemoArgs),
     /// Answer on a CAN bus as CiA 402 drive(s) with simulated axes behind them.
     Run(cli::run::RunArgs),
+    /// Run a preset axis offline at constant velocity and analyse its vibration.
+    Sim(cli::sim::SimArgs),
+    /// Run a scenario (wear, faults, expectations) offline and write its report.
+    Scenario(cli::scenario::ScenarioArgs),
+    /// Run the backlash detector on a trace CSV.
+    Analyze(cli::analyze::AnalyzeArgs),
     /// Write the drive's EDS (CiA 306) to stdout.
     Eds(cli::eds::EdsArgs),
     /// List the axis presets.
     Presets,
-    /// Master and drive in one process, no CAN hardware: enable, move, and the backlash
-    /// vibration seen from the wire.
-    Demo(cli::demo::DemoArgs),
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> anyhow::Result<ExitCode> {
+    let ok = |r: anyhow::Result<()>| r.map(|()| ExitCode::SUCCESS);
     match Cli::parse().command {
-        Command::Sim(args) => cli::sim::run(&args),
-        Command::Run(args) => cli::run::run(&args),
-        Command::Eds(args) => cli::eds::run_eds(&args),
-        Command::Presets => cli::eds::run_presets(),
-        Command::Demo(args) => cli::demo::run(&args),
+        Command::Demo(args) => ok(cli::demo::run(&args)),
+        Command::Run(args) => ok(cli::run::run(&args)),
+        Command::Sim(args) => ok(cli::sim::run(&args)),
+        Command::Scenario(args) => cli::scenario::run(&args),
+        Command::Analyze(args) => cli::analyze::run(&args),
+        Command::Eds(args) => ok(cli::eds::run_eds(&args)),
+        Command::Presets => ok(cli::eds::run_presets()),
     }
 }

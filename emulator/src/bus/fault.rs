@@ -259,7 +259,7 @@ mod tests {
     use crate::bus::inproc::InProcBus;
 
     fn pair() -> (FaultyBus<crate::bus::inproc::InProcEndpoint>, impl CanBus) {
-        let mut eps = InProcBus::new(2, 10_000);
+        let mut eps = InProcBus::endpoints(2, 10_000);
         let b = eps.pop().unwrap();
         let a = eps.pop().unwrap();
         (FaultyBus::new(a, 42), b)
@@ -279,7 +279,7 @@ mod tests {
     #[test]
     fn drop_share_is_deterministic_and_near_the_share() {
         let run = |seed| {
-            let mut eps = InProcBus::new(2, 10_000);
+            let mut eps = InProcBus::endpoints(2, 10_000);
             let mut peer = eps.pop().unwrap();
             let mut fb = FaultyBus::new(eps.pop().unwrap(), seed);
             fb.add_rule(FaultRule::drop_share(0.25));

@@ -19,7 +19,7 @@ pub struct InProcBus;
 
 impl InProcBus {
     /// Create `endpoints` connected endpoints, each with a receive queue of `capacity` frames.
-    pub fn new(endpoints: usize, capacity: usize) -> Vec<InProcEndpoint> {
+    pub fn endpoints(endpoints: usize, capacity: usize) -> Vec<InProcEndpoint> {
         let shared = Arc::new(Shared {
             queues: (0..endpoints).map(|_| ArrayQueue::new(capacity)).collect(),
             overruns: (0..endpoints).map(|_| AtomicU64::new(0)).collect(),
@@ -74,7 +74,7 @@ mod tests {
 
     #[test]
     fn frames_reach_every_other_endpoint_in_order_but_not_the_sender() {
-        let mut eps = InProcBus::new(3, 8);
+        let mut eps = InProcBus::endpoints(3, 8);
         eps[0].send(&CanFrame::new(0x181, &[1])).unwrap();
         eps[0].send(&CanFrame::new(0x181, &[2])).unwrap();
         for ep in &mut eps[1..] {
@@ -87,7 +87,7 @@ mod tests {
 
     #[test]
     fn a_full_receiver_drops_and_counts_without_blocking_the_sender() {
-        let mut eps = InProcBus::new(2, 2);
+        let mut eps = InProcBus::endpoints(2, 2);
         for k in 0..5u8 {
             eps[0].send(&CanFrame::new(0x200, &[k])).unwrap();
         }

@@ -303,12 +303,10 @@ impl Master {
             id if id == 0x580 + n => {
                 self.sdo.handle(frame);
             }
-            id if id == 0x700 + n => {
-                if len >= 1 && d[0] == 0x00 {
-                    if let Phase::WaitBoot { .. } = self.phase {
-                        self.say(now_us, "drive booted (boot-up message)");
-                        self.phase = Phase::Configure(0);
-                    }
+            id if id == 0x700 + n && len >= 1 && d[0] == 0x00 => {
+                if let Phase::WaitBoot { .. } = self.phase {
+                    self.say(now_us, "drive booted (boot-up message)");
+                    self.phase = Phase::Configure(0);
                 }
             }
             id if id == 0x80 + n && len >= 3 => self.emcys.push(Emcy {

@@ -164,7 +164,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             self.stats
                 .record_tick(woke.saturating_sub(deadline), done.saturating_sub(woke));
             // Statistics object refreshed every 256 ticks: cheap, and fresh enough for SDO.
-            if self.stats.ticks % 256 == 0 {
+            if self.stats.ticks.is_multiple_of(256) {
                 self.publish_stats();
             }
             observe(self);

@@ -21,7 +21,7 @@ pub struct OfflineRun<D> {
 
 impl<D: SimulatedDrive> OfflineRun<D> {
     pub fn new(axes: Vec<AxisSlot<D>>, period_us: u64, master: Master) -> Self {
-        let mut eps = InProcBus::new(3, QUEUE_FRAMES);
+        let mut eps = InProcBus::endpoints(3, QUEUE_FRAMES);
         let monitor = eps.pop();
         let master_bus = eps.pop().expect("three endpoints");
         let drive_bus = eps.pop().expect("three endpoints");

@@ -138,7 +138,7 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
     let tick = s.run.tick_us;
     let drive = AxisDrive::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", cfg.name))?;
     let node = Node::new(mcfg.node_id, drive.info()).map_err(|e| anyhow::anyhow!("node: {e:?}"))?;
-    let mut eps = InProcBus::new(2, 4096);
+    let mut eps = InProcBus::endpoints(2, 4096);
     let mut master_ep: InProcEndpoint = eps.pop().expect("two endpoints");
     let bus = FaultyBus::new(eps.pop().expect("two endpoints"), s.run.seed);
     let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], tick);
