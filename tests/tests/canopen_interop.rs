@@ -43,6 +43,7 @@ fn python_canopen_base_node_402_drives_the_emulator() {
     let out = peer.output();
     let status = peer.finish(PEER_TIMEOUT);
     let exit = emu.stop_clean();
+    eprintln!("interop_402.py output:\n{out}");
     assert!(
         verdict.is_some() && status.success(),
         "interop_402.py failed ({status}); its output:\n{out}\n\ndrive-emu stderr:\n{}",
