@@ -51,6 +51,14 @@ fn lost_master_raises_emcy_and_fault() {
     let mut b = lose_master(1);
     assert!(b.emcys().contains(&0x8130), "EMCY 0x8130");
     assert_eq!(b.node.cia402_state(), Cia402State::Fault);
+    // One event, one EMCY: the fault reaction to the loss must not report it again.
+    assert_eq!(
+        b.emcys().iter().filter(|&&c| c == 0x8130).count(),
+        1,
+        "{:04X?}",
+        b.emcys()
+    );
+    assert_eq!(b.r32(0x1003, 0), 1, "one history entry");
     assert_eq!(
         b.r32(0x1001, 0) & 0x11,
         0x11,

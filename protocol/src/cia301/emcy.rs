@@ -54,7 +54,12 @@ impl Emcy {
 
     /// Raise an error: update 0x1001 and 0x1003, queue the EMCY frame.
     pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5]) {
-        if !self.active.contains(&code) && self.active.push(code).is_err() {
+        // An error that is already active is not a new event: one EMCY, one history entry,
+        // until it is cleared (e.g. heartbeat loss followed by its 0x6007 fault reaction).
+        if self.active.contains(&code) {
+            return;
+        }
+        if self.active.push(code).is_err() {
             // table full: keep the older errors, still report this one
         }
         let reg = self.register() | 0x01;
