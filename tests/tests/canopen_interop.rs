@@ -38,7 +38,19 @@ fn python_canopen_base_node_402_drives_the_emulator() {
         )
     });
     // started after the master listens, so that it sees the boot-up
-    let emu = Emu::spawn(&["--iface", &ifname, "--node", "10", "--preset", "cnc1"]);
+    // lock-step with the script's 10 ms SYNC: the drive's physics do not depend on the
+    // host's load (in real time, a loaded UML skips ticks and the PP move overshoots)
+    let emu = Emu::spawn(&[
+        "--iface",
+        &ifname,
+        "--node",
+        "10",
+        "--preset",
+        "cnc1",
+        "--lockstep",
+        "--sync-period-us",
+        "10000",
+    ]);
     let verdict = peer.wait_line("PASS", 4 * PEER_TIMEOUT);
     let out = peer.output();
     let status = peer.finish(PEER_TIMEOUT);
