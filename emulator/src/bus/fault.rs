@@ -115,7 +115,8 @@ impl<B: CanBus> FaultyBus<B> {
     pub fn new(inner: B, seed: u64) -> Self {
         Self {
             inner,
-            rules: Vec::new(),
+            // Rules are added on the live loop's tick: no allocation for the first 16.
+            rules: Vec::with_capacity(16),
             next_rule: 0,
             rng: seed,
             tick: 0,

@@ -1,5 +1,6 @@
 //! `drive-emu run`: the drive(s) on a real or virtual CAN bus, at a fixed rate.
 
+use crate::bus::fault::FaultyBus;
 use crate::bus::socketcan::SocketCanBus;
 use crate::presets::AxisConfig;
 use crate::runtime::axis_drive::AxisDrive;
@@ -7,6 +8,8 @@ use crate::runtime::clock::MonotonicClock;
 use crate::runtime::machine::{self, AxisEntry, MachineFile};
 use crate::runtime::realtime::{self, RealtimeRequest};
 use crate::runtime::{AxisSlot, Runtime};
+use crate::scenario::live::{run_timeline, LiveLink, LiveOutcome, LoopInjector};
+use crate::scenario::Scenario;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use drive_protocol::{Drive, Node};
@@ -57,6 +60,10 @@ pub struct RunArgs {
     /// Print the final statistics as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Inject this scenario's timeline (wear, faults) into the running drive; the machine comes
+    /// from the scenario file, the motion from your controller. Stops at the scenario's end.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
 }
 
 /// Build the nodes and drives of a machine.
@@ -113,7 +120,6 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
 struct Status {
     statusword: AtomicU64,
     mode: AtomicI64,
-    nmt: AtomicU64,
     position_uu: AtomicI64,
     following_error_uu: AtomicI64,
     overruns: AtomicU64,
@@ -122,9 +128,87 @@ struct Status {
 }
 
 pub fn run(args: &RunArgs) -> Result<()> {
-    let machine = machine_from_args(args)?;
-    let axes = build_axes(&machine.axes)?;
-    let bus = SocketCanBus::open(&args.iface)?;
+    let scenario = match &args.scenario {
+        Some(path) => Some(crate::scenario::load(path).map_err(|e| anyhow::anyhow!("{e}"))?),
+        None => None,
+    };
+    let outcome = run_live(args, scenario.as_ref())?;
+    if let Some(o) = outcome {
+        print_outcome(&o);
+        if !o.passed() {
+            bail!("scenario expectations failed");
+        }
+    }
+    Ok(())
+}
+
+/// Print what a live scenario run found.
+pub fn print_outcome(o: &LiveOutcome) {
+    for (t, what) in &o.fired {
+        println!("  t={:>9.3} s  event: {what}", *t as f64 * 1e-6);
+    }
+    for (t, code) in &o.record.emcys {
+        println!("  t={:>9.3} s  EMCY {code:#06X}", *t as f64 * 1e-6);
+    }
+    if let Some(d) = &o.detector {
+        println!(
+            "  detector: {} | amplitude {:.2} {} | frequency {}",
+            d.verdict.as_str(),
+            d.amplitude,
+            d.position_unit,
+            d.frequency_hz.map_or("-".into(), |f| format!("{f:.2} Hz"))
+        );
+    }
+    for e in &o.expectations {
+        println!(
+            "  {} line {}: {} ({})",
+            if e.passed { "ok  " } else { "FAIL" },
+            e.line,
+            e.expectation,
+            e.detail
+        );
+    }
+    if o.samples_lost > 0 {
+        println!(
+            "  ({} samples lost: the scenario thread fell behind)",
+            o.samples_lost
+        );
+    }
+}
+
+/// Run the drive(s) on the bus; with a scenario, inject its timeline into axis 0 and return
+/// what it found.
+pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<LiveOutcome>> {
+    let machine = match scenario {
+        // The scenario's machine: its first preset with the file's overrides applied.
+        Some(s) => {
+            let cfg = s
+                .machine
+                .configs
+                .first()
+                .context("the scenario has no machine")?;
+            MachineFile {
+                tick_hz: args.tick_hz,
+                axes: vec![AxisEntry {
+                    node_id: args.node,
+                    preset: cfg.name.clone(),
+                    set: Default::default(),
+                }],
+            }
+        }
+        None => machine_from_args(args)?,
+    };
+    machine::validate(&machine)?;
+    let axes = match scenario {
+        Some(s) => {
+            let drive = AxisDrive::from_config(&s.machine.configs[0])?;
+            let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
+            vec![AxisSlot { node, drive }]
+        }
+        None => build_axes(&machine.axes)?,
+    };
+    let seed = scenario.map_or(1, |s| s.run.seed);
+    let bus = FaultyBus::new(SocketCanBus::open(&args.iface)?, seed);
     let period_us = 1_000_000 / u64::from(machine.tick_hz);
     let n_axes = axes.len();
     let mut rt = Runtime::new(bus, axes, period_us);
@@ -150,7 +234,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     };
     let lockstep = args.lockstep.then_some(args.sync_period_us);
     eprintln!(
-        "drive-emu: {} axis(es) on {} at {} Hz{}: {}",
+        "drive-emu: {} axis(es) on {} at {} Hz{}: {}{}",
         n_axes,
         args.iface,
         machine.tick_hz,
@@ -164,12 +248,29 @@ pub fn run(args: &RunArgs) -> Result<()> {
             .iter()
             .map(|a| format!("node {} = {}", a.node_id, a.preset))
             .collect::<Vec<_>>()
-            .join(", ")
+            .join(", "),
+        scenario.map_or(String::new(), |s| format!("; scenario {}", s.name)),
     );
 
+    // The scenario thread follows the loop's time and feeds it injections.
+    let link = Arc::new(LiveLink::new());
+    let mut injector = scenario.map(|s| LoopInjector::new(s.run.master.master_id));
+    let scenario_thread = match scenario {
+        Some(s) => {
+            let (s, snapshot) = (s.clone(), AxisDrive::from_config(&s.machine.configs[0])?);
+            let (link, stop) = (Arc::clone(&link), Arc::clone(&stop));
+            Some(std::thread::spawn(move || {
+                let cfg = s.machine.configs[0].clone();
+                let outcome = run_timeline(&s, &cfg, &snapshot, &link, &stop);
+                stop.store(true, Ordering::Relaxed);
+                outcome
+            }))
+        }
+        None => None,
+    };
+
     let loop_thread = {
-        let stop = Arc::clone(&stop);
-        let status = Arc::clone(&status);
+        let (stop, status, link) = (Arc::clone(&stop), Arc::clone(&status), Arc::clone(&link));
         std::thread::Builder::new()
             .name("drive-emu-loop".into())
             .spawn(move || {
@@ -179,13 +280,15 @@ pub fn run(args: &RunArgs) -> Result<()> {
                 }
                 eprintln!("drive-emu: loop thread: {report}");
                 rt.boot();
-                let observe = |rt: &Runtime<SocketCanBus, AxisDrive>| {
+                let hook = |rt: &mut Runtime<FaultyBus<SocketCanBus>, AxisDrive>| {
+                    if let Some(inj) = injector.as_mut() {
+                        inj.on_tick(&link, rt);
+                    }
                     let n = &rt.axes[0].node;
                     status
                         .statusword
                         .store(u64::from(n.statusword()), Ordering::Relaxed);
                     status.mode.store(i64::from(n.mode()), Ordering::Relaxed);
-                    status.nmt.store(n.nmt_state() as u64, Ordering::Relaxed);
                     status
                         .position_uu
                         .store(i64::from(n.position_actual()), Ordering::Relaxed);
@@ -194,11 +297,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
                         .store(n.following_error().round() as i64, Ordering::Relaxed);
                     status.overruns.store(rt.stats.overruns, Ordering::Relaxed);
                     status.ticks.store(rt.stats.ticks, Ordering::Relaxed);
-                    status.link_up.store(rt.bus.link_up(), Ordering::Relaxed);
+                    status
+                        .link_up
+                        .store(rt.bus.inner().link_up(), Ordering::Relaxed);
                 };
                 match lockstep {
-                    Some(sync_us) => rt.run_lockstep(sync_us, &stop, observe),
-                    None => rt.run_realtime(&mut MonotonicClock::new(), &stop, observe),
+                    Some(sync_us) => rt.run_lockstep(sync_us, &stop, hook),
+                    None => rt.run_realtime(&mut MonotonicClock::new(), &stop, hook),
                 }
                 rt
             })?
@@ -227,6 +332,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             let _ = std::io::stdout().flush();
         }
     }
+    stop.store(true, Ordering::Relaxed);
     let rt = loop_thread
         .join()
         .map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
@@ -238,5 +344,12 @@ pub fn run(args: &RunArgs) -> Result<()> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     }
-    Ok(())
+    match scenario_thread {
+        Some(t) => {
+            Ok(Some(t.join().map_err(|_| {
+                anyhow::anyhow!("the scenario thread panicked")
+            })?))
+        }
+        None => Ok(None),
+    }
 }

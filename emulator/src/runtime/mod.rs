@@ -148,13 +148,14 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         }
     }
 
-    /// Run on the wall clock until `stop` is set. `observe` is called after every tick with the
-    /// runtime (for a status snapshot); it must not block or allocate.
+    /// Run on the wall clock until `stop` is set. `hook` is called after every tick with the
+    /// runtime (status snapshots, scenario injections); it is on the real-time path: it must not
+    /// block, lock, log or allocate.
     pub fn run_realtime<C: Clock>(
         &mut self,
         clock: &mut C,
         stop: &AtomicBool,
-        mut observe: impl FnMut(&Self),
+        mut hook: impl FnMut(&mut Self),
     ) {
         let mut deadline = clock.now_us();
         while !stop.load(Ordering::Relaxed) {
@@ -167,7 +168,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             if self.stats.ticks.is_multiple_of(256) {
                 self.publish_stats();
             }
-            observe(self);
+            hook(self);
             deadline += self.period_us;
             let behind = done.saturating_sub(deadline) / self.period_us;
             if behind > MAX_CATCH_UP_TICKS {
@@ -179,12 +180,13 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
     }
 
     /// Lock-step: simulated time only moves when a SYNC arrives, by `sync_period_us`, in ticks
-    /// of `period_us`. Frames other than SYNC are handled at the current simulated time.
+    /// of `period_us`. Frames other than SYNC are handled at the current simulated time. `hook`
+    /// runs after every simulated tick, as in [`Runtime::run_realtime`].
     pub fn run_lockstep(
         &mut self,
         sync_period_us: u64,
         stop: &AtomicBool,
-        mut observe: impl FnMut(&Self),
+        mut hook: impl FnMut(&mut Self),
     ) {
         let ticks_per_sync = (sync_period_us / self.period_us).max(1);
         while !stop.load(Ordering::Relaxed) {
@@ -196,10 +198,8 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                     self.step();
                     self.flush_tx();
                     self.stats.record_tick(0, 0);
+                    hook(self);
                 }
-            }
-            if r.syncs > 0 {
-                observe(self);
             }
         }
         self.publish_stats();

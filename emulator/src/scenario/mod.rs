@@ -9,6 +9,7 @@
 
 pub mod expect;
 pub mod file;
+pub mod live;
 pub mod runner;
 pub mod timeline;
 pub mod units;

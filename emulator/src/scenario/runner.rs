@@ -98,7 +98,8 @@ pub struct Outcome {
     pub runs: Vec<PresetRun>,
 }
 
-fn sensor(drive: &mut AxisDrive, kind: SensorKind, counts: i64) {
+/// Apply an encoder fault event to a drive.
+pub(crate) fn sensor(drive: &mut AxisDrive, kind: SensorKind, counts: i64) {
     match kind {
         SensorKind::MotorEncoderLoss => drive.set_signal_lost(Encoder::Motor, true),
         SensorKind::DirectEncoderLoss => drive.set_signal_lost(Encoder::Direct, true),
@@ -111,7 +112,8 @@ fn sensor(drive: &mut AxisDrive, kind: SensorKind, counts: i64) {
     }
 }
 
-fn rule(fault: CanFault, master_id: u8) -> FaultRule {
+/// The bus rule that injects a CAN fault.
+pub(crate) fn rule(fault: CanFault, master_id: u8) -> FaultRule {
     match fault {
         CanFault::Drop { share, cob_id } => {
             let r = FaultRule::drop_share(share);
@@ -128,6 +130,28 @@ fn rule(fault: CanFault, master_id: u8) -> FaultRule {
         CanFault::SyncLoss => FaultRule::sync_loss(),
         CanFault::HeartbeatLoss => FaultRule::heartbeat_loss(master_id),
     }
+}
+
+/// The detector settings of a scenario for one machine.
+pub(crate) fn detector_config(s: &Scenario, cfg: &AxisConfig) -> DetectorConfig {
+    let d = &s.detector;
+    let mut dc = DetectorConfig::new(d.kv_per_s.unwrap_or(cfg.kv_per_s));
+    if let Some(v) = d.suspect_um {
+        dc.suspect_um = v;
+    }
+    if let Some(v) = d.alarm_um {
+        dc.alarm_um = v;
+    }
+    if let Some(v) = d.min_window_s {
+        dc.windows.min_len_s = v;
+    }
+    if let Some(v) = d.settle_s {
+        dc.windows.settle_s = v;
+    }
+    if let Some(v) = d.confirm_windows {
+        dc.confirm_windows = v;
+    }
+    dc
 }
 
 /// Run one preset of a scenario.
@@ -299,24 +323,7 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
     let end_us = rt.sim_time_us + offset_us;
     let (detector, trace) = if s.detector.enabled {
         let tr = AxisTrace::from_samples(&samples, rotary);
-        let d = &s.detector;
-        let mut dc = DetectorConfig::new(d.kv_per_s.unwrap_or(cfg.kv_per_s));
-        if let Some(v) = d.suspect_um {
-            dc.suspect_um = v;
-        }
-        if let Some(v) = d.alarm_um {
-            dc.alarm_um = v;
-        }
-        if let Some(v) = d.min_window_s {
-            dc.windows.min_len_s = v;
-        }
-        if let Some(v) = d.settle_s {
-            dc.windows.settle_s = v;
-        }
-        if let Some(v) = d.confirm_windows {
-            dc.confirm_windows = v;
-        }
-        (Some(analyze(&tr, &dc)), Some(tr))
+        (Some(analyze(&tr, &detector_config(s, cfg))), Some(tr))
     } else {
         (None, None)
     };

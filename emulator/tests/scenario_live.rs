@@ -1,0 +1,120 @@
+//! A scenario's timeline injected into a running drive (what `drive-emu run --scenario` and
+//! `drive-emu scenario --iface` do), with the loop on the wall clock and the scenario on its own
+//! thread, talking through the lock-free LiveLink. The motion comes from a controller on the
+//! bus: here the reference master on an in-process bus.
+
+use drive_emu::bus::fault::FaultyBus;
+use drive_emu::bus::inproc::InProcBus;
+use drive_emu::bus::CanBus;
+use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
+use drive_emu::runtime::axis_drive::AxisDrive;
+use drive_emu::runtime::clock::{Clock, MonotonicClock};
+use drive_emu::runtime::{AxisSlot, Runtime};
+use drive_emu::scenario::live::{run_timeline, LiveLink, LoopInjector};
+use drive_protocol::{AxisParam, Drive, Node};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+const SCENARIO: &str = r#"
+name = "live-test"
+duration = "2.5 s"
+[machine]
+preset = "cnc1"
+backlash_mm = 0.02
+[[motion]]
+step = "enable"
+mode = "csp"
+[[event]]
+id = "wear"
+at = "0.3 s"
+set = "backlash_mm"
+value = 0.06
+[[event]]
+id = "loss"
+at = "1.5 s"
+sensor = "direct_encoder_loss"
+[[expect]]
+emcy = "0x7300"
+after = "loss"
+within = "100 ms"
+[[expect]]
+state = "fault"
+[[expect]]
+no_emcy = true
+until = "1.4 s"
+"#;
+
+#[test]
+fn a_live_timeline_changes_the_running_drive_and_its_expectations_are_checked() {
+    let s = drive_emu::scenario::parse(SCENARIO, std::path::Path::new("live-test.toml"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let cfg = s.machine.configs[0].clone();
+    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let snapshot = AxisDrive::from_config(&cfg).unwrap();
+    let node = Node::new(5, drive.info()).unwrap();
+    let mut eps = InProcBus::endpoints(2, 4096);
+    let mut master_bus = eps.pop().unwrap();
+    let bus = FaultyBus::new(eps.pop().unwrap(), 1);
+    let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
+    rt.boot();
+    let mut master = Master::new(
+        MasterConfig::default(),
+        vec![
+            Step::Enable { mode: MODE_CSP },
+            Step::Cruise {
+                velocity_uu_s: 10_000.0,
+                accel_uu_s2: 100_000.0,
+                duration_s: 10.0,
+            },
+        ],
+    );
+    let link = Arc::new(LiveLink::new());
+    let stop = Arc::new(AtomicBool::new(false));
+    let scenario_thread = {
+        let (s, cfg, link, stop) = (s.clone(), cfg.clone(), link.clone(), stop.clone());
+        std::thread::spawn(move || {
+            let o = run_timeline(&s, &cfg, &snapshot, &link, &stop);
+            stop.store(true, Ordering::Relaxed);
+            o
+        })
+    };
+    let mut injector = LoopInjector::new(0x7F);
+    let mut clock = MonotonicClock::new();
+    let mut deadline = clock.now_us();
+    let mut backlash_at_1s = None;
+    while !stop.load(Ordering::Relaxed) && rt.sim_time_us < 10_000_000 {
+        clock.sleep_until(deadline);
+        deadline += 1000;
+        master.poll(rt.sim_time_us);
+        while let Some(f) = master.pop_tx() {
+            master_bus.send(&f).unwrap();
+        }
+        rt.tick();
+        injector.on_tick(&link, &mut rt);
+        while let Ok(Some(f)) = master_bus.recv() {
+            master.handle(&f, rt.sim_time_us);
+        }
+        if rt.sim_time_us == 1_000_000 {
+            backlash_at_1s = Some(rt.axes[0].drive.param(AxisParam::Backlash).unwrap());
+        }
+    }
+    let outcome = scenario_thread.join().unwrap();
+    for e in &outcome.expectations {
+        eprintln!(
+            "{} line {}: {} ({})",
+            e.passed, e.line, e.expectation, e.detail
+        );
+    }
+    assert_eq!(
+        backlash_at_1s,
+        Some(0.06e-3),
+        "the set event reached the running drive"
+    );
+    assert!(outcome.fired.len() == 2, "{:?}", outcome.fired);
+    assert!(outcome.record.samples.len() > 2000, "samples from the loop");
+    assert!(outcome.passed(), "expectations: {:?}", outcome.expectations);
+    assert!(
+        master.emcys().iter().any(|e| e.code == 0x7300),
+        "the controller saw the EMCY too"
+    );
+}
