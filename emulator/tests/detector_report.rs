@@ -2,8 +2,8 @@
 
 use drive_emu::analysis::{constant_velocity_run, RunOptions};
 use drive_emu::cli::analyze::{run, AnalyzeArgs};
+use drive_emu::cli::sim::write_trace_csv;
 use drive_emu::presets::AxisConfig;
-use std::io::Write;
 
 #[test]
 fn analyze_writes_json_and_plots_from_a_sim_trace() {
@@ -23,31 +23,7 @@ fn analyze_writes_json_and_plots_from_a_sim_trace() {
     let r = constant_velocity_run(&cfg, &opts).unwrap();
     let csv = dir.join("trace.csv");
     let mut w = std::io::BufWriter::new(std::fs::File::create(&csv).unwrap());
-    // The columns `drive-emu sim --trace` writes (emulator/src/cli/sim.rs).
-    writeln!(
-        w,
-        "time_s,position_setpoint_mm,direct_encoder_position_mm,motor_encoder_position_mm,\
-         motor_velocity_rpm,load_velocity_mm_per_s,motor_torque_nm,motor_current_a,\
-         following_error_mm"
-    )
-    .unwrap();
-    let t = &r.trace;
-    for i in 0..t.len() {
-        writeln!(
-            w,
-            "{:.6},{:.9},{:.9},{:.9},{:.6},{:.9},{:.6},{:.6},{:.9}",
-            t.time_s[i],
-            t.position_setpoint[i],
-            t.direct_position[i],
-            t.motor_position[i],
-            t.motor_velocity_rpm[i],
-            t.load_velocity[i],
-            t.torque_nm[i],
-            t.current_a[i],
-            t.following_error[i]
-        )
-        .unwrap();
-    }
+    write_trace_csv(&mut w, &r.trace, "mm").unwrap();
     drop(w);
     let out = dir.join("report");
     let code = run(&AnalyzeArgs {

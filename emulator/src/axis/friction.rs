@@ -21,6 +21,20 @@ pub struct Friction {
 }
 
 impl Friction {
+    /// The same friction with another Coulomb level; a Stribeck peak keeps its ratio to it.
+    pub fn with_coulomb(self, coulomb: f64) -> Friction {
+        let ratio = if self.coulomb > 0.0 {
+            (self.static_ / self.coulomb).max(1.0)
+        } else {
+            1.0
+        };
+        Friction {
+            coulomb,
+            static_: coulomb * ratio,
+            ..self
+        }
+    }
+
     /// Sliding friction magnitude at speed `v`: `F_c + (F_s - F_c) / (1 + (v/v_s)^2)`.
     #[inline(always)]
     pub fn coulomb_at(&self, v: f64) -> f64 {

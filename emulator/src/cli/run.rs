@@ -160,13 +160,7 @@ pub fn print_outcome(o: &LiveOutcome) {
         );
     }
     for e in &o.expectations {
-        println!(
-            "  {} line {}: {} ({})",
-            if e.passed { "ok  " } else { "FAIL" },
-            e.line,
-            e.expectation,
-            e.detail
-        );
+        println!("  {e}");
     }
     if o.samples_lost > 0 {
         println!(

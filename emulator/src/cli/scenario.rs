@@ -72,13 +72,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
             );
         }
         for e in &r.expectations {
-            println!(
-                "  {} line {}: {} ({})",
-                if e.passed { "ok  " } else { "FAIL" },
-                e.line,
-                e.expectation,
-                e.detail
-            );
+            println!("  {e}");
         }
     }
     println!(

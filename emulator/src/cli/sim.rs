@@ -61,28 +61,7 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         let file = std::fs::File::create(path)
             .with_context(|| format!("cannot create {}", path.display()))?;
         let mut w = std::io::BufWriter::new(file);
-        writeln!(
-            w,
-            "time_s,position_setpoint_{u},direct_encoder_position_{u},motor_encoder_position_{u},\
-             motor_velocity_rpm,load_velocity_{u}_per_s,motor_torque_nm,motor_current_a,\
-             following_error_{u}"
-        )?;
-        let t = &res.trace;
-        for i in 0..t.len() {
-            writeln!(
-                w,
-                "{:.6},{:.9},{:.9},{:.9},{:.6},{:.9},{:.6},{:.6},{:.9}",
-                t.time_s[i],
-                t.position_setpoint[i],
-                t.direct_position[i],
-                t.motor_position[i],
-                t.motor_velocity_rpm[i],
-                t.load_velocity[i],
-                t.torque_nm[i],
-                t.current_a[i],
-                t.following_error[i]
-            )?;
-        }
+        write_trace_csv(&mut w, &res.trace, u)?;
         w.flush()?;
     }
     let s = &res.summary;
@@ -107,6 +86,36 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
             s.window_end_s,
             u = s.unit
         );
+    }
+    Ok(())
+}
+
+/// Write a trace as the CSV `sim --trace` produces (units in the header; `u` = mm or deg).
+pub fn write_trace_csv(
+    w: &mut impl Write,
+    t: &crate::analysis::Trace,
+    u: &str,
+) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "time_s,position_setpoint_{u},direct_encoder_position_{u},motor_encoder_position_{u},\
+         motor_velocity_rpm,load_velocity_{u}_per_s,motor_torque_nm,motor_current_a,\
+         following_error_{u}"
+    )?;
+    for i in 0..t.len() {
+        writeln!(
+            w,
+            "{:.6},{:.9},{:.9},{:.9},{:.6},{:.9},{:.6},{:.6},{:.9}",
+            t.time_s[i],
+            t.position_setpoint[i],
+            t.direct_position[i],
+            t.motor_position[i],
+            t.motor_velocity_rpm[i],
+            t.load_velocity[i],
+            t.torque_nm[i],
+            t.current_a[i],
+            t.following_error[i]
+        )?;
     }
     Ok(())
 }

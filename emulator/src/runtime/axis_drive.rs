@@ -255,15 +255,9 @@ impl Drive for AxisDrive {
                 })?;
             }
             AxisParam::LoadCoulombFriction => {
-                let mut f = s.axis.mech.params.load_friction;
-                let ratio = if f.coulomb > 0.0 {
-                    f.static_ / f.coulomb
-                } else {
-                    1.0
-                };
-                f.coulomb = check(value, 0.0, 1e7)?;
-                f.static_ = f.coulomb * ratio.max(1.0);
-                s.axis.set_load_friction(f);
+                let f = s.axis.mech.params.load_friction;
+                s.axis
+                    .set_load_friction(f.with_coulomb(check(value, 0.0, 1e7)?));
             }
             AxisParam::LoadViscousFriction => {
                 let mut f = s.axis.mech.params.load_friction;
@@ -271,15 +265,9 @@ impl Drive for AxisDrive {
                 s.axis.set_load_friction(f);
             }
             AxisParam::MotorCoulombFriction => {
-                let mut f = s.axis.mech.params.motor_friction;
-                let ratio = if f.coulomb > 0.0 {
-                    f.static_ / f.coulomb
-                } else {
-                    1.0
-                };
-                f.coulomb = check(value, 0.0, 1e4)?;
-                f.static_ = f.coulomb * ratio.max(1.0);
-                s.axis.set_motor_friction(f);
+                let f = s.axis.mech.params.motor_friction;
+                s.axis
+                    .set_motor_friction(f.with_coulomb(check(value, 0.0, 1e4)?));
             }
             AxisParam::ExternalLoad => s.axis.set_external_load(check(value, -1e7, 1e7)?),
             AxisParam::Kv => s.set_kv(check(value, 0.0, 1000.0)?),

@@ -73,6 +73,19 @@ pub struct ExpectResult {
     pub detail: String,
 }
 
+impl std::fmt::Display for ExpectResult {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} line {}: {} ({})",
+            if self.passed { "ok  " } else { "FAIL" },
+            self.line,
+            self.expectation,
+            self.detail
+        )
+    }
+}
+
 fn secs(us: u64) -> f64 {
     us as f64 * 1e-6
 }
