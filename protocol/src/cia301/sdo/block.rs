@@ -1,7 +1,7 @@
 //! SDO block transfer (CiA 301 7.2.4.3.9 ff.), server side, with CRC (the CRC function is
 //! canopen-rs's `sdo::block::crc16`).
 
-use super::{abort, mux, ObjectAccess, SdoServer, State, BUF};
+use super::{abort, download_size, mux, ObjectAccess, SdoServer, State, BUF};
 use canopen_rs::sdo::block::crc16;
 
 /// Segments per sub-block the server accepts in a block download.
@@ -43,17 +43,10 @@ impl SdoServer {
                 self.index = u16::from_le_bytes([req[1], req[2]]);
                 self.sub = req[3];
                 let crc = req[0] & 0x04 != 0;
-                let size = if req[0] & 0x02 != 0 {
-                    Some(u32::from_le_bytes([req[4], req[5], req[6], req[7]]) as usize)
-                } else {
-                    None
+                let size = match download_size(od, self.index, self.sub, req[0] & 0x02 != 0, req) {
+                    Ok(size) => size,
+                    Err(c) => return self.fail(c, out),
                 };
-                if let Err(c) = od.check_write(self.index, self.sub, size) {
-                    return self.fail(c, out);
-                }
-                if size.is_some_and(|n| n > BUF) {
-                    return self.fail(abort::OUT_OF_MEMORY, out);
-                }
                 self.len = 0;
                 self.state = State::BlockDownload(DownState {
                     expected: 1,

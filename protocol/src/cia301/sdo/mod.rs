@@ -206,17 +206,10 @@ impl SdoServer {
                 Err(c) => self.fail(c, out),
             }
         } else {
-            let size = if s {
-                Some(u32::from_le_bytes([req[4], req[5], req[6], req[7]]) as usize)
-            } else {
-                None
+            let size = match download_size(od, self.index, self.sub, s, req) {
+                Ok(size) => size,
+                Err(c) => return self.fail(c, out),
             };
-            if let Err(c) = od.check_write(self.index, self.sub, size) {
-                return self.fail(c, out);
-            }
-            if size.is_some_and(|n| n > BUF) {
-                return self.fail(abort::OUT_OF_MEMORY, out);
-            }
             self.len = 0;
             self.state = State::SegDownload {
                 toggle: false,
@@ -314,4 +307,21 @@ impl SdoServer {
             }
         };
     }
+}
+
+/// The size a segmented or block download announces (`announced`: the size-indicated bit,
+/// size in bytes 4..8), checked against the object (access, length) and against our buffer.
+fn download_size(
+    od: &mut impl ObjectAccess,
+    index: u16,
+    sub: u8,
+    announced: bool,
+    req: &[u8; 8],
+) -> Result<Option<usize>, u32> {
+    let size = announced.then(|| u32::from_le_bytes([req[4], req[5], req[6], req[7]]) as usize);
+    od.check_write(index, sub, size)?;
+    if size.is_some_and(|n| n > BUF) {
+        return Err(abort::OUT_OF_MEMORY);
+    }
+    Ok(size)
 }
