@@ -242,6 +242,10 @@ impl<B: CanBus> CanBus for FaultyBus<B> {
         }
     }
 
+    fn end_tick(&mut self) {
+        self.tick();
+    }
+
     fn wait_readable(&mut self, timeout_us: u64) {
         if self
             .rx_delayed

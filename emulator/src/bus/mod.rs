@@ -39,4 +39,7 @@ pub trait CanBus {
     /// Wait up to `timeout_us` for a frame to arrive (lock-step mode); returns at once if one is
     /// queued. Implementations may return early.
     fn wait_readable(&mut self, timeout_us: u64);
+    /// The runtime finished a tick. Transports that model time (the fault injector's delays)
+    /// advance their clock here; the default does nothing.
+    fn end_tick(&mut self) {}
 }

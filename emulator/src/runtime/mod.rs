@@ -129,6 +129,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         let r = self.receive();
         self.step();
         self.flush_tx();
+        self.bus.end_tick();
         r
     }
 
@@ -197,6 +198,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                 for _ in 0..ticks_per_sync {
                     self.step();
                     self.flush_tx();
+                    self.bus.end_tick();
                     self.stats.record_tick(0, 0);
                     hook(self);
                 }

@@ -103,7 +103,6 @@ impl LoopInjector {
     ) {
         let now = rt.sim_time_us;
         link.now_us.store(now, Ordering::Relaxed);
-        rt.bus.tick();
         while let Some(inj) = link.injections.pop() {
             let drive = &mut rt.axes[0].drive;
             match inj {

@@ -264,13 +264,12 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
                 }
             }
         }
-        // One lock-step tick (as OfflineRun::step), then the fault injector's delay clock.
+        // One lock-step tick (as OfflineRun::step); the runtime advances the fault injector's clock.
         master.poll(phys);
         while let Some(f) = master.pop_tx() {
             let _ = master_ep.send(&f);
         }
         rt.tick();
-        rt.bus.tick();
         while let Ok(Some(f)) = master_ep.recv() {
             master.handle(&f, rt.sim_time_us);
         }
