@@ -81,26 +81,37 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
     /// Hand received frames to every node; returns (frames, SYNCs).
     pub fn receive(&mut self) -> TickReport {
         let mut report = TickReport::default();
-        let now = self.sim_time_us;
         while report.frames_received < MAX_RX_PER_TICK {
-            let frame = match self.bus.recv() {
-                Ok(Some(f)) => f,
-                Ok(None) => break,
-                Err(_) => {
-                    self.stats.rx_errors += 1;
-                    break;
+            match self.receive_one() {
+                Some(sync) => {
+                    report.frames_received += 1;
+                    report.syncs += usize::from(sync);
                 }
-            };
-            report.frames_received += 1;
-            let mut sync = false;
-            for ax in &mut self.axes {
-                if let FrameEvent::Sync { .. } = ax.node.handle(&frame, now, &mut ax.drive) {
-                    sync = true;
-                }
+                None => break,
             }
-            report.syncs += usize::from(sync);
         }
         report
+    }
+
+    /// Hand the next received frame (if any) to every node at the current simulated time.
+    /// `None`: nothing to read (or a receive error, counted); `Some(true)`: it was a SYNC.
+    fn receive_one(&mut self) -> Option<bool> {
+        let now = self.sim_time_us;
+        let frame = match self.bus.recv() {
+            Ok(Some(f)) => f,
+            Ok(None) => return None,
+            Err(_) => {
+                self.stats.rx_errors += 1;
+                return None;
+            }
+        };
+        let mut sync = false;
+        for ax in &mut self.axes {
+            if let FrameEvent::Sync { .. } = ax.node.handle(&frame, now, &mut ax.drive) {
+                sync = true;
+            }
+        }
+        Some(sync)
     }
 
     /// Let every node act and advance every axis by one period.
@@ -192,9 +203,19 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         let ticks_per_sync = (sync_period_us / self.period_us).max(1);
         while !stop.load(Ordering::Relaxed) {
             self.bus.wait_readable(10_000);
-            let r = self.receive();
-            self.flush_tx();
-            for _ in 0..r.syncs {
+            // Frames in bus order: each SYNC advances time before the frames after it are
+            // seen, so a batch read after a stall gives the same run as frames read one by one
+            // (a set-point sent after SYNC k belongs to SYNC k+1, not k).
+            let mut frames = 0;
+            while frames < MAX_RX_PER_TICK {
+                let Some(sync) = self.receive_one() else {
+                    break;
+                };
+                frames += 1;
+                self.flush_tx();
+                if !sync {
+                    continue;
+                }
                 for _ in 0..ticks_per_sync {
                     self.step();
                     self.flush_tx();
