@@ -10,6 +10,8 @@ fn args(preset: &str) -> DemoArgs {
         velocity: 10.0,
         cruise_s: 4.0,
         json: false,
+        iface: None,
+        node: 5,
     }
 }
 

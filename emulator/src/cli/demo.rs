@@ -8,14 +8,18 @@
 //! frequency set by k_v, not by the gap.
 
 use crate::analysis::spectrum::fundamental;
+use crate::bus::socketcan::SocketCanBus;
+use crate::master::on_bus::run_on_bus;
 use crate::master::{Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
 use crate::presets::AxisConfig;
 use crate::runtime::axis_drive::AxisDrive;
+use crate::runtime::clock::MonotonicClock;
 use crate::runtime::offline::OfflineRun;
 use crate::runtime::AxisSlot;
 use anyhow::{bail, Result};
 use clap::Args;
 use drive_protocol::{Drive, Node};
+use std::sync::atomic::AtomicBool;
 
 #[derive(Args, Debug, Clone)]
 pub struct DemoArgs {
@@ -34,6 +38,15 @@ pub struct DemoArgs {
     /// Print the result as JSON instead of the narrated report.
     #[arg(long)]
     pub json: bool,
+    /// Run the master on this CAN interface against a drive already on it (e.g. `drive-emu
+    /// run --iface vcan0 --lockstep` in another terminal) instead of in-process. The drive's
+    /// backlash is set over SDO (0x2000) before each run; --preset must name the drive's
+    /// preset (for k_v and units).
+    #[arg(long)]
+    pub iface: Option<String>,
+    /// Node ID of the drive on --iface.
+    #[arg(long, default_value_t = 5)]
+    pub node: u8,
 }
 
 /// The analysis of one run, from what the master received.
@@ -64,10 +77,8 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
         "backlash_mm"
     };
     let cfg = base.with_override(key, &backlash.to_string())?;
-    let drive = AxisDrive::from_config(&cfg)?;
-    let node = Node::new(5, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
     let v_uu = args.velocity * UU_PER_AXIS_UNIT;
-    let program = vec![
+    let mut program = vec![
         Step::Enable { mode: MODE_PP },
         Step::MoveTo {
             target_uu: (20.0 * UU_PER_AXIS_UNIT) as i32,
@@ -87,14 +98,61 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
         },
         Step::Disable,
     ];
-    let master = Master::new(MasterConfig::default(), program);
-    let mut run = OfflineRun::new(vec![AxisSlot { node, drive }], 1000, master);
-    run.run_program(60_000_000);
-    if let Some(e) = run.master.error() {
+    let mcfg = MasterConfig {
+        node_id: args.node,
+        ..Default::default()
+    };
+    let master = match &args.iface {
+        None => {
+            let drive = AxisDrive::from_config(&cfg)?;
+            let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
+            let mut run = OfflineRun::new(
+                vec![AxisSlot { node, drive }],
+                1000,
+                Master::new(mcfg, program),
+            );
+            run.run_program(60_000_000);
+            run.master
+        }
+        Some(iface) => {
+            // The drive is already running: its wear comes over SDO, as a PLC or a test
+            // would set it (0x2000, REAL32 in mm or deg).
+            program.insert(
+                0,
+                Step::WriteSdo {
+                    index: 0x2000,
+                    sub: 0,
+                    value: (backlash as f32).to_bits(),
+                    len: 4,
+                },
+            );
+            let mut bus = SocketCanBus::open(iface)?;
+            let mut master = Master::new(mcfg, program);
+            let stop = AtomicBool::new(false);
+            let stats = run_on_bus(
+                &mut master,
+                &mut bus,
+                &mut MonotonicClock::new(),
+                120_000_000,
+                &stop,
+            );
+            if !args.json {
+                eprintln!(
+                    "drive-emu demo: on {iface}: {} cycles, {} frames sent, {} received, {} refused, {} late cycles",
+                    stats.cycles, stats.frames_sent, stats.frames_received, stats.send_refused, stats.late_cycles
+                );
+            }
+            master
+        }
+    };
+    if let Some(e) = master.error() {
         bail!("the reference master failed: {e}");
     }
+    if !master.finished() {
+        bail!("the reference master did not finish its program in time");
+    }
     // The constant-speed window: set-point velocity at its target, after a 1 s settling time.
-    let samples = run.master.samples();
+    let samples = master.samples();
     let first = samples
         .iter()
         .position(|s| (s.setpoint_velocity_uu_s - v_uu).abs() < 1e-6)
@@ -123,9 +181,9 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
         fundamental_hz: pv.as_ref().map(|p| p.frequency_hz),
         velocity_amplitude: pv.map_or(0.0, |p| p.amplitude) / UU_PER_AXIS_UNIT,
         current_amplitude_permille: pc.map_or(0.0, |p| p.amplitude),
-        emcy_codes: run.master.emcys().iter().map(|e| e.code).collect(),
+        emcy_codes: master.emcys().iter().map(|e| e.code).collect(),
         window,
-        log: run.master.log().to_vec(),
+        log: master.log().to_vec(),
     })
 }
 
@@ -176,11 +234,19 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         );
         return Ok(());
     }
-    println!(
-        "drive-emu demo: a CiA 402 master and an emulated {} drive (node 5) on an in-process CAN bus",
-        args.preset
-    );
-    println!("(lock-step, virtual clock: every frame goes through the real CANopen stack)\n");
+    match &args.iface {
+        None => {
+            println!(
+                "drive-emu demo: a CiA 402 master and an emulated {} drive (node {}) on an in-process CAN bus",
+                args.preset, args.node
+            );
+            println!("(lock-step, virtual clock: every frame goes through the real CANopen stack)\n");
+        }
+        Some(iface) => println!(
+            "drive-emu demo: the reference CiA 402 master on {iface}, against the {} drive at node {}\n",
+            args.preset, args.node
+        ),
+    }
     println!(
         "What the master did, run with {} {unit} backlash:",
         args.backlash

@@ -11,6 +11,7 @@
 //! Positions are in the drive's user units (uu; by our factor-group default 1 um on a linear
 //! axis, 0.001 deg on a rotary one), velocities in uu/s.
 
+pub mod on_bus;
 pub mod sdo_client;
 
 use crate::bus::CanFrame;
@@ -245,6 +246,9 @@ impl Master {
         }
     }
 
+    pub fn config(&self) -> &MasterConfig {
+        &self.cfg
+    }
     pub fn samples(&self) -> &[Sample] {
         &self.samples
     }
