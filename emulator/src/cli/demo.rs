@@ -10,7 +10,7 @@
 use crate::analysis::spectrum::fundamental;
 use crate::bus::socketcan::SocketCanBus;
 use crate::master::on_bus::run_on_bus;
-use crate::master::{Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
+use crate::master::{state_name, Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
 use crate::presets::AxisConfig;
 use crate::runtime::axis_drive::AxisDrive;
 use crate::runtime::clock::MonotonicClock;
@@ -150,6 +150,30 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
     }
     if !master.finished() {
         bail!("the reference master did not finish its program in time");
+    }
+    if master
+        .samples()
+        .iter()
+        .any(|s| state_name(s.statusword) == "FAULT")
+    {
+        // Distinct error codes, without the "error reset" (0x0000) entries.
+        let mut codes: Vec<String> = Vec::new();
+        for e in master.emcys().iter().filter(|e| e.code != 0) {
+            let c = format!("{:#06X}", e.code);
+            if !codes.contains(&c) {
+                codes.push(c);
+            }
+        }
+        let hint = if master.emcys().iter().any(|e| e.code == 0x8100) {
+            " (0x8100: SYNC loss, the SYNCs came more than 1.5 periods apart; on a slow or \
+             virtualised host run the drive with --lockstep)"
+        } else {
+            ""
+        };
+        bail!(
+            "the drive went to FAULT during the run with {backlash} backlash, EMCY {}{hint}",
+            codes.join(", ")
+        );
     }
     // The constant-speed window: set-point velocity at its target, after a 1 s settling time.
     let samples = master.samples();
