@@ -1,13 +1,14 @@
 //! Proof that the real-time path does not allocate: a counting global allocator watches
-//! `Runtime::tick` (receive -> node -> drive -> physics -> send), the statistics recording and
-//! their publication to the node, while the drive runs CSP at constant speed with backlash,
-//! answers SDO requests and consumes the master's heartbeat.
+//! `Runtime::tick` (receive -> node -> drive -> physics -> send), the statistics recording,
+//! their publication to the node and the trace tap of `run --trace`, while the drive runs CSP
+//! at constant speed with backlash, answers SDO requests and consumes the master's heartbeat.
 
 use drive_emu::bus::CanFrame;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::axis_drive::AxisDrive;
 use drive_emu::runtime::offline::OfflineRun;
+use drive_emu::runtime::trace::TraceTap;
 use drive_emu::runtime::AxisSlot;
 use drive_protocol::{Drive, Node};
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -89,6 +90,8 @@ fn the_runtime_tick_does_not_allocate() {
     );
     let sdo_read = CanFrame::new(0x605, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]);
     let sdo_write_backlash = CanFrame::new(0x605, &[0x23, 0x00, 0x20, 0, 0, 0, 0, 0]);
+    // `run --trace`: the loop also samples every axis into the recorder's queue.
+    let tap = TraceTap::new(1);
     ALLOCS.with(|a| a.set(0));
     for k in 0..5000u32 {
         run.master_send();
@@ -104,6 +107,7 @@ fn the_runtime_tick_does_not_allocate() {
         counted(|| {
             run.runtime.tick();
             run.runtime.stats.record_tick(3, 40);
+            tap.on_tick(&run.runtime);
             if k % 256 == 0 {
                 run.runtime.publish_stats();
             }
@@ -125,6 +129,7 @@ fn the_runtime_tick_does_not_allocate() {
         (backlash - 0.06e-3).abs() < 1e-9,
         "the SDO write reached the axis: {backlash}"
     );
+    assert_eq!(tap.lost(), 0);
     assert_eq!(
         allocs, 0,
         "{allocs} allocations in 5000 ticks of the real-time path"

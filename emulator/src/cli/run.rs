@@ -7,6 +7,7 @@ use crate::runtime::axis_drive::AxisDrive;
 use crate::runtime::clock::MonotonicClock;
 use crate::runtime::machine::{self, AxisEntry, MachineFile};
 use crate::runtime::realtime::{self, RealtimeRequest};
+use crate::runtime::trace::{trace_paths, Recorder, TraceTap};
 use crate::runtime::{AxisSlot, Runtime};
 use crate::scenario::live::{run_timeline, LiveLink, LiveOutcome, LoopInjector};
 use crate::scenario::Scenario;
@@ -64,6 +65,11 @@ pub struct RunArgs {
     /// from the scenario file, the motion from your controller. Stops at the scenario's end.
     #[arg(long)]
     pub scenario: Option<PathBuf>,
+    /// Record what the drive reports, one row per tick (the sample-log CSV that `drive-emu
+    /// analyze` reads), written as the run goes and flushed on exit, Ctrl-C or SIGTERM. With
+    /// several axes, one file each: trace.csv -> trace-node5.csv, ...
+    #[arg(long, value_name = "FILE")]
+    pub trace: Option<PathBuf>,
 }
 
 /// Build the nodes and drives of a machine.
@@ -227,6 +233,16 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
         lock_memory: !args.no_mlock,
     };
     let lockstep = args.lockstep.then_some(args.sync_period_us);
+    // The trace files are created before the loop starts: a bad path loses nothing.
+    let node_ids: Vec<u8> = rt.axes.iter().map(|a| a.node.node_id()).collect();
+    let tap = args.trace.as_ref().map(|_| Arc::new(TraceTap::new(n_axes)));
+    let recorder = match (&args.trace, &tap) {
+        (Some(path), Some(tap)) => Some(Recorder::start(
+            Arc::clone(tap),
+            trace_paths(path, &node_ids),
+        )?),
+        _ => None,
+    };
     eprintln!(
         "drive-emu: {} axis(es) on {} at {} Hz{}: {}{}",
         n_axes,
@@ -265,6 +281,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
 
     let loop_thread = {
         let (stop, status, link) = (Arc::clone(&stop), Arc::clone(&status), Arc::clone(&link));
+        let tap = tap.clone();
         std::thread::Builder::new()
             .name("drive-emu-loop".into())
             .spawn(move || {
@@ -277,6 +294,9 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
                 let hook = |rt: &mut Runtime<FaultyBus<SocketCanBus>, AxisDrive>| {
                     if let Some(inj) = injector.as_mut() {
                         inj.on_tick(&link, rt);
+                    }
+                    if let Some(tap) = &tap {
+                        tap.on_tick(rt);
                     }
                     let n = &rt.axes[0].node;
                     status
@@ -327,9 +347,26 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
         }
     }
     stop.store(true, Ordering::Relaxed);
-    let rt = loop_thread
-        .join()
-        .map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
+    let joined = loop_thread.join();
+    // The trace is flushed whatever happened to the loop.
+    if let (Some(rec), Some(tap)) = (recorder, &tap) {
+        let t = rec.finish(tap).context("writing the trace")?;
+        eprintln!(
+            "drive-emu: trace: {} samples in {}{}",
+            t.samples,
+            t.paths
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            if t.lost > 0 {
+                format!(" ({} lost: the disk was too slow)", t.lost)
+            } else {
+                String::new()
+            }
+        );
+    }
+    let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
     if tty {
         println!();
     }

@@ -33,6 +33,9 @@ pub struct ScenarioArgs {
     /// Live: advance simulated time one SYNC period per SYNC received.
     #[arg(long)]
     pub lockstep: bool,
+    /// Live: record what the drive reports, one row per tick (as `run --trace`).
+    #[arg(long, value_name = "FILE", requires = "iface")]
+    pub trace: Option<PathBuf>,
 }
 
 pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
@@ -109,6 +112,7 @@ fn run_live(args: &ScenarioArgs, iface: &str) -> anyhow::Result<ExitCode> {
     run.iface = iface.to_string();
     run.node = args.node;
     run.lockstep = args.lockstep;
+    run.trace = args.trace.clone();
     run.tick_hz = (1_000_000 / s.run.tick_us) as u32;
     let outcome = crate::cli::run::run_live(&run, Some(&s))?
         .ok_or_else(|| anyhow::anyhow!("no scenario outcome"))?;

@@ -106,6 +106,33 @@ pub struct Sample {
     pub following_error_uu: i32,
 }
 
+impl Sample {
+    /// The sample log's CSV header (`samples.csv` of a scenario report, `run --trace`), the
+    /// layout `drive-emu analyze` reads.
+    pub const CSV_HEADER: &'static str = "t_s,statusword,mode_display,target_uu,\
+        setpoint_velocity_uu_s,position_uu,direct_position_uu,velocity_uu_s,torque_permille,\
+        current_permille,following_error_uu";
+
+    /// One CSV row under [`Sample::CSV_HEADER`].
+    pub fn write_csv_row(&self, w: &mut impl std::io::Write) -> std::io::Result<()> {
+        writeln!(
+            w,
+            "{:.6},{},{},{:.3},{:.3},{},{},{},{},{},{}",
+            self.t_s,
+            self.statusword,
+            self.mode_display,
+            self.target_uu,
+            self.setpoint_velocity_uu_s,
+            self.position_uu,
+            self.direct_position_uu,
+            self.velocity_uu_s,
+            self.torque_permille,
+            self.current_permille,
+            self.following_error_uu
+        )
+    }
+}
+
 /// An EMCY message seen on the bus.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub struct Emcy {

@@ -17,6 +17,7 @@ pub mod machine;
 pub mod offline;
 pub mod realtime;
 pub mod stats;
+pub mod trace;
 
 use crate::bus::CanBus;
 use clock::Clock;

@@ -23,6 +23,7 @@ use crate::bus::CanBus;
 use crate::master::{state_name, Sample};
 use crate::presets::{AxisConfig, AxisKind};
 use crate::runtime::axis_drive::AxisDrive;
+use crate::runtime::trace::node_sample;
 use crate::runtime::Runtime;
 use crossbeam::queue::ArrayQueue;
 use drive_protocol::{AxisParam, Drive};
@@ -135,19 +136,7 @@ impl LoopInjector {
         }
         let node = &rt.axes[0].node;
         let raw = |i: u16, s: u8| node.object_raw(i, s).unwrap_or(0);
-        let sample = Sample {
-            t_s: now as f64 * 1e-6,
-            statusword: node.statusword(),
-            mode_display: node.mode(),
-            target_uu: f64::from(raw(0x6062, 0) as i32),
-            setpoint_velocity_uu_s: f64::from(raw(0x606B, 0) as i32),
-            position_uu: node.position_actual(),
-            direct_position_uu: raw(0x60E4, 1) as i32,
-            velocity_uu_s: raw(0x606C, 0) as i32,
-            torque_permille: raw(0x6077, 0) as u16 as i16,
-            current_permille: raw(0x6078, 0) as u16 as i16,
-            following_error_uu: raw(0x60F4, 0) as i32,
-        };
+        let sample = node_sample(node, now);
         if link.samples.push(sample).is_err() {
             link.samples_lost.fetch_add(1, Ordering::Relaxed);
         }

@@ -435,27 +435,9 @@ pub fn write_report(out: &Outcome, dir: &Path, plots: bool) -> anyhow::Result<Ve
 pub fn write_samples(path: &Path, samples: &[Sample]) -> anyhow::Result<()> {
     use std::io::Write;
     let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
-    writeln!(
-        w,
-        "t_s,statusword,mode_display,target_uu,setpoint_velocity_uu_s,position_uu,\
-         direct_position_uu,velocity_uu_s,torque_permille,current_permille,following_error_uu"
-    )?;
+    writeln!(w, "{}", Sample::CSV_HEADER)?;
     for s in samples {
-        writeln!(
-            w,
-            "{:.6},{},{},{:.3},{:.3},{},{},{},{},{},{}",
-            s.t_s,
-            s.statusword,
-            s.mode_display,
-            s.target_uu,
-            s.setpoint_velocity_uu_s,
-            s.position_uu,
-            s.direct_position_uu,
-            s.velocity_uu_s,
-            s.torque_permille,
-            s.current_permille,
-            s.following_error_uu
-        )?;
+        s.write_csv_row(&mut w)?;
     }
     w.flush()?;
     Ok(())

@@ -1,0 +1,193 @@
+//! Live runs on vcan: `drive-emu run --trace` flushing its trace on SIGTERM, and
+//! `drive-emu scenario FILE --iface` injecting a scenario's timeline into a drive that an
+//! external controller (this test, a minimal CANopen master) runs in lock-step.
+//! Node IDs: 32 (trace), 33 (scenario).
+
+use e2e::*;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Send one SYNC and wait for the drive's answer to it (its last synchronous TPDO, 0x480+n):
+/// the pace of a master, with no timing assumed.
+fn sync_and_wait(sock: &socketcan::CanSocket, node: u8, i: usize) {
+    send(sock, 0x080, &[]);
+    recv_matching(sock, PEER_TIMEOUT, |f| {
+        id_data(f).0 == 0x480 + u32::from(node)
+    })
+    .unwrap_or_else(|| panic!("no TPDO4 after SYNC {i}"));
+}
+
+/// Read a CSV into a header and rows of numbers.
+fn read_csv(path: &std::path::Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .expect("header")
+        .split(',')
+        .map(String::from)
+        .collect();
+    let rows = lines
+        .map(|l| {
+            l.split(',')
+                .map(|x| x.parse().unwrap_or_else(|e| panic!("`{x}` in `{l}`: {e}")))
+                .collect()
+        })
+        .collect();
+    (header, rows)
+}
+
+#[test]
+fn run_trace_is_complete_after_sigterm() {
+    const NODE: u8 = 32;
+    const SYNCS: usize = 600;
+    let ifname = iface(0);
+    let sock = open_bus(&ifname);
+    let trace = temp_file("run-trace.csv", "");
+    std::fs::remove_file(&trace).unwrap();
+    let emu = Emu::spawn(&[
+        "--iface",
+        &ifname,
+        "--node",
+        "32",
+        "--lockstep",
+        "--trace",
+        trace.to_str().unwrap(),
+    ]);
+    assert!(
+        wait_bootup(&sock, NODE, PEER_TIMEOUT),
+        "no boot-up; {}",
+        emu.stderr_now()
+    );
+    // Operational, then a move in profile velocity mode so the trace has motion in it.
+    nmt(&sock, 0x01, NODE);
+    sdo_download(&sock, NODE, 0x6060, 0, &[3]).expect("mode PV");
+    sdo_download(&sock, NODE, 0x60FF, 0, &20_000i32.to_le_bytes()).expect("target velocity");
+    for cw in [0x06u16, 0x07, 0x0F] {
+        sdo_download(&sock, NODE, 0x6040, 0, &cw.to_le_bytes()).expect("controlword");
+        sync_and_wait(&sock, NODE, 0);
+    }
+    for i in 0..SYNCS {
+        sync_and_wait(&sock, NODE, i);
+    }
+    let exit = emu.stop_clean();
+    assert!(
+        exit.stderr.contains("drive-emu: trace: "),
+        "{}",
+        exit.stderr
+    );
+
+    let (header, rows) = read_csv(&trace);
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no {name}"))
+    };
+    // Lock-step: one row per SYNC, the last one included (flushed on SIGTERM).
+    assert_eq!(rows.len(), SYNCS + 3, "rows in the trace");
+    let (t, sw, v) = (col("t_s"), col("statusword"), col("velocity_uu_s"));
+    for w in rows.windows(2) {
+        assert!(
+            (w[1][t] - w[0][t] - 1e-3).abs() < 1e-9,
+            "1 ms apart: {:?}",
+            w
+        );
+    }
+    let last = rows.last().unwrap();
+    assert_eq!(last[sw] as u16 & 0x6F, 0x27, "operation enabled at the end");
+    // 20 mm/s reached within the 0.6 s (CNC1 accelerates in a few tens of ms).
+    assert!((last[v] - 20_000.0).abs() < 1_000.0, "velocity {}", last[v]);
+}
+
+#[test]
+fn scenario_timeline_live_on_vcan_against_an_external_controller() {
+    const NODE: u8 = 33;
+    let ifname = iface(0);
+    let sock = open_bus(&ifname);
+    let file = repo_root().join("scenarios/encoder-loss.toml");
+    let trace = temp_file("scenario-live.csv", "");
+    let mut child = Command::new(drive_emu_bin())
+        .args([
+            "scenario",
+            file.to_str().unwrap(),
+            "--iface",
+            &ifname,
+            "--node",
+            "33",
+        ])
+        .args(["--lockstep", "--trace", trace.to_str().unwrap()])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start drive-emu scenario");
+    assert!(
+        wait_bootup(&sock, NODE, PEER_TIMEOUT),
+        "no boot-up from the scenario's drive"
+    );
+
+    // The external controller: start, profile velocity at 10 mm/s, enable, then SYNC after
+    // SYNC until the scenario ends (lock-step: its clock is our SYNCs).
+    nmt(&sock, 0x01, NODE);
+    sdo_download(&sock, NODE, 0x6060, 0, &[3]).expect("mode PV");
+    sdo_download(&sock, NODE, 0x60FF, 0, &10_000i32.to_le_bytes()).expect("target velocity");
+    for cw in [0x06u16, 0x07, 0x0F] {
+        sdo_download(&sock, NODE, 0x6040, 0, &cw.to_le_bytes()).expect("controlword");
+        sync_and_wait(&sock, NODE, 0);
+    }
+    let deadline = Instant::now() + Duration::from_secs(600);
+    let mut i = 0usize;
+    let status = loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            break st;
+        }
+        assert!(Instant::now() < deadline, "the scenario never ended");
+        send(&sock, 0x080, &[]);
+        // Pace on the answer, but the drive stops answering when the scenario ends.
+        let _ = recv_matching(&sock, Duration::from_secs(2), |f| {
+            id_data(f).0 == 0x480 + u32::from(NODE)
+        });
+        i += 1;
+    };
+    assert!(i + 3 >= 3000, "{i} SYNCs for a 3 s scenario");
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        status.success(),
+        "scenario --iface: {status}\nstdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    eprintln!("{stdout}");
+    assert!(stdout.contains("encoder-loss (live on"), "{stdout}");
+    assert!(stdout.contains("EMCY 0x7300"), "{stdout}");
+    assert!(!stdout.contains("[FAIL"), "{stdout}");
+
+    // The trace shows the same story: operation enabled, then FAULT to the end.
+    let (header, rows) = read_csv(&trace);
+    let sw = header.iter().position(|h| h == "statusword").unwrap();
+    let state = |r: &Vec<f64>| r[sw] as u16;
+    let enabled = rows
+        .iter()
+        .position(|r| state(r) & 0x6F == 0x27)
+        .expect("enabled");
+    let fault = rows
+        .iter()
+        .position(|r| state(r) & 0x4F == 0x08)
+        .expect("fault");
+    assert!(
+        enabled < fault,
+        "enabled at row {enabled}, fault at row {fault}"
+    );
+    // The loss came 1 s (1000 SYNCs) after enabling, as the scenario says.
+    assert!(
+        (fault - enabled).abs_diff(1000) < 100,
+        "fault {} rows after enabling",
+        fault - enabled
+    );
+    assert!(
+        rows[fault..].iter().all(|r| state(r) & 0x4F == 0x08),
+        "stays in FAULT"
+    );
+}
