@@ -118,9 +118,78 @@ pub fn constant_velocity_windows(
     out
 }
 
+/// The set velocity of a trace that has only a position demand, sampled with finite
+/// resolution: a PLC's CSP targets on the wire (0x607A), or the drive's position demand
+/// (0x6062), in integer user units. A speed that is not a whole number of units per cycle
+/// comes as steps of N and N+1 units, so the plain difference is never constant. Here: the
+/// derivative over a centred span of `span_s`, made piecewise constant (consecutive samples
+/// within 0.5 % of their segment's running mean, or within two units per span at low speed,
+/// share that mean), so that constant-speed stretches come out exactly constant for
+/// [`constant_velocity_windows`] and ramps break into short segments that it skips.
+pub fn set_velocity_from_demand(t: &[f64], demand: &[f64], span_s: f64) -> Vec<f64> {
+    assert_eq!(t.len(), demand.len());
+    let n = t.len();
+    let dt = median_dt(t);
+    if n < 2 || dt <= 0.0 {
+        return vec![0.0; n];
+    }
+    let k = ((0.5 * span_s / dt).round() as usize).max(1);
+    let v: Vec<f64> = (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(k), (i + k).min(n - 1));
+            let dt_ab = t[b] - t[a];
+            if dt_ab > 0.0 {
+                (demand[b] - demand[a]) / dt_ab
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let abs_tol = 2.0 / span_s;
+    let mut out = vec![0.0; n];
+    let (mut start, mut sum) = (0usize, v[0]);
+    for i in 1..=n {
+        let mean = sum / (i - start) as f64;
+        let same = i < n && (v[i] - mean).abs() <= (5e-3 * mean.abs()).max(abs_tol);
+        if same {
+            sum += v[i];
+        } else {
+            out[start..i].fill(mean);
+            if i < n {
+                (start, sum) = (i, v[i]);
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn integer_demand_at_a_fractional_speed_gives_exact_cruise_windows() {
+        // 16.7 units per 1 ms cycle, rounded to whole units as a PLC sends it: steps of 16
+        // and 17. Ramp 0.5 s, cruise 3 s, ramp down 0.5 s.
+        let (mut t, mut pos, mut x, mut vel) = (Vec::new(), Vec::new(), 0.0f64, 0.0f64);
+        for i in 0..4_500 {
+            let ts = i as f64 * 1e-3;
+            let v_cmd = if ts < 3.5 { 16_700.0 } else { 0.0 };
+            vel += (v_cmd - vel).clamp(-33.4, 33.4);
+            x += vel * 1e-3;
+            t.push(ts);
+            pos.push(x.round());
+        }
+        let raw: Vec<f64> = pos.windows(2).map(|w| (w[1] - w[0]) * 1e3).collect();
+        assert!(raw[1000..3000].iter().any(|&d| d == 16_000.0) && raw.contains(&17_000.0));
+        let v = set_velocity_from_demand(&t, &pos, 0.2);
+        let w = constant_velocity_windows(&t, &v, &WindowOptions::default());
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!((w[0].velocity - 16_700.0).abs() < 10.0, "{}", w[0].velocity);
+        // The window lies inside the cruise (0.5 .. 3.5 s), after settling.
+        assert!(t[w[0].start] >= 0.9 && t[w[0].end - 1] <= 3.5, "{w:?}");
+        assert!(w[0].len() >= 2_000, "{}", w[0].len());
+    }
 
     #[test]
     fn finds_cruise_windows_after_the_ramps() {
