@@ -22,7 +22,7 @@ enum Command {
     Sim(cli::sim::SimArgs),
     /// Run a scenario (wear, faults, expectations) offline and write its report.
     Scenario(cli::scenario::ScenarioArgs),
-    /// Run the backlash detector on a trace CSV.
+    /// Run the backlash detector on a trace: trace CSV, sample log or candump log.
     Analyze(cli::analyze::AnalyzeArgs),
     /// Write the drive's EDS (CiA 306) to stdout.
     Eds(cli::eds::EdsArgs),

@@ -34,6 +34,7 @@ fn analyze_writes_json_and_plots_from_a_sim_trace() {
         alarm: None,
         out: Some(out.clone()),
         fail_on_backlash: true,
+        ..Default::default()
     })
     .unwrap();
     assert_eq!(
