@@ -143,6 +143,23 @@ impl AxisTrace {
     }
 }
 
+impl AxisTrace {
+    /// From samples of what the drive itself reports (`run --trace`, live scenarios:
+    /// [`crate::runtime::trace::node_sample`]). A drive has no interpolator velocity to report
+    /// (its 0x606B is the position controller's output, which carries the limit cycle), so the
+    /// set velocity is derived from the position demand `target_uu` (0x6062).
+    pub fn from_drive_samples(samples: &[crate::master::Sample], rotary: bool) -> Self {
+        let mut tr = Self::from_samples(samples, rotary);
+        let demand: Vec<f64> = samples.iter().map(|s| s.target_uu).collect();
+        tr.set_velocity = super::windows::set_velocity_from_demand(
+            &tr.t_s,
+            &demand,
+            super::windows::DEMAND_SPAN_S,
+        );
+        tr
+    }
+}
+
 /// Detector verdict.
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,

@@ -266,7 +266,7 @@ pub fn run_timeline(
     let rotary = cfg.kind == AxisKind::Rotary;
     let detector = s.detector.enabled.then(|| {
         analyze(
-            &AxisTrace::from_samples(&samples, rotary),
+            &AxisTrace::from_drive_samples(&samples, rotary),
             &detector_config(s, cfg),
         )
     });
