@@ -297,6 +297,11 @@ impl Emu {
         }
     }
 
+    /// The process ID (for signals such as SIGSTOP / SIGCONT).
+    pub fn pid(&self) -> libc::pid_t {
+        self.child.as_ref().expect("running").id() as libc::pid_t
+    }
+
     /// True while the process runs.
     pub fn alive(&mut self) -> bool {
         matches!(self.child.as_mut().map(|c| c.try_wait()), Some(Ok(None)))

@@ -121,14 +121,17 @@ fn reference_master_over_vcan_sees_the_backlash_limit_cycle() {
         "{worn}"
     );
 
+    let syncs_sent: u64 = runs
+        .iter()
+        .map(|r| r["bus"]["syncs_sent"].as_u64().expect("bus statistics"))
+        .sum();
+
     let exit = emu.stop_clean();
     // Everything before our end marker is in the file once the marker is.
     wait_for_marker(&sock, &log, 0x7A2);
     drop(dump);
     // The drive counted one tick per SYNC the master sent (lock-step): nothing was lost.
     assert!(exit.stderr.contains("tx dropped 0"), "{}", exit.stderr);
-    let capture = std::fs::read_to_string(&log).unwrap();
-    let syncs = capture.lines().filter(|l| l.ends_with(" 080#")).count();
     let ticks: u64 = exit
         .stderr
         .split("ticks ")
@@ -136,8 +139,16 @@ fn reference_master_over_vcan_sees_the_backlash_limit_cycle() {
         .and_then(|s| s.split_whitespace().next())
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("no tick count in:\n{}", exit.stderr));
-    assert!(syncs > 5000, "{syncs} SYNCs captured");
-    assert_eq!(ticks, syncs as u64, "drive ticks vs SYNCs on the wire");
+    assert!(syncs_sent > 5000, "{syncs_sent} SYNCs sent");
+    assert_eq!(ticks, syncs_sent, "drive ticks vs SYNCs the master sent");
+    // candump, a third busy process in a loaded UML, may miss a few frames; the analysis
+    // below then runs on a slightly shorter time base, well inside its 5 % tolerance.
+    let capture = std::fs::read_to_string(&log).unwrap();
+    let syncs = capture.lines().filter(|l| l.ends_with(" 080#")).count() as u64;
+    assert!(
+        syncs * 100 >= syncs_sent * 97,
+        "candump saw {syncs} of {syncs_sent} SYNCs"
+    );
 
     // The capture, decoded with the drive's PDO mapping (the master remapped it over SDO, twice),
     // gives the detector the same limit cycle the master measured.

@@ -83,6 +83,7 @@ impl SocketCanBus {
         };
         let socket = CanSocket::open(iface).map_err(err)?;
         socket.set_nonblocking(true).map_err(err)?;
+        set_receive_buffer(&socket, RECEIVE_BUFFER_BYTES);
         Ok(Self {
             socket,
             link_up: true,
@@ -93,6 +94,47 @@ impl SocketCanBus {
     pub fn link_up(&self) -> bool {
         self.link_up
     }
+}
+
+/// Receive buffer asked for: some thousands of frames, so a loop that stalls for a while (a
+/// loaded or virtualised host) reads them late instead of losing them. The kernel's default
+/// (net.core.rmem_default, ~200 KiB) holds a few hundred.
+pub const RECEIVE_BUFFER_BYTES: i32 = 4 << 20;
+
+/// Ask for a receive buffer of `bytes`: SO_RCVBUFFORCE where permitted (CAP_NET_ADMIN), else
+/// SO_RCVBUF (capped by net.core.rmem_max). Neither failing matters: the default still works.
+/// Returns the size the kernel granted.
+pub fn set_receive_buffer(socket: &CanSocket, bytes: i32) -> i32 {
+    let fd = socket.as_raw_fd();
+    let len = std::mem::size_of::<libc::c_int>() as libc::socklen_t;
+    for opt in [libc::SO_RCVBUFFORCE, libc::SO_RCVBUF] {
+        // SAFETY: setsockopt on our own descriptor with a valid c_int option value.
+        let rc = unsafe {
+            libc::setsockopt(
+                fd,
+                libc::SOL_SOCKET,
+                opt,
+                (&bytes as *const libc::c_int).cast(),
+                len,
+            )
+        };
+        if rc == 0 {
+            break;
+        }
+    }
+    let mut granted: libc::c_int = 0;
+    let mut glen = len;
+    // SAFETY: getsockopt into a c_int of the size we pass.
+    unsafe {
+        libc::getsockopt(
+            fd,
+            libc::SOL_SOCKET,
+            libc::SO_RCVBUF,
+            (&mut granted as *mut libc::c_int).cast(),
+            &mut glen,
+        )
+    };
+    granted
 }
 
 fn is_down(e: &std::io::Error) -> bool {

@@ -9,7 +9,7 @@
 
 use crate::analysis::spectrum::fundamental;
 use crate::bus::socketcan::SocketCanBus;
-use crate::master::on_bus::run_on_bus;
+use crate::master::on_bus::{run_on_bus, BusRunStats};
 use crate::master::{state_name, Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
 use crate::presets::AxisConfig;
 use crate::runtime::axis_drive::AxisDrive;
@@ -60,6 +60,9 @@ pub struct RunReport {
     /// Amplitude of the fundamental in the current actual value (0x6078), per mille of rated.
     pub current_amplitude_permille: f64,
     pub emcy_codes: Vec<u16>,
+    /// With --iface: what the bus did to the master.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bus: Option<BusRunStats>,
     #[serde(skip)]
     pub window: Vec<Sample>,
     #[serde(skip)]
@@ -102,7 +105,7 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
         node_id: args.node,
         ..Default::default()
     };
-    let master = match &args.iface {
+    let (master, bus) = match &args.iface {
         None => {
             let drive = AxisDrive::from_config(&cfg)?;
             let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -112,7 +115,7 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
                 Master::new(mcfg, program),
             );
             run.run_program(60_000_000);
-            run.master
+            (run.master, None)
         }
         Some(iface) => {
             // The drive is already running: its wear comes over SDO, as a PLC or a test
@@ -142,7 +145,7 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
                     stats.cycles, stats.frames_sent, stats.frames_received, stats.send_refused, stats.late_cycles
                 );
             }
-            master
+            (master, Some(stats))
         }
     };
     if let Some(e) = master.error() {
@@ -206,6 +209,7 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
         velocity_amplitude: pv.map_or(0.0, |p| p.amplitude) / UU_PER_AXIS_UNIT,
         current_amplitude_permille: pc.map_or(0.0, |p| p.amplitude),
         emcy_codes: master.emcys().iter().map(|e| e.code).collect(),
+        bus,
         window,
         log: master.log().to_vec(),
     })

@@ -14,6 +14,8 @@ pub struct BusRunStats {
     /// Loop cycles (one per SYNC period).
     pub cycles: u64,
     pub frames_sent: u64,
+    /// SYNCs among them.
+    pub syncs_sent: u64,
     pub frames_received: u64,
     /// Frames the interface refused (transmit queue full, link down).
     pub send_refused: u64,
@@ -62,7 +64,10 @@ pub fn run_on_bus<B: CanBus, C: Clock>(
         master.poll(now);
         while let Some(f) = master.pop_tx() {
             match bus.send(&f) {
-                Ok(()) => stats.frames_sent += 1,
+                Ok(()) => {
+                    stats.frames_sent += 1;
+                    stats.syncs_sent += u64::from(f.id == 0x080);
+                }
                 Err(_) => stats.send_refused += 1,
             }
         }
