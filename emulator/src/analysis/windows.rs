@@ -137,6 +137,7 @@ pub fn set_velocity_from_demand(t: &[f64], demand: &[f64], span_s: f64) -> Vec<f
     if n < 2 || dt <= 0.0 {
         return vec![0.0; n];
     }
+    let demand = &repair_glitches(demand);
     let k = ((0.5 * span_s / dt).round() as usize).max(1);
     let v: Vec<f64> = (0..n)
         .map(|i| {
@@ -176,6 +177,34 @@ pub fn set_velocity_from_demand(t: &[f64], demand: &[f64], span_s: f64) -> Vec<f
     out
 }
 
+/// The demand with isolated glitches taken out: a set-point frame lost or late on the bus (a
+/// capture that missed it) shows as an increment of 0 then 2 steps, or 2 steps once. Each
+/// increment more than a quarter (at least 2 units) off the median of its 9 neighbours is
+/// replaced by that median; steady increments of N and N+1, and ramps, are left alone.
+fn repair_glitches(demand: &[f64]) -> Vec<f64> {
+    let d: Vec<f64> = demand.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut out = Vec::with_capacity(demand.len());
+    let Some(&first) = demand.first() else {
+        return out;
+    };
+    out.push(first);
+    let mut buf = [0.0f64; 9];
+    for i in 0..d.len() {
+        let (a, b) = (i.saturating_sub(4), (i + 5).min(d.len()));
+        let w = &mut buf[..b - a];
+        w.copy_from_slice(&d[a..b]);
+        w.sort_unstable_by(f64::total_cmp);
+        let median = w[w.len() / 2];
+        let step = if (d[i] - median).abs() > (0.25 * median.abs()).max(2.0) {
+            median
+        } else {
+            d[i]
+        };
+        out.push(out[i] + step);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -195,6 +224,30 @@ mod tests {
         }
         let raw: Vec<f64> = pos.windows(2).map(|w| (w[1] - w[0]) * 1e3).collect();
         assert!(raw[1000..3000].contains(&16_000.0) && raw.contains(&17_000.0));
+        // A capture that missed frames: every 37th set-point late (held, then caught up) and
+        // every 101st sample lost altogether.
+        let (mut t2, mut pos2) = (Vec::new(), Vec::new());
+        for i in 0..t.len() {
+            if i % 101 == 50 {
+                continue;
+            }
+            t2.push(t[t2.len()]);
+            pos2.push(if i % 37 == 36 { pos[i - 1] } else { pos[i] });
+        }
+        let w2 = constant_velocity_windows(
+            &t2,
+            &set_velocity_from_demand(&t2, &pos2, 0.2),
+            &WindowOptions::default(),
+        );
+        assert_eq!(w2.len(), 1, "with glitches: {w2:?}");
+        // A lost sample's double step is a glitch too: the speed stays right (within the
+        // median's rounding of the 16/17 pattern at the repaired increments).
+        assert!(
+            (w2[0].velocity / 16_700.0 - 1.0).abs() < 3e-3,
+            "{}",
+            w2[0].velocity
+        );
+
         let v = set_velocity_from_demand(&t, &pos, 0.2);
         let w = constant_velocity_windows(&t, &v, &WindowOptions::default());
         assert_eq!(w.len(), 1, "{w:?}");
