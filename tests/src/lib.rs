@@ -268,6 +268,18 @@ pub struct EmuExit {
     pub stdout: String,
 }
 
+impl EmuExit {
+    /// The loop's tick count from the statistics line printed on exit (`ticks N at ...`).
+    pub fn ticks(&self) -> u64 {
+        self.stderr
+            .split("ticks ")
+            .nth(1)
+            .and_then(|s| s.split_whitespace().next())
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("no tick count in:\n{}", self.stderr))
+    }
+}
+
 impl Emu {
     /// Start `drive-emu run --rt-priority 0 --no-mlock ARGS...` (no real-time scheduling,
     /// no mlock: the tests run unprivileged and in UML).

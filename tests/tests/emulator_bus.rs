@@ -576,15 +576,9 @@ fn a_stalled_drive_loses_no_frame() {
     // An SDO round trip after the burst: every SYNC before it has been read.
     assert_eq!(sdo_u32(&sock, NODE, 0x1000, 0), DEVICE_TYPE);
     let exit = emu.stop_clean();
-    let ticks: usize = exit
-        .stderr
-        .split("ticks ")
-        .nth(1)
-        .and_then(|s| s.split_whitespace().next())
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("no tick count in:\n{}", exit.stderr));
+    let ticks = exit.ticks();
     assert_eq!(
-        ticks, BURST,
+        ticks, BURST as u64,
         "ticks after {BURST} SYNCs sent to a stopped drive"
     );
 }

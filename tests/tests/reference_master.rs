@@ -132,13 +132,7 @@ fn reference_master_over_vcan_sees_the_backlash_limit_cycle() {
     drop(dump);
     // The drive counted one tick per SYNC the master sent (lock-step): nothing was lost.
     assert!(exit.stderr.contains("tx dropped 0"), "{}", exit.stderr);
-    let ticks: u64 = exit
-        .stderr
-        .split("ticks ")
-        .nth(1)
-        .and_then(|s| s.split_whitespace().next())
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("no tick count in:\n{}", exit.stderr));
+    let ticks = exit.ticks();
     assert!(syncs_sent > 5000, "{syncs_sent} SYNCs sent");
     assert_eq!(ticks, syncs_sent, "drive ticks vs SYNCs the master sent");
     // candump, a third busy process in a loaded UML, may miss a few frames; the analysis
