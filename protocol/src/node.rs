@@ -4,7 +4,7 @@
 
 use heapless::Deque;
 
-use crate::cia301::emcy::Emcy;
+use crate::cia301::emcy::{Cause, Emcy};
 use crate::cia301::heartbeat::{self, Consumer, Producer};
 use crate::cia301::nmt::{self, NmtCommand, NmtState};
 use crate::cia301::pdo::{self, Pdo};
@@ -413,8 +413,7 @@ impl Core {
 
     /// Report a communication event without keeping it active (history + EMCY frame).
     fn report(&mut self, code: u16, info: [u8; 5]) {
-        self.emcy.raise(&mut self.store, code, info);
-        self.emcy.clear(&mut self.store, code);
+        self.emcy.report(&mut self.store, code, info);
     }
 
     fn boot(&mut self, now_us: u64) {
@@ -457,13 +456,13 @@ impl Core {
         let s = self
             .sync
             .on_sync(now_us, frame.len, frame.data[0], overflow);
-        if self.emcy_allowed() {
-            if s.length_error {
-                self.report(EMCY_SYNC_LENGTH, [frame.len, 0, 0, 0, 0]);
-            }
-            if s.recovered {
-                self.emcy.clear(&mut self.store, EMCY_SYNC_LOSS);
-            }
+        if s.length_error && self.emcy_allowed() {
+            self.report(EMCY_SYNC_LENGTH, [frame.len, 0, 0, 0, 0]);
+        }
+        if s.recovered {
+            // the supervision is satisfied again; a fault it caused stays until reset
+            self.emcy
+                .clear(&mut self.store, EMCY_SYNC_LOSS, Cause::Communication);
         }
         self.pending_sync = Some(now_us);
         if self.nmt == NmtState::Operational {
@@ -564,7 +563,8 @@ impl Node {
             }
             NmtCommand::ResetCommunication => {
                 c.restore_range(0x1000, 0x1FFF);
-                c.emcy.reset(&mut c.store);
+                // 0x1001 / 0x1003 keep what the drive is still in FAULT for
+                c.emcy.reset_communication(&mut c.store);
                 self.sdo.reset();
                 c.boot(now_us);
             }
@@ -669,7 +669,14 @@ impl Node {
         }
         for k in 0..4 {
             let p = c.tpdo[k];
-            if p.valid && frame.rtr && p.cob & 0x7FF == id && matches!(p.ttype, 252 | 253) {
+            // COB-ID bit 30 set: "no RTR allowed on this PDO" (CiA 301 7.5.2.35)
+            let rtr_allowed = p.cob & 0x4000_0000 == 0;
+            if p.valid
+                && rtr_allowed
+                && frame.rtr
+                && p.cob & 0x7FF == id
+                && matches!(p.ttype, 252 | 253)
+            {
                 if p.ttype == 252 {
                     let f = CanFrame::new(p.cob & 0x7FF, &p.sampled[..p.len as usize]);
                     c.push(f);
@@ -689,7 +696,8 @@ impl Node {
             c.hbc.on_heartbeat(node, now_us);
             if c.hb_lost {
                 c.hb_lost = false;
-                c.emcy.clear(&mut c.store, EMCY_HEARTBEAT);
+                c.emcy
+                    .clear(&mut c.store, EMCY_HEARTBEAT, Cause::Communication);
             }
         }
     }
@@ -726,12 +734,18 @@ impl Node {
         // heartbeat consumer
         if let Some(n) = c.hbc.poll(now_us) {
             c.hb_lost = true;
-            c.emcy.raise(&mut c.store, EMCY_HEARTBEAT, [n, 0, 0, 0, 0]);
+            c.emcy.raise(
+                &mut c.store,
+                EMCY_HEARTBEAT,
+                [n, 0, 0, 0, 0],
+                Cause::Communication,
+            );
             c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
         }
         // SYNC supervision
         if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
-            c.emcy.raise(&mut c.store, EMCY_SYNC_LOSS, [0; 5]);
+            c.emcy
+                .raise(&mut c.store, EMCY_SYNC_LOSS, [0; 5], Cause::Communication);
             c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
         }
         if c.injected_fault != 0 {
@@ -744,10 +758,11 @@ impl Node {
             .cia
             .step(&mut c.store, &fb, now_us, sync_at, period, drive);
         if let Some(code) = out.new_fault {
-            c.emcy.raise(&mut c.store, code, [0; 5]);
+            c.emcy.raise(&mut c.store, code, [0; 5], Cause::Fault);
         }
         if out.fault_cleared {
-            c.emcy.clear_all(&mut c.store);
+            // errors a supervision still holds (master still lost) stay active
+            c.emcy.clear_cause(&mut c.store, Cause::Fault);
         }
         drive.command(&out.command);
         // event-driven TPDOs

@@ -75,3 +75,42 @@ fn emcy_cob_id_and_disable() {
         "EMCY disabled by bit 31"
     );
 }
+
+#[test]
+fn drive_fault_survives_reset_communication_in_0x1001() {
+    let mut b = Bench::new();
+    b.start();
+    b.drive.fault = Some(0x4310);
+    b.drive.fault_persists = true;
+    b.tick();
+    b.tick();
+    assert_eq!(b.r32(0x1001, 0) & 0x09, 0x09);
+    b.take();
+    b.nmt(0x82, ID);
+    b.ticks(3);
+    assert_eq!(
+        b.emcys(),
+        vec![],
+        "reset communication sends no EMCY for an error already reported"
+    );
+    assert_eq!(b.node.statusword() & 0x4F, 0x08, "still FAULT");
+    assert_eq!(b.r32(0x1001, 0) & 0x09, 0x09, "generic + temperature kept");
+    assert_eq!(b.r32(0x1003, 1) & 0xFFFF, 0x4310);
+    // the cause persists: a fault reset is refused and nothing clears
+    b.cw(0x00);
+    b.tick();
+    b.cw(0x80);
+    b.tick();
+    assert!(b.emcys().is_empty(), "{:04X?}", b.emcys());
+    assert_eq!(b.node.statusword() & 0x4F, 0x08);
+    assert_eq!(b.r32(0x1001, 0) & 0x09, 0x09);
+    // cause gone: the next fault reset clears it with one EMCY 0x0000
+    b.drive.fault_persists = false;
+    b.drive.fault = None;
+    b.cw(0x00);
+    b.tick();
+    b.cw(0x80);
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x0000]);
+    assert_eq!(b.r32(0x1001, 0), 0);
+}

@@ -107,3 +107,89 @@ fn monitoring_starts_with_the_first_heartbeat() {
     b.ticks(500);
     assert!(!b.emcys().contains(&0x8130));
 }
+
+/// The drive in FAULT because its master was lost (0x6007 = 1), as a master finds it.
+fn faulted_by_lost_master() -> Bench {
+    let mut b = lose_master(1);
+    assert_eq!(b.node.cia402_state(), Cia402State::Fault);
+    assert_eq!(b.r32(0x603F, 0), 0x8130);
+    b.take();
+    b
+}
+
+/// Fault reset by SDO; returns the EMCY codes sent from the rising edge on.
+fn fault_reset(b: &mut Bench) -> Vec<u16> {
+    b.cw(0x00);
+    b.tick();
+    b.cw(0x80);
+    b.tick();
+    b.emcys()
+}
+
+#[test]
+fn heartbeat_back_while_in_fault_keeps_the_error_active() {
+    let mut b = faulted_by_lost_master();
+    // the master's heartbeat returns, the drive is still in FAULT for it
+    for _ in 0..5 {
+        b.send(f(0x77F, &[0x05]));
+        b.ticks(20);
+    }
+    // (EMCYs checked first: an SDO exchange drains what the bench collected)
+    assert!(
+        !b.emcys().contains(&0x0000),
+        "no 'error reset' EMCY while in FAULT: {:04X?}",
+        b.emcys()
+    );
+    assert_eq!(b.node.cia402_state(), Cia402State::Fault);
+    assert_eq!(b.statusword() & 0x4F, 0x08, "statusword FAULT");
+    assert_eq!(b.r32(0x603F, 0), 0x8130);
+    assert_eq!(
+        b.r32(0x1001, 0) & 0x11,
+        0x11,
+        "0x1001 still flags the error"
+    );
+    // the fault reset (cause gone) clears it: one EMCY 0x0000, register 0
+    assert_eq!(fault_reset(&mut b), vec![0x0000]);
+    assert_eq!(b.node.cia402_state(), Cia402State::SwitchOnDisabled);
+    assert_eq!(b.r32(0x1001, 0), 0);
+    assert_eq!(b.r32(0x603F, 0), 0);
+}
+
+#[test]
+fn fault_reset_while_the_master_is_still_lost_keeps_the_communication_error() {
+    let mut b = faulted_by_lost_master();
+    // the master resets the fault by SDO but its heartbeat is still missing
+    let e = fault_reset(&mut b);
+    assert!(!e.contains(&0x0000), "{e:04X?}");
+    assert_eq!(b.node.cia402_state(), Cia402State::SwitchOnDisabled);
+    assert_eq!(
+        b.r32(0x1001, 0) & 0x11,
+        0x11,
+        "heartbeat error still active"
+    );
+    // its heartbeat comes back: now nothing is active
+    b.send(f(0x77F, &[0x05]));
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x0000]);
+    assert_eq!(b.r32(0x1001, 0), 0);
+}
+
+#[test]
+fn reset_communication_in_fault_keeps_the_error_register() {
+    let mut b = faulted_by_lost_master();
+    b.nmt(0x82, ID);
+    b.ticks(5);
+    assert!(!b.emcys().contains(&0x0000), "{:04X?}", b.emcys());
+    assert_eq!(
+        b.node.cia402_state(),
+        Cia402State::Fault,
+        "CiA 402 state kept"
+    );
+    assert_eq!(b.r32(0x603F, 0), 0x8130);
+    assert_eq!(b.r32(0x1001, 0) & 0x11, 0x11, "0x1001 reflects the fault");
+    assert_eq!(b.r32(0x1003, 0), 1, "the active error is in the history");
+    assert_eq!(b.r32(0x1003, 1) & 0xFFFF, 0x8130);
+    // 0x1016 is back to its default (no monitoring): the fault reset clears everything
+    assert_eq!(fault_reset(&mut b), vec![0x0000]);
+    assert_eq!(b.r32(0x1001, 0), 0);
+}

@@ -209,3 +209,35 @@ fn rtr_tpdo_type_253() {
     b.send(drive_protocol::CanFrame::remote(0x280 + N, 6));
     assert_eq!(b.take().iter().filter(|f| f.id == 0x280 + N).count(), 1);
 }
+
+#[test]
+fn rtr_is_not_answered_when_the_cob_id_forbids_it() {
+    // A master sets bit 30 ("no RTR allowed on this PDO"): a remote request for that TPDO
+    // gets no answer, whatever its transmission type; clearing the bit enables it again.
+    for ttype in [252u8, 253] {
+        let mut b = Bench::new();
+        b.w32(0x1801, 1, 0x8000_0280 + N).unwrap();
+        b.w8(0x1801, 2, ttype).unwrap();
+        b.w32(0x1801, 1, 0x4000_0280 + N).unwrap();
+        b.start();
+        b.sync();
+        b.tick();
+        b.take();
+        b.send(drive_protocol::CanFrame::remote(0x280 + N, 6));
+        b.tick();
+        assert!(
+            b.take().iter().all(|f| f.id != 0x280 + N),
+            "type {ttype}: RTR answered although bit 30 forbids it"
+        );
+        b.w32(0x1801, 1, 0x8000_0280 + N).unwrap();
+        b.w32(0x1801, 1, 0x280 + N).unwrap();
+        b.sync();
+        b.take();
+        b.send(drive_protocol::CanFrame::remote(0x280 + N, 6));
+        assert_eq!(
+            b.take().iter().filter(|f| f.id == 0x280 + N).count(),
+            1,
+            "type {ttype}: RTR answered once bit 30 is clear"
+        );
+    }
+}

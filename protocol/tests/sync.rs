@@ -45,10 +45,42 @@ fn missing_sync_gives_emcy_and_reaction() {
     assert!(b.emcys().contains(&0x8100), "SYNC loss EMCY");
     b.ticks(2);
     assert_eq!(b.node.cia402_state(), Cia402State::Fault);
-    // SYNC resumes: the communication error is cleared
+    // SYNC resumes: the drive is still in FAULT for it, so the error stays active (0x1001,
+    // no EMCY 0x0000) until the fault reset
+    b.take();
     b.sync();
     b.tick();
-    assert!(b.r32(0x1001, 0) & 0x10 == 0);
+    assert!(!b.emcys().contains(&0x0000), "{:04X?}", b.emcys());
+    assert_eq!(b.node.cia402_state(), Cia402State::Fault);
+    assert_eq!(b.r32(0x1001, 0) & 0x11, 0x11);
+    b.cw(0x00);
+    b.tick();
+    b.cw(0x80);
+    b.sync();
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x0000]);
+    assert_eq!(b.node.cia402_state(), Cia402State::SwitchOnDisabled);
+    assert_eq!(b.r32(0x1001, 0), 0);
+}
+
+#[test]
+fn sync_back_without_a_fault_clears_the_error() {
+    // 0x6007 = 0: SYNC loss is only reported; when SYNC returns, EMCY 0x0000 and 0x1001 = 0
+    let mut b = Bench::new();
+    b.w32(0x1006, 0, 4000).unwrap();
+    b.start();
+    for _ in 0..3 {
+        b.sync();
+        b.ticks(4);
+    }
+    b.ticks(10);
+    assert!(b.emcys().contains(&0x8100));
+    assert_eq!(b.r32(0x1001, 0) & 0x11, 0x11);
+    b.take();
+    b.sync();
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x0000]);
+    assert_eq!(b.r32(0x1001, 0), 0);
 }
 
 #[test]

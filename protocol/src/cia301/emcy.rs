@@ -1,6 +1,12 @@
 //! EMCY producer: 0x1001 error register, 0x1003 pre-defined error field (history, newest in
 //! sub 1), 0x1014 COB-ID, 0x1015 inhibit time. Frames are encoded with canopen-rs's
 //! `EmergencyMessage`.
+//!
+//! An active error is held by one or more causes ([`Cause`]): a communication supervision
+//! that is still failing (heartbeat, SYNC), or the CiA 402 FAULT state that the error put the
+//! drive in. It stays active, in 0x1001 and without EMCY 0x0000, until every cause is gone:
+//! a heartbeat that comes back while the drive is still in FAULT clears nothing; the fault
+//! reset does (CiA 301: the error register reflects the errors that are active).
 
 use crate::od::{idx, Store};
 use canopen_rs::{EmergencyMessage, ErrorRegister};
@@ -9,11 +15,32 @@ use heapless::{Deque, Vec};
 const R_1001: usize = idx(0x1001, 0);
 const R_1003: usize = idx(0x1003, 0);
 
+/// What keeps an error active.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cause {
+    /// A supervision that is still failing (heartbeat consumer, SYNC consumer).
+    Communication = 0x01,
+    /// The CiA 402 fault the error led to, until the fault reset.
+    Fault = 0x02,
+    /// A one-off event (wrong RPDO or SYNC length): reported, not kept.
+    Event = 0x04,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Active {
+    code: u16,
+    /// Bit set of [`Cause`]s.
+    causes: u8,
+    /// Its 0x1003 entry (code | manufacturer info << 16).
+    entry: u32,
+}
+
 /// Active errors and the frames waiting for the inhibit time.
 #[derive(Clone, Debug, Default)]
 pub struct Emcy {
     queue: Deque<[u8; 8], 16>,
-    active: Vec<u16, 8>,
+    /// Oldest first.
+    active: Vec<Active, 8>,
     last_tx_us: Option<u64>,
     /// EMCYs dropped because the queue was full.
     pub dropped: u32,
@@ -33,6 +60,7 @@ fn register_bits(code: u16) -> u8 {
 }
 
 impl Emcy {
+    /// Forget every error (reset node: the application restarts).
     pub fn reset(&mut self, store: &mut Store) {
         self.queue.clear();
         self.active.clear();
@@ -40,29 +68,66 @@ impl Emcy {
         store.set(R_1001, 0);
     }
 
-    fn register(&self) -> u8 {
+    /// Reset communication: the communication supervisions restart, so the errors they held
+    /// go (silently: the node boots again); errors the drive is still in FAULT for stay, in
+    /// 0x1001 and at the top of the (re-initialised) 0x1003 history.
+    pub fn reset_communication(&mut self, store: &mut Store) {
+        self.queue.clear();
+        self.last_tx_us = None;
+        self.active.retain_mut(|a| {
+            a.causes &= Cause::Fault as u8;
+            a.causes != 0
+        });
+        for s in 0..=8 {
+            store.set(R_1003 + s, 0);
+        }
+        for (n, a) in self.active.iter().rev().enumerate() {
+            store.set(R_1003 + 1 + n, a.entry);
+        }
+        store.set(R_1003, self.active.len() as u32);
+        self.update_register(store);
+    }
+
+    /// The error register as the active errors make it.
+    pub fn register(&self) -> u8 {
         let mut r = 0;
-        for &c in self.active.iter() {
-            r |= 0x01 | register_bits(c);
+        for a in self.active.iter() {
+            r |= 0x01 | register_bits(a.code);
         }
         r
     }
 
-    pub fn is_active(&self, code: u16) -> bool {
-        self.active.contains(&code)
+    fn update_register(&self, store: &mut Store) {
+        store.set(R_1001, self.register() as u32);
     }
 
-    /// Raise an error: update 0x1001 and 0x1003, queue the EMCY frame.
-    pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5]) {
+    pub fn is_active(&self, code: u16) -> bool {
+        self.active.iter().any(|a| a.code == code)
+    }
+
+    /// Number of active errors.
+    pub fn active_count(&self) -> usize {
+        self.active.len()
+    }
+
+    /// Raise an error held by `cause`: update 0x1001 and 0x1003, queue the EMCY frame.
+    pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5], cause: Cause) {
         // An error that is already active is not a new event: one EMCY, one history entry,
         // until it is cleared (e.g. heartbeat loss followed by its 0x6007 fault reaction).
-        if self.active.contains(&code) {
+        if let Some(a) = self.active.iter_mut().find(|a| a.code == code) {
+            a.causes |= cause as u8;
             return;
         }
-        if self.active.push(code).is_err() {
+        let entry = code as u32 | (u16::from_le_bytes([info[0], info[1]]) as u32) << 16;
+        let a = Active {
+            code,
+            causes: cause as u8,
+            entry,
+        };
+        if self.active.push(a).is_err() {
             // table full: keep the older errors, still report this one
         }
-        let reg = self.register() | 0x01;
+        let reg = self.register() | 0x01 | register_bits(code);
         store.set(R_1001, reg as u32);
         // history: shift down, newest in sub 1
         let n = (store.u32(R_1003) as usize).min(8);
@@ -70,34 +135,47 @@ impl Emcy {
             let v = store.u32(R_1003 + s);
             store.set(R_1003 + s + 1, v);
         }
-        store.set(
-            R_1003 + 1,
-            code as u32 | (u16::from_le_bytes([info[0], info[1]]) as u32) << 16,
-        );
+        store.set(R_1003 + 1, entry);
         store.set(R_1003, (n + 1).min(8) as u32);
         let msg = EmergencyMessage::new(code, ErrorRegister(reg), info);
         self.push(msg.encode());
     }
 
-    /// An error went away; when none is left, send "error reset / no error".
-    pub fn clear(&mut self, store: &mut Store, code: u16) {
-        if let Some(p) = self.active.iter().position(|&c| c == code) {
-            self.active.swap_remove(p);
-            let reg = self.register();
-            store.set(R_1001, reg as u32);
+    /// `cause` no longer holds error `code`; when no error is left, send "error reset / no
+    /// error" (EMCY 0x0000).
+    pub fn clear(&mut self, store: &mut Store, code: u16, cause: Cause) {
+        if let Some(p) = self.active.iter().position(|a| a.code == code) {
+            self.active[p].causes &= !(cause as u8);
+            if self.active[p].causes == 0 {
+                self.active.remove(p);
+                self.update_register(store);
+                if self.active.is_empty() {
+                    self.push(EmergencyMessage::error_reset().encode());
+                }
+            }
+        }
+    }
+
+    /// `cause` holds no error any more (CiA 402 fault reset: [`Cause::Fault`]).
+    pub fn clear_cause(&mut self, store: &mut Store, cause: Cause) {
+        let before = self.active.len();
+        self.active.retain_mut(|a| {
+            a.causes &= !(cause as u8);
+            a.causes != 0
+        });
+        if self.active.len() != before {
+            self.update_register(store);
             if self.active.is_empty() {
                 self.push(EmergencyMessage::error_reset().encode());
             }
         }
     }
 
-    /// Clear every active error (CiA 402 fault reset).
-    pub fn clear_all(&mut self, store: &mut Store) {
-        if !self.active.is_empty() {
-            self.active.clear();
-            store.set(R_1001, 0);
-            self.push(EmergencyMessage::error_reset().encode());
-        }
+    /// Report an event without keeping it active (history + EMCY frame, and EMCY 0x0000 when
+    /// no other error is active).
+    pub fn report(&mut self, store: &mut Store, code: u16, info: [u8; 5]) {
+        self.raise(store, code, info, Cause::Event);
+        self.clear(store, code, Cause::Event);
     }
 
     fn push(&mut self, f: [u8; 8]) {
@@ -112,7 +190,7 @@ impl Emcy {
             return None;
         }
         if let Some(l) = self.last_tx_us {
-            if now_us < l + inhibit_100us as u64 * 100 {
+            if now_us < l.saturating_add(inhibit_100us as u64 * 100) && now_us >= l {
                 return None;
             }
         }
