@@ -4,6 +4,7 @@
 
 use heapless::Deque;
 
+use crate::cia301::cob_id;
 use crate::cia301::emcy::{Cause, Emcy};
 use crate::cia301::heartbeat::{self, Consumer, Producer};
 use crate::cia301::nmt::{self, NmtCommand, NmtState};
@@ -23,8 +24,16 @@ pub const TX_QUEUE: usize = 64;
 
 /// EMCY code for a lost heartbeat producer (the master).
 pub const EMCY_HEARTBEAT: u16 = 0x8130;
-/// EMCY code for an RPDO of the wrong length.
+/// EMCY code for an RPDO shorter than its mapping (ignored).
 pub const EMCY_PDO_LENGTH: u16 = 0x8210;
+/// EMCY code for an RPDO longer than its mapping (its mapped bytes are used).
+pub const EMCY_PDO_LENGTH_EXCEEDED: u16 = 0x8220;
+/// EMCY code for an RPDO value the drive refuses (the checks of an SDO write: range, a
+/// supported mode, min <= max): CiA 402 "parameter error" (0x6320). The object keeps its
+/// value, as with the refused SDO write; CiA 301 has no code for it and CANopenNode drops
+/// such a value silently, but a master is better served by knowing why 0x6061 did not
+/// follow its RPDO.
+pub const EMCY_RPDO_VALUE: u16 = 0x6320;
 
 const R_1005: usize = idx(0x1005, 0);
 const R_1006: usize = idx(0x1006, 0);
@@ -202,6 +211,23 @@ impl<D: Drive> ObjectAccess for Access<'_, D> {
     }
 }
 
+/// Rules on application values beyond the table's limits, the same for an SDO write and an
+/// RPDO: a supported mode of operation, software position limits with min <= max.
+fn value_rule(store: &Store, index: u16, sub: u8, raw: u32) -> Result<(), u32> {
+    match (index, sub) {
+        (0x6060, _) if !mode::supported(raw as i32 as i8) => Err(abort::VALUE_RANGE),
+        (0x607D, 1) if raw as i32 > store.i32(o402::SW_LIMIT_MAX) => Err(abort::MAX_LT_MIN),
+        (0x607D, 2) if (raw as i32) < store.i32(o402::SW_LIMIT_MIN) => Err(abort::MAX_LT_MIN),
+        _ => Ok(()),
+    }
+}
+
+/// Whether an RPDO may write `raw` to a row: the table's limits and [`value_rule`].
+fn rpdo_accepts(store: &Store, row: usize, raw: u32) -> bool {
+    let o = &OBJECTS[row];
+    o.check_limits(raw).is_ok() && value_rule(store, o.index, o.sub, raw).is_ok()
+}
+
 fn pdo_slot(index: u16) -> Option<(usize, bool, bool)> {
     // (number, tx, mapping)
     match index {
@@ -266,7 +292,7 @@ impl Core {
                     1 => {
                         let cur = self.store.u32(row);
                         let new_valid = raw & 0x8000_0000 == 0;
-                        if raw & 0x2000_0000 != 0 || raw & 0x1FFF_F800 != 0 {
+                        if !cob_id::acceptable(raw, new_valid) {
                             return Err(abort::VALUE_RANGE);
                         }
                         if valid && new_valid && (raw & 0x7FF) != (cur & 0x7FF) {
@@ -300,8 +326,16 @@ impl Core {
                 }
                 return Ok(());
             }
-            (0x1005, _) | (0x1014, _) => {
-                if raw & 0x6000_0000 != 0 || raw & 0x1FFF_F800 != 0 {
+            (0x1005, _) => {
+                // bit 30: we do not produce SYNC; bit 31 is "don't care"
+                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw, true) {
+                    return Err(abort::VALUE_RANGE);
+                }
+            }
+            (0x1014, _) => {
+                // bit 31: EMCY not valid (any CAN-ID may be stored then); bit 30 reserved
+                let valid = raw & 0x8000_0000 == 0;
+                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw, valid) {
                     return Err(abort::VALUE_RANGE);
                 }
             }
@@ -339,21 +373,7 @@ impl Core {
                     return Err(abort::VALUE_RANGE);
                 }
             }
-            (0x6060, _) => {
-                if !mode::supported(raw as i32 as i8) {
-                    return Err(abort::VALUE_RANGE);
-                }
-            }
-            (0x607D, 1) => {
-                if raw as i32 > self.store.i32(o402::SW_LIMIT_MAX) {
-                    return Err(abort::MAX_LT_MIN);
-                }
-            }
-            (0x607D, 2) => {
-                if (raw as i32) < self.store.i32(o402::SW_LIMIT_MIN) {
-                    return Err(abort::MAX_LT_MIN);
-                }
-            }
+            (0x6060, _) | (0x607D, _) => value_rule(&self.store, index, sub, raw)?,
             (params::INJECT_FAULT_INDEX, _) => {
                 self.injected_fault = raw as u16;
                 return Ok(());
@@ -365,6 +385,11 @@ impl Core {
     }
 
     fn refresh_pdo(&mut self, k: usize, tx: bool) {
+        if !tx {
+            // a reconfigured (or reset) RPDO starts without errors: they are reported again
+            self.rpdo_length_condition(k, 0, 0);
+            self.rpdo_value_condition(k, true);
+        }
         let c = comm_row(k, tx);
         let m = map_row(k, tx);
         let cob = self.store.u32(c + 1);
@@ -403,6 +428,42 @@ impl Core {
         for i in 0..4 {
             let e = self.store.u32(R_1016 + i);
             self.hbc.configure(i, e);
+        }
+    }
+
+    /// RPDO `k` arrived with a length error `code` (0 = right length): raise it once, and
+    /// clear it when no RPDO holds it any more.
+    fn rpdo_length_condition(&mut self, k: usize, code: u16, len: u8) {
+        let old = self.rpdo[k].len_error;
+        if old == code {
+            return;
+        }
+        self.rpdo[k].len_error = code;
+        if old != 0 && !self.rpdo.iter().any(|p| p.len_error == old) {
+            self.emcy.clear(&mut self.store, old, Cause::Condition);
+        }
+        if code != 0 {
+            let info = [k as u8 + 1, len, self.rpdo[k].len, 0, 0];
+            self.emcy
+                .raise(&mut self.store, code, info, Cause::Condition);
+        }
+    }
+
+    /// RPDO `k` carried only acceptable values (`ok`) or not: EMCY 0x6320 held meanwhile.
+    fn rpdo_value_condition(&mut self, k: usize, ok: bool) {
+        if self.rpdo[k].value_error != ok {
+            return;
+        }
+        self.rpdo[k].value_error = !ok;
+        if ok {
+            if !self.rpdo.iter().any(|p| p.value_error) {
+                self.emcy
+                    .clear(&mut self.store, EMCY_RPDO_VALUE, Cause::Condition);
+            }
+        } else {
+            let info = [k as u8 + 1, 0, 0, 0, 0];
+            self.emcy
+                .raise(&mut self.store, EMCY_RPDO_VALUE, info, Cause::Condition);
         }
     }
 
@@ -462,7 +523,7 @@ impl Core {
         if s.recovered {
             // the supervision is satisfied again; a fault it caused stays until reset
             self.emcy
-                .clear(&mut self.store, EMCY_SYNC_LOSS, Cause::Communication);
+                .clear(&mut self.store, EMCY_SYNC_LOSS, Cause::Condition);
         }
         self.pending_sync = Some(now_us);
         if self.nmt == NmtState::Operational {
@@ -471,7 +532,8 @@ impl Core {
                 if p.valid && p.rx_pending && p.is_sync_rx() {
                     p.rx_pending = false;
                     let (p, data) = (*p, p.rx);
-                    p.unpack(&mut self.store, &data[..p.len as usize]);
+                    let ok = p.unpack(&mut self.store, &data[..p.len as usize], rpdo_accepts);
+                    self.rpdo_value_condition(k, ok);
                 }
             }
             for k in 0..4 {
@@ -648,21 +710,23 @@ impl Node {
         for k in 0..4 {
             let p = c.rpdo[k];
             if p.valid && !frame.rtr && p.cob & 0x7FF == id {
-                if frame.len != p.len {
-                    if !c.rpdo[k].len_error {
-                        c.rpdo[k].len_error = true;
-                        if c.emcy_allowed() {
-                            c.report(EMCY_PDO_LENGTH, [k as u8 + 1, frame.len, p.len, 0, 0]);
-                        }
-                    }
+                // shorter than the mapping: ignored; longer: the mapped bytes are used
+                let code = match frame.len.cmp(&p.len) {
+                    core::cmp::Ordering::Less => EMCY_PDO_LENGTH,
+                    core::cmp::Ordering::Equal => 0,
+                    core::cmp::Ordering::Greater => EMCY_PDO_LENGTH_EXCEEDED,
+                };
+                c.rpdo_length_condition(k, code, frame.len);
+                if code == EMCY_PDO_LENGTH {
                     return FrameEvent::Handled;
                 }
-                c.rpdo[k].len_error = false;
+                let data = &frame.data[..p.len as usize];
                 if p.is_sync_rx() {
                     c.rpdo[k].rx = frame.data;
                     c.rpdo[k].rx_pending = true;
                 } else {
-                    p.unpack(&mut c.store, frame.payload());
+                    let ok = p.unpack(&mut c.store, data, rpdo_accepts);
+                    c.rpdo_value_condition(k, ok);
                 }
                 return FrameEvent::Handled;
             }
@@ -696,8 +760,7 @@ impl Node {
             c.hbc.on_heartbeat(node, now_us);
             if c.hb_lost {
                 c.hb_lost = false;
-                c.emcy
-                    .clear(&mut c.store, EMCY_HEARTBEAT, Cause::Communication);
+                c.emcy.clear(&mut c.store, EMCY_HEARTBEAT, Cause::Condition);
             }
         }
     }
@@ -738,14 +801,14 @@ impl Node {
                 &mut c.store,
                 EMCY_HEARTBEAT,
                 [n, 0, 0, 0, 0],
-                Cause::Communication,
+                Cause::Condition,
             );
             c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
         }
         // SYNC supervision
         if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
             c.emcy
-                .raise(&mut c.store, EMCY_SYNC_LOSS, [0; 5], Cause::Communication);
+                .raise(&mut c.store, EMCY_SYNC_LOSS, [0; 5], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
         }
         if c.injected_fault != 0 {

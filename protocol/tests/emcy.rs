@@ -51,9 +51,9 @@ fn inhibit_time_spaces_emcys() {
     b.w16(0x1015, 0, 100).unwrap(); // 10 ms
     b.start();
     b.take();
-    // three wrong-length RPDOs on different PDOs in one tick
+    // two wrong-length RPDOs (too short, too long) on different PDOs in one tick
     b.send(f(0x200 + ID as u32, &[1]));
-    b.send(f(0x300 + ID as u32, &[1]));
+    b.send(f(0x300 + ID as u32, &[6, 0, 0, 0, 0, 0, 0, 0]));
     b.tick();
     assert_eq!(b.emcys().len(), 1, "second EMCY held back");
     b.ticks(5);
@@ -113,4 +113,26 @@ fn drive_fault_survives_reset_communication_in_0x1001() {
     b.tick();
     assert_eq!(b.emcys(), vec![0x0000]);
     assert_eq!(b.r32(0x1001, 0), 0);
+}
+
+#[test]
+fn restricted_can_ids_are_refused_for_the_emcy_cob_id() {
+    // The case: EMCY on COB-ID 0 is an NMT command to every node.
+    let mut b = Bench::new();
+    for bad in [
+        0x000u32, 0x001, 0x07F, 0x101, 0x180, 0x585, 0x605, 0x6E0, 0x705, 0x7FF,
+    ] {
+        assert_eq!(b.w32(0x1014, 0, bad), Err(0x0609_0030), "{bad:#05x}");
+    }
+    assert_eq!(b.w32(0x1014, 0, 0x2000_0085), Err(0x0609_0030), "29-bit");
+    assert_eq!(b.r32(0x1014, 0), 0x85, "unchanged");
+    // a valid ID outside the ranges is taken; an invalid EMCY (bit 31) may hold any ID
+    b.w32(0x1014, 0, 0x0FF).unwrap();
+    b.w32(0x1014, 0, 0x8000_0000).unwrap();
+    b.w32(0x1014, 0, 0x85).unwrap();
+    b.start();
+    b.take();
+    b.drive.fault = Some(0x4310);
+    b.tick();
+    assert!(b.take().iter().any(|f| f.id == 0x85), "EMCY on 0x85");
 }

@@ -241,3 +241,165 @@ fn rtr_is_not_answered_when_the_cob_id_forbids_it() {
         );
     }
 }
+
+/// CiA 301 restricted CAN-IDs, at the edges of each range.
+const RESTRICTED: [u32; 15] = [
+    0x000, 0x001, 0x07F, 0x101, 0x180, 0x581, 0x5FF, 0x601, 0x67F, 0x6E0, 0x6FF, 0x701, 0x77F,
+    0x780, 0x7FF,
+];
+
+#[test]
+fn restricted_can_ids_are_refused_for_every_pdo_cob_id() {
+    let mut b = Bench::new();
+    for k in 0..4u16 {
+        for comm in [0x1400 + k, 0x1800 + k] {
+            let cur = b.r32(comm, 1);
+            b.w32(comm, 1, cur | 0x8000_0000).unwrap();
+            for id in RESTRICTED {
+                assert_eq!(
+                    b.w32(comm, 1, id),
+                    Err(0x0609_0030),
+                    "{comm:04X}sub1 = {id:#05x}"
+                );
+            }
+            // 29-bit frames are not supported either
+            assert_eq!(
+                b.w32(comm, 1, 0x2000_0000 | (cur & 0x7FF)),
+                Err(0x0609_0030)
+            );
+            assert_eq!(b.r32(comm, 1), cur | 0x8000_0000, "value unchanged");
+            // an invalid PDO may hold any CAN-ID; it is checked when the PDO is validated
+            b.w32(comm, 1, 0x8000_0000).unwrap();
+            assert_eq!(b.w32(comm, 1, 0x000), Err(0x0609_0030));
+            b.w32(comm, 1, cur & 0x7FF).unwrap();
+        }
+    }
+}
+
+#[test]
+fn a_tpdo_cannot_be_moved_onto_the_nmt_id() {
+    // The case: TPDO1 on COB-ID 0 would send the statusword as an NMT command to
+    // every node ("reset all nodes").
+    let mut b = Bench::new();
+    b.w32(0x1800, 1, 0x8000_0180 + N).unwrap();
+    assert_eq!(b.w32(0x1800, 1, 0x000), Err(0x0609_0030));
+    b.w32(0x1800, 1, 0x180 + N).unwrap();
+    b.start();
+    b.enable(1);
+    b.ticks(5);
+    b.sync();
+    assert!(
+        b.take()
+            .iter()
+            .all(|f| f.id != 0 && !(0x701..=0x7FF).contains(&f.id)),
+        "nothing on the NMT or heartbeat IDs"
+    );
+}
+
+#[test]
+fn rpdo_longer_than_its_mapping_is_used_and_reported_with_8220() {
+    let mut b = Bench::new();
+    b.start();
+    b.take();
+    // RPDO1 maps the controlword (2 bytes); the master sends 8
+    b.send(f(
+        0x200 + N,
+        &[0x06, 0x00, 0xAA, 0xBB, 0xCC, 0xDD, 0xEE, 0xFF],
+    ));
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x8220], "PDO length exceeded");
+    assert_eq!(b.r32(0x6040, 0), 0x06, "the mapped bytes are used");
+    assert_eq!(b.r32(0x1003, 1) & 0xFFFF, 0x8220);
+    assert_eq!(b.r32(0x1001, 0) & 0x11, 0x11, "communication error active");
+    // again: already reported, no second EMCY; the value is still taken
+    b.send(f(0x200 + N, &[0x07, 0x00, 0, 0, 0, 0, 0, 0]));
+    b.tick();
+    assert_eq!(b.emcys(), vec![], "reported once");
+    assert_eq!(b.r32(0x6040, 0), 0x07);
+    // the right length clears it: EMCY 0x0000
+    b.send(f(0x200 + N, &[0x0F, 0x00]));
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x0000]);
+    assert_eq!(b.r32(0x1001, 0), 0);
+    assert_eq!(b.r32(0x6040, 0), 0x0F);
+}
+
+#[test]
+fn rpdo_shorter_than_its_mapping_is_ignored_and_reported_again_after_an_nmt_reset() {
+    let mut b = Bench::new();
+    b.start();
+    b.take();
+    b.send(f(0x300 + N, &[0x06, 0x00, 1, 2])); // RPDO2 maps 6 bytes
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x8210]);
+    b.send(f(0x300 + N, &[0x06, 0x00, 1, 2]));
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x8210], "reported once while it lasts");
+    assert_eq!(b.r32(0x6040, 0), 0, "not applied");
+    assert_eq!(b.ri32(0x607A, 0), 0);
+    for cs in [0x82u8, 0x81] {
+        // reset communication, then reset node: the master restarts and repeats its mistake
+        b.nmt(cs, ID);
+        b.start();
+        b.take();
+        b.send(f(0x300 + N, &[0x06, 0x00, 1, 2]));
+        b.tick();
+        assert_eq!(b.emcys(), vec![0x8210], "reported again after NMT {cs:#x}");
+    }
+}
+
+#[test]
+fn rpdo_values_pass_the_checks_of_an_sdo_write() {
+    // 0x6060 = 2 (vl) or 7 (ip) is refused by SDO; through an RPDO it must be refused too:
+    // the drive keeps its mode, 0x6061 does not show the value, EMCY 0x6320 tells the master.
+    let mut b = Bench::new();
+    assert_eq!(b.w8(0x6060, 0, 2), Err(0x0609_0030));
+    b.w32(0x1401, 1, 0x8000_0300 + N).unwrap();
+    b.w8(0x1601, 0, 0).unwrap();
+    b.w32(0x1601, 1, 0x6040_0010).unwrap();
+    b.w32(0x1601, 2, 0x6060_0008).unwrap();
+    b.w8(0x1601, 0, 2).unwrap();
+    b.w8(0x1401, 2, 255).unwrap();
+    b.w32(0x1401, 1, 0x300 + N).unwrap();
+    b.start();
+    b.send(f(0x300 + N, &[0x06, 0x00, 1]));
+    b.tick();
+    b.take();
+    assert_eq!(b.ri32(0x6061, 0), 1);
+    for bad in [2u8, 7, 0x80, 11] {
+        b.take();
+        b.send(f(0x300 + N, &[0x07, 0x00, bad]));
+        b.tick();
+        b.tick();
+        let e = b.emcys();
+        assert_eq!(
+            b.ri32(0x6060, 0),
+            1,
+            "mode {bad} refused, previous value kept"
+        );
+        assert_eq!(b.ri32(0x6061, 0), 1, "0x6061 does not show {bad}");
+        assert_eq!(b.r32(0x6040, 0), 0x07, "the valid controlword is applied");
+        if bad == 2 {
+            assert_eq!(e, vec![0x6320], "EMCY parameter error");
+        } else {
+            assert!(e.is_empty(), "reported once while it lasts: {e:04X?}");
+        }
+    }
+    // a valid mode again: taken, and the error clears (EMCY 0x0000)
+    b.take();
+    b.send(f(0x300 + N, &[0x07, 0x00, 8]));
+    b.tick();
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x0000]);
+    assert_eq!(b.ri32(0x6061, 0), 8);
+    // a synchronous RPDO is checked when it is applied at SYNC
+    b.w32(0x1401, 1, 0x8000_0300 + N).unwrap();
+    b.w8(0x1401, 2, 1).unwrap();
+    b.w32(0x1401, 1, 0x300 + N).unwrap();
+    b.take();
+    b.send(f(0x300 + N, &[0x07, 0x00, 2]));
+    b.sync();
+    b.tick();
+    assert_eq!(b.emcys(), vec![0x6320]);
+    assert_eq!(b.ri32(0x6060, 0), 8);
+}

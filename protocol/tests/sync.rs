@@ -94,3 +94,31 @@ fn sync_loss_not_reported_at_1_4_periods() {
     }
     assert!(!b.emcys().contains(&0x8100));
 }
+
+#[test]
+fn restricted_can_ids_are_refused_for_the_sync_cob_id() {
+    // The case: SYNC = 0x605 (our SDO request ID) silenced SDO until reset.
+    let mut b = Bench::new();
+    let id = ID as u32;
+    for bad in [
+        0x000,
+        0x001,
+        0x07F,
+        0x101,
+        0x180,
+        0x581,
+        0x5FF,
+        0x600 + id,
+        0x6E0,
+        0x701,
+        0x7FF,
+    ] {
+        assert_eq!(b.w32(0x1005, 0, bad), Err(0x0609_0030), "{bad:#05x}");
+    }
+    assert_eq!(b.w32(0x1005, 0, 0x2000_0080), Err(0x0609_0030), "29-bit");
+    assert_eq!(b.r32(0x1005, 0), 0x80, "unchanged");
+    // SDO still answers, SYNC still works
+    assert_eq!(b.r32(0x1000, 0), 0x0002_0192);
+    b.start();
+    assert!(matches!(b.sync(), drive_protocol::FrameEvent::Sync { .. }));
+}

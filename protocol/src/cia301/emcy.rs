@@ -2,8 +2,8 @@
 //! sub 1), 0x1014 COB-ID, 0x1015 inhibit time. Frames are encoded with canopen-rs's
 //! `EmergencyMessage`.
 //!
-//! An active error is held by one or more causes ([`Cause`]): a communication supervision
-//! that is still failing (heartbeat, SYNC), or the CiA 402 FAULT state that the error put the
+//! An active error is held by one or more causes ([`Cause`]): a supervised condition that
+//! is still present (heartbeat or SYNC lost, a wrong RPDO), or the CiA 402 FAULT state that the error put the
 //! drive in. It stays active, in 0x1001 and without EMCY 0x0000, until every cause is gone:
 //! a heartbeat that comes back while the drive is still in FAULT clears nothing; the fault
 //! reset does (CiA 301: the error register reflects the errors that are active).
@@ -18,8 +18,9 @@ const R_1003: usize = idx(0x1003, 0);
 /// What keeps an error active.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Cause {
-    /// A supervision that is still failing (heartbeat consumer, SYNC consumer).
-    Communication = 0x01,
+    /// A condition the node supervises that is still present (heartbeat or SYNC lost, RPDOs
+    /// of the wrong length or with refused values).
+    Condition = 0x01,
     /// The CiA 402 fault the error led to, until the fault reset.
     Fault = 0x02,
     /// A one-off event (wrong RPDO or SYNC length): reported, not kept.
@@ -68,8 +69,8 @@ impl Emcy {
         store.set(R_1001, 0);
     }
 
-    /// Reset communication: the communication supervisions restart, so the errors they held
-    /// go (silently: the node boots again); errors the drive is still in FAULT for stay, in
+    /// Reset communication: the supervisions restart and the PDOs are configured anew, so
+    /// the errors their conditions held go (silently: the node boots again); errors the drive is still in FAULT for stay, in
     /// 0x1001 and at the top of the (re-initialised) 0x1003 history.
     pub fn reset_communication(&mut self, store: &mut Store) {
         self.queue.clear();

@@ -1,5 +1,6 @@
 //! CiA 301 communication services, one file per service.
 
+pub mod cob_id;
 pub mod emcy;
 pub mod heartbeat;
 pub mod nmt;

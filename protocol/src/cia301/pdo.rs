@@ -6,6 +6,10 @@
 //! (every n-th SYNC), 252 (sampled at SYNC, sent on RTR), 253 (sent on RTR), 254/255 (on
 //! change, limited by the inhibit time 0x18xx sub 3, and periodically by the event timer
 //! sub 5). RPDO 0-240 are applied at the next SYNC, 254/255 at once.
+//!
+//! RPDO length (as CANopenNode): a frame longer than the mapping is used (its mapped bytes)
+//! and reported with EMCY 0x8220, a shorter one is ignored and reported with EMCY 0x8210;
+//! the error stays active until that RPDO arrives with the right length (or an NMT reset).
 
 use crate::cia301::sdo::abort;
 use crate::od::{self, Lookup, Store, OBJECTS};
@@ -35,7 +39,10 @@ pub struct Pdo {
     // RPDO
     pub rx: [u8; 8],
     pub rx_pending: bool,
-    pub len_error: bool,
+    /// EMCY code of the length error this RPDO currently holds (0 = none).
+    pub len_error: u16,
+    /// The last RPDO carried a value the drive refused (EMCY held until a valid one).
+    pub value_error: bool,
 }
 
 /// Check one mapping entry (index << 16 | sub << 8 | bits) for a TPDO (`tx`) or RPDO.
@@ -96,15 +103,33 @@ impl Pdo {
         pos
     }
 
-    /// Write received data to the mapped objects.
-    pub fn unpack(&self, store: &mut Store, data: &[u8]) {
+    /// Write received data (the mapped bytes; a longer frame's extra bytes are not looked
+    /// at) to the mapped objects. Each value must pass `accept(store, row, raw)` (the checks
+    /// an SDO write makes); a refused value is not written and the object keeps its value,
+    /// the others are written (as CANopenNode does). Returns false if any value was refused.
+    pub fn unpack(
+        &self,
+        store: &mut Store,
+        data: &[u8],
+        accept: impl Fn(&Store, usize, u32) -> bool,
+    ) -> bool {
         let mut pos = 0;
+        let mut all = true;
         for m in &self.map[..self.n as usize] {
             let n = m.bytes as usize;
-            let o = &OBJECTS[m.row as usize];
-            store.set(m.row as usize, o.decode(&data[pos..pos + n]));
+            let row = m.row as usize;
+            let Some(bytes) = data.get(pos..pos + n) else {
+                return false;
+            };
+            let raw = OBJECTS[row].decode(bytes);
+            if accept(store, row, raw) {
+                store.set(row, raw);
+            } else {
+                all = false;
+            }
             pos += n;
         }
+        all
     }
 
     pub fn is_sync_rx(&self) -> bool {
