@@ -13,6 +13,7 @@ pub mod frame;
 pub mod node;
 pub mod od;
 pub mod params;
+pub mod wire;
 
 pub use cia301::nmt::NmtState;
 pub use cia402::State as Cia402State;

@@ -16,6 +16,7 @@ use crate::drive::{Drive, DriveInfo, ParamError};
 use crate::frame::CanFrame;
 use crate::od::{self, idx, Lookup, Store, OBJECTS};
 use crate::params;
+use crate::wire::{cob, Heartbeat};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
 /// [`Node::tx_overflows`] and dropped.
@@ -424,7 +425,10 @@ impl Core {
         self.pending_sync = None;
         self.hb_lost = false;
         self.hb.restart(now_us, self.store.u32(R_1017) as u16);
-        self.push(CanFrame::new(0x700 + self.node_id as u32, &[0x00]));
+        self.push(CanFrame::new(
+            cob::HEARTBEAT + self.node_id as u32,
+            &Heartbeat::BOOTUP.emit(),
+        ));
     }
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
@@ -619,7 +623,7 @@ impl Node {
             }
             return FrameEvent::Ignored;
         }
-        if id == 0x600 + self.core.node_id as u32 {
+        if id == cob::SDO_RX + self.core.node_id as u32 {
             if frame.rtr || frame.len != 8 {
                 return FrameEvent::Ignored;
             }
@@ -631,9 +635,9 @@ impl Node {
             self.sdo.handle(&frame.data, now_us, &mut acc, &mut |f| {
                 let _ = outv.push(f);
             });
-            let cob = 0x580 + self.core.node_id as u32;
+            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
             for f in outv {
-                self.core.push(CanFrame::new(cob, &f));
+                self.core.push(CanFrame::new(tx_cob, &f));
             }
             return FrameEvent::Handled;
         }
@@ -704,9 +708,9 @@ impl Node {
             self.sdo.poll(now_us, &mut |f| {
                 let _ = outv.push(f);
             });
-            let cob = 0x580 + self.core.node_id as u32;
+            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
             for f in outv {
-                self.core.push(CanFrame::new(cob, &f));
+                self.core.push(CanFrame::new(tx_cob, &f));
             }
         }
         let c = &mut self.core;
@@ -720,7 +724,8 @@ impl Node {
         }
         // heartbeat producer
         if c.hb.due(now_us, c.store.u32(R_1017) as u16) {
-            let f = CanFrame::new(0x700 + c.node_id as u32, &[c.nmt as u8]);
+            let hb = Heartbeat { state: c.nmt as u8 };
+            let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
             c.push(f);
         }
         // heartbeat consumer

@@ -1,13 +1,18 @@
 //! EMCY producer: 0x1001 error register, 0x1003 pre-defined error field (history, newest in
-//! sub 1), 0x1014 COB-ID, 0x1015 inhibit time. Frames are encoded with canopen-rs's
-//! `EmergencyMessage`.
+//! sub 1), 0x1014 COB-ID, 0x1015 inhibit time. Frames are encoded by [`crate::wire::emcy`].
 
 use crate::od::{idx, Store};
-use canopen_rs::{EmergencyMessage, ErrorRegister};
+use crate::wire::emcy::EmcyFrame;
 use heapless::{Deque, Vec};
 
 const R_1001: usize = idx(0x1001, 0);
 const R_1003: usize = idx(0x1003, 0);
+/// "Error reset / no error".
+const RESET: EmcyFrame = EmcyFrame {
+    code: 0,
+    register: 0,
+    info: [0; 5],
+};
 
 /// Active errors and the frames waiting for the inhibit time.
 #[derive(Clone, Debug, Default)]
@@ -75,8 +80,12 @@ impl Emcy {
             code as u32 | (u16::from_le_bytes([info[0], info[1]]) as u32) << 16,
         );
         store.set(R_1003, (n + 1).min(8) as u32);
-        let msg = EmergencyMessage::new(code, ErrorRegister(reg), info);
-        self.push(msg.encode());
+        let msg = EmcyFrame {
+            code,
+            register: reg,
+            info,
+        };
+        self.push(msg.emit());
     }
 
     /// An error went away; when none is left, send "error reset / no error".
@@ -86,7 +95,7 @@ impl Emcy {
             let reg = self.register();
             store.set(R_1001, reg as u32);
             if self.active.is_empty() {
-                self.push(EmergencyMessage::error_reset().encode());
+                self.push(RESET.emit());
             }
         }
     }
@@ -96,7 +105,7 @@ impl Emcy {
         if !self.active.is_empty() {
             self.active.clear();
             store.set(R_1001, 0);
-            self.push(EmergencyMessage::error_reset().encode());
+            self.push(RESET.emit());
         }
     }
 
