@@ -57,12 +57,13 @@ impl Emcy {
         self.active.contains(&code)
     }
 
-    /// Raise an error: update 0x1001 and 0x1003, queue the EMCY frame.
-    pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5]) {
+    /// Raise an error: update 0x1001 and 0x1003, queue the EMCY frame. Returns false when
+    /// the error was already active (nothing done).
+    pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5]) -> bool {
         // An error that is already active is not a new event: one EMCY, one history entry,
         // until it is cleared (e.g. heartbeat loss followed by its 0x6007 fault reaction).
         if self.active.contains(&code) {
-            return;
+            return false;
         }
         if self.active.push(code).is_err() {
             // table full: keep the older errors, still report this one
@@ -86,18 +87,27 @@ impl Emcy {
             info,
         };
         self.push(msg.emit());
+        true
     }
 
-    /// An error went away; when none is left, send "error reset / no error".
-    pub fn clear(&mut self, store: &mut Store, code: u16) {
-        if let Some(p) = self.active.iter().position(|&c| c == code) {
-            self.active.swap_remove(p);
-            let reg = self.register();
-            store.set(R_1001, reg as u32);
-            if self.active.is_empty() {
-                self.push(RESET.emit());
-            }
+    /// An error went away; when none is left, send "error reset / no error". Returns false
+    /// when the error was not active.
+    pub fn clear(&mut self, store: &mut Store, code: u16) -> bool {
+        let Some(p) = self.active.iter().position(|&c| c == code) else {
+            return false;
+        };
+        self.active.swap_remove(p);
+        let reg = self.register();
+        store.set(R_1001, reg as u32);
+        if self.active.is_empty() {
+            self.push(RESET.emit());
         }
+        true
+    }
+
+    /// The active error codes.
+    pub fn active(&self) -> &[u16] {
+        &self.active
     }
 
     /// Clear every active error (CiA 402 fault reset).
@@ -113,6 +123,17 @@ impl Emcy {
         if self.queue.push_back(f).is_err() {
             self.dropped = self.dropped.wrapping_add(1);
         }
+    }
+
+    /// When the next queued frame may go (us): `None` with an empty queue.
+    pub fn next_at_us(&self, inhibit_100us: u16) -> Option<u64> {
+        if self.queue.is_empty() {
+            return None;
+        }
+        Some(
+            self.last_tx_us
+                .map_or(0, |l| l + inhibit_100us as u64 * 100),
+        )
     }
 
     /// The next frame allowed by the inhibit time (100 us units), if any.

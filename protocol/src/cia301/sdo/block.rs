@@ -41,7 +41,7 @@ impl SdoServer {
     ) {
         match (self.state, *req) {
             (State::Idle, SdoRequest::BlockDownloadInitiate { mux, crc, size }) => {
-                self.start(mux);
+                self.start(mux, false);
                 let size = match download_size(od, self.index, self.sub, size) {
                     Ok(size) => size,
                     Err(c) => return self.fail(c, out),
@@ -74,7 +74,7 @@ impl SdoServer {
                 match od.write(self.index, self.sub, &data[..total]) {
                     Ok(()) => {
                         out(SdoResponse::BlockDownloadEnd.emit());
-                        self.state = State::Idle;
+                        self.done(None);
                     }
                     Err(c) => self.fail(c, out),
                 }
@@ -133,7 +133,7 @@ impl SdoServer {
                     mux, crc, blksize, ..
                 },
             ) => {
-                self.start(mux);
+                self.start(mux, true);
                 if blksize == 0 || blksize > 127 {
                     return self.fail(abort::BLOCK_SIZE, out);
                 }
@@ -192,7 +192,7 @@ impl SdoServer {
                 }
             }
             (State::BlockUpload(st), SdoRequest::BlockUploadEnd) if st.ending => {
-                self.state = State::Idle;
+                self.done(None);
             }
             _ => self.fail(abort::COMMAND, out),
         }

@@ -5,6 +5,8 @@
 
 pub mod block;
 
+pub use crate::event::{SdoDirection, SdoTransfer};
+
 use crate::wire::sdo::{
     self as wire, BlockSegment, Initiate, Mux, SdoRequest, SdoResponse, Segment,
 };
@@ -73,6 +75,10 @@ pub struct SdoServer {
     pub(crate) buf: [u8; BUF],
     pub(crate) len: usize,
     pub(crate) last_us: u64,
+    /// The transfer in progress (or last) is an upload.
+    upload: bool,
+    /// The transfer that just finished, for the node's event queue.
+    finished: Option<SdoTransfer>,
     /// Timeout of a stalled transfer (abort 0x05040000).
     pub timeout_us: u64,
 }
@@ -86,6 +92,8 @@ impl Default for SdoServer {
             buf: [0; BUF],
             len: 0,
             last_us: 0,
+            upload: false,
+            finished: None,
             timeout_us: DEFAULT_TIMEOUT_US,
         }
     }
@@ -111,14 +119,44 @@ impl SdoServer {
         Mux::new(self.index, self.sub)
     }
 
-    fn start(&mut self, mux: Mux) {
+    fn start(&mut self, mux: Mux, upload: bool) {
         self.index = mux.index;
         self.sub = mux.sub;
+        self.upload = upload;
     }
 
     fn fail(&mut self, code: u32, out: &mut impl FnMut([u8; 8])) {
         out(abort_frame(self.index, self.sub, code));
+        self.done(Some(code));
+    }
+
+    /// The transfer ended (completed, or aborted with `abort`): back to idle, remember it.
+    fn done(&mut self, abort: Option<u32>) {
         self.state = State::Idle;
+        self.finished = Some(SdoTransfer {
+            index: self.index,
+            sub: self.sub,
+            direction: if self.upload {
+                SdoDirection::Upload
+            } else {
+                SdoDirection::Download
+            },
+            abort,
+        });
+    }
+
+    /// The transfer that finished since the last call, if any.
+    pub fn take_finished(&mut self) -> Option<SdoTransfer> {
+        self.finished.take()
+    }
+
+    /// When [`SdoServer::poll`] will abort the transfer in progress (us), if one is.
+    pub fn deadline_us(&self) -> Option<u64> {
+        self.busy().then(|| {
+            self.last_us
+                .saturating_add(self.timeout_us)
+                .saturating_add(1)
+        })
     }
 
     /// Abort a stalled transfer.
@@ -147,20 +185,24 @@ impl SdoServer {
             Ok(r) => r,
             Err(_) => {
                 if !self.busy() {
-                    self.start(Mux::of(req));
+                    self.start(Mux::of(req), false);
                 }
                 return self.fail(abort::COMMAND, out);
             }
         };
         match request {
             // abort from the client: no answer
-            SdoRequest::Abort { .. } => self.state = State::Idle,
+            SdoRequest::Abort { code, .. } => {
+                if self.busy() {
+                    self.done(Some(code));
+                }
+            }
             SdoRequest::InitiateDownload { mux, data } => {
-                self.start(mux);
+                self.start(mux, false);
                 self.download_initiate(data, od, out)
             }
             SdoRequest::InitiateUpload { mux } => {
-                self.start(mux);
+                self.start(mux, true);
                 self.upload_initiate(od, out)
             }
             SdoRequest::DownloadSegment(seg) => self.download_segment(&seg, od, out),
@@ -200,7 +242,7 @@ impl SdoServer {
                 match res {
                     Ok(()) => {
                         out(SdoResponse::InitiateDownload { mux: self.mux() }.emit());
-                        self.state = State::Idle;
+                        self.done(None);
                     }
                     Err(c) => self.fail(c, out),
                 }
@@ -247,7 +289,7 @@ impl SdoServer {
             match od.write(self.index, self.sub, &data[..self.len]) {
                 Ok(()) => {
                     out(ack);
-                    self.state = State::Idle;
+                    self.done(None);
                 }
                 Err(c) => self.fail(c, out),
             }
@@ -271,7 +313,7 @@ impl SdoServer {
                     data,
                 }
                 .emit());
-                self.state = State::Idle;
+                self.done(None);
             }
             Ok(n) => {
                 self.buf = buf;
@@ -302,14 +344,14 @@ impl SdoServer {
         let n = (self.len - pos).min(7);
         let last = pos + n >= self.len;
         out(SdoResponse::UploadSegment(Segment::new(t, &self.buf[pos..pos + n], last)).emit());
-        self.state = if last {
-            State::Idle
+        if last {
+            self.done(None);
         } else {
-            State::SegUpload {
+            self.state = State::SegUpload {
                 toggle: !toggle,
                 pos: pos + n,
-            }
-        };
+            };
+        }
     }
 }
 
