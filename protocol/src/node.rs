@@ -7,7 +7,8 @@ use heapless::Deque;
 use crate::cia301::emcy::Emcy;
 use crate::cia301::heartbeat::{self, Consumer, Producer};
 use crate::cia301::nmt::{self, NmtCommand, NmtState};
-use crate::cia301::pdo::{self, Pdo};
+use crate::cia301::pdo::rpdo::RxOutcome;
+use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer, BUF};
 use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
 use crate::cia402::factor::Factor;
@@ -80,6 +81,13 @@ impl core::fmt::Display for ConfigError {
 
 impl std::error::Error for ConfigError {}
 
+/// Queue a frame to send; a full queue drops it and counts.
+fn push(tx: &mut Deque<CanFrame, TX_QUEUE>, overflows: &mut u32, f: CanFrame) {
+    if tx.push_back(f).is_err() {
+        *overflows = overflows.wrapping_add(1);
+    }
+}
+
 /// Everything but the SDO server (so the server can borrow it as its object access).
 #[derive(Clone, Debug)]
 struct Core {
@@ -88,8 +96,7 @@ struct Core {
     store: Store,
     saved: Option<Box<Store>>,
     nmt: NmtState,
-    rpdo: [Pdo; 4],
-    tpdo: [Pdo; 4],
+    pdo: PdoEngine,
     sync: SyncConsumer,
     hb: Producer,
     hbc: Consumer,
@@ -209,33 +216,6 @@ impl<D: Drive> ObjectAccess for Access<'_, D> {
     }
 }
 
-fn pdo_slot(index: u16) -> Option<(usize, bool, bool)> {
-    // (number, tx, mapping)
-    match index {
-        0x1400..=0x1403 => Some(((index - 0x1400) as usize, false, false)),
-        0x1600..=0x1603 => Some(((index - 0x1600) as usize, false, true)),
-        0x1800..=0x1803 => Some(((index - 0x1800) as usize, true, false)),
-        0x1A00..=0x1A03 => Some(((index - 0x1A00) as usize, true, true)),
-        _ => None,
-    }
-}
-
-fn comm_row(k: usize, tx: bool) -> usize {
-    if tx {
-        idx(0x1800, 0) + k * 5
-    } else {
-        idx(0x1400, 0) + k * 3
-    }
-}
-
-fn map_row(k: usize, tx: bool) -> usize {
-    if tx {
-        idx(0x1A00, 0) + k * 9
-    } else {
-        idx(0x1600, 0) + k * 9
-    }
-}
-
 impl Core {
     fn event(&mut self, e: NodeEvent) {
         if self.events.push_back(e).is_err() {
@@ -281,64 +261,16 @@ impl Core {
     }
 
     fn push(&mut self, f: CanFrame) {
-        if self.tx.push_back(f).is_err() {
-            self.tx_overflows = self.tx_overflows.wrapping_add(1);
-        }
-    }
-
-    fn pdo_valid(&self, k: usize, tx: bool) -> bool {
-        self.store.u32(comm_row(k, tx) + 1) & 0x8000_0000 == 0
+        push(&mut self.tx, &mut self.tx_overflows, f);
     }
 
     /// Semantic checks and side effects of an SDO write (limits and type already checked).
-    /// One arm per object with a rule; the `if`s stay inside the arms for readability.
+    /// PDO parameters go to the PDO engine's rules (`cia301/pdo/rules.rs`); one arm per
+    /// other object with a rule; the `if`s stay inside the arms for readability.
     #[allow(clippy::collapsible_match)]
     fn write_checked(&mut self, row: usize, index: u16, sub: u8, raw: u32) -> Result<(), u32> {
-        if let Some((k, tx, mapping)) = pdo_slot(index) {
-            let valid = self.pdo_valid(k, tx);
-            if mapping {
-                if valid {
-                    return Err(abort::UNSUPPORTED_ACCESS);
-                }
-                let mrow = map_row(k, tx);
-                if sub == 0 {
-                    pdo::compile(&self.store, mrow, raw as usize, tx)?;
-                } else {
-                    if self.store.u32(mrow) != 0 {
-                        return Err(abort::UNSUPPORTED_ACCESS);
-                    }
-                    if raw != 0 {
-                        pdo::check_entry(raw, tx)?;
-                    }
-                }
-            } else {
-                match sub {
-                    1 => {
-                        let cur = self.store.u32(row);
-                        let new_valid = raw & 0x8000_0000 == 0;
-                        if raw & 0x2000_0000 != 0 || raw & 0x1FFF_F800 != 0 {
-                            return Err(abort::VALUE_RANGE);
-                        }
-                        if valid && new_valid && (raw & 0x7FF) != (cur & 0x7FF) {
-                            return Err(abort::VALUE_RANGE);
-                        }
-                    }
-                    2 => {
-                        if !pdo::valid_ttype(raw, tx) {
-                            return Err(abort::VALUE_RANGE);
-                        }
-                    }
-                    3 => {
-                        if valid {
-                            return Err(abort::UNSUPPORTED_ACCESS);
-                        }
-                    }
-                    _ => {}
-                }
-            }
-            self.store.set(row, raw);
-            self.refresh_pdo(k, tx);
-            return Ok(());
+        if let Some(r) = self.pdo.write(&mut self.store, row, index, sub, raw) {
+            return r;
         }
         match (index, sub) {
             (0x1003, 0) => {
@@ -414,42 +346,8 @@ impl Core {
         Ok(())
     }
 
-    fn refresh_pdo(&mut self, k: usize, tx: bool) {
-        let c = comm_row(k, tx);
-        let m = map_row(k, tx);
-        let cob = self.store.u32(c + 1);
-        let ttype = self.store.u32(c + 2) as u8;
-        let count = self.store.u32(m) as usize;
-        let p = if tx {
-            &mut self.tpdo[k]
-        } else {
-            &mut self.rpdo[k]
-        };
-        p.cob = cob;
-        p.ttype = ttype;
-        match pdo::compile(&self.store, m, count, tx) {
-            Ok((map, n, len)) => {
-                p.map = map;
-                p.n = n;
-                p.len = len;
-                p.valid = cob & 0x8000_0000 == 0;
-            }
-            Err(_) => {
-                p.n = 0;
-                p.len = 0;
-                p.valid = false;
-            }
-        }
-        p.has_last = false;
-        p.sync_count = 0;
-        p.rx_pending = false;
-    }
-
     fn refresh_all(&mut self) {
-        for k in 0..4 {
-            self.refresh_pdo(k, false);
-            self.refresh_pdo(k, true);
-        }
+        self.pdo.refresh_all(&self.store);
         for i in 0..4 {
             let e = self.store.u32(R_1016 + i);
             self.hbc.configure(i, e);
@@ -493,41 +391,6 @@ impl Core {
         }
     }
 
-    /// When event-driven TPDO `k` has to be looked at: its event timer, or the end of its
-    /// inhibit time when its data changed meanwhile.
-    fn tpdo_deadline_us(&self, k: usize) -> Option<u64> {
-        let p = &self.tpdo[k];
-        if !p.valid || p.ttype < 254 {
-            return None;
-        }
-        let Some(last) = p.last_tx_us else {
-            return Some(self.now_us);
-        };
-        let crow = comm_row(k, true);
-        let inhibit = self.store.u32(crow + 3) as u64 * 100;
-        let timer = self.store.u32(crow + 4) as u64 * 1000;
-        let mut at = (timer > 0).then(|| (last + timer).max(last + inhibit));
-        let mut d = [0u8; 8];
-        let n = p.pack(&self.store, &mut d);
-        if !p.has_last || d[..n] != p.last[..n] {
-            let t = last + inhibit;
-            at = Some(at.map_or(t, |a: u64| a.min(t)));
-        }
-        at
-    }
-
-    fn send_tpdo(&mut self, k: usize, now_us: u64) {
-        let p = &self.tpdo[k];
-        let mut d = [0u8; 8];
-        let n = p.pack(&self.store, &mut d);
-        let f = CanFrame::new(p.cob & 0x7FF, &d[..n]);
-        let p = &mut self.tpdo[k];
-        p.last = d;
-        p.has_last = true;
-        p.last_tx_us = Some(now_us);
-        self.push(f);
-    }
-
     fn on_sync(&mut self, frame: &CanFrame, now_us: u64) -> FrameEvent {
         let overflow = self.store.u32(R_1019) as u8;
         let s = self
@@ -543,43 +406,10 @@ impl Core {
         }
         self.pending_sync = Some(now_us);
         if self.nmt == NmtState::Operational {
-            for k in 0..4 {
-                let p = &mut self.rpdo[k];
-                if p.valid && p.rx_pending && p.is_sync_rx() {
-                    p.rx_pending = false;
-                    let (p, data) = (*p, p.rx);
-                    p.unpack(&mut self.store, &data[..p.len as usize]);
-                }
-            }
-            for k in 0..4 {
-                let p = self.tpdo[k];
-                if !p.valid {
-                    continue;
-                }
-                match p.ttype {
-                    0 => {
-                        let mut d = [0u8; 8];
-                        let n = p.pack(&self.store, &mut d);
-                        if !p.has_last || d[..n] != p.last[..n] {
-                            self.send_tpdo(k, now_us);
-                        }
-                    }
-                    1..=240 => {
-                        let p = &mut self.tpdo[k];
-                        p.sync_count = p.sync_count.saturating_add(1);
-                        if p.sync_count >= p.ttype {
-                            p.sync_count = 0;
-                            self.send_tpdo(k, now_us);
-                        }
-                    }
-                    252 => {
-                        let mut d = [0u8; 8];
-                        p.pack(&self.store, &mut d);
-                        self.tpdo[k].sampled = d;
-                    }
-                    _ => {}
-                }
-            }
+            self.pdo.apply_sync_rpdos(&mut self.store);
+            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
+            self.pdo
+                .on_sync(&self.store, now_us, &mut |f| push(tx, overflows, f));
         }
         self.event(NodeEvent::Sync { counter: s.counter });
         FrameEvent::Sync { counter: s.counter }
@@ -600,8 +430,7 @@ impl Node {
             store,
             saved: None,
             nmt: NmtState::Initialising,
-            rpdo: [Pdo::default(); 4],
-            tpdo: [Pdo::default(); 4],
+            pdo: PdoEngine::default(),
             sync: SyncConsumer::default(),
             hb: Producer::default(),
             hbc: Consumer::default(),
@@ -656,11 +485,7 @@ impl Node {
             _ => {
                 let next = nmt::next_state(cmd);
                 if next == NmtState::Operational && c.nmt != NmtState::Operational {
-                    for p in c.tpdo.iter_mut().chain(c.rpdo.iter_mut()) {
-                        p.has_last = false;
-                        p.sync_count = 0;
-                        p.rx_pending = false;
-                    }
+                    c.pdo.restart();
                 }
                 if next != NmtState::Operational {
                     self.sdo_reset_if_stopped(next);
@@ -744,39 +569,25 @@ impl Node {
             return FrameEvent::Ignored;
         }
         let c = &mut self.core;
-        for k in 0..4 {
-            let p = c.rpdo[k];
-            if p.valid && !frame.rtr && p.cob & 0x7FF == id {
-                if frame.len != p.len {
-                    if !c.rpdo[k].len_error {
-                        c.rpdo[k].len_error = true;
-                        if c.emcy_allowed() {
-                            c.report(EMCY_PDO_LENGTH, [k as u8 + 1, frame.len, p.len, 0, 0]);
-                        }
-                    }
-                    return FrameEvent::Handled;
-                }
-                c.rpdo[k].len_error = false;
-                if p.is_sync_rx() {
-                    c.rpdo[k].rx = frame.data;
-                    c.rpdo[k].rx_pending = true;
-                } else {
-                    p.unpack(&mut c.store, frame.payload());
+        match c.pdo.receive(&mut c.store, frame) {
+            RxOutcome::NotRpdo => {}
+            RxOutcome::WrongLength {
+                number,
+                len,
+                expected,
+            } => {
+                if c.emcy_allowed() {
+                    c.report(EMCY_PDO_LENGTH, [number, len, expected, 0, 0]);
                 }
                 return FrameEvent::Handled;
             }
+            RxOutcome::Accepted | RxOutcome::WrongLengthRepeated => return FrameEvent::Handled,
         }
-        for k in 0..4 {
-            let p = c.tpdo[k];
-            if p.valid && frame.rtr && p.cob & 0x7FF == id && matches!(p.ttype, 252 | 253) {
-                if p.ttype == 252 {
-                    let f = CanFrame::new(p.cob & 0x7FF, &p.sampled[..p.len as usize]);
-                    c.push(f);
-                } else {
-                    c.send_tpdo(k, now_us);
-                }
-                return FrameEvent::Handled;
-            }
+        let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
+        if c.pdo
+            .on_rtr(&c.store, frame, now_us, &mut |f| push(tx, overflows, f))
+        {
+            return FrameEvent::Handled;
         }
         FrameEvent::Ignored
     }
@@ -837,7 +648,7 @@ impl Node {
         if c.nmt == NmtState::Operational {
             take(c.sync.deadline_us(c.store.u32(R_1006)));
             for k in 0..4 {
-                take(c.tpdo_deadline_us(k));
+                take(c.pdo.deadline_us(&c.store, k, c.now_us));
             }
         }
         if c.emcy_allowed() {
@@ -904,25 +715,9 @@ impl Node {
         drive.command(&out.command);
         // event-driven TPDOs
         if c.nmt == NmtState::Operational {
-            for k in 0..4 {
-                let p = c.tpdo[k];
-                if !p.valid || p.ttype < 254 {
-                    continue;
-                }
-                let crow = comm_row(k, true);
-                let inhibit = c.store.u32(crow + 3) as u64 * 100;
-                let timer = c.store.u32(crow + 4) as u64 * 1000;
-                let inhibit_ok = p.last_tx_us.is_none_or(|l| now_us >= l + inhibit);
-                let timer_due = timer > 0 && p.last_tx_us.is_none_or(|l| now_us >= l + timer);
-                if !inhibit_ok {
-                    continue;
-                }
-                let mut d = [0u8; 8];
-                let n = p.pack(&c.store, &mut d);
-                if !p.has_last || d[..n] != p.last[..n] || timer_due {
-                    c.send_tpdo(k, now_us);
-                }
-            }
+            let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
+            c.pdo
+                .poll_events(&c.store, now_us, &mut |f| push(tx, overflows, f));
         }
         // EMCY
         if c.emcy_allowed() {
