@@ -16,6 +16,7 @@ pub mod sdo_client;
 
 use crate::bus::CanFrame;
 use drive_protocol::wire::{cob, EmcyFrame, Heartbeat, NmtCommand, NmtFrame};
+use drive_protocol::Cia402State;
 use sdo_client::{SdoClient, SdoResult};
 use std::collections::VecDeque;
 
@@ -153,27 +154,42 @@ enum Phase {
     Failed(String),
 }
 
+/// Where a program step is.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+enum Stage {
+    /// Nothing done yet.
+    #[default]
+    Start,
+    /// Enable / SetMode: 0x6060 written, waiting for 0x6061 to show the mode.
+    WaitModeDisplay,
+    /// Enable: walking the state machine to OPERATION ENABLED.
+    SwitchOn,
+    /// Enable / SetMode: reached; report and go on.
+    Reached,
+    /// MoveTo: writing profile parameter `k` (0x6081, 0x6083, 0x6084).
+    PpParameter(usize),
+    /// MoveTo: parameters written; give the new set-point (controlword bit 4).
+    PpNewSetpoint,
+    /// MoveTo: waiting for the set-point acknowledge (statusword bit 12).
+    PpWaitAcknowledge,
+    /// MoveTo: acknowledge seen, bit 4 cleared; waiting for target reached (bit 10).
+    PpWaitTarget,
+    /// Cruise / Dwell: announced, running for its duration.
+    Running,
+}
+
 /// Per-step progress.
 #[derive(Debug, Clone, Copy, Default)]
 struct StepState {
     started_us: u64,
-    stage: u8,
+    stage: Stage,
     sdo_sent: bool,
 }
 
-/// Decode the CiA 402 state from a statusword (DOMAIN.md section 4 masks).
+/// The name of the CiA 402 state a statusword shows (DOMAIN.md section 4 masks), for
+/// messages; `UNKNOWN` for a pattern that is no state. Compare [`Cia402State`]s, not names.
 pub fn state_name(sw: u16) -> &'static str {
-    match (sw & 0x4F, sw & 0x6F) {
-        (0x00, _) => "NOT READY TO SWITCH ON",
-        (0x40, _) => "SWITCH ON DISABLED",
-        (_, 0x21) => "READY TO SWITCH ON",
-        (_, 0x23) => "SWITCHED ON",
-        (_, 0x27) => "OPERATION ENABLED",
-        (_, 0x07) => "QUICK STOP ACTIVE",
-        (0x0F, _) => "FAULT REACTION ACTIVE",
-        (0x08, _) => "FAULT",
-        _ => "UNKNOWN",
-    }
+    Cia402State::from_statusword(sw).map_or("UNKNOWN", Cia402State::name)
 }
 
 /// The PDO configuration the master writes: (index, sub, value, len).
@@ -473,43 +489,49 @@ impl Master {
             Step::Enable { mode } | Step::SetMode { mode } => {
                 let enable = matches!(step, Step::Enable { .. });
                 match self.step.stage {
-                    0 => {
+                    Stage::Start => {
                         if let Some(true) = self.sdo_step(now_us, 0x6060, 0, mode as u8 as u32, 1) {
                             self.mode = mode;
-                            self.step.stage = 1;
+                            self.step.stage = Stage::WaitModeDisplay;
                         }
                     }
-                    1 if self.latest.mode_display == mode && self.have_actual => {
+                    Stage::WaitModeDisplay
+                        if self.latest.mode_display == mode && self.have_actual =>
+                    {
                         // Start from where the axis is, so enabling never jumps.
                         self.target_uu = f64::from(self.latest.position_uu);
                         self.velocity_uu_s = 0.0;
-                        self.step.stage = if enable { 2 } else { 9 };
+                        self.step.stage = if enable {
+                            Stage::SwitchOn
+                        } else {
+                            Stage::Reached
+                        };
                     }
-                    2 => {
+                    Stage::SwitchOn => {
                         // Fault reset first if needed, then shutdown, switch on, enable.
-                        let state = state_name(sw);
+                        let state = Cia402State::from_statusword(sw);
                         self.controlword = match state {
-                            "FAULT" => {
+                            Some(Cia402State::Fault) => {
                                 if self.controlword & 0x80 != 0 {
                                     0x00
                                 } else {
                                     0x80
                                 }
                             }
-                            "SWITCH ON DISABLED" => 0x06,
-                            "READY TO SWITCH ON" => 0x07,
-                            "SWITCHED ON" => 0x0F,
-                            "OPERATION ENABLED" => {
-                                self.step.stage = 9;
+                            Some(Cia402State::SwitchOnDisabled) => 0x06,
+                            Some(Cia402State::ReadyToSwitchOn) => 0x07,
+                            Some(Cia402State::SwitchedOn) => 0x0F,
+                            Some(Cia402State::OperationEnabled) => {
+                                self.step.stage = Stage::Reached;
                                 0x0F
                             }
                             _ => self.controlword,
                         };
-                        if state != "OPERATION ENABLED" {
+                        if state != Some(Cia402State::OperationEnabled) {
                             self.target_uu = f64::from(self.latest.position_uu);
                         }
                     }
-                    9 => {
+                    Stage::Reached => {
                         self.say(
                             now_us,
                             format!("drive in {} in mode {}", state_name(sw), self.mode),
@@ -540,24 +562,37 @@ impl Master {
                     (0x6083, accel_uu_s2),
                     (0x6084, accel_uu_s2),
                 ];
-                let stage = usize::from(self.step.stage);
-                if stage < sdo.len() {
-                    let (idx, v) = sdo[stage];
-                    if let Some(true) = self.sdo_step(now_us, idx, 0, v, 4) {
-                        self.step.sdo_sent = false;
-                        self.step.stage += 1;
+                match self.step.stage {
+                    Stage::Start | Stage::PpParameter(_) => {
+                        let k = match self.step.stage {
+                            Stage::PpParameter(k) => k,
+                            _ => 0,
+                        };
+                        let (idx, v) = sdo[k];
+                        if let Some(true) = self.sdo_step(now_us, idx, 0, v, 4) {
+                            self.step.sdo_sent = false;
+                            self.step.stage = if k + 1 < sdo.len() {
+                                Stage::PpParameter(k + 1)
+                            } else {
+                                Stage::PpNewSetpoint
+                            };
+                        }
                     }
-                } else if stage == 3 {
-                    self.target_uu = f64::from(target_uu);
-                    self.controlword = 0x0F | 0x10; // new set-point
-                    self.step.stage = 4;
-                } else if stage == 4 && sw & 0x1000 != 0 {
-                    self.controlword = 0x0F; // acknowledge seen: clear bit 4
-                    self.step.stage = 5;
-                } else if stage == 5 && sw & 0x1000 == 0 && sw & 0x0400 != 0 {
-                    self.say(now_us, format!("PP move to {target_uu} uu: target reached"));
-                    self.next_step(now_us, i);
-                    return;
+                    Stage::PpNewSetpoint => {
+                        self.target_uu = f64::from(target_uu);
+                        self.controlword = 0x0F | 0x10; // new set-point
+                        self.step.stage = Stage::PpWaitAcknowledge;
+                    }
+                    Stage::PpWaitAcknowledge if sw & 0x1000 != 0 => {
+                        self.controlword = 0x0F; // acknowledge seen: clear bit 4
+                        self.step.stage = Stage::PpWaitTarget;
+                    }
+                    Stage::PpWaitTarget if sw & 0x1000 == 0 && sw & 0x0400 != 0 => {
+                        self.say(now_us, format!("PP move to {target_uu} uu: target reached"));
+                        self.next_step(now_us, i);
+                        return;
+                    }
+                    _ => {}
                 }
                 if self.timed_out(now_us) {
                     self.fail(
@@ -567,8 +602,8 @@ impl Master {
                 }
             }
             Step::Cruise { duration_s, .. } | Step::Dwell { duration_s } => {
-                if self.step.stage == 0 {
-                    self.step.stage = 1;
+                if self.step.stage == Stage::Start {
+                    self.step.stage = Stage::Running;
                     self.say(now_us, format!("{step:?}"));
                 }
                 if (now_us - self.step.started_us) as f64 >= duration_s * 1e6 {

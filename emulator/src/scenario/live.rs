@@ -20,13 +20,13 @@ use super::Scenario;
 use crate::analysis::detector::{analyze, AxisTrace, DetectorReport};
 use crate::bus::fault::{FaultyBus, RuleId};
 use crate::bus::CanBus;
-use crate::master::{state_name, Sample};
+use crate::master::Sample;
 use crate::presets::{AxisConfig, AxisKind};
 use crate::runtime::axis_drive::AxisDrive;
 use crate::runtime::trace::node_sample;
 use crate::runtime::Runtime;
 use crossbeam::queue::ArrayQueue;
-use drive_protocol::{AxisParam, Drive, NodeEvent};
+use drive_protocol::{AxisParam, Cia402State, Drive, NodeEvent};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
@@ -212,7 +212,9 @@ pub fn run_timeline(
             emcys.push((t, code));
             new_codes.push(code);
         }
-        let state = samples.last().map(|x| state_name(x.statusword));
+        let state = samples
+            .last()
+            .and_then(|x| Cia402State::from_statusword(x.statusword));
         let obs = Observation {
             state,
             new_emcy: &new_codes,
