@@ -8,15 +8,18 @@ use crate::cia301::cob_id;
 use crate::cia301::emcy::{Cause, Emcy};
 use crate::cia301::heartbeat::{self, Consumer, Producer};
 use crate::cia301::nmt::{self, NmtCommand, NmtState};
-use crate::cia301::pdo::{self, Pdo};
+use crate::cia301::pdo::rpdo::RxOutcome;
+use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer, BUF};
 use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
 use crate::cia402::factor::Factor;
 use crate::cia402::{mode, objects as o402, Cia402, State};
 use crate::drive::{Drive, DriveInfo, ParamError};
+use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
 use crate::od::{self, idx, Lookup, Store, OBJECTS};
 use crate::params;
+use crate::wire::{cob, Heartbeat};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
 /// [`Node::tx_overflows`] and dropped.
@@ -24,10 +27,8 @@ pub const TX_QUEUE: usize = 64;
 
 /// EMCY code for a lost heartbeat producer (the master).
 pub const EMCY_HEARTBEAT: u16 = 0x8130;
-/// EMCY code for an RPDO shorter than its mapping (ignored).
-pub const EMCY_PDO_LENGTH: u16 = 0x8210;
-/// EMCY code for an RPDO longer than its mapping (its mapped bytes are used).
-pub const EMCY_PDO_LENGTH_EXCEEDED: u16 = 0x8220;
+/// EMCY code for an RPDO of the wrong length.
+pub const EMCY_PDO_LENGTH: u16 = crate::cia301::pdo::rpdo::EMCY_PDO_LENGTH;
 /// EMCY code for an RPDO value the drive refuses (the checks of an SDO write: range, a
 /// supported mode, min <= max): CiA 402 "parameter error" (0x6320). The object keeps its
 /// value, as with the refused SDO write; CiA 301 has no code for it and CANopenNode drops
@@ -87,6 +88,13 @@ impl core::fmt::Display for ConfigError {
 
 impl std::error::Error for ConfigError {}
 
+/// Queue a frame to send; a full queue drops it and counts.
+fn push(tx: &mut Deque<CanFrame, TX_QUEUE>, overflows: &mut u32, f: CanFrame) {
+    if tx.push_back(f).is_err() {
+        *overflows = overflows.wrapping_add(1);
+    }
+}
+
 /// Everything but the SDO server (so the server can borrow it as its object access).
 #[derive(Clone, Debug)]
 struct Core {
@@ -95,8 +103,7 @@ struct Core {
     store: Store,
     saved: Option<Box<Store>>,
     nmt: NmtState,
-    rpdo: [Pdo; 4],
-    tpdo: [Pdo; 4],
+    pdo: PdoEngine,
     sync: SyncConsumer,
     hb: Producer,
     hbc: Consumer,
@@ -108,6 +115,11 @@ struct Core {
     pending_sync: Option<u64>,
     injected_fault: u16,
     now_us: u64,
+    events: Deque<NodeEvent, EVENT_QUEUE>,
+    events_dropped: u32,
+    /// CiA 402 and NMT state as last reported in an event.
+    seen_cia: State,
+    seen_nmt: NmtState,
 }
 
 /// A CiA 301 + CiA 402 servo-drive node.
@@ -228,93 +240,109 @@ fn rpdo_accepts(store: &Store, row: usize, raw: u32) -> bool {
     o.check_limits(raw).is_ok() && value_rule(store, o.index, o.sub, raw).is_ok()
 }
 
-fn pdo_slot(index: u16) -> Option<(usize, bool, bool)> {
-    // (number, tx, mapping)
-    match index {
-        0x1400..=0x1403 => Some(((index - 0x1400) as usize, false, false)),
-        0x1600..=0x1603 => Some(((index - 0x1600) as usize, false, true)),
-        0x1800..=0x1803 => Some(((index - 0x1800) as usize, true, false)),
-        0x1A00..=0x1A03 => Some(((index - 0x1A00) as usize, true, true)),
-        _ => None,
-    }
-}
-
-fn comm_row(k: usize, tx: bool) -> usize {
-    if tx {
-        idx(0x1800, 0) + k * 5
-    } else {
-        idx(0x1400, 0) + k * 3
-    }
-}
-
-fn map_row(k: usize, tx: bool) -> usize {
-    if tx {
-        idx(0x1A00, 0) + k * 9
-    } else {
-        idx(0x1600, 0) + k * 9
-    }
-}
-
 impl Core {
-    fn push(&mut self, f: CanFrame) {
-        if self.tx.push_back(f).is_err() {
-            self.tx_overflows = self.tx_overflows.wrapping_add(1);
+    fn event(&mut self, e: NodeEvent) {
+        if self.events.push_back(e).is_err() {
+            self.events_dropped = self.events_dropped.wrapping_add(1);
         }
     }
 
-    fn pdo_valid(&self, k: usize, tx: bool) -> bool {
-        self.store.u32(comm_row(k, tx) + 1) & 0x8000_0000 == 0
+    /// Report state changes since the last call as events.
+    fn observe(&mut self) {
+        if self.cia.state != self.seen_cia {
+            let from = self.seen_cia;
+            self.seen_cia = self.cia.state;
+            self.event(NodeEvent::Cia402State {
+                from,
+                to: self.cia.state,
+            });
+        }
+        if self.nmt != self.seen_nmt {
+            let from = self.seen_nmt;
+            self.seen_nmt = self.nmt;
+            self.event(NodeEvent::NmtState { from, to: self.nmt });
+        }
+    }
+
+    fn raise_emcy(&mut self, code: u16, info: [u8; 5], cause: Cause) {
+        if self.emcy.raise(&mut self.store, code, info, cause) {
+            self.event(NodeEvent::EmcyRaised { code });
+        }
+    }
+
+    fn clear_emcy(&mut self, code: u16, cause: Cause) {
+        if self.emcy.clear(&mut self.store, code, cause) {
+            self.event(NodeEvent::EmcyCleared { code });
+        }
+    }
+
+    /// `cause` holds no error any more: the errors only it held clear.
+    fn clear_cause(&mut self, cause: Cause) {
+        for code in self.emcy.clear_cause(&mut self.store, cause) {
+            self.event(NodeEvent::EmcyCleared { code });
+        }
+    }
+
+    /// Every error goes (reset node).
+    fn clear_all_emcy(&mut self) {
+        for code in self.emcy.active_codes() {
+            self.event(NodeEvent::EmcyCleared { code });
+        }
+        self.emcy.reset(&mut self.store);
+    }
+
+    /// RPDO `k` arrived with a length error `code` (0 = right length): raise it once, and
+    /// clear it when no RPDO holds it any more.
+    fn rpdo_length_condition(&mut self, k: usize, code: u16, len: u8) {
+        let old = self.pdo.rpdo[k].len_error;
+        if old == code {
+            return;
+        }
+        self.pdo.rpdo[k].len_error = code;
+        if old != 0 && !self.pdo.rpdo.iter().any(|p| p.len_error == old) {
+            self.clear_emcy(old, Cause::Condition);
+        }
+        if code != 0 {
+            let info = [k as u8 + 1, len, self.pdo.rpdo[k].len, 0, 0];
+            self.raise_emcy(code, info, Cause::Condition);
+        }
+    }
+
+    /// RPDO `k` carried only acceptable values (`ok`) or not: EMCY 0x6320 held meanwhile.
+    fn rpdo_value_condition(&mut self, k: usize, ok: bool) {
+        if self.pdo.rpdo[k].value_error != ok {
+            return;
+        }
+        self.pdo.rpdo[k].value_error = !ok;
+        if ok {
+            if !self.pdo.rpdo.iter().any(|p| p.value_error) {
+                self.clear_emcy(EMCY_RPDO_VALUE, Cause::Condition);
+            }
+        } else {
+            self.raise_emcy(EMCY_RPDO_VALUE, [k as u8 + 1, 0, 0, 0, 0], Cause::Condition);
+        }
+    }
+
+    /// A reconfigured (or reset) RPDO starts without errors: they are reported again.
+    fn rpdo_conditions_reset(&mut self, k: usize) {
+        self.rpdo_length_condition(k, 0, 0);
+        self.rpdo_value_condition(k, true);
+    }
+
+    fn push(&mut self, f: CanFrame) {
+        push(&mut self.tx, &mut self.tx_overflows, f);
     }
 
     /// Semantic checks and side effects of an SDO write (limits and type already checked).
-    /// One arm per object with a rule; the `if`s stay inside the arms for readability.
+    /// PDO parameters go to the PDO engine's rules (`cia301/pdo/rules.rs`); one arm per
+    /// other object with a rule; the `if`s stay inside the arms for readability.
     #[allow(clippy::collapsible_match)]
     fn write_checked(&mut self, row: usize, index: u16, sub: u8, raw: u32) -> Result<(), u32> {
-        if let Some((k, tx, mapping)) = pdo_slot(index) {
-            let valid = self.pdo_valid(k, tx);
-            if mapping {
-                if valid {
-                    return Err(abort::UNSUPPORTED_ACCESS);
-                }
-                let mrow = map_row(k, tx);
-                if sub == 0 {
-                    pdo::compile(&self.store, mrow, raw as usize, tx)?;
-                } else {
-                    if self.store.u32(mrow) != 0 {
-                        return Err(abort::UNSUPPORTED_ACCESS);
-                    }
-                    if raw != 0 {
-                        pdo::check_entry(raw, tx)?;
-                    }
-                }
-            } else {
-                match sub {
-                    1 => {
-                        let cur = self.store.u32(row);
-                        let new_valid = raw & 0x8000_0000 == 0;
-                        if !cob_id::acceptable(raw, new_valid) {
-                            return Err(abort::VALUE_RANGE);
-                        }
-                        if valid && new_valid && (raw & 0x7FF) != (cur & 0x7FF) {
-                            return Err(abort::VALUE_RANGE);
-                        }
-                    }
-                    2 => {
-                        if !pdo::valid_ttype(raw, tx) {
-                            return Err(abort::VALUE_RANGE);
-                        }
-                    }
-                    3 => {
-                        if valid {
-                            return Err(abort::UNSUPPORTED_ACCESS);
-                        }
-                    }
-                    _ => {}
-                }
-            }
-            self.store.set(row, raw);
-            self.refresh_pdo(k, tx);
-            return Ok(());
+        if (0x1400..=0x17FF).contains(&index) {
+            self.rpdo_conditions_reset((index & 0x3) as usize);
+        }
+        if let Some(r) = self.pdo.write(&mut self.store, row, index, sub, raw) {
+            return r;
         }
         match (index, sub) {
             (0x1003, 0) => {
@@ -384,86 +412,14 @@ impl Core {
         Ok(())
     }
 
-    fn refresh_pdo(&mut self, k: usize, tx: bool) {
-        if !tx {
-            // a reconfigured (or reset) RPDO starts without errors: they are reported again
-            self.rpdo_length_condition(k, 0, 0);
-            self.rpdo_value_condition(k, true);
-        }
-        let c = comm_row(k, tx);
-        let m = map_row(k, tx);
-        let cob = self.store.u32(c + 1);
-        let ttype = self.store.u32(c + 2) as u8;
-        let count = self.store.u32(m) as usize;
-        let p = if tx {
-            &mut self.tpdo[k]
-        } else {
-            &mut self.rpdo[k]
-        };
-        p.cob = cob;
-        p.ttype = ttype;
-        match pdo::compile(&self.store, m, count, tx) {
-            Ok((map, n, len)) => {
-                p.map = map;
-                p.n = n;
-                p.len = len;
-                p.valid = cob & 0x8000_0000 == 0;
-            }
-            Err(_) => {
-                p.n = 0;
-                p.len = 0;
-                p.valid = false;
-            }
-        }
-        p.has_last = false;
-        p.sync_count = 0;
-        p.rx_pending = false;
-    }
-
     fn refresh_all(&mut self) {
         for k in 0..4 {
-            self.refresh_pdo(k, false);
-            self.refresh_pdo(k, true);
+            self.rpdo_conditions_reset(k);
         }
+        self.pdo.refresh_all(&self.store);
         for i in 0..4 {
             let e = self.store.u32(R_1016 + i);
             self.hbc.configure(i, e);
-        }
-    }
-
-    /// RPDO `k` arrived with a length error `code` (0 = right length): raise it once, and
-    /// clear it when no RPDO holds it any more.
-    fn rpdo_length_condition(&mut self, k: usize, code: u16, len: u8) {
-        let old = self.rpdo[k].len_error;
-        if old == code {
-            return;
-        }
-        self.rpdo[k].len_error = code;
-        if old != 0 && !self.rpdo.iter().any(|p| p.len_error == old) {
-            self.emcy.clear(&mut self.store, old, Cause::Condition);
-        }
-        if code != 0 {
-            let info = [k as u8 + 1, len, self.rpdo[k].len, 0, 0];
-            self.emcy
-                .raise(&mut self.store, code, info, Cause::Condition);
-        }
-    }
-
-    /// RPDO `k` carried only acceptable values (`ok`) or not: EMCY 0x6320 held meanwhile.
-    fn rpdo_value_condition(&mut self, k: usize, ok: bool) {
-        if self.rpdo[k].value_error != ok {
-            return;
-        }
-        self.rpdo[k].value_error = !ok;
-        if ok {
-            if !self.rpdo.iter().any(|p| p.value_error) {
-                self.emcy
-                    .clear(&mut self.store, EMCY_RPDO_VALUE, Cause::Condition);
-            }
-        } else {
-            let info = [k as u8 + 1, 0, 0, 0, 0];
-            self.emcy
-                .raise(&mut self.store, EMCY_RPDO_VALUE, info, Cause::Condition);
         }
     }
 
@@ -474,7 +430,10 @@ impl Core {
 
     /// Report a communication event without keeping it active (history + EMCY frame).
     fn report(&mut self, code: u16, info: [u8; 5]) {
-        self.emcy.report(&mut self.store, code, info);
+        if self.emcy.report(&mut self.store, code, info) {
+            self.event(NodeEvent::EmcyRaised { code });
+            self.event(NodeEvent::EmcyCleared { code });
+        }
     }
 
     fn boot(&mut self, now_us: u64) {
@@ -484,7 +443,10 @@ impl Core {
         self.pending_sync = None;
         self.hb_lost = false;
         self.hb.restart(now_us, self.store.u32(R_1017) as u16);
-        self.push(CanFrame::new(0x700 + self.node_id as u32, &[0x00]));
+        self.push(CanFrame::new(
+            cob::HEARTBEAT + self.node_id as u32,
+            &Heartbeat::BOOTUP.emit(),
+        ));
     }
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
@@ -500,18 +462,6 @@ impl Core {
         }
     }
 
-    fn send_tpdo(&mut self, k: usize, now_us: u64) {
-        let p = &self.tpdo[k];
-        let mut d = [0u8; 8];
-        let n = p.pack(&self.store, &mut d);
-        let f = CanFrame::new(p.cob & 0x7FF, &d[..n]);
-        let p = &mut self.tpdo[k];
-        p.last = d;
-        p.has_last = true;
-        p.last_tx_us = Some(now_us);
-        self.push(f);
-    }
-
     fn on_sync(&mut self, frame: &CanFrame, now_us: u64) -> FrameEvent {
         let overflow = self.store.u32(R_1019) as u8;
         let s = self
@@ -522,50 +472,21 @@ impl Core {
         }
         if s.recovered {
             // the supervision is satisfied again; a fault it caused stays until reset
-            self.emcy
-                .clear(&mut self.store, EMCY_SYNC_LOSS, Cause::Condition);
+            self.clear_emcy(EMCY_SYNC_LOSS, Cause::Condition);
         }
         self.pending_sync = Some(now_us);
         if self.nmt == NmtState::Operational {
-            for k in 0..4 {
-                let p = &mut self.rpdo[k];
-                if p.valid && p.rx_pending && p.is_sync_rx() {
-                    p.rx_pending = false;
-                    let (p, data) = (*p, p.rx);
-                    let ok = p.unpack(&mut self.store, &data[..p.len as usize], rpdo_accepts);
+            let applied = self.pdo.apply_sync_rpdos(&mut self.store, rpdo_accepts);
+            for (k, ok) in applied.into_iter().enumerate() {
+                if let Some(ok) = ok {
                     self.rpdo_value_condition(k, ok);
                 }
             }
-            for k in 0..4 {
-                let p = self.tpdo[k];
-                if !p.valid {
-                    continue;
-                }
-                match p.ttype {
-                    0 => {
-                        let mut d = [0u8; 8];
-                        let n = p.pack(&self.store, &mut d);
-                        if !p.has_last || d[..n] != p.last[..n] {
-                            self.send_tpdo(k, now_us);
-                        }
-                    }
-                    1..=240 => {
-                        let p = &mut self.tpdo[k];
-                        p.sync_count = p.sync_count.saturating_add(1);
-                        if p.sync_count >= p.ttype {
-                            p.sync_count = 0;
-                            self.send_tpdo(k, now_us);
-                        }
-                    }
-                    252 => {
-                        let mut d = [0u8; 8];
-                        p.pack(&self.store, &mut d);
-                        self.tpdo[k].sampled = d;
-                    }
-                    _ => {}
-                }
-            }
+            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
+            self.pdo
+                .on_sync(&self.store, now_us, &mut |f| push(tx, overflows, f));
         }
+        self.event(NodeEvent::Sync { counter: s.counter });
         FrameEvent::Sync { counter: s.counter }
     }
 }
@@ -584,8 +505,7 @@ impl Node {
             store,
             saved: None,
             nmt: NmtState::Initialising,
-            rpdo: [Pdo::default(); 4],
-            tpdo: [Pdo::default(); 4],
+            pdo: PdoEngine::default(),
             sync: SyncConsumer::default(),
             hb: Producer::default(),
             hbc: Consumer::default(),
@@ -597,7 +517,12 @@ impl Node {
             pending_sync: None,
             injected_fault: 0,
             now_us: 0,
+            events: Deque::new(),
+            events_dropped: 0,
+            seen_cia: State::NotReadyToSwitchOn,
+            seen_nmt: NmtState::Initialising,
         };
+        core.seen_cia = core.cia.state;
         core.refresh_all();
         Ok(Node {
             sdo: SdoServer::default(),
@@ -609,6 +534,7 @@ impl Node {
     pub fn boot(&mut self, now_us: u64) {
         self.core.now_us = now_us;
         self.core.boot(now_us);
+        self.core.observe();
     }
 
     fn nmt_command(&mut self, cmd: NmtCommand, now_us: u64) {
@@ -618,7 +544,7 @@ impl Node {
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
                 c.cia = Cia402::new(f);
-                c.emcy.reset(&mut c.store);
+                c.clear_all_emcy();
                 c.injected_fault = 0;
                 self.sdo.reset();
                 c.boot(now_us);
@@ -626,18 +552,20 @@ impl Node {
             NmtCommand::ResetCommunication => {
                 c.restore_range(0x1000, 0x1FFF);
                 // 0x1001 / 0x1003 keep what the drive is still in FAULT for
+                let before = c.emcy.active_codes();
                 c.emcy.reset_communication(&mut c.store);
+                for code in before {
+                    if !c.emcy.is_active(code) {
+                        c.event(NodeEvent::EmcyCleared { code });
+                    }
+                }
                 self.sdo.reset();
                 c.boot(now_us);
             }
             _ => {
                 let next = nmt::next_state(cmd);
                 if next == NmtState::Operational && c.nmt != NmtState::Operational {
-                    for p in c.tpdo.iter_mut().chain(c.rpdo.iter_mut()) {
-                        p.has_last = false;
-                        p.sync_count = 0;
-                        p.rx_pending = false;
-                    }
+                    c.pdo.restart();
                 }
                 if next != NmtState::Operational {
                     self.sdo_reset_if_stopped(next);
@@ -655,6 +583,20 @@ impl Node {
 
     /// Handle one received frame.
     pub fn handle(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
+        let ev = self.handle_frame(frame, now_us, drive);
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+        ev
+    }
+
+    fn handle_frame(
+        &mut self,
+        frame: &CanFrame,
+        now_us: u64,
+        drive: &mut impl Drive,
+    ) -> FrameEvent {
         self.core.now_us = now_us;
         if frame.extended || frame.id > 0x7FF || self.core.nmt == NmtState::Initialising {
             return FrameEvent::Ignored;
@@ -681,7 +623,7 @@ impl Node {
             }
             return FrameEvent::Ignored;
         }
-        if id == 0x600 + self.core.node_id as u32 {
+        if id == cob::SDO_RX + self.core.node_id as u32 {
             if frame.rtr || frame.len != 8 {
                 return FrameEvent::Ignored;
             }
@@ -693,9 +635,9 @@ impl Node {
             self.sdo.handle(&frame.data, now_us, &mut acc, &mut |f| {
                 let _ = outv.push(f);
             });
-            let cob = 0x580 + self.core.node_id as u32;
+            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
             for f in outv {
-                self.core.push(CanFrame::new(cob, &f));
+                self.core.push(CanFrame::new(tx_cob, &f));
             }
             return FrameEvent::Handled;
         }
@@ -707,48 +649,26 @@ impl Node {
             return FrameEvent::Ignored;
         }
         let c = &mut self.core;
-        for k in 0..4 {
-            let p = c.rpdo[k];
-            if p.valid && !frame.rtr && p.cob & 0x7FF == id {
-                // shorter than the mapping: ignored; longer: the mapped bytes are used
-                let code = match frame.len.cmp(&p.len) {
-                    core::cmp::Ordering::Less => EMCY_PDO_LENGTH,
-                    core::cmp::Ordering::Equal => 0,
-                    core::cmp::Ordering::Greater => EMCY_PDO_LENGTH_EXCEEDED,
-                };
-                c.rpdo_length_condition(k, code, frame.len);
-                if code == EMCY_PDO_LENGTH {
-                    return FrameEvent::Handled;
-                }
-                let data = &frame.data[..p.len as usize];
-                if p.is_sync_rx() {
-                    c.rpdo[k].rx = frame.data;
-                    c.rpdo[k].rx_pending = true;
-                } else {
-                    let ok = p.unpack(&mut c.store, data, rpdo_accepts);
+        match c.pdo.receive(&mut c.store, frame, rpdo_accepts) {
+            RxOutcome::NotRpdo => {}
+            RxOutcome::Received {
+                k,
+                len,
+                length_code,
+                values_ok,
+            } => {
+                c.rpdo_length_condition(k, length_code, len);
+                if let Some(ok) = values_ok {
                     c.rpdo_value_condition(k, ok);
                 }
                 return FrameEvent::Handled;
             }
         }
-        for k in 0..4 {
-            let p = c.tpdo[k];
-            // COB-ID bit 30 set: "no RTR allowed on this PDO" (CiA 301 7.5.2.35)
-            let rtr_allowed = p.cob & 0x4000_0000 == 0;
-            if p.valid
-                && rtr_allowed
-                && frame.rtr
-                && p.cob & 0x7FF == id
-                && matches!(p.ttype, 252 | 253)
-            {
-                if p.ttype == 252 {
-                    let f = CanFrame::new(p.cob & 0x7FF, &p.sampled[..p.len as usize]);
-                    c.push(f);
-                } else {
-                    c.send_tpdo(k, now_us);
-                }
-                return FrameEvent::Handled;
-            }
+        let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
+        if c.pdo
+            .on_rtr(&c.store, frame, now_us, &mut |f| push(tx, overflows, f))
+        {
+            return FrameEvent::Handled;
         }
         FrameEvent::Ignored
     }
@@ -760,13 +680,65 @@ impl Node {
             c.hbc.on_heartbeat(node, now_us);
             if c.hb_lost {
                 c.hb_lost = false;
-                c.emcy.clear(&mut c.store, EMCY_HEARTBEAT, Cause::Condition);
+                c.clear_emcy(EMCY_HEARTBEAT, Cause::Condition);
             }
         }
     }
 
     /// Timers, the CiA 402 state machine and mode, and exactly one `drive.command(..)`.
     pub fn poll(&mut self, now_us: u64, drive: &mut impl Drive) {
+        self.poll_timers_and_drive(now_us, drive);
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+    }
+
+    /// The next event (state change, EMCY raised or cleared, SYNC, finished SDO transfer),
+    /// oldest first. Events beyond [`EVENT_QUEUE`] unread are dropped and counted in
+    /// [`Node::events_dropped`].
+    pub fn poll_event(&mut self) -> Option<NodeEvent> {
+        self.core.events.pop_front()
+    }
+
+    /// Events dropped because the event queue was full.
+    pub fn events_dropped(&self) -> u32 {
+        self.core.events_dropped
+    }
+
+    /// The next time (us, on the clock given to `handle` / `poll`) at which [`Node::poll`]
+    /// has a communication deadline: an SDO transfer timeout, the heartbeat producer, a
+    /// heartbeat consumer timeout, SYNC supervision (1.5 periods), a TPDO event timer or the
+    /// end of a TPDO or EMCY inhibit time holding back a frame. A SYNC received and not yet
+    /// processed makes it the time of that SYNC (poll now). `None`: no deadline; the node
+    /// then needs `poll` only for its CiA 402 cycle, which the caller runs at its own rate.
+    pub fn poll_at(&self) -> Option<u64> {
+        let c = &self.core;
+        let mut at = self.sdo.deadline_us();
+        let mut take = |t: Option<u64>| {
+            if let Some(t) = t {
+                at = Some(at.map_or(t, |a| a.min(t)));
+            }
+        };
+        if c.nmt == NmtState::Initialising {
+            return at;
+        }
+        take(c.pending_sync);
+        take(c.hb.deadline_us(c.store.u32(R_1017) as u16));
+        take(c.hbc.deadline_us());
+        if c.nmt == NmtState::Operational {
+            take(c.sync.deadline_us(c.store.u32(R_1006)));
+            for k in 0..4 {
+                take(c.pdo.deadline_us(&c.store, k, c.now_us));
+            }
+        }
+        if c.emcy_allowed() {
+            take(c.emcy.next_at_us(c.store.u32(R_1015) as u16));
+        }
+        at
+    }
+
+    fn poll_timers_and_drive(&mut self, now_us: u64, drive: &mut impl Drive) {
         self.core.now_us = now_us;
         let fb = drive.feedback();
         // SDO timeout
@@ -775,9 +747,9 @@ impl Node {
             self.sdo.poll(now_us, &mut |f| {
                 let _ = outv.push(f);
             });
-            let cob = 0x580 + self.core.node_id as u32;
+            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
             for f in outv {
-                self.core.push(CanFrame::new(cob, &f));
+                self.core.push(CanFrame::new(tx_cob, &f));
             }
         }
         let c = &mut self.core;
@@ -791,24 +763,19 @@ impl Node {
         }
         // heartbeat producer
         if c.hb.due(now_us, c.store.u32(R_1017) as u16) {
-            let f = CanFrame::new(0x700 + c.node_id as u32, &[c.nmt as u8]);
+            let hb = Heartbeat { state: c.nmt as u8 };
+            let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
             c.push(f);
         }
         // heartbeat consumer
         if let Some(n) = c.hbc.poll(now_us) {
             c.hb_lost = true;
-            c.emcy.raise(
-                &mut c.store,
-                EMCY_HEARTBEAT,
-                [n, 0, 0, 0, 0],
-                Cause::Condition,
-            );
+            c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
         }
         // SYNC supervision
         if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
-            c.emcy
-                .raise(&mut c.store, EMCY_SYNC_LOSS, [0; 5], Cause::Condition);
+            c.raise_emcy(EMCY_SYNC_LOSS, [0; 5], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
         }
         if c.injected_fault != 0 {
@@ -821,34 +788,18 @@ impl Node {
             .cia
             .step(&mut c.store, &fb, now_us, sync_at, period, drive);
         if let Some(code) = out.new_fault {
-            c.emcy.raise(&mut c.store, code, [0; 5], Cause::Fault);
+            c.raise_emcy(code, [0; 5], Cause::Fault);
         }
         if out.fault_cleared {
             // errors a supervision still holds (master still lost) stay active
-            c.emcy.clear_cause(&mut c.store, Cause::Fault);
+            c.clear_cause(Cause::Fault);
         }
         drive.command(&out.command);
         // event-driven TPDOs
         if c.nmt == NmtState::Operational {
-            for k in 0..4 {
-                let p = c.tpdo[k];
-                if !p.valid || p.ttype < 254 {
-                    continue;
-                }
-                let crow = comm_row(k, true);
-                let inhibit = c.store.u32(crow + 3) as u64 * 100;
-                let timer = c.store.u32(crow + 4) as u64 * 1000;
-                let inhibit_ok = p.last_tx_us.is_none_or(|l| now_us >= l + inhibit);
-                let timer_due = timer > 0 && p.last_tx_us.is_none_or(|l| now_us >= l + timer);
-                if !inhibit_ok {
-                    continue;
-                }
-                let mut d = [0u8; 8];
-                let n = p.pack(&c.store, &mut d);
-                if !p.has_last || d[..n] != p.last[..n] || timer_due {
-                    c.send_tpdo(k, now_us);
-                }
-            }
+            let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
+            c.pdo
+                .poll_events(&c.store, now_us, &mut |f| push(tx, overflows, f));
         }
         // EMCY
         if c.emcy_allowed() {

@@ -1,6 +1,5 @@
 //! EMCY producer: 0x1001 error register, 0x1003 pre-defined error field (history, newest in
-//! sub 1), 0x1014 COB-ID, 0x1015 inhibit time. Frames are encoded with canopen-rs's
-//! `EmergencyMessage`.
+//! sub 1), 0x1014 COB-ID, 0x1015 inhibit time. Frames are encoded by [`crate::wire::emcy`].
 //!
 //! An active error is held by one or more causes ([`Cause`]): a supervised condition that
 //! is still present (heartbeat or SYNC lost, a wrong RPDO), or the CiA 402 FAULT state that the error put the
@@ -9,11 +8,17 @@
 //! reset does (CiA 301: the error register reflects the errors that are active).
 
 use crate::od::{idx, Store};
-use canopen_rs::{EmergencyMessage, ErrorRegister};
+use crate::wire::emcy::EmcyFrame;
 use heapless::{Deque, Vec};
 
 const R_1001: usize = idx(0x1001, 0);
 const R_1003: usize = idx(0x1003, 0);
+/// "Error reset / no error".
+const RESET: EmcyFrame = EmcyFrame {
+    code: 0,
+    register: 0,
+    info: [0; 5],
+};
 
 /// What keeps an error active.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -112,12 +117,13 @@ impl Emcy {
     }
 
     /// Raise an error held by `cause`: update 0x1001 and 0x1003, queue the EMCY frame.
-    pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5], cause: Cause) {
+    /// Returns false when the error was already active (only the cause is added).
+    pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5], cause: Cause) -> bool {
         // An error that is already active is not a new event: one EMCY, one history entry,
         // until it is cleared (e.g. heartbeat loss followed by its 0x6007 fault reaction).
         if let Some(a) = self.active.iter_mut().find(|a| a.code == code) {
             a.causes |= cause as u8;
-            return;
+            return false;
         }
         let entry = code as u32 | (u16::from_le_bytes([info[0], info[1]]) as u32) << 16;
         let a = Active {
@@ -138,51 +144,81 @@ impl Emcy {
         }
         store.set(R_1003 + 1, entry);
         store.set(R_1003, (n + 1).min(8) as u32);
-        let msg = EmergencyMessage::new(code, ErrorRegister(reg), info);
-        self.push(msg.encode());
+        let msg = EmcyFrame {
+            code,
+            register: reg,
+            info,
+        };
+        self.push(msg.emit());
+        true
     }
 
     /// `cause` no longer holds error `code`; when no error is left, send "error reset / no
-    /// error" (EMCY 0x0000).
-    pub fn clear(&mut self, store: &mut Store, code: u16, cause: Cause) {
-        if let Some(p) = self.active.iter().position(|a| a.code == code) {
-            self.active[p].causes &= !(cause as u8);
-            if self.active[p].causes == 0 {
-                self.active.remove(p);
-                self.update_register(store);
-                if self.active.is_empty() {
-                    self.push(EmergencyMessage::error_reset().encode());
-                }
-            }
+    /// error" (EMCY 0x0000). Returns true when the error went inactive.
+    pub fn clear(&mut self, store: &mut Store, code: u16, cause: Cause) -> bool {
+        let Some(p) = self.active.iter().position(|a| a.code == code) else {
+            return false;
+        };
+        self.active[p].causes &= !(cause as u8);
+        if self.active[p].causes != 0 {
+            return false;
         }
+        self.active.remove(p);
+        self.update_register(store);
+        if self.active.is_empty() {
+            self.push(RESET.emit());
+        }
+        true
     }
 
-    /// `cause` holds no error any more (CiA 402 fault reset: [`Cause::Fault`]).
-    pub fn clear_cause(&mut self, store: &mut Store, cause: Cause) {
-        let before = self.active.len();
+    /// `cause` holds no error any more (CiA 402 fault reset: [`Cause::Fault`]). Returns the
+    /// codes that went inactive.
+    pub fn clear_cause(&mut self, store: &mut Store, cause: Cause) -> Vec<u16, 8> {
+        let mut gone = Vec::new();
         self.active.retain_mut(|a| {
             a.causes &= !(cause as u8);
+            if a.causes == 0 {
+                let _ = gone.push(a.code);
+            }
             a.causes != 0
         });
-        if self.active.len() != before {
+        if !gone.is_empty() {
             self.update_register(store);
             if self.active.is_empty() {
-                self.push(EmergencyMessage::error_reset().encode());
+                self.push(RESET.emit());
             }
         }
+        gone
+    }
+
+    /// The active error codes, oldest first.
+    pub fn active_codes(&self) -> Vec<u16, 8> {
+        self.active.iter().map(|a| a.code).collect()
     }
 
     /// Report an event without keeping it active (history + EMCY frame, and EMCY 0x0000 when
-    /// no other error is active).
-    pub fn report(&mut self, store: &mut Store, code: u16, info: [u8; 5]) {
-        self.raise(store, code, info, Cause::Event);
+    /// no other error is active). Returns whether it was raised (not already active).
+    pub fn report(&mut self, store: &mut Store, code: u16, info: [u8; 5]) -> bool {
+        let raised = self.raise(store, code, info, Cause::Event);
         self.clear(store, code, Cause::Event);
+        raised
     }
 
     fn push(&mut self, f: [u8; 8]) {
         if self.queue.push_back(f).is_err() {
             self.dropped = self.dropped.wrapping_add(1);
         }
+    }
+
+    /// When the next queued frame may go (us): `None` with an empty queue.
+    pub fn next_at_us(&self, inhibit_100us: u16) -> Option<u64> {
+        if self.queue.is_empty() {
+            return None;
+        }
+        Some(
+            self.last_tx_us
+                .map_or(0, |l| l.saturating_add(inhibit_100us as u64 * 100)),
+        )
     }
 
     /// The next frame allowed by the inhibit time (100 us units), if any.
