@@ -264,13 +264,17 @@ fn the_cli_reads_a_candump_log_by_content_and_writes_the_report() {
     let out = dir.join("report");
     let code = run(&AnalyzeArgs {
         trace: path,
-        kv: l.kv_per_s,
+        kv: Some(l.kv_per_s),
         out: Some(out.clone()),
         fail_on_backlash: true,
         ..Default::default()
     })
     .unwrap();
-    assert_eq!(code, std::process::ExitCode::from(2));
+    assert_eq!(
+        code,
+        std::process::ExitCode::from(1),
+        "backlash found: exit 1"
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("detector.json")).unwrap()).unwrap();
     let from_samples = detect(&AxisTrace::from_samples(&l.samples, false), l.kv_per_s);
