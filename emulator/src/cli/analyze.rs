@@ -136,7 +136,11 @@ fn parse_csv(path: &Path, text: &str) -> anyhow::Result<(Vec<(String, Vec<f64>)>
     let last_no = all.last().map(|(i, _)| *i);
     for (i, line) in lines {
         let fields: Vec<&str> = line.split(',').collect();
-        let parsed: Result<Vec<f64>, String> = if fields.len() != cols.len() {
+        let parsed: Result<Vec<f64>, String> = if cut_at_end && Some(i) == last_no {
+            // No newline at the end: the writer stopped mid-line; even a line that parses
+            // may have lost digits.
+            Err("no newline at the end".to_string())
+        } else if fields.len() != cols.len() {
             Err(format!(
                 "{} fields, header has {}",
                 fields.len(),
@@ -160,8 +164,7 @@ fn parse_csv(path: &Path, text: &str) -> anyhow::Result<(Vec<(String, Vec<f64>)>
                 }
             }
             Err(e) if cut_at_end && Some(i) == last_no => notes.push(format!(
-                "{}:{}: last line cut short ({e}; no newline at the end: the writer was \
-                 stopped mid-line): skipped",
+                "{}:{}: last line cut short ({e}: the writer was stopped mid-line): skipped",
                 path.display(),
                 i + 1
             )),

@@ -593,16 +593,20 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
         if after_error_frame && line.starts_with('\t') {
             continue;
         }
+        // The last line of a log whose writer was killed mid-line: no newline at its end. It
+        // may even parse (a frame with fewer data bytes), so it is never trusted: skipped and
+        // reported.
+        if i + 1 == n_lines && !text.ends_with('\n') && !line.trim().is_empty() {
+            cut_line = Some(format!(
+                "{source}:{}: last line cut short (no newline at the end: the writer was \
+                 stopped mid-line): skipped: `{}`",
+                i + 1,
+                line.chars().take(60).collect::<String>()
+            ));
+            continue;
+        }
         let parsed = match parse_line(line) {
             Ok(p) => p,
-            // The last line of a log whose writer was killed mid-line: skipped, reported.
-            Err(e) if i + 1 == n_lines && !text.ends_with('\n') => {
-                cut_line = Some(format!(
-                    "{source}:{}: last line cut short ({e}; no newline at the end): skipped",
-                    i + 1
-                ));
-                None
-            }
             Err(e) => bail!("{source}:{}: {e}", i + 1),
         };
         if let Some(f) = parsed {
