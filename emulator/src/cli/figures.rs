@@ -18,6 +18,9 @@ pub struct FiguresArgs {
     /// Preset whose speed loop Fig. 3 measures.
     #[arg(long, default_value = "cnc1")]
     pub fig3_preset: String,
+    /// Override a key of Fig. 3's preset, e.g. --set speed_kp_nms_per_rad=6 (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
     /// Worker threads for Fig. 11 (0 = all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -36,7 +39,7 @@ pub fn run(args: &FiguresArgs) -> anyhow::Result<()> {
     for w in which {
         match w.as_str() {
             "3" => {
-                let (p, r) = fig3(&args.out, &args.fig3_preset)?;
+                let (p, r) = fig3(&args.out, &args.fig3_preset, &args.set)?;
                 println!(
                     "Fig. 3 {}: closed speed loop of {}, -3 dB bandwidth {}",
                     p.display(),

@@ -27,17 +27,23 @@ fn cfg_err(e: crate::presets::ConfigError) -> anyhow::Error {
 }
 
 /// Fig. 3 data: the closed speed loop of a healthy axis (backlash 0), 5 Hz - 1 kHz.
-pub fn fig3_data(preset: &str) -> anyhow::Result<SpeedLoopResponse> {
+/// `sets`: `key=value` overrides applied after.
+pub fn fig3_data(preset: &str, sets: &[String]) -> anyhow::Result<SpeedLoopResponse> {
     let cfg = AxisConfig::from_preset(preset).map_err(cfg_err)?;
     let cfg = cfg
         .with_override(backlash_key(&cfg), "0")
+        .and_then(|c| c.with_overrides(sets.iter().map(String::as_str)))
         .map_err(cfg_err)?;
     speed_loop_response(&cfg, &log_frequencies(5.0, 1000.0, 41), 300.0, 5.0).map_err(cfg_err)
 }
 
 /// Fig. 3: magnitude and phase against frequency, the -3 dB bandwidth marked.
-pub fn fig3(dir: &Path, preset: &str) -> anyhow::Result<(PathBuf, SpeedLoopResponse)> {
-    let r = fig3_data(preset)?;
+pub fn fig3(
+    dir: &Path,
+    preset: &str,
+    sets: &[String],
+) -> anyhow::Result<(PathBuf, SpeedLoopResponse)> {
+    let r = fig3_data(preset, sets)?;
     let png = dir.join("fig3-speed-loop.png");
     write_json(&dir.join("fig3-speed-loop.json"), &r)?;
     font_ready();
@@ -57,7 +63,7 @@ pub fn fig3(dir: &Path, preset: &str) -> anyhow::Result<(PathBuf, SpeedLoopRespo
             .margin(8)
             .x_label_area_size(30)
             .y_label_area_size(60)
-            .build_cartesian_2d((f0..f1).log_scale(), -15.0..6.0)?;
+            .build_cartesian_2d((f0..f1).log_scale(), -25.0..6.0)?;
         c.configure_mesh()
             .x_desc("frequency, Hz")
             .y_desc("magnitude, dB")
@@ -76,7 +82,7 @@ pub fn fig3(dir: &Path, preset: &str) -> anyhow::Result<(PathBuf, SpeedLoopRespo
             RED.stroke_width(1),
         ))?;
         if let Some(b) = r.bandwidth_3db_hz {
-            c.draw_series(LineSeries::new([(b, -15.0), (b, 6.0)], RED.stroke_width(1)))?;
+            c.draw_series(LineSeries::new([(b, -25.0), (b, 6.0)], RED.stroke_width(1)))?;
         }
         let (plo, phi) = r.points.iter().fold((0.0f64, 0.0f64), |(lo, hi), p| {
             (lo.min(p.phase_deg), hi.max(p.phase_deg))
