@@ -111,15 +111,18 @@ impl Default for AnalyzeArgs {
     }
 }
 
+/// Named columns of a CSV trace.
+pub type Columns = Vec<(String, Vec<f64>)>;
+
 /// Read a CSV into named columns.
-pub fn read_csv(path: &Path) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
+pub fn read_csv(path: &Path) -> anyhow::Result<Columns> {
     let text = read_trace_text(path)?;
     Ok(parse_csv(path, &text)?.0)
 }
 
 /// Parse CSV text (read from `path`) into named columns, and notes: a last line cut short (no
 /// newline at the end: the writer was killed mid-line) is skipped and reported.
-fn parse_csv(path: &Path, text: &str) -> anyhow::Result<(Vec<(String, Vec<f64>)>, Vec<String>)> {
+fn parse_csv(path: &Path, text: &str) -> anyhow::Result<(Columns, Vec<String>)> {
     let all: Vec<(usize, &str)> = text
         .lines()
         .enumerate()
