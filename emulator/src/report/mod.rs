@@ -13,7 +13,7 @@ const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 const W: u32 = 1000;
 const H: u32 = 600;
 
-fn font_ready() {
+pub(crate) fn font_ready() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         // Cannot fail for the embedded font; if it did, plots would lack text only.
