@@ -105,6 +105,7 @@ fn every_corpus_verdict_is_right() {
     let tmp = std::env::temp_dir().join(format!("corpus-analyze-{}", std::process::id()));
     let mut failures = Vec::new();
     let mut table = String::new();
+    let mut traces = 0;
     for c in &cases {
         let (j, code) = analyze(&c.capture, &tmp.join(&c.name), &[]);
         let rep = &j["report"];
@@ -149,7 +150,50 @@ fn every_corpus_verdict_is_right() {
         if rep["reasons"].as_array().is_none_or(|r| r.is_empty()) {
             failures.push(format!("{}: no reasons", c.name));
         }
+        // The drive's own `run --trace` of the same run says the same (it said "ok, windows
+        // 0" once: its set speed now comes from the position demand 0x6062).
+        let trace = c.capture.with_file_name(format!("{}.trace.csv.gz", c.name));
+        if trace.exists() {
+            traces += 1;
+            let (j, code) = analyze(&trace, &tmp.join(format!("{}-trace", c.name)), &[]);
+            let rep = &j["report"];
+            let verdict = rep["verdict"].as_str().unwrap();
+            let f = rep["frequency_hz"].as_f64();
+            table += &format!(
+                "{:24}   run --trace: verdict {verdict:18} f {:>6} exit {code}\n",
+                "",
+                f.map_or("-".into(), |f| format!("{f:.2}"))
+            );
+            let right = match want {
+                "backlash" => verdict == "backlash" || verdict == "backlash_suspected",
+                w => verdict == w,
+            };
+            if !right {
+                failures.push(format!(
+                    "{} run --trace: verdict {verdict}, truth {want}: {}",
+                    c.name, rep["reasons"]
+                ));
+            }
+            if want == "backlash" {
+                // The trace is in the drive's time; the capture (and the truth) in the bus
+                // timestamps' median SYNC interval. A lock-step drive advances one nominal
+                // period per SYNC however slowly python sends them: the truth in drive time
+                // is f * measured / nominal.
+                let nominal = c.truth["case"]["sync_ms"].as_f64().unwrap() * 1e-3;
+                let measured = c.truth["sync_period_s_measured"].as_f64().unwrap();
+                let lockstep = c.truth["case"]["lockstep"].as_bool().unwrap();
+                let ft = f_true.unwrap() * if lockstep { measured / nominal } else { 1.0 };
+                let f = f.unwrap_or(0.0);
+                if (f - ft).abs() > 0.05 * ft {
+                    failures.push(format!(
+                        "{} run --trace: {f:.2} Hz, truth in drive time {ft:.2} Hz (> 5 %)",
+                        c.name
+                    ));
+                }
+            }
+        }
     }
+    assert!(traces >= 2, "{traces} drive traces in the corpus");
     let _ = std::fs::remove_dir_all(&tmp);
     eprintln!("{table}");
     assert!(failures.is_empty(), "{table}\n{}", failures.join("\n"));

@@ -13,7 +13,8 @@ or --lockstep), the master's SYNC period, the operating mode and how set-points 
 drive (CSP/CSV targets in an RPDO every SYNC, with the python timer's jitter; PV with 0x60FF
 written over SDO; a PP move with 0x607A / 0x6081 over SDO), whether the master remaps the
 PDOs itself, and the motion (a cruise at constant speed, or a sine with no constant-speed
-window). Writes tests/corpus/NAME.log.gz and NAME.json (truth.py's output plus the case).
+window). Writes tests/corpus/NAME.log.gz and NAME.json (truth.py's output plus the case), and for the
+`trace` cases the drive's own `run --trace` of the same run as NAME.trace.csv.gz.
 """
 import gzip
 import json
@@ -55,6 +56,11 @@ CASES = {
     "pv-10ms-rt-healthy": dict(gap=0.0, lockstep=False, sync_ms=10, mode="pv", remap=True),
     "pp-4ms-lock-worn05": dict(gap=0.05, lockstep=True, sync_ms=4, mode="pp", remap=True),
     "pp-10ms-lock-healthy": dict(gap=0.0, lockstep=True, sync_ms=10, mode="pp", remap=True),
+    # the drive's own `run --trace` of the same run, beside the capture
+    "csp-4ms-lock-worn05-trace": dict(gap=0.05, lockstep=True, sync_ms=4, mode="csp",
+                                     remap=False, trace=True),
+    "csp-1ms-lock-healthy-trace": dict(gap=0.0, lockstep=True, sync_ms=1, mode="csp",
+                                      remap=True, trace=True),
     "sine-4ms-lock-worn05": dict(gap=0.05, lockstep=True, sync_ms=4, mode="csp", remap=True,
                                 motion="sine"),
 }
@@ -220,6 +226,9 @@ def run_case(name, case):
                "--set", f"backlash_mm={case['gap']}", "--rt-priority", "0", "--no-mlock"]
     if case["lockstep"]:
         emu_cmd += ["--lockstep", "--sync-period-us", str(sync_us)]
+    trace_csv = f"/tmp/corpus-{name}-trace.csv"
+    if case.get("trace"):
+        emu_cmd += ["--trace", trace_csv]
     emu = subprocess.Popen(emu_cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     info = {}
     try:
@@ -307,6 +316,11 @@ def run_case(name, case):
     with open(out_log, "rb") as src, gzip.open(gz, "wb", compresslevel=9) as dst:
         shutil.copyfileobj(src, dst)
     os.remove(out_log)
+    if case.get("trace"):
+        with open(trace_csv, "rb") as src, gzip.open(
+                os.path.join(HERE, f"{name}.trace.csv.gz"), "wb", compresslevel=9) as dst:
+            shutil.copyfileobj(src, dst)
+        os.remove(trace_csv)
     t = truth.measure(gz, NODE, case["mode"], case["remap"])
     t["case"] = {k: v for k, v in case.items()}
     t["case"]["window"] = info.get("window", False)

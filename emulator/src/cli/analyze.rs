@@ -111,8 +111,11 @@ impl Default for AnalyzeArgs {
     }
 }
 
+/// Named columns of a CSV trace.
+pub type Columns = Vec<(String, Vec<f64>)>;
+
 /// Read a CSV into named columns.
-pub fn read_csv(path: &Path) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
+pub fn read_csv(path: &Path) -> anyhow::Result<Columns> {
     let text = read_trace_text(path)?;
     Ok(parse_csv(path, &text)?.0)
 }

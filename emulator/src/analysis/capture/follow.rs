@@ -4,6 +4,7 @@
 
 use super::candump::{parse_line, FrameKind, LogFrame};
 use anyhow::{bail, Context, Result};
+use drive_protocol::wire::{Initiate, Mux, NmtCommand, NmtFrame, SdoRequest, SdoResponse};
 use drive_protocol::{CanFrame, Drive, Node};
 use std::collections::BTreeMap;
 
@@ -385,9 +386,11 @@ impl<'a> Decoder<'a> {
         let n = self.node;
         if f.id == 0x000 {
             self.stats.nmt_frames += 1;
-            if let [cmd @ (0x81 | 0x82), target, ..] = *d {
-                if target == 0 || u32::from(target) == n {
-                    self.reset(cmd == 0x81);
+            if let Some(nmt) = NmtFrame::parse(d) {
+                let reset_node = matches!(nmt.command, NmtCommand::ResetNode);
+                let reset = reset_node || matches!(nmt.command, NmtCommand::ResetCommunication);
+                if reset && nmt.addresses(n as u8) {
+                    self.reset(reset_node);
                 }
             }
             return;
@@ -495,71 +498,69 @@ impl<'a> Decoder<'a> {
 
     fn sdo_request(&mut self, d: &[u8]) {
         self.pending = None;
-        let [cmd, i0, i1, sub, ..] = *d else {
+        let Ok(frame) = <[u8; 8]>::try_from(d) else {
             return;
         };
-        match cmd >> 5 {
-            // Initiate download.
-            1 if cmd & 0x02 != 0 => {
-                let unused = if cmd & 0x01 != 0 {
-                    usize::from((cmd >> 2) & 0x03)
-                } else {
-                    0
-                };
-                let Some(bytes) = d.get(4..8 - unused) else {
-                    return;
-                };
+        match SdoRequest::parse(&frame) {
+            Ok(SdoRequest::InitiateDownload {
+                mux,
+                data: data @ Initiate::Expedited { .. },
+            }) => {
                 let mut v = [0u8; 4];
-                for (dst, src) in v.iter_mut().zip(bytes) {
-                    *dst = *src;
-                }
+                let bytes = data.bytes();
+                v[..bytes.len().min(4)].copy_from_slice(&bytes[..bytes.len().min(4)]);
                 self.pending = Some(PendingWrite {
-                    index: u16::from_le_bytes([i0, i1]),
-                    sub,
+                    index: mux.index,
+                    sub: mux.sub,
                     value: u32::from_le_bytes(v),
                 });
             }
-            1 | 6 => self.stats.sdo_not_expedited += 1,
+            Ok(SdoRequest::InitiateDownload { .. } | SdoRequest::BlockDownloadInitiate { .. }) => {
+                self.stats.sdo_not_expedited += 1
+            }
             _ => {}
         }
     }
 
     fn sdo_response(&mut self, d: &[u8]) {
-        let [cmd, i0, i1, sub, ..] = *d else {
+        let Ok(frame) = <[u8; 8]>::try_from(d) else {
             return;
         };
         let Some(p) = self.pending else {
             return;
         };
-        if p.index != u16::from_le_bytes([i0, i1]) || p.sub != sub {
-            return;
-        }
-        match cmd {
-            0x60 => {
+        let ours = |mux: Mux| mux.index == p.index && mux.sub == p.sub;
+        match SdoResponse::parse(&frame) {
+            Ok(SdoResponse::InitiateDownload { mux }) if ours(mux) => {
                 self.pending = None;
                 self.stats.sdo_writes_confirmed += 1;
-                if self.cfg.write(p.index, p.sub, p.value) {
-                    self.stats.pdo_config_writes += 1;
-                } else if (p.index, p.sub) == (0x6060, 0) {
-                    self.mode_written = Some(p.value as u8 as i8);
-                } else if (p.index, p.sub) == (0x2007, 0) {
-                    // kv_per_s, REAL32
-                    self.kv_written = Some(f64::from(f32::from_bits(p.value)));
-                } else if let Some(o @ (Object::TargetPosition | Object::TargetVelocity)) =
-                    Object::of(p.index, p.sub)
-                {
-                    // A set-point written over SDO (`node.sdo['Target velocity'].raw = v`):
-                    // in force from now on, as one received in an RPDO.
-                    self.latest[o.slot()] = sign_extend(u64::from(p.value), 32);
-                    self.seen[o.slot()] = true;
-                    self.stats.sdo_setpoint_writes += 1;
-                }
+                self.confirmed(p);
             }
-            0x80 => {
+            Ok(SdoResponse::Abort { mux, .. }) if ours(mux) => {
                 self.pending = None;
                 self.stats.sdo_writes_aborted += 1;
             }
             _ => {}
+        }
+    }
+
+    /// A confirmed SDO write: the PDO configuration, the mode, k_v, or a set-point.
+    fn confirmed(&mut self, p: PendingWrite) {
+        if self.cfg.write(p.index, p.sub, p.value) {
+            self.stats.pdo_config_writes += 1;
+        } else if (p.index, p.sub) == (0x6060, 0) {
+            self.mode_written = Some(p.value as u8 as i8);
+        } else if (p.index, p.sub) == (0x2007, 0) {
+            // kv_per_s, REAL32
+            self.kv_written = Some(f64::from(f32::from_bits(p.value)));
+        } else if let Some(o @ (Object::TargetPosition | Object::TargetVelocity)) =
+            Object::of(p.index, p.sub)
+        {
+            // A set-point written over SDO (`node.sdo['Target velocity'].raw = v`): in force
+            // from now on, as one received in an RPDO.
+            self.latest[o.slot()] = sign_extend(u64::from(p.value), 32);
+            self.seen[o.slot()] = true;
+            self.stats.sdo_setpoint_writes += 1;
         }
     }
 }
