@@ -145,7 +145,7 @@ fn synchronous_window_1007_suppresses_late_synchronous_tpdos() {
     b.start();
     b.tick();
     let sync = f(0x80, &[]);
-    let mut late_sync = |b: &mut Bench, late_us: u64| {
+    let late_sync = |b: &mut Bench, late_us: u64| {
         b.take();
         b.node.handle_late(&sync, b.now, late_us, &mut b.drive);
         b.drain();
