@@ -1,10 +1,11 @@
-"""SYNC -> TPDO response latency of a running drive-emu over a CAN interface.
+"""SYNC -> TPDO and SDO upload latency of a running drive-emu over a CAN interface.
 
-Sends N SYNC frames (one every PERIOD s) and, for each, measures the time from the kernel's
-transmit echo of the SYNC to the arrival of the drive's first synchronous TPDO (0x280 + node),
-both kernel receive timestamps. Prints p50/p99/max in microseconds.
+Sends N SYNC frames (one every PERIOD s); for each, the time from the kernel's transmit echo of
+the SYNC to the arrival of the drive's first synchronous TPDO (0x280 + node); and every tenth
+period an SDO upload of 0x1000, from the echo of the request to the answer (0x580 + node). All
+times are kernel receive timestamps. Prints p50/p99/max in microseconds.
 
-    python3 bench/sync_latency.py IFACE NODE [N] [PERIOD]
+    python3 bench/sync_latency.py IFACE NODE [N] [PERIOD] [LABEL]
 """
 import sys
 import time
@@ -13,29 +14,53 @@ import can
 
 iface, node = sys.argv[1], int(sys.argv[2])
 n = int(sys.argv[3]) if len(sys.argv) > 3 else 2000
-period = float(sys.argv[4]) if len(sys.argv) > 4 else 0.002
+period = float(sys.argv[4]) if len(sys.argv) > 4 else 0.001
+label = sys.argv[5] if len(sys.argv) > 5 else "drive-emu"
 bus = can.Bus(interface="socketcan", channel=iface, receive_own_messages=True)
 # NMT start so that TPDOs flow.
 bus.send(can.Message(arbitration_id=0x000, data=[0x01, node], is_extended_id=False))
-time.sleep(0.2)
-lat = []
-for _ in range(n):
-    bus.send(can.Message(arbitration_id=0x080, data=[], is_extended_id=False))
-    t_sync = None
-    deadline = time.monotonic() + 0.1
+time.sleep(0.3)
+while bus.recv(timeout=0.01) is not None:
+    pass
+
+
+def round_trip(req_id, req_data, ans_id):
+    bus.send(can.Message(arbitration_id=req_id, data=req_data, is_extended_id=False))
+    t_req = None
+    deadline = time.monotonic() + 0.2
     while time.monotonic() < deadline:
         m = bus.recv(timeout=0.05)
         if m is None:
             continue
-        if m.arbitration_id == 0x080 and t_sync is None:
-            t_sync = m.timestamp
-        elif m.arbitration_id == 0x280 + node and t_sync is not None:
-            lat.append((m.timestamp - t_sync) * 1e6)
-            break
+        if m.arbitration_id == req_id and t_req is None:
+            t_req = m.timestamp
+        elif m.arbitration_id == ans_id and t_req is not None:
+            return (m.timestamp - t_req) * 1e6
+    return None
+
+
+sync_lat, sdo_lat = [], []
+for k in range(n):
+    lat = round_trip(0x080, [], 0x280 + node)
+    if lat is not None:
+        sync_lat.append(lat)
     time.sleep(period)
+    if k % 10 == 5:
+        lat = round_trip(0x600 + node, [0x40, 0x00, 0x10, 0, 0, 0, 0, 0], 0x580 + node)
+        if lat is not None:
+            sdo_lat.append(lat)
+        time.sleep(period)
 bus.shutdown()
-if not lat:
-    sys.exit("no TPDO answered a SYNC")
-lat.sort()
-q = lambda p: lat[min(len(lat) - 1, int(p * len(lat)))]
-print(f"SYNC->TPDO over {iface}: n={len(lat)} p50 {q(0.5):.0f} us, p99 {q(0.99):.0f} us, max {lat[-1]:.0f} us")
+if not sync_lat or not sdo_lat:
+    sys.exit("no answers")
+
+
+def q(v, p):
+    v = sorted(v)
+    return v[min(len(v) - 1, int(p * len(v)))]
+
+
+print(
+    f"{label}: SYNC->TPDO n={len(sync_lat)} p50 {q(sync_lat, .5):.0f} us p99 {q(sync_lat, .99):.0f} us"
+    f" | SDO upload n={len(sdo_lat)} p50 {q(sdo_lat, .5):.0f} us p99 {q(sdo_lat, .99):.0f} us"
+)

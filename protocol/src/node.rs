@@ -38,6 +38,7 @@ pub const EMCY_RPDO_VALUE: u16 = 0x6320;
 
 const R_1005: usize = idx(0x1005, 0);
 const R_1006: usize = idx(0x1006, 0);
+const R_1007: usize = idx(0x1007, 0);
 const R_1014: usize = idx(0x1014, 0);
 const R_1015: usize = idx(0x1015, 0);
 const R_1016: usize = idx(0x1016, 1);
@@ -54,6 +55,12 @@ pub struct RuntimeStats {
     pub lateness_p99_us: u32,
     pub lateness_max_us: u32,
     pub dropped_tx_frames: u32,
+    /// 0 free-running, 1 acquiring, 2 locked to SYNC.
+    pub sync_lock_state: u32,
+    pub sync_phase_error_us: u32,
+    pub sync_period_us: u32,
+    /// Times the transport's transmit queue was full and the runtime waited for room.
+    pub tx_full_waits: u32,
 }
 
 /// What a received frame was.
@@ -112,6 +119,8 @@ struct Core {
     cia: Cia402,
     tx: Deque<CanFrame, TX_QUEUE>,
     tx_overflows: u32,
+    /// Synchronous TPDOs not sent because the 0x1007 window had closed.
+    sync_window_missed: u32,
     pending_sync: Option<u64>,
     injected_fault: u16,
     now_us: u64,
@@ -462,7 +471,12 @@ impl Core {
         }
     }
 
-    fn on_sync(&mut self, frame: &CanFrame, now_us: u64) -> FrameEvent {
+    /// A SYNC, handled `late_us` after it arrived (the runtime read it late). Synchronous TPDOs
+    /// are sampled and queued now, unless the synchronous window (0x1007, non-zero) has
+    /// already closed: then CiA 301 says they are not sent (counted in 0x2100).
+    fn on_sync(&mut self, frame: &CanFrame, now_us: u64, late_us: u64) -> FrameEvent {
+        let window_us = u64::from(self.store.u32(R_1007));
+        let window_closed = window_us > 0 && late_us > window_us;
         let overflow = self.store.u32(R_1019) as u8;
         let s = self
             .sync
@@ -483,8 +497,10 @@ impl Core {
                 }
             }
             let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
-            self.pdo
-                .on_sync(&self.store, now_us, &mut |f| push(tx, overflows, f));
+            let missed =
+                self.pdo
+                    .on_sync(&self.store, now_us, window_closed, &mut |f| push(tx, overflows, f));
+            self.sync_window_missed = self.sync_window_missed.wrapping_add(missed);
         }
         self.event(NodeEvent::Sync { counter: s.counter });
         FrameEvent::Sync { counter: s.counter }
@@ -514,6 +530,7 @@ impl Node {
             cia: Cia402::new(factor),
             tx: Deque::new(),
             tx_overflows: 0,
+            sync_window_missed: 0,
             pending_sync: None,
             injected_fault: 0,
             now_us: 0,
@@ -585,7 +602,20 @@ impl Node {
 
     /// Handle one received frame.
     pub fn handle(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
-        let ev = self.handle_frame(frame, now_us, drive);
+        self.handle_late(frame, now_us, 0, drive)
+    }
+
+    /// Handle one received frame that arrived `late_us` before `now_us` (a runtime that read it
+    /// late says so): a SYNC handled after its synchronous window (0x1007) closed sends no
+    /// synchronous TPDOs. Everything else is as [`Node::handle`].
+    pub fn handle_late(
+        &mut self,
+        frame: &CanFrame,
+        now_us: u64,
+        late_us: u64,
+        drive: &mut impl Drive,
+    ) -> FrameEvent {
+        let ev = self.handle_frame(frame, now_us, late_us, drive);
         if let Some(t) = self.sdo.take_finished() {
             self.core.event(NodeEvent::SdoTransfer(t));
         }
@@ -597,6 +627,7 @@ impl Node {
         &mut self,
         frame: &CanFrame,
         now_us: u64,
+        late_us: u64,
         drive: &mut impl Drive,
     ) -> FrameEvent {
         self.core.now_us = now_us;
@@ -616,7 +647,7 @@ impl Node {
         let nmt = self.core.nmt;
         let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
         if id == sync_cob && !frame.rtr {
-            return self.core.on_sync(frame, now_us);
+            return self.core.on_sync(frame, now_us, late_us);
         }
         if nmt == NmtState::Stopped {
             if (0x701..=0x77F).contains(&id) && !frame.rtr && frame.len >= 1 {
@@ -833,6 +864,11 @@ impl Node {
             s.lateness_max_us,
             s.dropped_tx_frames,
             self.core.tx_overflows,
+            s.sync_lock_state,
+            s.sync_phase_error_us,
+            s.sync_period_us,
+            s.tx_full_waits,
+            self.core.sync_window_missed,
         ];
         for (i, x) in v.iter().enumerate() {
             self.core.store.set(R_STATS + i, *x);
@@ -872,6 +908,10 @@ impl Node {
     /// Frames dropped because the TX queue was full.
     pub fn tx_overflows(&self) -> u32 {
         self.core.tx_overflows
+    }
+    /// Synchronous TPDOs not sent because the synchronous window (0x1007) had closed.
+    pub fn sync_window_missed(&self) -> u32 {
+        self.core.sync_window_missed
     }
     /// Frames waiting in the TX queue.
     pub fn tx_pending(&self) -> usize {

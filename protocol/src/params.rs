@@ -65,10 +65,16 @@ pub const STATS_INDEX: u16 = 0x2100;
 /// (for testing a master's fault handling); 0 clears the injected cause.
 pub const INJECT_FAULT_INDEX: u16 = 0x2101;
 
+/// Sub-indices 1.. of 0x2100. `sync_lock_state`: 0 free-running, 1 acquiring, 2 locked to
+/// SYNC; `sync_phase_error_us`: smoothed magnitude of the SYNC's arrival minus the loop's
+/// prediction; `sync_period_us`: the SYNC period the loop measured; `tx_full_waits`: times the
+/// transport's transmit queue was full and the loop waited for room; `sync_window_missed`:
+/// synchronous TPDOs not sent because the 0x1007 window had closed.
 #[rustfmt::skip]
-pub const STATS_NAMES: [&str; 7] = [
+pub const STATS_NAMES: [&str; 12] = [
     "ticks", "overruns", "lateness_p50_us", "lateness_p99_us", "lateness_max_us",
-    "dropped_tx_frames", "node_tx_queue_overflows",
+    "dropped_tx_frames", "node_tx_queue_overflows", "sync_lock_state", "sync_phase_error_us",
+    "sync_period_us", "tx_full_waits", "sync_window_missed",
 ];
 
 /// Which parameter lives at `index`.

@@ -135,6 +135,62 @@ fn synchronous_types_0_and_n() {
     assert_eq!(sync_n(&mut b, 1, 0x380 + N), 1);
 }
 
+/// CiA 301 synchronous window (0x1007): a SYNC handled after its window closed sends no
+/// synchronous TPDO (types 0 and 1-240); one handled inside it does; 0 means no window. The
+/// missed ones are counted in 0x2100 sub 12.
+#[test]
+fn synchronous_window_1007_suppresses_late_synchronous_tpdos() {
+    let mut b = Bench::new();
+    assert_eq!(b.r32(0x1007, 0), 0, "no window by default");
+    b.start();
+    b.tick();
+    let sync = f(0x80, &[]);
+    let late_sync = |b: &mut Bench, late_us: u64| {
+        b.take();
+        b.node.handle_late(&sync, b.now, late_us, &mut b.drive);
+        b.drain();
+        let tx = b.take();
+        b.tick();
+        tx
+    };
+    // No window: even a SYNC read a second late gets its TPDOs.
+    let tx = late_sync(&mut b, 1_000_000);
+    assert!(tx.iter().any(|f| f.id == 0x280 + N), "{tx:?}");
+    assert!(tx.iter().any(|f| f.id == 0x380 + N), "{tx:?}");
+    b.w32(0x1007, 0, 500).unwrap();
+    let synchronous = |tx: &[drive_protocol::CanFrame]| {
+        tx.iter()
+            .filter(|f| f.id == 0x280 + N || f.id == 0x380 + N || f.id == 0x480 + N)
+            .count() as u32
+    };
+    let mut per_sync = 0;
+    for late in [0, 200, 500] {
+        let tx = late_sync(&mut b, late);
+        assert!(tx.iter().any(|f| f.id == 0x280 + N), "late {late}: {tx:?}");
+        assert!(tx.iter().any(|f| f.id == 0x380 + N), "late {late}: {tx:?}");
+        per_sync = synchronous(&tx);
+    }
+    let before = b.r32(0x2100, 12);
+    for late in [501, 5_000, 1_000_000] {
+        let tx = late_sync(&mut b, late);
+        assert_eq!(
+            synchronous(&tx),
+            0,
+            "late {late}: window closed, yet {tx:?}"
+        );
+    }
+    b.node.set_runtime_stats(Default::default());
+    assert_eq!(per_sync, 3, "TPDO2-4 are synchronous by default");
+    assert_eq!(
+        b.r32(0x2100, 12),
+        before + 3 * per_sync,
+        "3 SYNCs' TPDOs missed"
+    );
+    // Window open again: the next SYNC in time is answered.
+    let tx = late_sync(&mut b, 10);
+    assert!(tx.iter().any(|f| f.id == 0x280 + N), "{tx:?}");
+}
+
 #[test]
 fn event_driven_with_inhibit_time_and_event_timer() {
     let mut b = Bench::new();

@@ -109,6 +109,8 @@ pub struct FaultyBus<B> {
     rx_delayed: VecDeque<(u64, CanFrame)>,
     tx_delayed: VecDeque<(u64, CanFrame)>,
     stats: FaultStats,
+    /// The last received frame came out of the delay queue (its age is not the inner bus's).
+    delayed_rx: bool,
 }
 
 impl<B: CanBus> FaultyBus<B> {
@@ -123,6 +125,7 @@ impl<B: CanBus> FaultyBus<B> {
             rx_delayed: VecDeque::with_capacity(256),
             tx_delayed: VecDeque::with_capacity(256),
             stats: FaultStats::default(),
+            delayed_rx: false,
         }
     }
 
@@ -221,9 +224,12 @@ impl<B: CanBus> CanBus for FaultyBus<B> {
     }
 
     fn recv(&mut self) -> Result<Option<CanFrame>, RecvError> {
+        self.delayed_rx = false;
         if let Some(&(due, f)) = self.rx_delayed.front() {
             if due <= self.tick {
                 self.rx_delayed.pop_front();
+                // Delivered now by the injector: its arrival time is now.
+                self.delayed_rx = true;
                 return Ok(Some(f));
             }
         }
@@ -255,6 +261,22 @@ impl<B: CanBus> CanBus for FaultyBus<B> {
             return;
         }
         self.inner.wait_readable(timeout_us);
+    }
+
+    fn rx_fd(&self) -> Option<std::os::fd::RawFd> {
+        self.inner.rx_fd()
+    }
+
+    fn last_rx_age_us(&self) -> Option<u64> {
+        if self.delayed_rx {
+            None
+        } else {
+            self.inner.last_rx_age_us()
+        }
+    }
+
+    fn wait_writable(&mut self, timeout_us: u64) {
+        self.inner.wait_writable(timeout_us);
     }
 }
 

@@ -3,8 +3,8 @@
 //! - [`inproc::InProcBus`]: an in-process bus for tests, offline runs and the embedded demo.
 //! - [`socketcan::SocketCanBus`]: a Linux SocketCAN interface (`can0`, `vcan0`).
 //!
-//! Both are non-blocking and allocation-free per frame. A frame the transport cannot take is a
-//! counted drop ([`SendError::Full`]), never a panic or a stall.
+//! Both are non-blocking and allocation-free per frame. A frame the transport cannot take
+//! ([`SendError::Full`]) is retried after a bounded wait and counted; never a panic or a stall.
 
 pub mod fault;
 pub mod inproc;
@@ -15,7 +15,8 @@ pub use drive_protocol::CanFrame;
 /// Why a frame was not sent.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SendError {
-    /// The transmit queue is full (ENOBUFS / EAGAIN): the frame is dropped and counted.
+    /// The transmit queue is full (ENOBUFS / EAGAIN): the runtime waits for room (bounded, see
+    /// [`CanBus::wait_writable`]) and counts the frame as dropped only if none comes.
     Full,
     /// The interface is down or gone: the frame is dropped; the caller keeps running.
     Down,
@@ -42,4 +43,19 @@ pub trait CanBus {
     /// The runtime finished a tick. Transports that model time (the fault injector's delays)
     /// advance their clock here; the default does nothing.
     fn end_tick(&mut self) {}
+    /// The descriptor that becomes readable when a frame arrives, so the real-time loop can
+    /// wait on it together with its next deadline; `None` for transports without one.
+    fn rx_fd(&self) -> Option<std::os::fd::RawFd> {
+        None
+    }
+    /// How long before now the frame last returned by [`CanBus::recv`] arrived (the kernel's
+    /// receive timestamp), microseconds; `None` when the transport does not know.
+    fn last_rx_age_us(&self) -> Option<u64> {
+        None
+    }
+    /// After [`SendError::Full`]: wait up to `timeout_us` for room in the transmit queue.
+    /// Implementations may return early; the default returns at once.
+    fn wait_writable(&mut self, timeout_us: u64) {
+        let _ = timeout_us;
+    }
 }

@@ -73,6 +73,8 @@ pub fn kernel_has_can() -> bool {
 pub struct SocketCanBus {
     socket: CanSocket,
     link_up: bool,
+    /// Age of the last received frame (kernel timestamp vs CLOCK_REALTIME now), if known.
+    last_rx_age_us: Option<u64>,
 }
 
 impl SocketCanBus {
@@ -84,9 +86,11 @@ impl SocketCanBus {
         let socket = CanSocket::open(iface).map_err(err)?;
         socket.set_nonblocking(true).map_err(err)?;
         set_receive_buffer(&socket, RECEIVE_BUFFER_BYTES);
+        enable_rx_timestamps(&socket);
         Ok(Self {
             socket,
             link_up: true,
+            last_rx_age_us: None,
         })
     }
 
@@ -137,6 +141,72 @@ pub fn set_receive_buffer(socket: &CanSocket, bytes: i32) -> i32 {
     granted
 }
 
+/// Ask the kernel to stamp every received frame (SO_TIMESTAMPNS, CLOCK_REALTIME), so the loop
+/// knows when a frame arrived even if it read it late (after a stall). Failing is harmless: the
+/// frame is then taken to have arrived when it was read.
+fn enable_rx_timestamps(socket: &CanSocket) {
+    let on: libc::c_int = 1;
+    // SAFETY: setsockopt on our own descriptor with a valid c_int option value.
+    unsafe {
+        libc::setsockopt(
+            socket.as_raw_fd(),
+            libc::SOL_SOCKET,
+            libc::SO_TIMESTAMPNS,
+            (&on as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+}
+
+fn realtime_ns() -> i128 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: valid, writable timespec.
+    unsafe { libc::clock_gettime(libc::CLOCK_REALTIME, &mut ts) };
+    ts.tv_sec as i128 * 1_000_000_000 + ts.tv_nsec as i128
+}
+
+/// One non-blocking `recvmsg` of a `can_frame` with its receive timestamp (ns, CLOCK_REALTIME).
+/// No allocation: the frame and the control message live on the stack.
+fn recv_stamped(fd: libc::c_int) -> std::io::Result<(libc::can_frame, Option<i128>)> {
+    let mut raw = can_frame_default();
+    let mut iov = libc::iovec {
+        iov_base: (&mut raw as *mut libc::can_frame).cast(),
+        iov_len: std::mem::size_of::<libc::can_frame>(),
+    };
+    // u64 words keep the control buffer aligned for cmsghdr.
+    let mut control = [0u64; 16];
+    // SAFETY: msghdr is plain data; zeroed is a valid empty header.
+    let mut msg: libc::msghdr = unsafe { std::mem::zeroed() };
+    msg.msg_iov = &mut iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control.as_mut_ptr().cast();
+    msg.msg_controllen = std::mem::size_of_val(&control) as _;
+    // SAFETY: msg points at valid, live buffers of the sizes given.
+    let n = unsafe { libc::recvmsg(fd, &mut msg, libc::MSG_DONTWAIT) };
+    if n < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    if (n as usize) < std::mem::size_of::<libc::can_frame>() {
+        return Err(std::io::Error::from(std::io::ErrorKind::UnexpectedEof));
+    }
+    let mut stamp = None;
+    // SAFETY: walking the control messages the kernel wrote into `control`, as cmsg(3) says.
+    unsafe {
+        let mut c = libc::CMSG_FIRSTHDR(&msg);
+        while !c.is_null() {
+            if (*c).cmsg_level == libc::SOL_SOCKET && (*c).cmsg_type == libc::SCM_TIMESTAMPNS {
+                let ts = std::ptr::read_unaligned(libc::CMSG_DATA(c).cast::<libc::timespec>());
+                stamp = Some(ts.tv_sec as i128 * 1_000_000_000 + ts.tv_nsec as i128);
+            }
+            c = libc::CMSG_NXTHDR(&msg, c);
+        }
+    }
+    Ok((raw, stamp))
+}
+
 fn is_down(e: &std::io::Error) -> bool {
     matches!(
         e.raw_os_error(),
@@ -181,8 +251,23 @@ pub fn from_raw(raw: &libc::can_frame) -> Option<CanFrame> {
 
 impl CanBus for SocketCanBus {
     fn send(&mut self, frame: &CanFrame) -> Result<(), SendError> {
-        let raw = socketcan::CanFrame::from(to_raw(frame));
-        match self.socket.write_frame(&raw) {
+        let raw = to_raw(frame);
+        // SAFETY: writing one whole can_frame from a valid stack value.
+        let n = unsafe {
+            libc::write(
+                self.socket.as_raw_fd(),
+                (&raw as *const libc::can_frame).cast(),
+                std::mem::size_of::<libc::can_frame>(),
+            )
+        };
+        let result = if n == std::mem::size_of::<libc::can_frame>() as isize {
+            Ok(())
+        } else if n < 0 {
+            Err(std::io::Error::last_os_error())
+        } else {
+            Err(std::io::Error::from(std::io::ErrorKind::WriteZero))
+        };
+        match result {
             Ok(()) => {
                 self.link_up = true;
                 Ok(())
@@ -197,9 +282,11 @@ impl CanBus for SocketCanBus {
     }
 
     fn recv(&mut self) -> Result<Option<CanFrame>, RecvError> {
-        match self.socket.read_raw_frame() {
-            Ok(raw) => {
+        self.last_rx_age_us = None;
+        match recv_stamped(self.socket.as_raw_fd()) {
+            Ok((raw, stamp)) => {
                 self.link_up = true;
+                self.last_rx_age_us = stamp.map(|t| ((realtime_ns() - t).max(0) / 1000) as u64);
                 Ok(from_raw(&raw))
             }
             Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => Ok(None),
@@ -221,6 +308,25 @@ impl CanBus for SocketCanBus {
         let ms = timeout_us.div_ceil(1000).min(i32::MAX as u64) as i32;
         // SAFETY: one valid pollfd.
         unsafe { libc::poll(&mut pfd, 1, ms) };
+    }
+
+    fn rx_fd(&self) -> Option<std::os::fd::RawFd> {
+        Some(self.socket.as_raw_fd())
+    }
+
+    fn last_rx_age_us(&self) -> Option<u64> {
+        self.last_rx_age_us
+    }
+
+    fn wait_writable(&mut self, timeout_us: u64) {
+        // A full CAN transmit queue (ENOBUFS, the interface's qdisc) does not clear POLLOUT,
+        // so poll cannot say when room comes: sleep the bounded time and let the caller retry.
+        let ts = libc::timespec {
+            tv_sec: (timeout_us / 1_000_000) as libc::time_t,
+            tv_nsec: ((timeout_us % 1_000_000) * 1000) as libc::c_long,
+        };
+        // SAFETY: valid relative timespec; the remainder may be null.
+        unsafe { libc::clock_nanosleep(libc::CLOCK_MONOTONIC, 0, &ts, std::ptr::null_mut()) };
     }
 }
 

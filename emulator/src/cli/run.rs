@@ -174,6 +174,8 @@ struct Status {
     overruns: AtomicU64,
     ticks: AtomicU64,
     link_up: AtomicBool,
+    sync_lock: AtomicU64,
+    sync_phase_error_us: AtomicU64,
 }
 
 pub fn run(args: &RunArgs) -> Result<()> {
@@ -356,6 +358,12 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
                     status.overruns.store(rt.stats.overruns, Ordering::Relaxed);
                     status.ticks.store(rt.stats.ticks, Ordering::Relaxed);
                     status
+                        .sync_lock
+                        .store(u64::from(rt.stats.sync_lock_state), Ordering::Relaxed);
+                    status
+                        .sync_phase_error_us
+                        .store(rt.stats.sync_phase_error_us, Ordering::Relaxed);
+                    status
                         .link_up
                         .store(rt.bus.inner().link_up(), Ordering::Relaxed);
                 };
@@ -373,7 +381,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
         if tty {
             let sw = status.statusword.load(Ordering::Relaxed) as u16;
             print!(
-                "\r{} | {} mode {} | pos {} uu | ferr {} uu | ticks {} overruns {}{}   ",
+                "\r{} | {} mode {} | pos {} uu | ferr {} uu | ticks {} overruns {} | {}{}{}   ",
                 args.iface,
                 crate::master::state_name(sw),
                 status.mode.load(Ordering::Relaxed),
@@ -381,6 +389,18 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
                 status.following_error_uu.load(Ordering::Relaxed),
                 status.ticks.load(Ordering::Relaxed),
                 status.overruns.load(Ordering::Relaxed),
+                if lockstep.is_some() {
+                    "lock-step"
+                } else {
+                    crate::runtime::stats::lock_name(status.sync_lock.load(Ordering::Relaxed) as u32)
+                },
+                match status.sync_lock.load(Ordering::Relaxed) {
+                    2 if lockstep.is_none() => format!(
+                        " (phase error {} us)",
+                        status.sync_phase_error_us.load(Ordering::Relaxed)
+                    ),
+                    _ => String::new(),
+                },
                 if status.link_up.load(Ordering::Relaxed) {
                     ""
                 } else {

@@ -1,12 +1,20 @@
 //! Time sources for the loop: the monotonic wall clock with absolute-deadline sleeps, and a
 //! virtual clock for offline and lock-step runs. Times are microseconds since the clock's start.
 
+use std::os::fd::RawFd;
+
 /// A source of "now" and a way to wait for a deadline.
 pub trait Clock {
     /// Microseconds since the clock started.
     fn now_us(&self) -> u64;
     /// Wait until `deadline_us` (absolute). Returns the time on waking.
     fn sleep_until(&mut self, deadline_us: u64) -> u64;
+    /// Wait until `deadline_us` or until `fd` is readable (a frame arrived), whichever comes
+    /// first; returns the time on waking. The default (virtual clocks) just sleeps.
+    fn wait_until_or_readable(&mut self, deadline_us: u64, fd: Option<RawFd>) -> u64 {
+        let _ = fd;
+        self.sleep_until(deadline_us)
+    }
 }
 
 /// `CLOCK_MONOTONIC` with `clock_nanosleep(TIMER_ABSTIME)`: deadlines do not drift with the
@@ -70,6 +78,28 @@ impl Clock for MonotonicClock {
         }
         self.now_us()
     }
+
+    fn wait_until_or_readable(&mut self, deadline_us: u64, fd: Option<RawFd>) -> u64 {
+        let Some(fd) = fd else {
+            return self.sleep_until(deadline_us);
+        };
+        let abs_ns = self.origin_ns + deadline_us as i128 * 1000;
+        let left_ns = (abs_ns - monotonic_ns()).max(0);
+        let ts = libc::timespec {
+            tv_sec: (left_ns / 1_000_000_000) as libc::time_t,
+            tv_nsec: (left_ns % 1_000_000_000) as libc::c_long,
+        };
+        let mut pfd = libc::pollfd {
+            fd,
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        // ppoll takes a nanosecond timeout (poll's is whole milliseconds). A signal (EINTR)
+        // returns early: the loop checks its stop flag and waits again.
+        // SAFETY: one valid pollfd, a valid timespec, no signal mask change.
+        unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
+        self.now_us()
+    }
 }
 
 /// A clock that only moves when told: offline runs and lock-step. Sleeping jumps to the deadline.
@@ -112,6 +142,33 @@ mod tests {
                 woke >= deadline,
                 "woke at {woke} before deadline {deadline}"
             );
+        }
+    }
+
+    #[test]
+    fn waiting_on_a_descriptor_returns_when_it_is_readable_or_at_the_deadline() {
+        let mut c = MonotonicClock::new();
+        let mut fds = [0; 2];
+        // SAFETY: a pipe into a valid two-element array.
+        assert_eq!(unsafe { libc::pipe(fds.as_mut_ptr()) }, 0);
+        let start = c.now_us();
+        let woke = c.wait_until_or_readable(start + 3_000, Some(fds[0]));
+        assert!(
+            woke >= start + 3_000,
+            "nothing to read: waits to the deadline"
+        );
+        // SAFETY: one byte into our pipe.
+        assert_eq!(unsafe { libc::write(fds[1], [1u8].as_ptr().cast(), 1) }, 1);
+        let start = c.now_us();
+        let woke = c.wait_until_or_readable(start + 60_000_000, Some(fds[0]));
+        assert!(
+            woke < start + 60_000_000,
+            "readable: returns before the deadline"
+        );
+        // SAFETY: closing our own descriptors.
+        unsafe {
+            libc::close(fds[0]);
+            libc::close(fds[1]);
         }
     }
 

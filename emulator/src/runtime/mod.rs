@@ -6,7 +6,10 @@
 //! nothing on the tick allocates, locks or logs (`tests/alloc_runtime.rs` proves it).
 //!
 //! Three ways to drive the tick:
-//! - [`Runtime::run_realtime`]: wall clock, absolute deadlines, lateness statistics;
+//! - [`Runtime::run_realtime`]: wall clock, event-driven: the loop waits on the socket and its
+//!   next control deadline together; a frame is handled the moment it arrives (a SYNC's TPDOs
+//!   and an SDO answer go out at once, with the values of the last control cycle), and the
+//!   control cycle is phase-locked to the SYNC ([`pll::SyncPll`]) so that sample is fresh;
 //! - [`Runtime::run_lockstep`]: simulated time advances one SYNC period per SYNC received, so
 //!   results do not depend on how busy the host is;
 //! - [`Runtime::tick`] called by an offline driver with a virtual clock (demo, scenarios).
@@ -15,20 +18,32 @@ pub mod axis_drive;
 pub mod clock;
 pub mod machine;
 pub mod offline;
+pub mod pll;
 pub mod realtime;
 pub mod stats;
 pub mod trace;
 
-use crate::bus::CanBus;
+use crate::bus::{CanBus, CanFrame, SendError};
 use clock::Clock;
 use drive_protocol::{Drive, FrameEvent, Node, RuntimeStats};
+use pll::SyncPll;
 use stats::LoopStats;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// At most this many received frames are handled per tick; the rest wait for the next tick.
 pub const MAX_RX_PER_TICK: usize = 256;
-/// Falling further behind than this many periods skips ticks instead of catching up.
+/// Falling further behind than this many periods skips ticks instead of catching up (when no
+/// received frame paces the catch-up: frames read after a stall are interleaved with the ticks
+/// that were due before each arrived, see [`Runtime::realtime_wake`]).
 pub const MAX_CATCH_UP_TICKS: u64 = 20;
+/// A transmit queue that is full is retried after waits of this length ...
+pub const TX_WAIT_STEP_US: u64 = 50;
+/// ... for at most this long per flush; after that the remaining refused frames are dropped
+/// and counted (a bus that never takes frames must not stall the loop).
+pub const TX_WAIT_BUDGET_US: u64 = 20_000;
+/// The control cycle runs this long before the predicted SYNC (at most half a tick), so the
+/// values a SYNC's TPDOs carry were sampled just before it.
+pub const SYNC_LEAD_US: u64 = 150;
 
 /// A drive whose physics the runtime advances.
 pub trait SimulatedDrive: Drive {
@@ -97,22 +112,35 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
     /// Hand the next received frame (if any) to every node at the current simulated time.
     /// `None`: nothing to read (or a receive error, counted); `Some(true)`: it was a SYNC.
     fn receive_one(&mut self) -> Option<bool> {
-        let now = self.sim_time_us;
-        let frame = match self.bus.recv() {
-            Ok(Some(f)) => f,
-            Ok(None) => return None,
+        let frame = self.recv_frame()?;
+        Some(self.handle_frame(&frame, 0))
+    }
+
+    fn recv_frame(&mut self) -> Option<CanFrame> {
+        match self.bus.recv() {
+            Ok(Some(f)) => Some(f),
+            Ok(None) => None,
             Err(_) => {
                 self.stats.rx_errors += 1;
-                return None;
+                None
             }
-        };
+        }
+    }
+
+    /// Hand a frame read `late_us` after it arrived to every node; true if it was a SYNC.
+    fn handle_frame(&mut self, frame: &CanFrame, late_us: u64) -> bool {
+        let now = self.sim_time_us;
         let mut sync = false;
         for ax in &mut self.axes {
-            if let FrameEvent::Sync { .. } = ax.node.handle(&frame, now, &mut ax.drive) {
+            if let FrameEvent::Sync { .. } = ax.node.handle_late(frame, now, late_us, &mut ax.drive)
+            {
                 sync = true;
             }
         }
-        Some(sync)
+        if sync {
+            self.stats.syncs += 1;
+        }
+        sync
     }
 
     /// Let every node act and advance every axis by one period.
@@ -125,12 +153,26 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         self.sim_time_us += self.period_us;
     }
 
-    /// Send everything the nodes queued; a refused frame is counted, not retried.
+    /// Send everything the nodes queued, in order. A full transmit queue (ENOBUFS) is waited
+    /// out in steps of [`TX_WAIT_STEP_US`] (counted), up to [`TX_WAIT_BUDGET_US`] per flush;
+    /// only then, or with the interface down, is a frame dropped (counted).
     pub fn flush_tx(&mut self) {
+        let mut budget_us = TX_WAIT_BUDGET_US;
         for ax in &mut self.axes {
             while let Some(f) = ax.node.pop_tx() {
-                if self.bus.send(&f).is_err() {
-                    self.stats.tx_dropped += 1;
+                loop {
+                    match self.bus.send(&f) {
+                        Ok(()) => break,
+                        Err(SendError::Full) if budget_us > 0 => {
+                            self.stats.tx_full_waits += 1;
+                            self.bus.wait_writable(TX_WAIT_STEP_US);
+                            budget_us = budget_us.saturating_sub(TX_WAIT_STEP_US);
+                        }
+                        Err(_) => {
+                            self.stats.tx_dropped += 1;
+                            break;
+                        }
+                    }
                 }
             }
         }
@@ -155,41 +197,106 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             lateness_p99_us: s.lateness_p99_us as u32,
             lateness_max_us: s.lateness_max_us as u32,
             dropped_tx_frames: s.tx_dropped as u32,
+            sync_lock_state: s.sync_lock_state,
+            sync_phase_error_us: s.sync_phase_error_us.min(u64::from(u32::MAX)) as u32,
+            sync_period_us: s.sync_period_us.min(u64::from(u32::MAX)) as u32,
+            tx_full_waits: s.tx_full_waits as u32,
         };
         for ax in &mut self.axes {
             ax.node.set_runtime_stats(rs);
         }
     }
 
-    /// Run on the wall clock until `stop` is set. `hook` is called after every tick with the
-    /// runtime (status snapshots, scenario injections); it is on the real-time path: it must not
-    /// block, lock, log or allocate.
+    /// Run on the wall clock until `stop` is set. `hook` is called after every control tick
+    /// with the runtime (status snapshots, scenario injections); it is on the real-time path:
+    /// it must not block, lock, log or allocate.
     pub fn run_realtime<C: Clock>(
         &mut self,
         clock: &mut C,
         stop: &AtomicBool,
         mut hook: impl FnMut(&mut Self),
     ) {
-        let mut deadline = clock.now_us();
+        let mut state = RealtimeLoop::new(clock.now_us(), self.period_us);
         while !stop.load(Ordering::Relaxed) {
-            let woke = clock.sleep_until(deadline);
-            self.tick();
+            self.realtime_wake(&mut state, clock, &mut hook);
+        }
+        self.publish_stats();
+    }
+
+    /// One wake-up of the real-time loop: wait for a frame or the next control deadline,
+    /// whichever comes first; handle every frame that arrived, each the moment it is read,
+    /// after the control ticks that were due before it arrived (so a burst read after a stall
+    /// is handled as if it had been read on time: one TPDO set per SYNC, in order); then the
+    /// ticks that are due now. Every SYNC also feeds the phase lock, which places the next
+    /// control deadlines.
+    pub fn realtime_wake<C: Clock>(
+        &mut self,
+        l: &mut RealtimeLoop,
+        clock: &mut C,
+        hook: &mut impl FnMut(&mut Self),
+    ) {
+        let fd = self.bus.rx_fd();
+        clock.wait_until_or_readable(l.deadline_us, fd);
+        let mut drained = false;
+        for _ in 0..MAX_RX_PER_TICK {
+            let Some(frame) = self.recv_frame() else {
+                drained = true;
+                break;
+            };
+            let now = clock.now_us();
+            let arrived = self
+                .bus
+                .last_rx_age_us()
+                .map_or(now, |age| now.saturating_sub(age));
+            self.run_due_ticks(l, clock, arrived, hook);
+            if self.handle_frame(&frame, now.saturating_sub(arrived)) {
+                l.pll.on_sync(arrived);
+                self.stats.sync_lock_state = l.pll.state().code();
+                self.stats.sync_phase_error_us = l.pll.phase_error_avg_us().round() as u64;
+                self.stats.sync_period_us = l.pll.sync_period_us().round() as u64;
+            }
+            self.flush_tx();
+        }
+        // A flood that keeps the socket busy still gets its ticks, paced by the frames'
+        // arrival times; the ticks due now wait until the socket is drained.
+        if drained {
+            let now = clock.now_us();
+            l.pll.check_lost(now);
+            self.stats.sync_lock_state = l.pll.state().code();
+            self.run_due_ticks(l, clock, now, hook);
+        }
+    }
+
+    /// Run the control ticks whose deadline is at or before `until_us`.
+    fn run_due_ticks<C: Clock>(
+        &mut self,
+        l: &mut RealtimeLoop,
+        clock: &mut C,
+        until_us: u64,
+        hook: &mut impl FnMut(&mut Self),
+    ) {
+        let behind = until_us.saturating_sub(l.deadline_us) / self.period_us;
+        if behind > MAX_CATCH_UP_TICKS {
+            self.stats.skipped_ticks += behind;
+            l.deadline_us += behind * self.period_us;
+        }
+        while l.deadline_us <= until_us {
+            let start = clock.now_us();
+            self.step();
+            self.flush_tx();
+            self.bus.end_tick();
             let done = clock.now_us();
-            self.stats
-                .record_tick(woke.saturating_sub(deadline), done.saturating_sub(woke));
+            self.stats.record_tick(
+                start.saturating_sub(l.deadline_us),
+                done.saturating_sub(start),
+            );
             // Statistics object refreshed every 256 ticks: cheap, and fresh enough for SDO.
             if self.stats.ticks.is_multiple_of(256) {
                 self.publish_stats();
             }
             hook(self);
-            deadline += self.period_us;
-            let behind = done.saturating_sub(deadline) / self.period_us;
-            if behind > MAX_CATCH_UP_TICKS {
-                self.stats.skipped_ticks += behind;
-                deadline += behind * self.period_us;
-            }
+            l.deadline_us = l.pll.next_deadline(l.deadline_us);
         }
-        self.publish_stats();
     }
 
     /// Lock-step: simulated time only moves when a SYNC arrives, by `sync_period_us`, in ticks
@@ -231,5 +338,22 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             }
         }
         self.publish_stats();
+    }
+}
+
+/// The real-time loop's state between wake-ups: the next control deadline and the SYNC lock.
+#[derive(Clone, Debug)]
+pub struct RealtimeLoop {
+    /// Next control tick, microseconds on the loop's clock.
+    pub deadline_us: u64,
+    pub pll: SyncPll,
+}
+
+impl RealtimeLoop {
+    pub fn new(start_us: u64, period_us: u64) -> Self {
+        Self {
+            deadline_us: start_us,
+            pll: SyncPll::new(period_us, SYNC_LEAD_US),
+        }
     }
 }

@@ -19,6 +19,15 @@ pub struct LoopStats {
     pub tx_dropped: u64,
     /// Receive errors (interface down, bad frames from the socket).
     pub rx_errors: u64,
+    /// Times the transport's transmit queue was full and the loop waited for room.
+    pub tx_full_waits: u64,
+    /// SYNCs received.
+    pub syncs: u64,
+    /// SYNC phase lock: state (0 free-running, 1 acquiring, 2 locked), smoothed magnitude of
+    /// the phase error and the measured SYNC period, microseconds.
+    pub sync_lock_state: u32,
+    pub sync_phase_error_us: u64,
+    pub sync_period_us: u64,
     lateness_us: Histogram<u64>,
     work_us: Histogram<u64>,
 }
@@ -32,6 +41,11 @@ pub struct StatsSummary {
     pub skipped_ticks: u64,
     pub tx_dropped: u64,
     pub rx_errors: u64,
+    pub tx_full_waits: u64,
+    pub syncs: u64,
+    pub sync_lock_state: u32,
+    pub sync_phase_error_us: u64,
+    pub sync_period_us: u64,
     pub lateness_p50_us: u64,
     pub lateness_p99_us: u64,
     pub lateness_max_us: u64,
@@ -53,6 +67,11 @@ impl LoopStats {
             skipped_ticks: 0,
             tx_dropped: 0,
             rx_errors: 0,
+            tx_full_waits: 0,
+            syncs: 0,
+            sync_lock_state: 0,
+            sync_phase_error_us: 0,
+            sync_period_us: 0,
             lateness_us: hist(),
             work_us: hist(),
         }
@@ -84,6 +103,11 @@ impl LoopStats {
             skipped_ticks: self.skipped_ticks,
             tx_dropped: self.tx_dropped,
             rx_errors: self.rx_errors,
+            tx_full_waits: self.tx_full_waits,
+            syncs: self.syncs,
+            sync_lock_state: self.sync_lock_state,
+            sync_phase_error_us: self.sync_phase_error_us,
+            sync_period_us: self.sync_period_us,
             lateness_p50_us: q(&self.lateness_us, 0.5),
             lateness_p99_us: q(&self.lateness_us, 0.99),
             lateness_max_us: if self.lateness_us.is_empty() {
@@ -107,7 +131,8 @@ impl fmt::Display for StatsSummary {
         write!(
             f,
             "ticks {} at {} us, overruns {}, skipped {}, lateness p50/p99/max {}/{}/{} us, \
-             work p50/p99/max {}/{}/{} us, tx dropped {}, rx errors {}",
+             work p50/p99/max {}/{}/{} us, tx dropped {}, rx errors {}, tx full waits {}, \
+             SYNCs {}, {}, SYNC phase error {} us, SYNC period {} us",
             self.ticks,
             self.period_us,
             self.overruns,
@@ -119,8 +144,22 @@ impl fmt::Display for StatsSummary {
             self.work_p99_us,
             self.work_max_us,
             self.tx_dropped,
-            self.rx_errors
+            self.rx_errors,
+            self.tx_full_waits,
+            self.syncs,
+            lock_name(self.sync_lock_state),
+            self.sync_phase_error_us,
+            self.sync_period_us
         )
+    }
+}
+
+/// The lock state's name for people (status line, exit summary).
+pub fn lock_name(code: u32) -> &'static str {
+    match code {
+        2 => "SYNC-locked",
+        1 => "acquiring SYNC",
+        _ => "free-running",
     }
 }
 

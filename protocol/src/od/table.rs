@@ -167,7 +167,7 @@ fn d_rpm(i: &DriveInfo) -> u32 {
 }
 
 #[rustfmt::skip]
-const COMM: [Obj; 34] = [
+const COMM: [Obj; 35] = [
     var(0x1000, "Device type", U32, Const, false, V(0x0002_0192)),
     var(0x1001, "Error register", U8, Ro, true, V(0)),
     arr(0x1003, 0, "Pre-defined error field", "Number of errors", U8, Rw, false, V(0)),
@@ -181,6 +181,7 @@ const COMM: [Obj; 34] = [
     arr(0x1003, 8, "Pre-defined error field", "Standard error field 8", U32, Ro, false, V(0)),
     var(0x1005, "COB-ID SYNC message", U32, Rw, false, V(0x80)),
     var(0x1006, "Communication cycle period", U32, Rw, false, V(0)),
+    var(0x1007, "Synchronous window length", U32, Rw, false, V(0)),
     var(0x1008, "Manufacturer device name", VisibleString, Const, false, Str("drive-emulator CiA402 servo")),
     var(0x1009, "Manufacturer hardware version", VisibleString, Const, false, Str("emulated")),
     var(0x100A, "Manufacturer software version", VisibleString, Const, false, Str(env!("CARGO_PKG_VERSION"))),

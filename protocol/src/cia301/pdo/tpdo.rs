@@ -7,20 +7,35 @@ use crate::od::Store;
 
 impl PdoEngine {
     /// At SYNC in operational.
-    pub fn on_sync(&mut self, store: &Store, now_us: u64, out: &mut impl FnMut(CanFrame)) {
+    ///
+    /// With `window_closed` (the SYNC was handled after the synchronous window 0x1007 closed)
+    /// synchronous TPDOs are not sent (CiA 301); returns how many were held back.
+    pub fn on_sync(
+        &mut self,
+        store: &Store,
+        now_us: u64,
+        window_closed: bool,
+        out: &mut impl FnMut(CanFrame),
+    ) -> u32 {
+        let mut missed = 0;
+        let mut emit = |p: &mut _, out: &mut _| {
+            if window_closed {
+                missed += 1;
+            } else {
+                send(p, store, now_us, out);
+            }
+        };
         for p in self.tpdo.iter_mut() {
             if !p.valid {
                 continue;
             }
             match p.ttype {
-                TransmissionType::SyncAcyclic if p.changed(store) => {
-                    send(p, store, now_us, out);
-                }
+                TransmissionType::SyncAcyclic if p.changed(store) => emit(p, out),
                 TransmissionType::SyncCyclic(n) => {
                     p.sync_count = p.sync_count.saturating_add(1);
                     if p.sync_count >= n {
                         p.sync_count = 0;
-                        send(p, store, now_us, out);
+                        emit(p, out);
                     }
                 }
                 TransmissionType::RtrSync => {
@@ -31,6 +46,7 @@ impl PdoEngine {
                 _ => {}
             }
         }
+        missed
     }
 
     /// A remote frame in operational: answer it if a TPDO of type 252/253 has its

@@ -1,0 +1,402 @@
+//! SYNC phase lock: a second-order delay-locked loop that tracks the period and the phase of the
+//! master's SYNC from the times the SYNCs arrived, and places the control cycle just before the
+//! next SYNC (as a drive locks its cycle for CSP and 0x60C2 interpolation). A pure function of
+//! timestamps: no clock, no allocation, so it is tested on simulated SYNC times.
+//!
+//! Each SYNC at `t` is compared with the prediction `p`: `e = t - p`; then
+//! `p += T + A e`, `T += B e` (critically damped, bandwidth about 1/20 of the SYNC rate), so a
+//! jittered SYNC moves the control cycle by about `A` times its jitter, and a master clock that
+//! runs fast or slow is followed without a standing phase error. Missing SYNCs are bridged by
+//! whole periods; without a SYNC for [`LOST_AFTER_PERIODS`] periods the loop free-runs again.
+
+/// Phase gain of the loop filter.
+const GAIN_PHASE: f64 = 0.1;
+/// Frequency gain (critical damping: `GAIN_PHASE^2 / 4`).
+const GAIN_FREQ: f64 = GAIN_PHASE * GAIN_PHASE / 4.0;
+/// Consecutive SYNCs without a slip before we call it locked ...
+const LOCK_COUNT: u32 = 16;
+/// ... with the smoothed phase error below this fraction of the SYNC period.
+const LOCK_WINDOW: f64 = 0.25;
+/// Errors beyond this fraction of the period, several in a row, restart the acquisition.
+const SLIP_WINDOW: f64 = 0.45;
+const SLIPS_TO_REACQUIRE: u32 = 4;
+/// How many smoothed phase errors the control tick keeps before the predicted SYNC.
+const JITTER_MARGIN: f64 = 3.0;
+/// SYNC intervals averaged for the first period estimate.
+const ACQUIRE_SYNCS: u32 = 8;
+/// Without a SYNC for this many periods the loop is unlocked and free-runs.
+pub const LOST_AFTER_PERIODS: f64 = 3.0;
+/// Accepted SYNC periods, microseconds (CiA 301 allows much more, but the loop's tick range
+/// bounds what we can follow: a SYNC slower than this simply does not lock).
+const PERIOD_MIN_US: f64 = 100.0;
+const PERIOD_MAX_US: f64 = 100_000.0;
+
+/// Lock state, as published in 0x2100.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum LockState {
+    /// No SYNC (or lost): the loop free-runs at its own tick rate.
+    #[default]
+    FreeRunning,
+    /// SYNCs arrive; period and phase are being acquired.
+    Acquiring,
+    /// The control cycle follows the SYNC.
+    Locked,
+}
+
+impl LockState {
+    pub fn code(self) -> u32 {
+        match self {
+            LockState::FreeRunning => 0,
+            LockState::Acquiring => 1,
+            LockState::Locked => 2,
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            LockState::FreeRunning => "free-running",
+            LockState::Acquiring => "acquiring",
+            LockState::Locked => "SYNC-locked",
+        }
+    }
+}
+
+/// The SYNC-tracking loop. Times are microseconds on one monotonic time base.
+#[derive(Clone, Debug)]
+pub struct SyncPll {
+    tick_period_us: f64,
+    lead_us: f64,
+    last_sync_us: Option<f64>,
+    /// Acquisition: first SYNC and intervals seen since.
+    first_sync_us: f64,
+    acquired: u32,
+    /// Predicted time of the next SYNC; valid once `period_us` is.
+    predicted_us: f64,
+    /// Estimated SYNC period; 0 until two SYNCs were seen.
+    period_us: f64,
+    good: u32,
+    slips: u32,
+    /// Consecutive SYNCs that came whole periods late (a master that changed its period).
+    bridged: u32,
+    state: LockState,
+    /// Last phase error (SYNC minus prediction), microseconds.
+    phase_error_us: f64,
+    /// Smoothed absolute phase error, microseconds.
+    phase_error_avg_us: f64,
+}
+
+impl SyncPll {
+    /// `tick_period_us`: the free-running tick. `lead_us`: how long before the SYNC the control
+    /// cycle runs, so its sample is fresh when the SYNC's TPDOs go out.
+    pub fn new(tick_period_us: u64, lead_us: u64) -> Self {
+        Self {
+            tick_period_us: tick_period_us as f64,
+            lead_us: lead_us as f64,
+            last_sync_us: None,
+            first_sync_us: 0.0,
+            acquired: 0,
+            predicted_us: 0.0,
+            period_us: 0.0,
+            good: 0,
+            slips: 0,
+            bridged: 0,
+            state: LockState::FreeRunning,
+            phase_error_us: 0.0,
+            phase_error_avg_us: 0.0,
+        }
+    }
+
+    pub fn state(&self) -> LockState {
+        self.state
+    }
+    /// Last SYNC's arrival minus its prediction, microseconds.
+    pub fn phase_error_us(&self) -> f64 {
+        self.phase_error_us
+    }
+    /// Smoothed magnitude of the phase error, microseconds.
+    pub fn phase_error_avg_us(&self) -> f64 {
+        self.phase_error_avg_us
+    }
+    /// Estimated SYNC period, microseconds (0 before two SYNCs).
+    pub fn sync_period_us(&self) -> f64 {
+        self.period_us
+    }
+    /// Predicted arrival of the next SYNC (meaningful while not free-running).
+    pub fn predicted_sync_us(&self) -> f64 {
+        self.predicted_us
+    }
+
+    fn restart(&mut self, t: f64) {
+        self.last_sync_us = Some(t);
+        self.first_sync_us = t;
+        self.acquired = 0;
+        self.period_us = 0.0;
+        self.good = 0;
+        self.slips = 0;
+        self.bridged = 0;
+        self.state = LockState::Acquiring;
+    }
+
+    /// A SYNC arrived at `t_us`.
+    pub fn on_sync(&mut self, t_us: u64) {
+        let t = t_us as f64;
+        let Some(last) = self.last_sync_us else {
+            self.restart(t);
+            return;
+        };
+        if t < last {
+            return; // not monotonic: ignore rather than corrupt the estimate
+        }
+        if self.period_us == 0.0 {
+            // Acquisition: the mean of ACQUIRE_SYNCS intervals, so a jittered master does not
+            // start the loop far off its period.
+            self.acquired += 1;
+            self.last_sync_us = Some(t);
+            if self.acquired >= ACQUIRE_SYNCS {
+                let dt = (t - self.first_sync_us) / f64::from(self.acquired);
+                if (PERIOD_MIN_US..=PERIOD_MAX_US).contains(&dt) {
+                    self.period_us = dt;
+                    self.predicted_us = t + dt;
+                    self.phase_error_us = 0.0;
+                    self.phase_error_avg_us = 0.0;
+                } else {
+                    self.restart(t);
+                }
+            }
+            return;
+        }
+        // Bridge missing SYNCs by whole periods.
+        let mut e = t - self.predicted_us;
+        if e > 0.75 * self.period_us {
+            let n = (e / self.period_us).round();
+            self.predicted_us += n * self.period_us;
+            e = t - self.predicted_us;
+            self.bridged += 1;
+            if self.bridged >= SLIPS_TO_REACQUIRE {
+                self.restart(t);
+                return;
+            }
+        } else {
+            self.bridged = 0;
+        }
+        self.last_sync_us = Some(t);
+        if e.abs() > SLIP_WINDOW * self.period_us {
+            self.slips += 1;
+            self.good = 0;
+            if self.slips >= SLIPS_TO_REACQUIRE {
+                self.restart(t);
+                return;
+            }
+            // An outlier (a SYNC delayed by the master's scheduler): clamp its pull.
+            e = e.clamp(-SLIP_WINDOW * self.period_us, SLIP_WINDOW * self.period_us);
+        } else {
+            self.slips = 0;
+        }
+        self.phase_error_us = e;
+        self.phase_error_avg_us += 0.05 * (e.abs() - self.phase_error_avg_us);
+        self.predicted_us += self.period_us + GAIN_PHASE * e;
+        self.period_us = (self.period_us + GAIN_FREQ * e).clamp(PERIOD_MIN_US, PERIOD_MAX_US);
+        self.good = self.good.saturating_add(1);
+        self.state =
+            if self.good >= LOCK_COUNT && self.phase_error_avg_us < LOCK_WINDOW * self.period_us {
+                LockState::Locked
+            } else {
+                LockState::Acquiring
+            };
+    }
+
+    /// Called with the current time: drops to free-running when SYNCs stopped.
+    pub fn check_lost(&mut self, now_us: u64) {
+        if let Some(last) = self.last_sync_us {
+            let period = if self.period_us > 0.0 {
+                self.period_us
+            } else {
+                PERIOD_MAX_US
+            };
+            if now_us as f64 - last > LOST_AFTER_PERIODS * period {
+                self.last_sync_us = None;
+                self.period_us = 0.0;
+                self.good = 0;
+                self.slips = 0;
+                self.state = LockState::FreeRunning;
+            }
+        }
+    }
+
+    /// The control tick after the one at `last_deadline_us`. Free-running (or before the period
+    /// is known): one tick period later. Otherwise on the grid of ticks that ends `lead_us`
+    /// before each predicted SYNC, `round(T_sync / T_tick)` ticks per SYNC, at least half a
+    /// tick after the last one (so a grid that moves never gives two ticks at once).
+    pub fn next_deadline(&self, last_deadline_us: u64) -> u64 {
+        let last = last_deadline_us as f64;
+        if self.state == LockState::FreeRunning || self.period_us == 0.0 {
+            return last_deadline_us + self.tick_period_us as u64;
+        }
+        let per_sync = (self.period_us / self.tick_period_us).round().max(1.0);
+        let step = self.period_us / per_sync;
+        // The tick keeps clear of the SYNC's jitter: at least three times its smoothed phase
+        // error before the predicted SYNC, so every SYNC interval holds the same number of
+        // ticks (at most half a tick: the middle of the interval is as far as it gets).
+        let lead = self
+            .lead_us
+            .max(JITTER_MARGIN * self.phase_error_avg_us)
+            .min(step * 0.5);
+        let anchor = self.predicted_us - lead;
+        let n = ((last + 0.5 * step - anchor) / step).ceil();
+        let next = anchor + n * step;
+        // Never earlier than half a tick after the last one, never later than 1.5 ticks.
+        next.clamp(last + 0.5 * step, last + 1.5 * step).round() as u64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deterministic pseudo-random jitter in [-1, 1).
+    fn noise(seed: &mut u64) -> f64 {
+        *seed ^= *seed << 13;
+        *seed ^= *seed >> 7;
+        *seed ^= *seed << 17;
+        (*seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
+
+    /// Feed SYNCs with the given period (us), jitter amplitude (us) and drift (ppm); run the
+    /// loop's ticks in between as the runtime does. Returns the pll and, for each SYNC after
+    /// `settle`, the tick deadlines that fell between it and the previous one.
+    fn simulate(
+        period_us: f64,
+        jitter_us: f64,
+        drift_ppm: f64,
+        syncs: usize,
+        settle: usize,
+    ) -> (SyncPll, Vec<Vec<u64>>, Vec<f64>) {
+        let mut pll = SyncPll::new(1000, 100);
+        let mut seed = 0x1234_5678_9abc_def1u64;
+        let mut deadline = 0u64;
+        let mut per_sync = Vec::new();
+        let mut errors = Vec::new();
+        let true_period = period_us * (1.0 + drift_ppm * 1e-6);
+        for k in 1..=syncs {
+            let t = (10_000.0 + k as f64 * true_period + jitter_us * noise(&mut seed)) as u64;
+            let mut ticks = Vec::new();
+            while deadline <= t {
+                ticks.push(deadline);
+                deadline = pll.next_deadline(deadline);
+            }
+            pll.on_sync(t);
+            if k > settle {
+                per_sync.push(ticks);
+                // Where the loop places the next tick relative to the next ideal SYNC.
+                let ideal_next = 10_000.0 + (k + 1) as f64 * true_period;
+                errors.push(pll.predicted_sync_us() - ideal_next);
+            }
+        }
+        (pll, per_sync, errors)
+    }
+
+    #[test]
+    fn locks_to_a_clean_sync_and_ticks_once_per_sync_before_it() {
+        let (pll, per_sync, errors) = simulate(1000.0, 0.0, 0.0, 400, 100);
+        assert_eq!(pll.state(), LockState::Locked);
+        assert!((pll.sync_period_us() - 1000.0).abs() < 1.0);
+        assert!(per_sync.iter().all(|t| t.len() == 1), "{per_sync:?}");
+        assert!(errors.iter().all(|e| e.abs() < 2.0), "{errors:?}");
+    }
+
+    #[test]
+    fn jittered_sync_gives_one_tick_per_sync_and_a_smooth_cycle() {
+        // +-300 us of SYNC jitter at 1 kHz (a busy master): every SYNC interval still holds
+        // exactly one control tick, and the tick grid moves far less than the SYNC does.
+        let (pll, per_sync, errors) = simulate(1000.0, 300.0, 0.0, 3000, 300);
+        assert_eq!(pll.state(), LockState::Locked);
+        let counts: Vec<usize> = per_sync.iter().map(Vec::len).collect();
+        let ones = counts.iter().filter(|&&c| c == 1).count();
+        assert!(
+            ones as f64 >= 0.99 * counts.len() as f64,
+            "ticks per SYNC: {} of {} were one",
+            ones,
+            counts.len()
+        );
+        let spread = errors.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+        assert!(spread < 150.0, "prediction error up to {spread} us");
+        // The tick-to-tick interval is far steadier than the SYNC-to-SYNC interval (600 us).
+        let flat: Vec<u64> = per_sync.iter().flatten().copied().collect();
+        let worst = flat
+            .windows(2)
+            .map(|w| (w[1] as f64 - w[0] as f64 - 1000.0).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 150.0, "tick interval deviates up to {worst} us");
+    }
+
+    #[test]
+    fn follows_a_drifting_master_clock_without_standing_phase_error() {
+        for drift in [-500.0, 200.0, 1000.0] {
+            let (pll, per_sync, errors) = simulate(1000.0, 20.0, drift, 3000, 1000);
+            assert_eq!(pll.state(), LockState::Locked, "drift {drift} ppm");
+            let want = 1000.0 * (1.0 + drift * 1e-6);
+            assert!(
+                (pll.sync_period_us() - want).abs() < 0.5,
+                "drift {drift}: period {} want {want}",
+                pll.sync_period_us()
+            );
+            let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+            assert!(mean.abs() < 5.0, "drift {drift}: mean phase error {mean}");
+            assert!(per_sync.iter().all(|t| t.len() == 1), "drift {drift}");
+        }
+    }
+
+    #[test]
+    fn slower_sync_gives_several_ticks_per_sync() {
+        let mut pll = SyncPll::new(1000, 100);
+        let mut deadline = 0;
+        let mut counts = Vec::new();
+        for k in 1..=500u64 {
+            let t = 5_000 + k * 4000;
+            let mut n = 0;
+            while deadline <= t {
+                n += 1;
+                deadline = pll.next_deadline(deadline);
+            }
+            pll.on_sync(t);
+            if k > 100 {
+                counts.push(n);
+            }
+        }
+        assert_eq!(pll.state(), LockState::Locked);
+        assert!(counts.iter().all(|&n| n == 4), "{counts:?}");
+    }
+
+    #[test]
+    fn missing_syncs_are_bridged_and_silence_unlocks() {
+        let mut pll = SyncPll::new(1000, 100);
+        for k in 1..=100u64 {
+            pll.on_sync(k * 1000);
+        }
+        assert_eq!(pll.state(), LockState::Locked);
+        // Two SYNCs missing: the next one is still on the grid.
+        pll.on_sync(103_000);
+        assert_eq!(pll.state(), LockState::Locked);
+        assert!(pll.phase_error_us().abs() < 1.0);
+        pll.check_lost(103_000 + 2_000);
+        assert_eq!(pll.state(), LockState::Locked);
+        pll.check_lost(103_000 + 4_000);
+        assert_eq!(pll.state(), LockState::FreeRunning);
+        assert_eq!(pll.next_deadline(200_000), 201_000);
+    }
+
+    #[test]
+    fn a_master_that_changes_its_period_is_reacquired() {
+        let mut pll = SyncPll::new(1000, 100);
+        let mut t = 0;
+        for _ in 0..100 {
+            t += 1000;
+            pll.on_sync(t);
+        }
+        for _ in 0..200 {
+            t += 2000;
+            pll.on_sync(t);
+        }
+        assert_eq!(pll.state(), LockState::Locked);
+        assert!((pll.sync_period_us() - 2000.0).abs() < 1.0);
+    }
+}
