@@ -254,7 +254,8 @@ pub fn plot_amplitude_trend(
         }
         c.draw_series(pts.iter().zip(&rep.windows).map(|(p, w)| {
             let col = match w.level {
-                crate::analysis::detector::Verdict::Ok => BLUE,
+                crate::analysis::detector::Verdict::Inconclusive
+                | crate::analysis::detector::Verdict::Ok => BLUE,
                 crate::analysis::detector::Verdict::BacklashSuspected => RGBColor(230, 160, 0),
                 crate::analysis::detector::Verdict::Backlash => RED,
             };
