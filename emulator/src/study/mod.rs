@@ -208,6 +208,8 @@ impl ValueSpec {
                     (a.0 + t * (b.0 - a.0), a.1)
                 })
                 .collect()
+        } else if text.contains("..") {
+            return Err(format!("`{text}`: a range is written A..B:N (N points)"));
         } else {
             text.split(',').map(num).collect::<Result<Vec<_>, _>>()?
         };
