@@ -243,3 +243,17 @@ fn reset_communication_keeps_the_drive_enabled_during_the_boot_delay() {
     assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
     assert_ne!(b.node.cia402_state(), Cia402State::OperationEnabled);
 }
+
+/// NMT module control is exactly two bytes (CiA 301): longer frames are not commands.
+#[test]
+fn nmt_frames_of_other_lengths_are_ignored() {
+    let mut b = Bench::new();
+    for len in [3usize, 4, 8] {
+        let mut d = [0u8; 8];
+        d[0] = 0x81;
+        d[1] = ID;
+        assert_eq!(b.send(f(0, &d[..len])), FrameEvent::Ignored, "{len} bytes");
+        assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
+    }
+    assert_eq!(b.nmt(0x01, ID), FrameEvent::Handled);
+}

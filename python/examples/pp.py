@@ -14,6 +14,13 @@ import time
 
 import canopen
 
+# BaseNode402's own timeouts (0.2 s for the next TPDO, 0.4 s per state step) assume a quiet
+# real-time host; a loaded machine or user-mode Linux stalls longer than that at times.
+canopen.BaseNode402.TIMEOUT_CHECK_TPDO = 2.0
+canopen.BaseNode402.TIMEOUT_SWITCH_OP_MODE = 5.0
+canopen.BaseNode402.TIMEOUT_SWITCH_STATE_SINGLE = 3.0
+canopen.BaseNode402.TIMEOUT_SWITCH_STATE_FINAL = 10.0
+
 
 def wait_for(pred, timeout, what):
     deadline = time.monotonic() + timeout
