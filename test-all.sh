@@ -3,7 +3,9 @@
 #   1. host tests (protocol, emulator): cargo nextest run --workspace --exclude e2e
 #   2. end-to-end tests on a real virtual CAN bus (package e2e): built and archived here
 #      with `cargo nextest archive`, then run from the archive through ./vcan-setup.sh
-#      (natively where the kernel has CAN, inside user-mode Linux otherwise).
+#      (natively where the kernel has CAN, inside user-mode Linux otherwise), followed in
+#      the same vcan run by the python package's pytest tests (python/tests: the drive_emu
+#      fixture and the examples; needs `pip install ./python`; "no tests" fails).
 # Exits non-zero if either phase fails (both always run). See docs/vcan.md.
 #
 # Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase; the
@@ -55,9 +57,18 @@ fi
 if [[ $emu_ok == 1 ]] && cargo nextest archive -p e2e --archive-file "$archive"; then
     echo "test-all.sh: DRIVE_EMU_BIN=$DRIVE_EMU_BIN"
     build_time=$(secs "$t"); t=$(now)
-    ./vcan-setup.sh --ifaces 2 --timeout "${VCAN_TIMEOUT:-1800}" -- \
-        cargo nextest run --archive-file "$archive" --workspace-remap "$ROOT" \
-        --extract-to "$tmp/extract" --no-fail-fast || e2e_rc=$?
+    # nextest, then pytest (python/tests), both inside one vcan run; either failing fails it.
+    # pytest's exit 5 (no tests collected) is non-zero and so fails too.
+    if ! python3 -c 'import drive_emu_testing' 2>/dev/null; then
+        echo "test-all.sh: python package drive_emu_testing missing: pip install ./python" >&2
+    fi
+    ./vcan-setup.sh --ifaces 2 --timeout "${VCAN_TIMEOUT:-1800}" -- bash -c '
+        rc=0
+        cargo nextest run --archive-file "$1" --workspace-remap "$2" \
+            --extract-to "$3" --no-fail-fast || rc=$?
+        printf "\n==== python tests: pytest python/tests (drive_emu fixture, examples)\n"
+        python3 -m pytest -p no:cacheprovider -q python/tests || { py=$?; echo "pytest: exit $py"; rc=1; }
+        exit $rc' vcan-tests "$archive" "$ROOT" "$tmp/extract" || e2e_rc=$?
     run_time=$(secs "$t")
 else
     e2e_rc=$?

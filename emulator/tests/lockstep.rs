@@ -119,6 +119,78 @@ fn batched_frames_give_the_same_run_as_one_period_at_a_time() {
     }
 }
 
+/// Lock-step with a boot delay: simulated time stands still without SYNC, yet the master
+/// waits for the boot-up before it sends any. The delay passes on the wall clock, at power-on
+/// and after each NMT reset, with no SYNC on the bus; a SYNC during the delay is not lost
+/// time either (it advances the clock as ever).
+#[test]
+fn boot_delay_passes_on_the_wall_clock_without_sync() {
+    use std::time::{Duration, Instant};
+    const DELAY_US: u64 = 150_000;
+    let mut eps = InProcBus::endpoints(2, 1 << 12);
+    let mut peer = eps.pop().unwrap();
+    let mut slot = axis();
+    slot.node.set_boot_delay_us(DELAY_US);
+    let mut rt = Runtime::new(eps.pop().unwrap(), vec![slot], 1000);
+    rt.boot();
+    assert!(
+        rt.axes[0].node.boot_pending(),
+        "power-on boot waits for its delay"
+    );
+    let stop = std::sync::Arc::new(AtomicBool::new(false));
+    let t_start = Instant::now();
+    let runner = {
+        let stop = std::sync::Arc::clone(&stop);
+        std::thread::spawn(move || {
+            rt.run_lockstep(1000, &stop, |_| {});
+            rt
+        })
+    };
+    let boot_up = u32::from(NODE) + 0x700;
+    let wait_boot_up = |peer: &mut drive_emu::bus::inproc::InProcEndpoint| -> Instant {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            if let Ok(Some(f)) = peer.recv() {
+                if f.id == boot_up && f.data[0] == 0 {
+                    return Instant::now();
+                }
+            }
+            assert!(Instant::now() < deadline, "no boot-up within 60 s");
+            std::thread::sleep(Duration::from_micros(200));
+        }
+    };
+    let t = wait_boot_up(&mut peer);
+    assert!(
+        t - t_start >= Duration::from_micros(DELAY_US),
+        "power-on: {:?}",
+        t - t_start
+    );
+    for cs in [0x82u8, 0x81, 0x82] {
+        let sent = Instant::now();
+        peer.send(&CanFrame::new(0, &[cs, NODE])).unwrap();
+        let t = wait_boot_up(&mut peer);
+        assert!(
+            t - sent >= Duration::from_micros(DELAY_US),
+            "NMT {cs:#x}: boot-up after {:?}, before the delay",
+            t - sent
+        );
+    }
+    // SYNCs during a pending boot still advance the lock-step clock
+    peer.send(&CanFrame::new(0, &[0x82, NODE])).unwrap();
+    for _ in 0..10 {
+        peer.send(&CanFrame::new(0x80, &[])).unwrap();
+    }
+    wait_boot_up(&mut peer);
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !runner.is_finished() && Instant::now() < deadline {
+        stop.store(true, Ordering::Relaxed);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let rt = runner.join().unwrap();
+    assert_eq!(rt.sim_time_us, 10_000, "10 SYNCs, 10 periods");
+    assert!(!rt.axes[0].node.boot_pending());
+}
+
 #[test]
 fn loop_statistics_are_live_in_lock_step() {
     // A master reading 0x2100 sub 1 (ticks) in the middle of a lock-step run sees the ticks

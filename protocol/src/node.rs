@@ -124,6 +124,13 @@ struct Core {
     pending_sync: Option<u64>,
     injected_fault: u16,
     now_us: u64,
+    /// Time from a reset (or power-on) to the boot-up message, us (0: at once).
+    boot_delay_us: u64,
+    /// While initialising after a reset: when the boot-up is due.
+    boot_due_us: Option<u64>,
+    /// The pending boot follows a communication reset: the application (CiA 402) keeps
+    /// running meanwhile, only the communication is silent.
+    boot_keeps_app: bool,
     events: Deque<NodeEvent, EVENT_QUEUE>,
     events_dropped: u32,
     /// CiA 402 and NMT state as last reported in an event.
@@ -445,7 +452,21 @@ impl Core {
         }
     }
 
+    /// Begin a boot: at once without a boot delay, else initialising (silent, deaf) until
+    /// the delay has passed ([`Node::poll`] or [`Node::finish_boot`] completes it).
+    fn start_boot(&mut self, now_us: u64, keeps_app: bool) {
+        if self.boot_delay_us == 0 {
+            self.boot(now_us);
+        } else {
+            self.nmt = NmtState::Initialising;
+            self.boot_due_us = Some(now_us.saturating_add(self.boot_delay_us));
+            self.boot_keeps_app = keeps_app;
+        }
+    }
+
     fn boot(&mut self, now_us: u64) {
+        self.boot_due_us = None;
+        self.boot_keeps_app = false;
         self.nmt = NmtState::PreOperational;
         self.refresh_all();
         self.sync = SyncConsumer::default();
@@ -534,6 +555,9 @@ impl Node {
             pending_sync: None,
             injected_fault: 0,
             now_us: 0,
+            boot_delay_us: 0,
+            boot_due_us: None,
+            boot_keeps_app: false,
             events: Deque::new(),
             events_dropped: 0,
             seen_cia: State::NotReadyToSwitchOn,
@@ -547,11 +571,38 @@ impl Node {
         })
     }
 
-    /// Queue the boot-up message and enter pre-operational.
+    /// Power-on: queue the boot-up message and enter pre-operational, after the boot delay
+    /// ([`Node::set_boot_delay_us`]) if there is one.
     pub fn boot(&mut self, now_us: u64) {
         self.core.now_us = now_us;
-        self.core.boot(now_us);
+        self.core.start_boot(now_us, false);
         self.core.observe();
+    }
+
+    /// Time from power-on or an NMT reset to the boot-up message, us (default 0: at once).
+    /// Real drives take 100 ms to seconds; a master that sends the reset and then starts
+    /// waiting for the boot-up (python canopen's `wait_for_bootup`) needs some.
+    pub fn set_boot_delay_us(&mut self, delay_us: u64) {
+        self.core.boot_delay_us = delay_us;
+    }
+
+    pub fn boot_delay_us(&self) -> u64 {
+        self.core.boot_delay_us
+    }
+
+    /// Whether a boot is pending (initialising, the boot delay not over).
+    pub fn boot_pending(&self) -> bool {
+        self.core.nmt == NmtState::Initialising && self.core.boot_due_us.is_some()
+    }
+
+    /// Complete a pending boot now (a lock-step runtime whose simulated time stands still
+    /// while the master waits for the boot-up lets the delay pass on the wall clock).
+    pub fn finish_boot(&mut self, now_us: u64) {
+        if self.boot_pending() {
+            self.core.now_us = now_us;
+            self.core.boot(now_us);
+            self.core.observe();
+        }
     }
 
     fn nmt_command(&mut self, cmd: NmtCommand, now_us: u64, drive: &mut impl Drive) {
@@ -566,7 +617,7 @@ impl Node {
                 c.clear_all_emcy();
                 c.injected_fault = 0;
                 self.sdo.reset();
-                c.boot(now_us);
+                c.start_boot(now_us, false);
             }
             NmtCommand::ResetCommunication => {
                 c.restore_range(0x1000, 0x1FFF);
@@ -579,7 +630,7 @@ impl Node {
                     }
                 }
                 self.sdo.reset();
-                c.boot(now_us);
+                c.start_boot(now_us, true);
             }
             _ => {
                 let next = nmt::next_state(cmd);
@@ -631,7 +682,15 @@ impl Node {
         drive: &mut impl Drive,
     ) -> FrameEvent {
         self.core.now_us = now_us;
-        if frame.extended || frame.id > 0x7FF || self.core.nmt == NmtState::Initialising {
+        if frame.extended || frame.id > 0x7FF {
+            return FrameEvent::Ignored;
+        }
+        if self.core.nmt == NmtState::Initialising {
+            // Deaf while booting, but a SYNC still tells a lock-step runtime time goes on.
+            let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
+            if self.core.boot_due_us.is_some() && frame.id == sync_cob && !frame.rtr {
+                return FrameEvent::Sync { counter: None };
+            }
             return FrameEvent::Ignored;
         }
         let id = frame.id;
@@ -754,6 +813,7 @@ impl Node {
             }
         };
         if c.nmt == NmtState::Initialising {
+            take(c.boot_due_us); // the boot-up after the boot delay
             return at;
         }
         take(c.pending_sync);
@@ -787,21 +847,27 @@ impl Node {
         }
         let c = &mut self.core;
         if c.nmt == NmtState::Initialising {
-            drive.command(&crate::drive::DriveCommand {
-                setpoint: crate::drive::Setpoint::Disabled,
-                max_torque_permille: 0.0,
-                max_velocity_inc_per_s: 0.0,
-            });
-            return;
+            if c.boot_due_us.is_some_and(|due| now_us >= due) {
+                c.boot(now_us);
+            } else if !c.boot_keeps_app {
+                drive.command(&crate::drive::DriveCommand {
+                    setpoint: crate::drive::Setpoint::Disabled,
+                    max_torque_permille: 0.0,
+                    max_velocity_inc_per_s: 0.0,
+                });
+                return;
+            }
         }
+        let booting = c.nmt == NmtState::Initialising;
         // heartbeat producer
-        if c.hb.due(now_us, c.store.u32(R_1017) as u16) {
+        if !booting && c.hb.due(now_us, c.store.u32(R_1017) as u16) {
             let hb = Heartbeat { state: c.nmt as u8 };
             let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
             c.push(f);
         }
         // heartbeat consumer
-        if let Some(n) = c.hbc.poll(now_us) {
+        let lost = if booting { None } else { c.hbc.poll(now_us) };
+        if let Some(n) = lost {
             c.hb_lost = true;
             c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
@@ -878,6 +944,27 @@ impl Node {
     /// The EDS (CiA 306) of this node, generated from the object table.
     pub fn export_eds(&self) -> String {
         od::eds::export(self.core.node_id, &self.core.info)
+    }
+
+    /// The EDS of this node and drive: the manufacturer parameters' defaults are the values
+    /// the drive has (what an SDO read returns), the rest as [`od::eds::export_with`].
+    pub fn export_eds_of(&self, drive: &impl Drive, meta: &od::eds::EdsMeta) -> String {
+        let mut values: heapless::Vec<(u16, f32), 32> = heapless::Vec::new();
+        for p in params::PARAMS.iter() {
+            let scale = if self.core.info.rotary {
+                p.rotary_scale
+            } else {
+                p.scale
+            };
+            if let Ok(v) = drive.param(p.param) {
+                let _ = values.push((p.index, (v * scale) as f32));
+            }
+        }
+        let meta = od::eds::EdsMeta {
+            params: &values,
+            ..meta.clone()
+        };
+        od::eds::export_with(self.core.node_id, &self.core.info, &meta)
     }
 
     // ----- read-only accessors -----

@@ -160,6 +160,7 @@ fn polling_only_at_poll_at_keeps_heartbeat_and_sdo_timeout() {
 #[test]
 fn poll_at_names_sync_supervision_and_heartbeat_consumer_deadlines() {
     let mut b = Bench::new();
+    b.w16(0x1800, 5, 0).unwrap(); // no TPDO1 event timer: its deadline would come first
     b.w32(0x1006, 0, 4000).unwrap();
     b.w32(0x1016, 1, (0x7F << 16) | 50).unwrap();
     b.start();

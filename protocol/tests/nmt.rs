@@ -152,3 +152,108 @@ fn full_tx_queue_is_counted_not_fatal() {
     while node.pop_tx().is_some() {}
     node.poll(1000, &mut drive);
 }
+
+/// With a boot delay the node is silent and deaf from power-on or a reset until the delay
+/// has passed, then sends its boot-up: a master that sends the reset and only then starts
+/// waiting for the boot-up (python canopen's `wait_for_bootup`) sees it.
+#[test]
+fn boot_delay_holds_the_boot_up_after_power_on_and_resets() {
+    for delay_us in [1_000u64, 150_000, 300_000] {
+        let mut b = Bench::new();
+        b.node.set_boot_delay_us(delay_us);
+        assert_eq!(b.node.boot_delay_us(), delay_us);
+        for (what, cs) in [
+            ("power-on", 0u8),
+            ("reset node", 0x81),
+            ("reset communication", 0x82),
+        ] {
+            b.take();
+            let t0 = b.now;
+            if cs == 0 {
+                b.node = drive_protocol::Node::new(ID, info()).unwrap();
+                b.node.set_boot_delay_us(delay_us);
+                b.node.boot(t0);
+            } else {
+                b.nmt(cs, ID);
+            }
+            assert!(b.node.boot_pending(), "{what}: boot pending");
+            assert_eq!(b.node.nmt_state(), NmtState::Initialising, "{what}");
+            // deaf meanwhile: no SDO answer, no NMT start, no heartbeat
+            assert!(b.sdo_raw([0x2B, 0x17, 0x10, 0, 10, 0, 0, 0]).is_empty());
+            b.start();
+            b.run_until(t0 + delay_us - 1);
+            let early = b.take();
+            assert!(
+                early.is_empty(),
+                "{what}, {delay_us} us: sent {early:?} while booting"
+            );
+            assert_eq!(b.node.nmt_state(), NmtState::Initialising, "{what}");
+            b.run_until(t0 + delay_us + 2 * DT_US);
+            let tx = b.take();
+            let boot_ups: Vec<_> = tx.iter().filter(|f| f.id == 0x700 + ID as u32).collect();
+            assert_eq!(boot_ups.len(), 1, "{what}, {delay_us} us: {tx:?}");
+            assert_eq!(boot_ups[0].data[0], 0, "{what}: boot-up, not a heartbeat");
+            assert_eq!(b.node.nmt_state(), NmtState::PreOperational, "{what}");
+            assert_eq!(
+                b.r32(0x1017, 0),
+                0,
+                "{what}: the write while booting was ignored"
+            );
+        }
+    }
+}
+
+/// A lock-step runtime whose clock stands still completes the boot itself; SYNCs during the
+/// delay are reported (time goes on) but not processed.
+#[test]
+fn finish_boot_completes_a_pending_boot_at_once() {
+    let mut b = Bench::new();
+    b.node.set_boot_delay_us(200_000);
+    b.take();
+    b.nmt(0x82, ID);
+    assert_eq!(b.sync(), FrameEvent::Sync { counter: None });
+    assert!(b.take().is_empty());
+    b.node.finish_boot(b.now);
+    let tx = b.take();
+    assert_eq!(tx.len(), 1, "{tx:?}");
+    assert_eq!((tx[0].id, tx[0].data[0]), (0x700 + ID as u32, 0));
+    assert!(!b.node.boot_pending());
+    // nothing pending: a no-op
+    b.node.finish_boot(b.now);
+    assert!(b.take().is_empty());
+}
+
+/// Reset communication keeps the application: an enabled drive stays enabled through the
+/// boot delay (only the communication restarts), reset node disables it.
+#[test]
+fn reset_communication_keeps_the_drive_enabled_during_the_boot_delay() {
+    let mut b = Bench::new();
+    b.node.set_boot_delay_us(100_000);
+    b.start();
+    b.enable(1);
+    assert_eq!(b.node.cia402_state(), Cia402State::OperationEnabled);
+    b.nmt(0x82, ID);
+    b.run_until(b.now + 50_000);
+    assert_eq!(b.node.cia402_state(), Cia402State::OperationEnabled);
+    b.run_until(b.now + 100_000);
+    assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
+    assert_eq!(b.node.cia402_state(), Cia402State::OperationEnabled);
+    b.nmt(0x81, ID);
+    b.run_until(b.now + 150_000);
+    assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
+    assert_ne!(b.node.cia402_state(), Cia402State::OperationEnabled);
+}
+
+/// NMT module control is exactly two bytes (CiA 301): longer frames are not commands.
+#[test]
+fn nmt_frames_of_other_lengths_are_ignored() {
+    let mut b = Bench::new();
+    for len in [3usize, 4, 8] {
+        let mut d = [0u8; 8];
+        d[0] = 0x81;
+        d[1] = ID;
+        assert_eq!(b.send(f(0, &d[..len])), FrameEvent::Ignored, "{len} bytes");
+        assert_eq!(b.node.nmt_state(), NmtState::PreOperational);
+    }
+    assert_eq!(b.nmt(0x01, ID), FrameEvent::Handled);
+}

@@ -459,3 +459,39 @@ fn rpdo_values_pass_the_checks_of_an_sdo_write() {
     assert_eq!(b.emcys(), vec![0x6320]);
     assert_eq!(b.ri32(0x6060, 0), 8);
 }
+
+/// TPDO1 (statusword + mode display) is event-driven with a default event timer, so a master
+/// that waits for its next reception (python canopen `BaseNode402.op_mode`, 0.2 s) gets one
+/// although nothing changed; the SYNC-driven TPDOs have none.
+#[test]
+fn tpdo1_has_a_default_event_timer() {
+    let mut b = Bench::new();
+    assert_eq!(b.r32(0x1800, 2), 255);
+    let timer_ms = b.r32(0x1800, 5);
+    assert!(
+        (1..200).contains(&timer_ms),
+        "TPDO1 event timer {timer_ms} ms"
+    );
+    for k in 1..4 {
+        assert_eq!(b.r32(0x1800 + k, 5), 0);
+    }
+    b.start();
+    b.take();
+    let mut times = Vec::new();
+    let ticks = 2000u64; // DT_US = 1 ms, constant data
+    for k in 0..ticks {
+        b.tick();
+        if b.take().iter().any(|f| f.id == 0x180 + N) {
+            times.push(k);
+        }
+    }
+    let expect = ticks / u64::from(timer_ms);
+    assert!(
+        (expect - 1..=expect + 1).contains(&(times.len() as u64)),
+        "{} TPDO1 in {ticks} ms, timer {timer_ms} ms: {times:?}",
+        times.len()
+    );
+    assert!(times
+        .windows(2)
+        .all(|w| w[1] - w[0] <= u64::from(timer_ms) + 1));
+}

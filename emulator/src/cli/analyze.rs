@@ -120,9 +120,6 @@ pub fn read_csv(path: &Path) -> anyhow::Result<Columns> {
     Ok(parse_csv(path, &text)?.0)
 }
 
-/// Named columns of a CSV file.
-type Columns = Vec<(String, Vec<f64>)>;
-
 /// Parse CSV text (read from `path`) into named columns, and notes: a last line cut short (no
 /// newline at the end: the writer was killed mid-line) is skipped and reported.
 fn parse_csv(path: &Path, text: &str) -> anyhow::Result<(Columns, Vec<String>)> {

@@ -4,6 +4,7 @@ use crate::presets::{preset_names, AxisConfig};
 use crate::runtime::axis_drive::AxisDrive;
 use anyhow::Result;
 use clap::Args;
+use drive_protocol::od::eds::EdsMeta;
 use drive_protocol::{Drive, Node};
 
 #[derive(Args, Debug, Clone)]
@@ -11,21 +12,86 @@ pub struct EdsArgs {
     /// Preset of the axis: cnc1 ... cnc5.
     #[arg(long, default_value = "cnc1")]
     pub preset: String,
-    /// Node ID the EDS is written for (default values with $NODEID are resolved by masters).
-    #[arg(long, default_value_t = 5)]
-    pub node: u8,
+    /// Node ID of the drive: written to [DeviceComissioning] NodeID, from which masters
+    /// (python canopen, Lely, canopen-monitor) resolve the $NODEID defaults. Without it, a
+    /// generic EDS.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=127))]
+    pub node: Option<u8>,
     /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
 }
 
-/// The EDS (CiA 306) of a drive built from a preset, generated from the node's object table.
+/// The EDS (CiA 306) of a drive built from a preset, generated from the node's object table:
+/// every default is the value the drive has (manufacturer parameters from the preset and
+/// --set), [FileInfo] complete (time from SOURCE_DATE_EPOCH if set, else now, UTC).
 pub fn eds_text(args: &EdsArgs) -> Result<String> {
     let cfg = AxisConfig::from_preset(&args.preset)?
         .with_overrides(args.set.iter().map(String::as_str))?;
     let drive = AxisDrive::from_config(&cfg)?;
-    let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
-    Ok(node.export_eds())
+    let node =
+        Node::new(args.node.unwrap_or(1), drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let secs = std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .unwrap_or_else(|| {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs())
+        });
+    let (time, date) = eds_time_date(secs);
+    let file_name = match args.node {
+        Some(n) => format!("drive-emu-{}-node{n}.eds", args.preset),
+        None => format!("drive-emu-{}.eds", args.preset),
+    };
+    let description = if args.set.is_empty() {
+        format!("drive-emu CiA 402 servo drive, preset {}", args.preset)
+    } else {
+        format!(
+            "drive-emu CiA 402 servo drive, preset {} with {}",
+            args.preset,
+            // no '=' in a value: INI readers (eds-utils) split the line at every '='
+            args.set.join(", ").replace('=', ": ")
+        )
+    };
+    let by = format!("drive-emu {}", env!("CARGO_PKG_VERSION"));
+    let meta = EdsMeta {
+        file_name: &file_name,
+        description: &description,
+        created_by: &by,
+        time: &time,
+        date: &date,
+        node_id: args.node,
+        params: &[],
+    };
+    Ok(node.export_eds_of(&drive, &meta))
+}
+
+/// CiA 306 time and date of a Unix time (UTC): `hh:mmAM`, `MM-DD-YYYY`.
+pub fn eds_time_date(unix_s: u64) -> (String, String) {
+    let days = (unix_s / 86_400) as i64;
+    let sod = unix_s % 86_400;
+    let (h, m) = (sod / 3600, (sod % 3600) / 60);
+    // civil from days (H. Hinnant)
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let mo = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(mo <= 2);
+    let (h12, ampm) = match h {
+        0 => (12, "AM"),
+        1..=11 => (h, "AM"),
+        12 => (12, "PM"),
+        _ => (h - 12, "PM"),
+    };
+    (
+        format!("{h12:02}:{m:02}{ampm}"),
+        format!("{mo:02}-{d:02}-{y:04}"),
+    )
 }
 
 pub fn run_eds(args: &EdsArgs) -> Result<()> {

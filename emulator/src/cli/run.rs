@@ -70,7 +70,23 @@ pub struct RunArgs {
     /// several axes, one file each: trace.csv -> trace-node5.csv, ...
     #[arg(long, value_name = "FILE")]
     pub trace: Option<PathBuf>,
+    /// Time from power-on or an NMT reset (node or communication) to the boot-up message, ms,
+    /// as on a real drive; long enough for a master that sends the reset and then starts
+    /// waiting for the boot-up (python canopen's `wait_for_bootup`). In lock-step it passes on
+    /// the wall clock. 0 = at once.
+    #[arg(long, default_value_t = DEFAULT_BOOT_DELAY_MS, value_parser = clap::value_parser!(u64).range(0..=60_000))]
+    pub boot_delay_ms: u64,
+    /// Print one JSON line on stdout once every drive has sent its boot-up:
+    /// `{"event":"ready","iface":..,"nodes":[{"node_id":5,"preset":"cnc1"}],"pid":..,...}`
+    /// (for scripts and test fixtures; with --json the statistics follow at exit).
+    #[arg(long)]
+    pub ready: bool,
 }
+
+/// Default boot delay, ms: within the 100 ms - seconds real drives take, and long enough that
+/// a python master's `nmt.state = 'RESET'` followed by `wait_for_bootup()` sees the boot-up
+/// even when the master's host stalls for tens of ms (user-mode Linux, a loaded CI machine).
+pub const DEFAULT_BOOT_DELAY_MS: u64 = 200;
 
 /// Longest `--duration` accepted, s (about 31 years: beyond it the number is a typo).
 pub const MAX_DURATION_S: f64 = 1e9;
@@ -176,6 +192,8 @@ struct Status {
     link_up: AtomicBool,
     sync_lock: AtomicU64,
     sync_phase_error_us: AtomicU64,
+    /// Every node has sent its boot-up (power-on boot delay over).
+    booted: AtomicBool,
 }
 
 pub fn run(args: &RunArgs) -> Result<()> {
@@ -253,6 +271,10 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
         }
         None => build_axes(&machine.axes)?,
     };
+    let mut axes = axes;
+    for ax in &mut axes {
+        ax.node.set_boot_delay_us(args.boot_delay_ms * 1000);
+    }
     let seed = scenario.map_or(1, |s| s.run.seed);
     let bus = FaultyBus::new(SocketCanBus::open(&args.iface)?, seed);
     let period_us = 1_000_000 / u64::from(machine.tick_hz);
@@ -336,7 +358,15 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
                     eprintln!("drive-emu: warning: {w}");
                 }
                 eprintln!("drive-emu: loop thread: {report}");
+                // Power-on: the boot delay passes on the wall clock before the loop starts
+                // (frames meanwhile wait in the socket; a booting node ignores them anyway).
                 rt.boot();
+                let delay_us = rt.axes.iter().map(|a| a.node.boot_delay_us()).max();
+                if let Some(d) = delay_us.filter(|d| *d > 0) {
+                    std::thread::sleep(std::time::Duration::from_micros(d));
+                    rt.finish_boots();
+                }
+                status.booted.store(true, Ordering::Release);
                 let hook = |rt: &mut Runtime<FaultyBus<SocketCanBus>, AxisDrive>| {
                     if let Some(inj) = injector.as_mut() {
                         inj.on_tick(&link, rt);
@@ -376,8 +406,31 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
     };
 
     let tty = std::io::stdout().is_terminal();
+    let mut ready_sent = !args.ready;
     while !stop.load(Ordering::Relaxed) && !loop_thread.is_finished() {
-        std::thread::sleep(std::time::Duration::from_millis(200));
+        if !ready_sent && status.booted.load(Ordering::Acquire) {
+            ready_sent = true;
+            let line = serde_json::json!({
+                "event": "ready",
+                "iface": args.iface,
+                "nodes": machine.axes.iter().map(|a| serde_json::json!({
+                    "node_id": a.node_id, "preset": a.preset,
+                })).collect::<Vec<_>>(),
+                "tick_hz": machine.tick_hz,
+                "lockstep": args.lockstep,
+                "sync_period_us": lockstep,
+                "boot_delay_ms": args.boot_delay_ms,
+                "pid": std::process::id(),
+            });
+            let mut out = std::io::stdout().lock();
+            writeln!(out, "{line}")?;
+            out.flush()?;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(if ready_sent {
+            200
+        } else {
+            5
+        }));
         if tty {
             let sw = status.statusword.load(Ordering::Relaxed) as u16;
             print!(

@@ -29,6 +29,7 @@ use drive_protocol::{Drive, FrameEvent, Node, RuntimeStats};
 use pll::SyncPll;
 use stats::LoopStats;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 /// At most this many received frames are handled per tick; the rest wait for the next tick.
 pub const MAX_RX_PER_TICK: usize = 256;
@@ -71,17 +72,21 @@ pub struct Runtime<B, D> {
     /// Simulated time, microseconds.
     pub sim_time_us: u64,
     pub stats: LoopStats,
+    /// Lock-step: when each node's pending boot started on the wall clock.
+    boot_started: Vec<Option<Instant>>,
 }
 
 impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
     pub fn new(bus: B, axes: Vec<AxisSlot<D>>, period_us: u64) -> Self {
         assert!(period_us > 0, "tick period must be positive");
+        let axes_len = axes.len();
         Self {
             bus,
             axes,
             period_us,
             sim_time_us: 0,
             stats: LoopStats::new(period_us),
+            boot_started: vec![None; axes_len],
         }
     }
 
@@ -90,6 +95,15 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         let now = self.sim_time_us;
         for ax in &mut self.axes {
             ax.node.boot(now);
+        }
+        self.flush_tx();
+    }
+
+    /// Complete every pending boot now (sends the boot-ups).
+    pub fn finish_boots(&mut self) {
+        let now = self.sim_time_us;
+        for ax in &mut self.axes {
+            ax.node.finish_boot(now);
         }
         self.flush_tx();
     }
@@ -310,7 +324,8 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
     ) {
         let ticks_per_sync = (sync_period_us / self.period_us).max(1);
         while !stop.load(Ordering::Relaxed) {
-            self.bus.wait_readable(10_000);
+            let wait_us = self.lockstep_boots();
+            self.bus.wait_readable(wait_us);
             // Frames in bus order: each SYNC advances time before the frames after it are
             // seen, so a batch read after a stall gives the same run as frames read one by one
             // (a set-point sent after SYNC k belongs to SYNC k+1, not k).
@@ -338,6 +353,32 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             }
         }
         self.publish_stats();
+    }
+
+    /// Lock-step: simulated time stands still without SYNC, but a master usually waits for
+    /// the boot-up before it sends any, so a pending boot (power-on, NMT reset) completes
+    /// when its delay has passed on the wall clock (or in simulated time, whichever first).
+    /// Returns how long the loop may wait for frames, us.
+    fn lockstep_boots(&mut self) -> u64 {
+        let mut wait_us = 10_000;
+        let now = Instant::now();
+        for (ax, started) in self.axes.iter_mut().zip(self.boot_started.iter_mut()) {
+            if !ax.node.boot_pending() {
+                *started = None;
+                continue;
+            }
+            let t0 = *started.get_or_insert(now);
+            let elapsed_us = now.duration_since(t0).as_micros() as u64;
+            let delay_us = ax.node.boot_delay_us();
+            if elapsed_us >= delay_us {
+                ax.node.finish_boot(self.sim_time_us);
+                *started = None;
+            } else {
+                wait_us = wait_us.min(delay_us - elapsed_us);
+            }
+        }
+        self.flush_tx();
+        wait_us.max(1)
     }
 }
 

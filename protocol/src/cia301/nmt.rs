@@ -16,7 +16,9 @@ pub enum NmtState {
 
 /// Decode an NMT frame (COB-ID 0) addressed to `node_id` or to all nodes (0).
 pub fn decode(frame: &CanFrame, node_id: u8) -> Option<NmtCommand> {
-    if frame.id != 0 || frame.rtr {
+    // CiA 301: NMT module control is exactly 2 bytes; anything else is not a command (a
+    // flood of odd-length frames must not reset the node)
+    if frame.id != 0 || frame.rtr || frame.len != 2 {
         return None;
     }
     let f = NmtFrame::parse(frame.payload())?;

@@ -7,7 +7,11 @@ use crate::drive::DriveInfo;
 use crate::params::param_at;
 
 fn fmt_value(o: &Obj, raw: u32) -> String {
-    if o.dtype.signed() {
+    let pdo_map = (0x1600..=0x17FF).contains(&o.index) || (0x1A00..=0x1BFF).contains(&o.index);
+    if pdo_map && o.sub > 0 {
+        // a mapping entry: index, sub-index, length, as CiA 306 writes it
+        format!("0x{raw:08X}")
+    } else if o.dtype.signed() {
         format!("{}", raw as i32)
     } else if o.dtype == DataType::Real32 {
         format!("{}", f32::from_bits(raw))
@@ -25,7 +29,39 @@ fn name_of(o: &Obj, info: &DriveInfo) -> &'static str {
     o.name
 }
 
-fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo) {
+/// What a generated EDS says about itself and the device it describes. The protocol crate has
+/// no clock: the caller gives the creation time and date (CiA 306 forms `hh:mmAM`,
+/// `MM-DD-YYYY`).
+#[derive(Clone, Debug)]
+pub struct EdsMeta<'a> {
+    pub file_name: &'a str,
+    pub description: &'a str,
+    pub created_by: &'a str,
+    pub time: &'a str,
+    pub date: &'a str,
+    /// Node ID written to [DeviceComissioning] (`None`: a generic EDS, no such section);
+    /// LSS_SerialNumber there is the identity's serial number (0x1018:4 = $NODEID).
+    pub node_id: Option<u8>,
+    /// Manufacturer parameters (0x2000..): the value the drive has, engineering units, as an
+    /// SDO read returns it. Objects not listed keep the table's default.
+    pub params: &'a [(u16, f32)],
+}
+
+impl Default for EdsMeta<'_> {
+    fn default() -> Self {
+        EdsMeta {
+            file_name: "drive-emulator.eds",
+            description: "Emulated CiA 402 servo drive (generated from the object table)",
+            created_by: "drive-protocol",
+            time: "12:00AM",
+            date: "01-01-2025",
+            node_id: None,
+            params: &[],
+        }
+    }
+}
+
+fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo, params: &[(u16, f32)]) {
     let _ = writeln!(s, "ParameterName={}", name_of(o, info));
     let _ = writeln!(s, "ObjectType=0x7");
     let _ = writeln!(s, "DataType=0x{:04X}", o.dtype as u8);
@@ -36,6 +72,15 @@ fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo) {
         }
         Def::NodeId(b) => {
             let _ = writeln!(s, "DefaultValue=$NODEID+0x{b:X}");
+        }
+        // REAL32: the IEEE 754 bit pattern in hex (CiA 306 integer notation, as Lely's
+        // dcf-tools read it), e.g. kv_per_s 30.0 = 0x41F00000
+        _ if o.dtype == DataType::Real32 => {
+            let v = params
+                .iter()
+                .find(|(i, _)| *i == o.index && o.otype == ObjType::Var)
+                .map_or(default_value(o, node_id, info), |p| p.1.to_bits());
+            let _ = writeln!(s, "DefaultValue=0x{v:08X}");
         }
         _ => {
             let _ = writeln!(
@@ -55,14 +100,29 @@ fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo) {
     s.push('\n');
 }
 
-/// The EDS text for a node.
+/// The EDS text for a node, with the table's defaults and a generic [FileInfo].
 pub fn export(node_id: u8, info: &DriveInfo) -> String {
+    export_with(node_id, info, &EdsMeta::default())
+}
+
+/// The EDS text for a node: complete [FileInfo] from `meta`, [DeviceComissioning] when
+/// `meta.node_id` is set, manufacturer parameter defaults from `meta.params`.
+pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
     let mut s = String::with_capacity(64 * 1024);
-    s.push_str(
-        "[FileInfo]\nFileName=drive-emulator.eds\nFileVersion=1\nFileRevision=0\nEDSVersion=4.0\n",
+    let _ = writeln!(
+        s,
+        "[FileInfo]\nFileName={}\nFileVersion=1\nFileRevision=0\nEDSVersion=4.0",
+        meta.file_name
     );
-    s.push_str("Description=Emulated CiA 402 servo drive (generated from the object table)\n");
-    s.push_str("CreatedBy=drive-protocol\n\n");
+    let _ = writeln!(s, "Description={}", meta.description);
+    let _ = writeln!(
+        s,
+        "CreationTime={t}\nCreationDate={d}\nCreatedBy={by}\nModificationTime={t}\n\
+         ModificationDate={d}\nModifiedBy={by}\n",
+        t = meta.time,
+        d = meta.date,
+        by = meta.created_by
+    );
     s.push_str("[DeviceInfo]\nVendorName=drive-emulator\nVendorNumber=0\nProductName=drive-emulator CiA402 servo\n");
     s.push_str("ProductNumber=0x402\nRevisionNumber=0x10000\nOrderCode=-\n");
     for b in ["10", "20", "50", "125", "250", "500", "800", "1000"] {
@@ -72,6 +132,14 @@ pub fn export(node_id: u8, info: &DriveInfo) -> String {
         "SimpleBootUpMaster=0\nSimpleBootUpSlave=1\nGranularity=8\nDynamicChannelsSupported=0\n",
     );
     s.push_str("GroupMessaging=0\nNrOfRXPDO=4\nNrOfTXPDO=4\nLSS_Supported=0\n\n");
+    if let Some(id) = meta.node_id {
+        let _ = writeln!(
+            s,
+            "[DeviceComissioning]\nNodeID={id}\nNodeName=drive-emu node {id}\nBaudrate=1000\n\
+             NetNumber=1\nNetworkName=drive-emu\nCANopenManager=0\n\
+             LSS_SerialNumber={id}\n"
+        );
+    }
     s.push_str("[DummyUsage]\nDummy0001=0\nDummy0002=0\nDummy0003=0\nDummy0004=0\nDummy0005=0\nDummy0006=0\nDummy0007=0\n\n");
 
     // distinct indices in order
@@ -104,7 +172,7 @@ pub fn export(node_id: u8, info: &DriveInfo) -> String {
         let first = rows[0];
         if first.otype == ObjType::Var {
             let _ = writeln!(s, "[{index:04X}]");
-            write_entry(&mut s, first, node_id, info);
+            write_entry(&mut s, first, node_id, info, meta.params);
         } else {
             let _ = writeln!(s, "[{index:04X}]");
             let _ = writeln!(s, "ParameterName={}", first.parent);
@@ -117,7 +185,7 @@ pub fn export(node_id: u8, info: &DriveInfo) -> String {
             s.push('\n');
             for o in rows {
                 let _ = writeln!(s, "[{index:04X}sub{:X}]", o.sub);
-                write_entry(&mut s, o, node_id, info);
+                write_entry(&mut s, o, node_id, info, meta.params);
             }
         }
     }

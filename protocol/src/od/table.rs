@@ -227,6 +227,10 @@ pub const DEFAULT_TPDO_COUNT: [u32; 4] = [2, 2, 2, 2];
 /// TPDO1 on change (inhibit 1 ms), TPDO2-4 on every SYNC.
 pub const DEFAULT_TPDO_TYPE: [u32; 4] = [255, 1, 1, 1];
 pub const DEFAULT_TPDO_INHIBIT: [u32; 4] = [10, 0, 0, 0];
+/// TPDO1 (statusword + mode display, event-driven) is also sent every 50 ms without a change,
+/// so a master that waits for its next reception (python canopen's `BaseNode402`, 0.2 s)
+/// sees one; the SYNC-driven TPDOs need no timer.
+pub const DEFAULT_TPDO_EVENT_TIMER_MS: [u32; 4] = [50, 0, 0, 0];
 
 const RPDO_COMM_NAMES: [&str; 4] = [
     "RPDO1 communication parameter",
@@ -387,7 +391,16 @@ const fn pdo_rows() -> [Obj; N_PDO] {
             false,
             V(DEFAULT_TPDO_INHIBIT[p]),
         );
-        out[k + 4] = rec(i, 5, n, "Event timer", U16, Rw, false, V(0));
+        out[k + 4] = rec(
+            i,
+            5,
+            n,
+            "Event timer",
+            U16,
+            Rw,
+            false,
+            V(DEFAULT_TPDO_EVENT_TIMER_MS[p]),
+        );
         k += 5;
         p += 1;
     }
