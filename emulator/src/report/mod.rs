@@ -3,6 +3,17 @@
 //! `assets/DejaVuSans-LICENSE.txt`) registered with plotters' ab_glyph backend, so drawing needs
 //! no system font library (no fontconfig, no freetype).
 
+/// What one user unit ("uu") is on the bus: positions, speeds and accelerations of the CiA 402
+/// objects (0x607A, 0x6064, 0x606C, 0x60E4, ...) are in user units, set by the factor group
+/// 0x608F/0x6091/0x6092; by default 1 uu = 1 µm on linear axes and 0.001 deg on rotary ones.
+pub fn user_unit(rotary: bool) -> &'static str {
+    if rotary {
+        "0.001 deg"
+    } else {
+        "1 µm"
+    }
+}
+
 use crate::analysis::detector::{AxisTrace, DetectorReport, WindowResult};
 use crate::analysis::spectrum::SpectrumAnalyzer;
 use plotters::prelude::*;
@@ -34,6 +45,41 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<
     Ok(())
 }
 
+/// A unit for people: the traces' "um" is µm (the embedded font has the glyph).
+pub fn unit_text(unit: &str) -> String {
+    unit.replace("um", "µm")
+}
+
+/// Time axis of a trace with the fast-forwarded idle stretches cut out: a step longer than
+/// `GAP_FACTOR` median sample steps is shrunk to one step. Returns the compressed times
+/// (starting at 0) and the cuts: (compressed time, idle seconds removed there).
+fn compress_idle(t: &[f64]) -> (Vec<f64>, Vec<(f64, f64)>) {
+    const GAP_FACTOR: f64 = 20.0;
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    let step = steps.get(steps.len() / 2).copied().unwrap_or(0.0).max(1e-9);
+    let mut out = Vec::with_capacity(t.len());
+    let mut cuts = Vec::new();
+    let mut x = 0.0;
+    for (i, &ti) in t.iter().enumerate() {
+        if i > 0 {
+            let d = ti - t[i - 1];
+            if d > GAP_FACTOR * step {
+                cuts.push((x + 0.5 * step, d - step));
+                x += step;
+            } else {
+                x += d;
+            }
+        }
+        out.push(x);
+    }
+    (out, cuts)
+}
+
+fn has_signal(v: &[f64]) -> bool {
+    v.iter().any(|x| x.is_finite() && *x != 0.0)
+}
+
 fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for x in v.filter(|x| x.is_finite()) {
@@ -50,7 +96,9 @@ fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - m, hi + m)
 }
 
-/// Velocity (set and motor) and current over samples `a..b` of a trace.
+/// Velocity (set and motor) and current over samples `a..b` of a trace, on a time axis
+/// without the fast-forwarded idle stretches (each cut marked and labelled); no current panel
+/// when the trace has no current.
 pub fn plot_traces(
     path: &Path,
     tr: &AxisTrace,
@@ -59,27 +107,42 @@ pub fn plot_traces(
     title: &str,
 ) -> anyhow::Result<()> {
     font_ready();
+    let unit = unit_text(&tr.position_unit);
+    let with_current = has_signal(&tr.current[a..b]);
+    let (t, cuts) = compress_idle(&tr.t_s[a..b]);
+    let t_first = tr.t_s[a];
     let draw = || -> Result<(), DynErr> {
         let root = BitMapBackend::new(path, (W, H)).into_drawing_area();
         root.fill(&WHITE)?;
-        let (top, bottom) = root.split_vertically(H / 2);
-        let t = &tr.t_s[a..b];
-        let (t0, t1) = (t[0], t[t.len() - 1].max(t[0] + 1e-6));
+        let (top, bottom) = if with_current {
+            let (x, y) = root.split_vertically(H / 2);
+            (x, Some(y))
+        } else {
+            (root.clone(), None)
+        };
+        let (t0, t1) = (0.0, t[t.len() - 1].max(1e-6));
+        let x_desc = if cuts.is_empty() {
+            format!("time since t = {t_first:.1} s, s")
+        } else {
+            format!("time since t = {t_first:.1} s, s (fast-forwarded idle cut out, dashed)")
+        };
         let (vlo, vhi) = range(
             tr.motor_velocity[a..b]
                 .iter()
                 .chain(&tr.set_velocity[a..b])
                 .copied(),
         );
+        // Room above the data for the cut labels and the legend.
+        let vhi = vhi + 0.15 * (vhi - vlo);
         let mut c = ChartBuilder::on(&top)
             .caption(title, ("sans-serif", 22))
             .margin(8)
-            .x_label_area_size(30)
+            .x_label_area_size(35)
             .y_label_area_size(70)
             .build_cartesian_2d(t0..t1, vlo..vhi)?;
         c.configure_mesh()
-            .x_desc("time, s")
-            .y_desc(format!("velocity, {}/s", tr.position_unit))
+            .x_desc(x_desc.as_str())
+            .y_desc(format!("velocity, {unit}/s"))
             .draw()?;
         c.draw_series(LineSeries::new(
             t.iter()
@@ -87,32 +150,62 @@ pub fn plot_traces(
                 .zip(tr.motor_velocity[a..b].iter().copied()),
             &BLUE,
         ))?
-        .label("motor")
+        .label("motor speed")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
         c.draw_series(LineSeries::new(
             t.iter().copied().zip(tr.set_velocity[a..b].iter().copied()),
             &BLACK,
         ))?
-        .label("set")
+        .label("set speed")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+        let grey = RGBColor(120, 120, 120);
+        for &(x, idle_s) in &cuts {
+            c.draw_series(DashedLineSeries::new(
+                [(x, vlo), (x, vhi)],
+                6,
+                4,
+                ShapeStyle::from(&grey).stroke_width(1),
+            ))?;
+            c.draw_series(std::iter::once(Text::new(
+                format!("{idle_s:.0} s idle"),
+                (x, vhi),
+                ("sans-serif", 13).into_font().color(&grey).pos(
+                    plotters::style::text_anchor::Pos::new(
+                        plotters::style::text_anchor::HPos::Center,
+                        plotters::style::text_anchor::VPos::Top,
+                    ),
+                ),
+            )))?;
+        }
         c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
             .border_style(BLACK)
             .background_style(WHITE)
             .draw()?;
-        let (clo, chi) = range(tr.current[a..b].iter().copied());
-        let mut c = ChartBuilder::on(&bottom)
-            .margin(8)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
-            .build_cartesian_2d(t0..t1, clo..chi)?;
-        c.configure_mesh()
-            .x_desc("time, s")
-            .y_desc(format!("current, {}", tr.current_unit))
-            .draw()?;
-        c.draw_series(LineSeries::new(
-            t.iter().copied().zip(tr.current[a..b].iter().copied()),
-            &RED,
-        ))?;
+        if let Some(bottom) = bottom {
+            let (clo, chi) = range(tr.current[a..b].iter().copied());
+            let mut c = ChartBuilder::on(&bottom)
+                .margin(8)
+                .x_label_area_size(40)
+                .y_label_area_size(70)
+                .build_cartesian_2d(t0..t1, clo..chi)?;
+            c.configure_mesh()
+                .x_desc(x_desc.as_str())
+                .y_desc(format!("motor current, {}", tr.current_unit))
+                .draw()?;
+            c.draw_series(LineSeries::new(
+                t.iter().copied().zip(tr.current[a..b].iter().copied()),
+                &RED,
+            ))?;
+            for &(x, _) in &cuts {
+                c.draw_series(DashedLineSeries::new(
+                    [(x, clo), (x, chi)],
+                    6,
+                    4,
+                    ShapeStyle::from(&grey).stroke_width(1),
+                ))?;
+            }
+        }
         root.present()?;
         Ok(())
     };

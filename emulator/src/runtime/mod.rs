@@ -56,6 +56,11 @@ pub struct Runtime<B, D> {
     /// Simulated time, microseconds.
     pub sim_time_us: u64,
     pub stats: LoopStats,
+    /// Lock-step: the simulated time one SYNC advances, us (0 before the first SYNC and when
+    /// not in lock-step).
+    pub lockstep_period_us: u64,
+    /// Lock-step: ticks run on the drive's own clock while SYNC was missing.
+    pub lockstep_free_ticks: u64,
 }
 
 impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
@@ -67,6 +72,8 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             period_us,
             sim_time_us: 0,
             stats: LoopStats::new(period_us),
+            lockstep_period_us: 0,
+            lockstep_free_ticks: 0,
         }
     }
 
@@ -199,11 +206,35 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         &mut self,
         sync_period_us: u64,
         stop: &AtomicBool,
+        hook: impl FnMut(&mut Self),
+    ) {
+        let cfg = Lockstep {
+            sync_period_us: Some(sync_period_us),
+            free_run_after_us: None,
+        };
+        self.run_lockstep_with(cfg, stop, hook);
+    }
+
+    /// Lock-step as [`Runtime::run_lockstep`], with the SYNC period found on the bus when
+    /// `cfg.sync_period_us` is `None` (axis 0's 0x1006 once the master writes it, else the
+    /// interval observed between SYNCs), and, with `cfg.free_run_after_us`, the drive's own
+    /// clock taking over when SYNC stops (see [`Lockstep`]). The period in force is published
+    /// in [`Runtime::lockstep_period_us`].
+    pub fn run_lockstep_with(
+        &mut self,
+        cfg: Lockstep,
+        stop: &AtomicBool,
         mut hook: impl FnMut(&mut Self),
     ) {
-        let ticks_per_sync = (sync_period_us / self.period_us).max(1);
+        let mut observed = ObservedPeriod::default();
+        let mut last_sync: Option<std::time::Instant> = None;
+        // Ticks run on the wall clock since SYNC stopped.
+        let mut free_ticks = 0u64;
+        let wait_us = cfg
+            .free_run_after_us
+            .map_or(10_000, |_| self.period_us.min(10_000));
         while !stop.load(Ordering::Relaxed) {
-            self.bus.wait_readable(10_000);
+            self.bus.wait_readable(wait_us);
             // Frames in bus order: each SYNC advances time before the frames after it are
             // seen, so a batch read after a stall gives the same run as frames read one by one
             // (a set-point sent after SYNC k belongs to SYNC k+1, not k).
@@ -217,15 +248,88 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                 if !sync {
                     continue;
                 }
+                let now = std::time::Instant::now();
+                if let Some(prev) = last_sync {
+                    observed.push(now.duration_since(prev).as_micros() as u64);
+                }
+                last_sync = Some(now);
+                free_ticks = 0;
+                let sync_us = cfg
+                    .sync_period_us
+                    .or_else(|| {
+                        let p = self.axes.first()?.node.object_raw(0x1006, 0)?;
+                        (p > 0).then_some(u64::from(p))
+                    })
+                    .or_else(|| observed.median_us())
+                    .unwrap_or(self.period_us);
+                let ticks_per_sync = ((sync_us + self.period_us / 2) / self.period_us).max(1);
+                self.lockstep_period_us = ticks_per_sync * self.period_us;
                 for _ in 0..ticks_per_sync {
-                    self.step();
-                    self.flush_tx();
-                    self.bus.end_tick();
-                    self.stats.record_tick(0, 0);
-                    hook(self);
+                    self.lockstep_tick(&mut hook);
+                }
+            }
+            // SYNC stopped: after the grace time the drive's clock runs on the wall's.
+            if let (Some(limit), Some(last)) = (cfg.free_run_after_us, last_sync) {
+                let since_us = last.elapsed().as_micros() as u64;
+                if since_us > limit {
+                    let due = (since_us - limit) / self.period_us;
+                    let n = due.saturating_sub(free_ticks).min(MAX_CATCH_UP_TICKS);
+                    for _ in 0..n {
+                        self.lockstep_tick(&mut hook);
+                    }
+                    free_ticks += n;
+                    self.lockstep_free_ticks += n;
                 }
             }
         }
         self.publish_stats();
+    }
+
+    fn lockstep_tick(&mut self, hook: &mut impl FnMut(&mut Self)) {
+        self.step();
+        self.flush_tx();
+        self.bus.end_tick();
+        self.stats.record_tick(0, 0);
+        hook(self);
+    }
+}
+
+/// How [`Runtime::run_lockstep_with`] turns SYNCs into simulated time.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Lockstep {
+    /// Simulated time per SYNC, us (rounded to whole ticks). `None`: axis 0's communication
+    /// cycle period 0x1006 when the master has set it, else the median of the first eight
+    /// intervals observed between SYNCs.
+    pub sync_period_us: Option<u64>,
+    /// When no SYNC has arrived for this long (wall clock, us) after the first one, the
+    /// drive's own clock takes over, one tick per period of wall time, until SYNC returns, as
+    /// a real drive's clock would: its SYNC supervision reports the loss and a run with an end
+    /// reaches it. `None`: simulated time waits for SYNC forever.
+    pub free_run_after_us: Option<u64>,
+}
+
+/// The SYNC interval seen on the wall clock: the median of the first eight intervals.
+#[derive(Debug, Default)]
+struct ObservedPeriod {
+    intervals_us: [u64; 8],
+    n: usize,
+}
+
+impl ObservedPeriod {
+    fn push(&mut self, interval_us: u64) {
+        if self.n < self.intervals_us.len() {
+            self.intervals_us[self.n] = interval_us;
+            self.n += 1;
+        }
+    }
+
+    fn median_us(&self) -> Option<u64> {
+        if self.n == 0 {
+            return None;
+        }
+        let mut v = self.intervals_us;
+        let v = &mut v[..self.n];
+        v.sort_unstable();
+        Some(v[self.n / 2])
     }
 }

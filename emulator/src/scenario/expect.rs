@@ -90,6 +90,15 @@ fn secs(us: u64) -> f64 {
     us as f64 * 1e-6
 }
 
+/// A duration for people: "10 ms", "1.5 s".
+pub fn seconds_text(us: u64) -> String {
+    if us < 1_000_000 {
+        format!("{} ms", fs(us * 1000))
+    } else {
+        format!("{} s", fs(us))
+    }
+}
+
 /// Seconds, at most three decimals, no trailing zeros.
 fn fs(us: u64) -> String {
     let s = format!("{:.3}", secs(us));
@@ -145,7 +154,10 @@ impl Expectation {
                 format!("detected frequency {hz} Hz +- {tolerance_pct} %")
             }
             Expectation::FrequencyOverKv { min, max } => format!("f / k_v in {min} .. {max}"),
-            Expectation::Program(o) => format!("master program {o:?}").to_lowercase(),
+            Expectation::Program(o) => match o {
+                ProgramOutcome::Finished => "master program finished".into(),
+                ProgramOutcome::Failed => "master program failed".into(),
+            },
         }
     }
 

@@ -423,7 +423,10 @@ pub fn write_report(out: &Outcome, dir: &Path, plots: bool) -> anyhow::Result<Ve
             }
         }
     }
-    if plots && !points.is_empty() {
+    // Frequency against k_v says something only across several gains (a sweep).
+    let mut gains: Vec<f64> = points.iter().map(|p| p.kv_per_s).collect();
+    gains.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    if plots && gains.len() >= 2 {
         let p = dir.join("frequency_vs_kv.png");
         crate::report::plot_frequency_vs_kv(&p, &points)?;
         files.push(p);
