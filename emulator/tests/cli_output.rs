@@ -142,50 +142,33 @@ fn the_main_commands_print_no_debug_text() {
 
 #[test]
 fn a_master_sdo_write_of_a_real32_prints_the_number() {
-    // A scenario whose master writes backlash 0.05 mm (REAL32) over SDO: the log shows 0.05,
-    // not the bits 1028443341.
-    let dir = out_dir("sdo");
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("sdo.toml");
-    std::fs::write(
-        &file,
-        r#"
-name = "sdo-write"
-[machine]
-preset = "cnc1"
-[[motion]]
-step = "write_sdo"
-index = 0x2000
-sub = 0
-value = 0.05
-len = 4
-[[motion]]
-step = "enable"
-mode = "csp"
-[[motion]]
-step = "cruise"
-velocity_mm_min = 600.0
-accel_mm_s2 = 500.0
-duration = "0.5 s"
-[[expect]]
-program = "finished"
-"#,
-    )
-    .unwrap();
-    let o = run(&[
-        "scenario",
-        file.to_str().unwrap(),
-        "--no-plots",
-        "-o",
-        dir.join("out").to_str().unwrap(),
-    ]);
-    let t = text(&o);
-    assert!(o.status.success(), "{t}");
-    let summary = std::fs::read_to_string(dir.join("out/summary.json")).unwrap();
-    assert!(!summary.contains("1028443341"), "{summary}");
-    assert!(!summary.contains("Cruise {"), "{summary}");
-    assert!(summary.contains("= 0.05"), "{summary}");
-    let _ = std::fs::remove_dir_all(&dir);
+    use drive_emu::master::{sdo_value_text, Step};
+    // 0x2000 backlash_mm is REAL32: on the wire 0.05 is the bits 1028443341 (0x3D4CCCCD).
+    let t = sdo_value_text(0x2000, 0, 0.05f32.to_bits(), 4);
+    assert!(t.ends_with("= 0.05"), "{t}");
+    assert!(t.starts_with("0x2000 sub 0"), "{t}");
+    // Signed objects as signed: target position 0x607A = -1000.
+    let t = sdo_value_text(0x607A, 0, (-1000i32) as u32, 4);
+    assert!(t.ends_with("= -1000"), "{t}");
+    // The master's program steps in words, not Debug.
+    for step in [
+        Step::Cruise {
+            velocity_uu_s: 10_000.0,
+            accel_uu_s2: 100_000.0,
+            duration_s: 4.0,
+        },
+        Step::Enable { mode: 8 },
+        Step::WriteSdo {
+            index: 0x2000,
+            sub: 0,
+            value: 0.05f32.to_bits(),
+            len: 4,
+        },
+    ] {
+        let text = step.to_string();
+        assert!(debug_text(&text).is_empty(), "{text}");
+        assert!(!text.contains("1028443341"), "{text}");
+    }
 }
 
 #[test]

@@ -223,7 +223,7 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<std::process::ExitCode> {
         "verdict {} | amplitude {:.2} {} | severity {:.2} | frequency {} | windows {} | report {}",
         rep.verdict.as_str(),
         rep.amplitude,
-        rep.position_unit,
+        crate::report::unit_text(&rep.position_unit),
         rep.severity,
         rep.frequency_hz
             .or(rep.dominant_hz)

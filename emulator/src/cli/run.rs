@@ -44,7 +44,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub lockstep: bool,
     /// Lock-step: simulated time per SYNC, us. Default: the communication cycle period 0x1006
-    /// once the master writes it, else the interval observed between the first SYNCs.
+    /// once the master writes it, else 1000.
     #[arg(long, value_name = "US", value_parser = clap::value_parser!(u64).range(100..=1_000_000))]
     pub sync_period_us: Option<u64>,
     /// SCHED_FIFO priority for the loop thread (needs CAP_SYS_NICE); 0 = normal scheduling.
@@ -293,7 +293,7 @@ pub fn print_outcome(o: &LiveOutcome) {
             "  detector: {} | amplitude {:.2} {} | frequency {}",
             d.verdict.as_str(),
             d.amplitude,
-            d.position_unit,
+            crate::report::unit_text(&d.position_unit),
             d.frequency_hz.map_or("-".into(), |f| format!("{f:.2} Hz"))
         );
     }
@@ -392,7 +392,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
             (None, _) => String::new(),
             (Some(_), Some(p)) => format!(" (lock-step: {p} us per SYNC)"),
             (Some(_), None) => {
-                " (lock-step: per SYNC the period in 0x1006, else the SYNC interval seen)".into()
+                " (lock-step: per SYNC the period in 0x1006, else 1000 us)".into()
             }
         },
         machine

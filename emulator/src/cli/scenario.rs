@@ -34,7 +34,7 @@ pub struct ScenarioArgs {
     #[arg(long, requires = "iface")]
     pub lockstep: bool,
     /// Live, lock-step: simulated time per SYNC, us. Default: the communication cycle period
-    /// 0x1006 once the master writes it, else the interval observed between the first SYNCs.
+    /// 0x1006 once the master writes it, else 1000.
     #[arg(long, value_name = "US", requires = "lockstep",
           value_parser = clap::value_parser!(u64).range(100..=1_000_000))]
     pub sync_period_us: Option<u64>,
@@ -90,10 +90,10 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
         );
         if let Some(d) = &r.detector {
             println!(
-                "  detector: {} | amplitude {:.2} {} | severity {:.2} | frequency {} | first flagged {}",
+                "  detector: {} | amplitude {:.2} {} | severity {:.2} | frequency {} | first flagged: {}",
                 d.verdict.as_str(),
                 d.amplitude,
-                d.position_unit,
+                crate::report::unit_text(&d.position_unit),
                 d.severity,
                 d.frequency_hz
                     .or(d.dominant_hz)

@@ -133,7 +133,7 @@ pub fn plot_traces(
                 .copied(),
         );
         // Room above the data for the cut labels and the legend.
-        let vhi = vhi + 0.15 * (vhi - vlo);
+        let vhi = vhi + 0.25 * (vhi - vlo);
         let mut c = ChartBuilder::on(&top)
             .caption(title, ("sans-serif", 22))
             .margin(8)
@@ -178,7 +178,7 @@ pub fn plot_traces(
             )))?;
         }
         c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(SeriesLabelPosition::UpperMiddle)
             .border_style(BLACK)
             .background_style(WHITE)
             .draw()?;
@@ -235,24 +235,32 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
             .collect();
         spectra.push(pts);
     }
+    let unit = unit_text(&tr.position_unit);
+    // No current panel when the trace has no current (a capture without it).
+    let panels = if has_signal(&tr.current[w.start..w.end]) {
+        2
+    } else {
+        1
+    };
     let draw = || -> Result<(), DynErr> {
         let root = BitMapBackend::new(path, (W, H)).into_drawing_area();
         root.fill(&WHITE)?;
-        let halves = root.split_evenly((2, 1));
+        let halves = root.split_evenly((panels, 1));
         let labels = [
-            format!("motor speed, {}/s", tr.position_unit),
-            format!("current, {}", tr.current_unit),
+            format!("motor speed amplitude, {unit}/s"),
+            format!("motor current amplitude, {}", tr.current_unit),
         ];
         for (k, area) in halves.iter().enumerate() {
             let pts = &spectra[k];
             let (_, hi) = range(pts.iter().map(|p| p.1));
-            let hi = hi.max(1e-9);
+            // Headroom for the peak's label and the legend.
+            let hi = hi.max(1e-9) * 1.3;
             let mut c = ChartBuilder::on(area)
                 .caption(
                     if k == 0 {
                         format!(
-                            "spectrum at {:.0} {}/s, t = {:.1} s; band k_v/4..k_v, k_v = {kv} 1/s",
-                            w.set_velocity, tr.position_unit, w.t_start_s
+                            "spectrum at {:.0} {unit}/s, t = {:.1} s, k_v = {kv} 1/s",
+                            w.set_velocity, w.t_start_s
                         )
                     } else {
                         String::new()
@@ -267,15 +275,23 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
                 .x_desc("frequency, Hz")
                 .y_desc(labels[k].as_str())
                 .draw()?;
+            let band = RGBColor(255, 230, 150).mix(0.5).filled();
             c.draw_series(std::iter::once(Rectangle::new(
                 [(kv / 4.0, 0.0), (kv, hi)],
-                RGBColor(255, 230, 150).mix(0.5).filled(),
-            )))?;
+                band,
+            )))?
+            .label("band k_v/4 .. k_v (paper)")
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], band));
+            let green = RGBColor(0, 150, 0);
             c.draw_series(LineSeries::new(
                 [(0.6 * kv, 0.0), (0.6 * kv, hi)],
-                ShapeStyle::from(&GREEN).stroke_width(1),
-            ))?;
-            c.draw_series(LineSeries::new(pts.iter().copied(), &BLUE))?;
+                ShapeStyle::from(&green).stroke_width(1),
+            ))?
+            .label("0.6 k_v (paper's fit)")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], green));
+            c.draw_series(LineSeries::new(pts.iter().copied(), &BLUE))?
+                .label("spectrum")
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
             let f = if k == 0 { w.speed_hz } else { w.current_hz };
             if let Some(f) = f {
                 let a = if k == 0 {
@@ -283,13 +299,31 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
                 } else {
                     w.current_amplitude
                 };
-                c.draw_series(std::iter::once(Circle::new((f, a), 5, RED.filled())))?;
+                c.draw_series(std::iter::once(Circle::new((f, a), 5, RED.filled())))?
+                    .label("fundamental found")
+                    .legend(|(x, y)| Circle::new((x + 10, y), 5, RED.filled()));
+                // Right of the peak, inside the frame (left of it near the right edge).
+                let right = f < 0.8 * fmax;
+                let pos = plotters::style::text_anchor::Pos::new(
+                    if right {
+                        plotters::style::text_anchor::HPos::Left
+                    } else {
+                        plotters::style::text_anchor::HPos::Right
+                    },
+                    plotters::style::text_anchor::VPos::Center,
+                );
+                let dx = if right { 0.015 } else { -0.015 } * fmax;
                 c.draw_series(std::iter::once(Text::new(
                     format!("{f:.2} Hz"),
-                    (f, a),
-                    ("sans-serif", 16),
+                    (f + dx, a),
+                    ("sans-serif", 16).into_font().color(&BLACK).pos(pos),
                 )))?;
             }
+            c.configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .border_style(BLACK)
+                .background_style(WHITE)
+                .draw()?;
         }
         root.present()?;
         Ok(())
@@ -332,34 +366,57 @@ pub fn plot_amplitude_trend(
                 let (_, phi) = range(param.map_or(&[][..], |p| p.1).iter().map(|p| p.1));
                 0.0..phi.max(1e-9)
             });
+        let unit = unit_text(&rep.position_unit);
         c.configure_mesh()
             .x_desc("scenario time, min")
-            .y_desc(format!("displacement amplitude, {}", rep.position_unit))
+            .y_desc(format!("displacement amplitude, {unit}"))
             .draw()?;
-        for (lvl, col) in [
-            (rep.config.suspect_um, RGBColor(230, 160, 0)),
-            (rep.config.alarm_um, RED),
+        use crate::analysis::detector::Verdict;
+        let orange = RGBColor(230, 140, 0);
+        let colour = |v: Verdict| match v {
+            Verdict::Ok => BLUE,
+            Verdict::BacklashSuspected => orange,
+            Verdict::Backlash => RED,
+        };
+        for (lvl, col, what) in [
+            (rep.config.suspect_um, orange, "suspect threshold"),
+            (rep.config.alarm_um, RED, "alarm threshold"),
         ] {
-            c.draw_series(LineSeries::new(
+            c.draw_series(DashedLineSeries::new(
                 [(t0.min(0.0), lvl), (t1, lvl)],
+                8,
+                5,
                 ShapeStyle::from(&col).stroke_width(1),
-            ))?;
+            ))?
+            .label(format!("{what} {lvl} {unit}"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
         }
-        c.draw_series(pts.iter().zip(&rep.windows).map(|(p, w)| {
-            let col = match w.level {
-                crate::analysis::detector::Verdict::Ok => BLUE,
-                crate::analysis::detector::Verdict::BacklashSuspected => RGBColor(230, 160, 0),
-                crate::analysis::detector::Verdict::Backlash => RED,
-            };
-            Circle::new(*p, 4, col.filled())
-        }))?;
+        // One legend entry per verdict colour, drawn with the windows of that level.
+        for v in [Verdict::Ok, Verdict::BacklashSuspected, Verdict::Backlash] {
+            let col = colour(v);
+            c.draw_series(
+                pts.iter()
+                    .zip(&rep.windows)
+                    .filter(|(_, w)| w.level == v)
+                    .map(|(p, _)| Circle::new(*p, 4, col.filled())),
+            )?
+            .label(format!("window: {}", v.as_str().replace('_', " ")))
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, col.filled()));
+        }
         if let Some((name, series)) = param {
             c.configure_secondary_axes().y_desc(name).draw()?;
             c.draw_secondary_series(LineSeries::new(
                 series.iter().map(|(t, v)| (t / 60.0, *v)),
                 ShapeStyle::from(&BLACK).stroke_width(1),
-            ))?;
+            ))?
+            .label(format!("{name} (timeline, right axis)"))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
         }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .draw()?;
         root.present()?;
         Ok(())
     };
@@ -397,7 +454,7 @@ pub fn plot_frequency_vs_kv(path: &Path, points: &[KvPoint]) -> anyhow::Result<(
         for (slope, label, col) in [
             (1.0, "f = k_v", RED),
             (0.6, "f = 0.6 k_v", GREEN),
-            (0.25, "f = k_v/4", RED),
+            (0.25, "f = k_v/4", RGBColor(140, 0, 200)),
         ] {
             c.draw_series(LineSeries::new([(0.0, 0.0), (kmax, slope * kmax)], &col))?
                 .label(label)
@@ -407,15 +464,18 @@ pub fn plot_frequency_vs_kv(path: &Path, points: &[KvPoint]) -> anyhow::Result<(
             points
                 .iter()
                 .map(|p| Circle::new((p.kv_per_s, p.frequency_hz), 6, BLUE.filled())),
-        )?;
+        )?
+        .label("measured")
+        .legend(|(x, y)| Circle::new((x + 10, y), 5, BLUE.filled()));
         c.draw_series(points.iter().map(|p| {
             Text::new(
-                p.name.clone(),
+                format!(" {}", p.name),
                 (p.kv_per_s, p.frequency_hz),
                 ("sans-serif", 16),
             )
         }))?;
         c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
             .border_style(BLACK)
             .background_style(WHITE)
             .draw()?;

@@ -27,6 +27,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 /// At most this many received frames are handled per tick; the rest wait for the next tick.
 pub const MAX_RX_PER_TICK: usize = 256;
+/// Lock-step: simulated time per SYNC when neither the caller nor the master (0x1006) says.
+pub const DEFAULT_SYNC_PERIOD_US: u64 = 1000;
 /// Falling further behind than this many periods skips ticks instead of catching up.
 pub const MAX_CATCH_UP_TICKS: u64 = 20;
 
@@ -215,9 +217,9 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         self.run_lockstep_with(cfg, stop, hook);
     }
 
-    /// Lock-step as [`Runtime::run_lockstep`], with the SYNC period found on the bus when
-    /// `cfg.sync_period_us` is `None` (axis 0's 0x1006 once the master writes it, else the
-    /// interval observed between SYNCs), and, with `cfg.free_run_after_us`, the drive's own
+    /// Lock-step as [`Runtime::run_lockstep`], with the SYNC period from the master when
+    /// `cfg.sync_period_us` is `None` (axis 0's 0x1006 once the master writes it, else 1 ms),
+    /// and, with `cfg.free_run_after_us`, the drive's own
     /// clock taking over when SYNC stops (see [`Lockstep`]). The period in force is published
     /// in [`Runtime::lockstep_period_us`].
     pub fn run_lockstep_with(
@@ -226,7 +228,6 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         stop: &AtomicBool,
         mut hook: impl FnMut(&mut Self),
     ) {
-        let mut observed = ObservedPeriod::default();
         let mut last_sync: Option<std::time::Instant> = None;
         // Ticks run on the wall clock since SYNC stopped.
         let mut free_ticks = 0u64;
@@ -248,11 +249,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                 if !sync {
                     continue;
                 }
-                let now = std::time::Instant::now();
-                if let Some(prev) = last_sync {
-                    observed.push(now.duration_since(prev).as_micros() as u64);
-                }
-                last_sync = Some(now);
+                last_sync = Some(std::time::Instant::now());
                 free_ticks = 0;
                 let sync_us = cfg
                     .sync_period_us
@@ -260,8 +257,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                         let p = self.axes.first()?.node.object_raw(0x1006, 0)?;
                         (p > 0).then_some(u64::from(p))
                     })
-                    .or_else(|| observed.median_us())
-                    .unwrap_or(self.period_us);
+                    .unwrap_or(DEFAULT_SYNC_PERIOD_US);
                 let ticks_per_sync = ((sync_us + self.period_us / 2) / self.period_us).max(1);
                 self.lockstep_period_us = ticks_per_sync * self.period_us;
                 for _ in 0..ticks_per_sync {
@@ -298,38 +294,12 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Lockstep {
     /// Simulated time per SYNC, us (rounded to whole ticks). `None`: axis 0's communication
-    /// cycle period 0x1006 when the master has set it, else the median of the first eight
-    /// intervals observed between SYNCs.
+    /// cycle period 0x1006 when the master has set it, else [`DEFAULT_SYNC_PERIOD_US`]. (Not
+    /// the interval seen on the wall clock: lock-step results must not depend on the host.)
     pub sync_period_us: Option<u64>,
     /// When no SYNC has arrived for this long (wall clock, us) after the first one, the
     /// drive's own clock takes over, one tick per period of wall time, until SYNC returns, as
     /// a real drive's clock would: its SYNC supervision reports the loss and a run with an end
     /// reaches it. `None`: simulated time waits for SYNC forever.
     pub free_run_after_us: Option<u64>,
-}
-
-/// The SYNC interval seen on the wall clock: the median of the first eight intervals.
-#[derive(Debug, Default)]
-struct ObservedPeriod {
-    intervals_us: [u64; 8],
-    n: usize,
-}
-
-impl ObservedPeriod {
-    fn push(&mut self, interval_us: u64) {
-        if self.n < self.intervals_us.len() {
-            self.intervals_us[self.n] = interval_us;
-            self.n += 1;
-        }
-    }
-
-    fn median_us(&self) -> Option<u64> {
-        if self.n == 0 {
-            return None;
-        }
-        let mut v = self.intervals_us;
-        let v = &mut v[..self.n];
-        v.sort_unstable();
-        Some(v[self.n / 2])
-    }
 }

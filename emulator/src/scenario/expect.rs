@@ -268,7 +268,7 @@ impl Expectation {
                     "verdict {} (amplitude {:.2} {}, severity {:.2}); first suspected {}, first backlash {}",
                     d.verdict.as_str(),
                     d.amplitude,
-                    d.position_unit,
+                    crate::report::unit_text(&d.position_unit),
                     d.severity,
                     fmt_t(d.first_suspected_s),
                     fmt_t(d.first_backlash_s)
