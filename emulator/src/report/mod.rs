@@ -348,7 +348,14 @@ pub fn plot_amplitude_trend(
             .map(|w| (w.t_start_s / 60.0, w.displacement_amplitude))
             .collect();
         let (t0, t1) = range(pts.iter().map(|p| p.0));
-        let (_, hi) = range(pts.iter().map(|p| p.1).chain([rep.config.alarm_um * 1.2]));
+        // From zero, with headroom above the highest point for the legend.
+        let top = pts
+            .iter()
+            .map(|p| p.1)
+            .chain([rep.config.alarm_um])
+            .filter(|v| v.is_finite())
+            .fold(0.0, f64::max);
+        let hi = (top * 1.4).max(1e-9);
         let mut c = ChartBuilder::on(&root)
             .caption(
                 format!(
@@ -393,6 +400,9 @@ pub fn plot_amplitude_trend(
         }
         // One legend entry per verdict colour, drawn with the windows of that level.
         for v in [Verdict::Ok, Verdict::BacklashSuspected, Verdict::Backlash] {
+            if !rep.windows.iter().any(|w| w.level == v) {
+                continue;
+            }
             let col = colour(v);
             c.draw_series(
                 pts.iter()
@@ -413,7 +423,7 @@ pub fn plot_amplitude_trend(
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
         }
         c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
+            .position(SeriesLabelPosition::UpperMiddle)
             .border_style(BLACK)
             .background_style(WHITE)
             .draw()?;
@@ -517,7 +527,8 @@ pub fn detector_plots(
         plot_spectrum(&p, tr, w, rep.kv_per_s)?;
         out.push(p);
     }
-    if !rep.windows.is_empty() {
+    // A trend needs a few windows along time (a wear ramp, a long capture).
+    if rep.windows.len() >= 3 {
         let p = dir.join(format!("{prefix}amplitude.png"));
         plot_amplitude_trend(&p, rep, param)?;
         out.push(p);
