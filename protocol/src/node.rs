@@ -7,15 +7,18 @@ use heapless::Deque;
 use crate::cia301::emcy::Emcy;
 use crate::cia301::heartbeat::{self, Consumer, Producer};
 use crate::cia301::nmt::{self, NmtCommand, NmtState};
-use crate::cia301::pdo::{self, Pdo};
+use crate::cia301::pdo::rpdo::RxOutcome;
+use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer, BUF};
 use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
 use crate::cia402::factor::Factor;
 use crate::cia402::{mode, objects as o402, Cia402, State};
 use crate::drive::{Drive, DriveInfo, ParamError};
+use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
 use crate::od::{self, idx, Lookup, Store, OBJECTS};
 use crate::params;
+use crate::wire::{cob, Heartbeat};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
 /// [`Node::tx_overflows`] and dropped.
@@ -78,6 +81,13 @@ impl core::fmt::Display for ConfigError {
 
 impl std::error::Error for ConfigError {}
 
+/// Queue a frame to send; a full queue drops it and counts.
+fn push(tx: &mut Deque<CanFrame, TX_QUEUE>, overflows: &mut u32, f: CanFrame) {
+    if tx.push_back(f).is_err() {
+        *overflows = overflows.wrapping_add(1);
+    }
+}
+
 /// Everything but the SDO server (so the server can borrow it as its object access).
 #[derive(Clone, Debug)]
 struct Core {
@@ -86,8 +96,7 @@ struct Core {
     store: Store,
     saved: Option<Box<Store>>,
     nmt: NmtState,
-    rpdo: [Pdo; 4],
-    tpdo: [Pdo; 4],
+    pdo: PdoEngine,
     sync: SyncConsumer,
     hb: Producer,
     hbc: Consumer,
@@ -99,6 +108,11 @@ struct Core {
     pending_sync: Option<u64>,
     injected_fault: u16,
     now_us: u64,
+    events: Deque<NodeEvent, EVENT_QUEUE>,
+    events_dropped: u32,
+    /// CiA 402 and NMT state as last reported in an event.
+    seen_cia: State,
+    seen_nmt: NmtState,
 }
 
 /// A CiA 301 + CiA 402 servo-drive node.
@@ -202,93 +216,61 @@ impl<D: Drive> ObjectAccess for Access<'_, D> {
     }
 }
 
-fn pdo_slot(index: u16) -> Option<(usize, bool, bool)> {
-    // (number, tx, mapping)
-    match index {
-        0x1400..=0x1403 => Some(((index - 0x1400) as usize, false, false)),
-        0x1600..=0x1603 => Some(((index - 0x1600) as usize, false, true)),
-        0x1800..=0x1803 => Some(((index - 0x1800) as usize, true, false)),
-        0x1A00..=0x1A03 => Some(((index - 0x1A00) as usize, true, true)),
-        _ => None,
-    }
-}
-
-fn comm_row(k: usize, tx: bool) -> usize {
-    if tx {
-        idx(0x1800, 0) + k * 5
-    } else {
-        idx(0x1400, 0) + k * 3
-    }
-}
-
-fn map_row(k: usize, tx: bool) -> usize {
-    if tx {
-        idx(0x1A00, 0) + k * 9
-    } else {
-        idx(0x1600, 0) + k * 9
-    }
-}
-
 impl Core {
-    fn push(&mut self, f: CanFrame) {
-        if self.tx.push_back(f).is_err() {
-            self.tx_overflows = self.tx_overflows.wrapping_add(1);
+    fn event(&mut self, e: NodeEvent) {
+        if self.events.push_back(e).is_err() {
+            self.events_dropped = self.events_dropped.wrapping_add(1);
         }
     }
 
-    fn pdo_valid(&self, k: usize, tx: bool) -> bool {
-        self.store.u32(comm_row(k, tx) + 1) & 0x8000_0000 == 0
+    /// Report state changes since the last call as events.
+    fn observe(&mut self) {
+        if self.cia.state != self.seen_cia {
+            let from = self.seen_cia;
+            self.seen_cia = self.cia.state;
+            self.event(NodeEvent::Cia402State {
+                from,
+                to: self.cia.state,
+            });
+        }
+        if self.nmt != self.seen_nmt {
+            let from = self.seen_nmt;
+            self.seen_nmt = self.nmt;
+            self.event(NodeEvent::NmtState { from, to: self.nmt });
+        }
+    }
+
+    fn raise_emcy(&mut self, code: u16, info: [u8; 5]) {
+        if self.emcy.raise(&mut self.store, code, info) {
+            self.event(NodeEvent::EmcyRaised { code });
+        }
+    }
+
+    fn clear_emcy(&mut self, code: u16) {
+        if self.emcy.clear(&mut self.store, code) {
+            self.event(NodeEvent::EmcyCleared { code });
+        }
+    }
+
+    fn clear_all_emcy(&mut self) {
+        let active: heapless::Vec<u16, 8> = self.emcy.active().iter().copied().collect();
+        self.emcy.clear_all(&mut self.store);
+        for code in active {
+            self.event(NodeEvent::EmcyCleared { code });
+        }
+    }
+
+    fn push(&mut self, f: CanFrame) {
+        push(&mut self.tx, &mut self.tx_overflows, f);
     }
 
     /// Semantic checks and side effects of an SDO write (limits and type already checked).
-    /// One arm per object with a rule; the `if`s stay inside the arms for readability.
+    /// PDO parameters go to the PDO engine's rules (`cia301/pdo/rules.rs`); one arm per
+    /// other object with a rule; the `if`s stay inside the arms for readability.
     #[allow(clippy::collapsible_match)]
     fn write_checked(&mut self, row: usize, index: u16, sub: u8, raw: u32) -> Result<(), u32> {
-        if let Some((k, tx, mapping)) = pdo_slot(index) {
-            let valid = self.pdo_valid(k, tx);
-            if mapping {
-                if valid {
-                    return Err(abort::UNSUPPORTED_ACCESS);
-                }
-                let mrow = map_row(k, tx);
-                if sub == 0 {
-                    pdo::compile(&self.store, mrow, raw as usize, tx)?;
-                } else {
-                    if self.store.u32(mrow) != 0 {
-                        return Err(abort::UNSUPPORTED_ACCESS);
-                    }
-                    if raw != 0 {
-                        pdo::check_entry(raw, tx)?;
-                    }
-                }
-            } else {
-                match sub {
-                    1 => {
-                        let cur = self.store.u32(row);
-                        let new_valid = raw & 0x8000_0000 == 0;
-                        if raw & 0x2000_0000 != 0 || raw & 0x1FFF_F800 != 0 {
-                            return Err(abort::VALUE_RANGE);
-                        }
-                        if valid && new_valid && (raw & 0x7FF) != (cur & 0x7FF) {
-                            return Err(abort::VALUE_RANGE);
-                        }
-                    }
-                    2 => {
-                        if !pdo::valid_ttype(raw, tx) {
-                            return Err(abort::VALUE_RANGE);
-                        }
-                    }
-                    3 => {
-                        if valid {
-                            return Err(abort::UNSUPPORTED_ACCESS);
-                        }
-                    }
-                    _ => {}
-                }
-            }
-            self.store.set(row, raw);
-            self.refresh_pdo(k, tx);
-            return Ok(());
+        if let Some(r) = self.pdo.write(&mut self.store, row, index, sub, raw) {
+            return r;
         }
         match (index, sub) {
             (0x1003, 0) => {
@@ -364,42 +346,8 @@ impl Core {
         Ok(())
     }
 
-    fn refresh_pdo(&mut self, k: usize, tx: bool) {
-        let c = comm_row(k, tx);
-        let m = map_row(k, tx);
-        let cob = self.store.u32(c + 1);
-        let ttype = self.store.u32(c + 2) as u8;
-        let count = self.store.u32(m) as usize;
-        let p = if tx {
-            &mut self.tpdo[k]
-        } else {
-            &mut self.rpdo[k]
-        };
-        p.cob = cob;
-        p.ttype = ttype;
-        match pdo::compile(&self.store, m, count, tx) {
-            Ok((map, n, len)) => {
-                p.map = map;
-                p.n = n;
-                p.len = len;
-                p.valid = cob & 0x8000_0000 == 0;
-            }
-            Err(_) => {
-                p.n = 0;
-                p.len = 0;
-                p.valid = false;
-            }
-        }
-        p.has_last = false;
-        p.sync_count = 0;
-        p.rx_pending = false;
-    }
-
     fn refresh_all(&mut self) {
-        for k in 0..4 {
-            self.refresh_pdo(k, false);
-            self.refresh_pdo(k, true);
-        }
+        self.pdo.refresh_all(&self.store);
         for i in 0..4 {
             let e = self.store.u32(R_1016 + i);
             self.hbc.configure(i, e);
@@ -413,8 +361,8 @@ impl Core {
 
     /// Report a communication event without keeping it active (history + EMCY frame).
     fn report(&mut self, code: u16, info: [u8; 5]) {
-        self.emcy.raise(&mut self.store, code, info);
-        self.emcy.clear(&mut self.store, code);
+        self.raise_emcy(code, info);
+        self.clear_emcy(code);
     }
 
     fn boot(&mut self, now_us: u64) {
@@ -424,7 +372,10 @@ impl Core {
         self.pending_sync = None;
         self.hb_lost = false;
         self.hb.restart(now_us, self.store.u32(R_1017) as u16);
-        self.push(CanFrame::new(0x700 + self.node_id as u32, &[0x00]));
+        self.push(CanFrame::new(
+            cob::HEARTBEAT + self.node_id as u32,
+            &Heartbeat::BOOTUP.emit(),
+        ));
     }
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
@@ -440,18 +391,6 @@ impl Core {
         }
     }
 
-    fn send_tpdo(&mut self, k: usize, now_us: u64) {
-        let p = &self.tpdo[k];
-        let mut d = [0u8; 8];
-        let n = p.pack(&self.store, &mut d);
-        let f = CanFrame::new(p.cob & 0x7FF, &d[..n]);
-        let p = &mut self.tpdo[k];
-        p.last = d;
-        p.has_last = true;
-        p.last_tx_us = Some(now_us);
-        self.push(f);
-    }
-
     fn on_sync(&mut self, frame: &CanFrame, now_us: u64) -> FrameEvent {
         let overflow = self.store.u32(R_1019) as u8;
         let s = self
@@ -462,49 +401,17 @@ impl Core {
                 self.report(EMCY_SYNC_LENGTH, [frame.len, 0, 0, 0, 0]);
             }
             if s.recovered {
-                self.emcy.clear(&mut self.store, EMCY_SYNC_LOSS);
+                self.clear_emcy(EMCY_SYNC_LOSS);
             }
         }
         self.pending_sync = Some(now_us);
         if self.nmt == NmtState::Operational {
-            for k in 0..4 {
-                let p = &mut self.rpdo[k];
-                if p.valid && p.rx_pending && p.is_sync_rx() {
-                    p.rx_pending = false;
-                    let (p, data) = (*p, p.rx);
-                    p.unpack(&mut self.store, &data[..p.len as usize]);
-                }
-            }
-            for k in 0..4 {
-                let p = self.tpdo[k];
-                if !p.valid {
-                    continue;
-                }
-                match p.ttype {
-                    0 => {
-                        let mut d = [0u8; 8];
-                        let n = p.pack(&self.store, &mut d);
-                        if !p.has_last || d[..n] != p.last[..n] {
-                            self.send_tpdo(k, now_us);
-                        }
-                    }
-                    1..=240 => {
-                        let p = &mut self.tpdo[k];
-                        p.sync_count = p.sync_count.saturating_add(1);
-                        if p.sync_count >= p.ttype {
-                            p.sync_count = 0;
-                            self.send_tpdo(k, now_us);
-                        }
-                    }
-                    252 => {
-                        let mut d = [0u8; 8];
-                        p.pack(&self.store, &mut d);
-                        self.tpdo[k].sampled = d;
-                    }
-                    _ => {}
-                }
-            }
+            self.pdo.apply_sync_rpdos(&mut self.store);
+            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
+            self.pdo
+                .on_sync(&self.store, now_us, &mut |f| push(tx, overflows, f));
         }
+        self.event(NodeEvent::Sync { counter: s.counter });
         FrameEvent::Sync { counter: s.counter }
     }
 }
@@ -523,8 +430,7 @@ impl Node {
             store,
             saved: None,
             nmt: NmtState::Initialising,
-            rpdo: [Pdo::default(); 4],
-            tpdo: [Pdo::default(); 4],
+            pdo: PdoEngine::default(),
             sync: SyncConsumer::default(),
             hb: Producer::default(),
             hbc: Consumer::default(),
@@ -536,7 +442,12 @@ impl Node {
             pending_sync: None,
             injected_fault: 0,
             now_us: 0,
+            events: Deque::new(),
+            events_dropped: 0,
+            seen_cia: State::NotReadyToSwitchOn,
+            seen_nmt: NmtState::Initialising,
         };
+        core.seen_cia = core.cia.state;
         core.refresh_all();
         Ok(Node {
             sdo: SdoServer::default(),
@@ -548,6 +459,7 @@ impl Node {
     pub fn boot(&mut self, now_us: u64) {
         self.core.now_us = now_us;
         self.core.boot(now_us);
+        self.core.observe();
     }
 
     fn nmt_command(&mut self, cmd: NmtCommand, now_us: u64) {
@@ -557,6 +469,7 @@ impl Node {
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
                 c.cia = Cia402::new(f);
+                c.clear_all_emcy();
                 c.emcy.reset(&mut c.store);
                 c.injected_fault = 0;
                 self.sdo.reset();
@@ -564,6 +477,7 @@ impl Node {
             }
             NmtCommand::ResetCommunication => {
                 c.restore_range(0x1000, 0x1FFF);
+                c.clear_all_emcy();
                 c.emcy.reset(&mut c.store);
                 self.sdo.reset();
                 c.boot(now_us);
@@ -571,11 +485,7 @@ impl Node {
             _ => {
                 let next = nmt::next_state(cmd);
                 if next == NmtState::Operational && c.nmt != NmtState::Operational {
-                    for p in c.tpdo.iter_mut().chain(c.rpdo.iter_mut()) {
-                        p.has_last = false;
-                        p.sync_count = 0;
-                        p.rx_pending = false;
-                    }
+                    c.pdo.restart();
                 }
                 if next != NmtState::Operational {
                     self.sdo_reset_if_stopped(next);
@@ -593,6 +503,20 @@ impl Node {
 
     /// Handle one received frame.
     pub fn handle(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
+        let ev = self.handle_frame(frame, now_us, drive);
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+        ev
+    }
+
+    fn handle_frame(
+        &mut self,
+        frame: &CanFrame,
+        now_us: u64,
+        drive: &mut impl Drive,
+    ) -> FrameEvent {
         self.core.now_us = now_us;
         if frame.extended || frame.id > 0x7FF || self.core.nmt == NmtState::Initialising {
             return FrameEvent::Ignored;
@@ -619,7 +543,7 @@ impl Node {
             }
             return FrameEvent::Ignored;
         }
-        if id == 0x600 + self.core.node_id as u32 {
+        if id == cob::SDO_RX + self.core.node_id as u32 {
             if frame.rtr || frame.len != 8 {
                 return FrameEvent::Ignored;
             }
@@ -631,9 +555,9 @@ impl Node {
             self.sdo.handle(&frame.data, now_us, &mut acc, &mut |f| {
                 let _ = outv.push(f);
             });
-            let cob = 0x580 + self.core.node_id as u32;
+            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
             for f in outv {
-                self.core.push(CanFrame::new(cob, &f));
+                self.core.push(CanFrame::new(tx_cob, &f));
             }
             return FrameEvent::Handled;
         }
@@ -645,39 +569,25 @@ impl Node {
             return FrameEvent::Ignored;
         }
         let c = &mut self.core;
-        for k in 0..4 {
-            let p = c.rpdo[k];
-            if p.valid && !frame.rtr && p.cob & 0x7FF == id {
-                if frame.len != p.len {
-                    if !c.rpdo[k].len_error {
-                        c.rpdo[k].len_error = true;
-                        if c.emcy_allowed() {
-                            c.report(EMCY_PDO_LENGTH, [k as u8 + 1, frame.len, p.len, 0, 0]);
-                        }
-                    }
-                    return FrameEvent::Handled;
-                }
-                c.rpdo[k].len_error = false;
-                if p.is_sync_rx() {
-                    c.rpdo[k].rx = frame.data;
-                    c.rpdo[k].rx_pending = true;
-                } else {
-                    p.unpack(&mut c.store, frame.payload());
+        match c.pdo.receive(&mut c.store, frame) {
+            RxOutcome::NotRpdo => {}
+            RxOutcome::WrongLength {
+                number,
+                len,
+                expected,
+            } => {
+                if c.emcy_allowed() {
+                    c.report(EMCY_PDO_LENGTH, [number, len, expected, 0, 0]);
                 }
                 return FrameEvent::Handled;
             }
+            RxOutcome::Accepted | RxOutcome::WrongLengthRepeated => return FrameEvent::Handled,
         }
-        for k in 0..4 {
-            let p = c.tpdo[k];
-            if p.valid && frame.rtr && p.cob & 0x7FF == id && matches!(p.ttype, 252 | 253) {
-                if p.ttype == 252 {
-                    let f = CanFrame::new(p.cob & 0x7FF, &p.sampled[..p.len as usize]);
-                    c.push(f);
-                } else {
-                    c.send_tpdo(k, now_us);
-                }
-                return FrameEvent::Handled;
-            }
+        let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
+        if c.pdo
+            .on_rtr(&c.store, frame, now_us, &mut |f| push(tx, overflows, f))
+        {
+            return FrameEvent::Handled;
         }
         FrameEvent::Ignored
     }
@@ -689,13 +599,65 @@ impl Node {
             c.hbc.on_heartbeat(node, now_us);
             if c.hb_lost {
                 c.hb_lost = false;
-                c.emcy.clear(&mut c.store, EMCY_HEARTBEAT);
+                c.clear_emcy(EMCY_HEARTBEAT);
             }
         }
     }
 
     /// Timers, the CiA 402 state machine and mode, and exactly one `drive.command(..)`.
     pub fn poll(&mut self, now_us: u64, drive: &mut impl Drive) {
+        self.poll_timers_and_drive(now_us, drive);
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+    }
+
+    /// The next event (state change, EMCY raised or cleared, SYNC, finished SDO transfer),
+    /// oldest first. Events beyond [`EVENT_QUEUE`] unread are dropped and counted in
+    /// [`Node::events_dropped`].
+    pub fn poll_event(&mut self) -> Option<NodeEvent> {
+        self.core.events.pop_front()
+    }
+
+    /// Events dropped because the event queue was full.
+    pub fn events_dropped(&self) -> u32 {
+        self.core.events_dropped
+    }
+
+    /// The next time (us, on the clock given to `handle` / `poll`) at which [`Node::poll`]
+    /// has a communication deadline: an SDO transfer timeout, the heartbeat producer, a
+    /// heartbeat consumer timeout, SYNC supervision (1.5 periods), a TPDO event timer or the
+    /// end of a TPDO or EMCY inhibit time holding back a frame. A SYNC received and not yet
+    /// processed makes it the time of that SYNC (poll now). `None`: no deadline; the node
+    /// then needs `poll` only for its CiA 402 cycle, which the caller runs at its own rate.
+    pub fn poll_at(&self) -> Option<u64> {
+        let c = &self.core;
+        let mut at = self.sdo.deadline_us();
+        let mut take = |t: Option<u64>| {
+            if let Some(t) = t {
+                at = Some(at.map_or(t, |a| a.min(t)));
+            }
+        };
+        if c.nmt == NmtState::Initialising {
+            return at;
+        }
+        take(c.pending_sync);
+        take(c.hb.deadline_us(c.store.u32(R_1017) as u16));
+        take(c.hbc.deadline_us());
+        if c.nmt == NmtState::Operational {
+            take(c.sync.deadline_us(c.store.u32(R_1006)));
+            for k in 0..4 {
+                take(c.pdo.deadline_us(&c.store, k, c.now_us));
+            }
+        }
+        if c.emcy_allowed() {
+            take(c.emcy.next_at_us(c.store.u32(R_1015) as u16));
+        }
+        at
+    }
+
+    fn poll_timers_and_drive(&mut self, now_us: u64, drive: &mut impl Drive) {
         self.core.now_us = now_us;
         let fb = drive.feedback();
         // SDO timeout
@@ -704,9 +666,9 @@ impl Node {
             self.sdo.poll(now_us, &mut |f| {
                 let _ = outv.push(f);
             });
-            let cob = 0x580 + self.core.node_id as u32;
+            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
             for f in outv {
-                self.core.push(CanFrame::new(cob, &f));
+                self.core.push(CanFrame::new(tx_cob, &f));
             }
         }
         let c = &mut self.core;
@@ -720,18 +682,19 @@ impl Node {
         }
         // heartbeat producer
         if c.hb.due(now_us, c.store.u32(R_1017) as u16) {
-            let f = CanFrame::new(0x700 + c.node_id as u32, &[c.nmt as u8]);
+            let hb = Heartbeat { state: c.nmt as u8 };
+            let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
             c.push(f);
         }
         // heartbeat consumer
         if let Some(n) = c.hbc.poll(now_us) {
             c.hb_lost = true;
-            c.emcy.raise(&mut c.store, EMCY_HEARTBEAT, [n, 0, 0, 0, 0]);
+            c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0]);
             c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
         }
         // SYNC supervision
         if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
-            c.emcy.raise(&mut c.store, EMCY_SYNC_LOSS, [0; 5]);
+            c.raise_emcy(EMCY_SYNC_LOSS, [0; 5]);
             c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
         }
         if c.injected_fault != 0 {
@@ -744,33 +707,17 @@ impl Node {
             .cia
             .step(&mut c.store, &fb, now_us, sync_at, period, drive);
         if let Some(code) = out.new_fault {
-            c.emcy.raise(&mut c.store, code, [0; 5]);
+            c.raise_emcy(code, [0; 5]);
         }
         if out.fault_cleared {
-            c.emcy.clear_all(&mut c.store);
+            c.clear_all_emcy();
         }
         drive.command(&out.command);
         // event-driven TPDOs
         if c.nmt == NmtState::Operational {
-            for k in 0..4 {
-                let p = c.tpdo[k];
-                if !p.valid || p.ttype < 254 {
-                    continue;
-                }
-                let crow = comm_row(k, true);
-                let inhibit = c.store.u32(crow + 3) as u64 * 100;
-                let timer = c.store.u32(crow + 4) as u64 * 1000;
-                let inhibit_ok = p.last_tx_us.is_none_or(|l| now_us >= l + inhibit);
-                let timer_due = timer > 0 && p.last_tx_us.is_none_or(|l| now_us >= l + timer);
-                if !inhibit_ok {
-                    continue;
-                }
-                let mut d = [0u8; 8];
-                let n = p.pack(&c.store, &mut d);
-                if !p.has_last || d[..n] != p.last[..n] || timer_due {
-                    c.send_tpdo(k, now_us);
-                }
-            }
+            let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
+            c.pdo
+                .poll_events(&c.store, now_us, &mut |f| push(tx, overflows, f));
         }
         // EMCY
         if c.emcy_allowed() {

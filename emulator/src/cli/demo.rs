@@ -10,7 +10,7 @@
 use crate::analysis::spectrum::fundamental;
 use crate::bus::socketcan::SocketCanBus;
 use crate::master::on_bus::{run_on_bus, BusRunStats};
-use crate::master::{state_name, Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
+use crate::master::{Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
 use crate::presets::AxisConfig;
 use crate::runtime::axis_drive::AxisDrive;
 use crate::runtime::clock::MonotonicClock;
@@ -18,7 +18,7 @@ use crate::runtime::offline::OfflineRun;
 use crate::runtime::AxisSlot;
 use anyhow::{bail, Result};
 use clap::Args;
-use drive_protocol::{Drive, Node};
+use drive_protocol::{Cia402State, Drive, Node};
 use std::sync::atomic::AtomicBool;
 
 #[derive(Args, Debug, Clone)]
@@ -157,7 +157,7 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
     if master
         .samples()
         .iter()
-        .any(|s| state_name(s.statusword) == "FAULT")
+        .any(|s| Cia402State::from_statusword(s.statusword) == Some(Cia402State::Fault))
     {
         // Distinct error codes, without the "error reset" (0x0000) entries.
         let mut codes: Vec<String> = Vec::new();

@@ -15,6 +15,8 @@ pub mod on_bus;
 pub mod sdo_client;
 
 use crate::bus::CanFrame;
+use drive_protocol::wire::{cob, EmcyFrame, Heartbeat, NmtCommand, NmtFrame};
+use drive_protocol::Cia402State;
 use sdo_client::{SdoClient, SdoResult};
 use std::collections::VecDeque;
 
@@ -212,11 +214,35 @@ enum Phase {
     Failed(String),
 }
 
+/// Where a program step is.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+enum Stage {
+    /// Nothing done yet.
+    #[default]
+    Start,
+    /// Enable / SetMode: 0x6060 written, waiting for 0x6061 to show the mode.
+    WaitModeDisplay,
+    /// Enable: walking the state machine to OPERATION ENABLED.
+    SwitchOn,
+    /// Enable / SetMode: reached; report and go on.
+    Reached,
+    /// MoveTo: writing profile parameter `k` (0x6081, 0x6083, 0x6084).
+    PpParameter(usize),
+    /// MoveTo: parameters written; give the new set-point (controlword bit 4).
+    PpNewSetpoint,
+    /// MoveTo: waiting for the set-point acknowledge (statusword bit 12).
+    PpWaitAcknowledge,
+    /// MoveTo: acknowledge seen, bit 4 cleared; waiting for target reached (bit 10).
+    PpWaitTarget,
+    /// Cruise / Dwell: announced, running for its duration.
+    Running,
+}
+
 /// Per-step progress.
 #[derive(Debug, Clone, Copy, Default)]
 struct StepState {
     started_us: u64,
-    stage: u8,
+    stage: Stage,
     sdo_sent: bool,
 }
 
@@ -283,19 +309,10 @@ pub fn emcy_name(code: u16) -> &'static str {
     }
 }
 
-/// Decode the CiA 402 state from a statusword (CiA 402 statusword masks).
+/// The name of the CiA 402 state a statusword shows (CiA 402 statusword masks), for
+/// messages; `UNKNOWN` for a pattern that is no state. Compare [`Cia402State`]s, not names.
 pub fn state_name(sw: u16) -> &'static str {
-    match (sw & 0x4F, sw & 0x6F) {
-        (0x00, _) => "NOT READY TO SWITCH ON",
-        (0x40, _) => "SWITCH ON DISABLED",
-        (_, 0x21) => "READY TO SWITCH ON",
-        (_, 0x23) => "SWITCHED ON",
-        (_, 0x27) => "OPERATION ENABLED",
-        (_, 0x07) => "QUICK STOP ACTIVE",
-        (0x0F, _) => "FAULT REACTION ACTIVE",
-        (0x08, _) => "FAULT",
-        _ => "UNKNOWN",
-    }
+    Cia402State::from_statusword(sw).map_or("UNKNOWN", Cia402State::name)
 }
 
 /// The PDO configuration the master writes: (index, sub, value, len).
@@ -454,21 +471,30 @@ impl Master {
         let i32_at = |o: usize| i32::from_le_bytes([d[o], d[o + 1], d[o + 2], d[o + 3]]);
         let i16_at = |o: usize| i16::from_le_bytes([d[o], d[o + 1]]);
         match frame.id {
-            id if id == 0x580 + n => {
+            id if id == cob::SDO_TX + n => {
                 self.sdo.handle(frame);
             }
-            id if id == 0x700 + n && len >= 1 && d[0] == 0x00 => {
+            id if id == cob::HEARTBEAT + n
+                && Heartbeat::parse(frame.payload()).is_some_and(|h| h.is_bootup()) =>
+            {
                 if let Phase::WaitBoot { .. } = self.phase {
                     self.say(now_us, "drive booted (boot-up message)");
                     self.phase = Phase::Configure(0);
                 }
             }
-            id if id == 0x80 + n && len >= 3 => self.emcys.push(Emcy {
-                t_us: now_us,
-                node_id: self.cfg.node_id,
-                code: u16::from_le_bytes([d[0], d[1]]),
-                error_register: d[2],
-            }),
+            id if id == cob::EMCY + n && len >= 3 => {
+                // A short EMCY (3..7 bytes) from a sloppy producer still counts; pad it.
+                let mut p = [0u8; 8];
+                p[..len.min(8)].copy_from_slice(&d[..len.min(8)]);
+                if let Some(e) = EmcyFrame::parse(&p) {
+                    self.emcys.push(Emcy {
+                        t_us: now_us,
+                        node_id: self.cfg.node_id,
+                        code: e.code,
+                        error_register: e.register,
+                    })
+                }
+            }
             id if id == 0x180 + n && len == 6 => {
                 self.latest.statusword = u16::from_le_bytes([d[0], d[1]]);
                 self.latest.position_uu = i32_at(2);
@@ -530,8 +556,7 @@ impl Master {
     pub fn poll(&mut self, now_us: u64) {
         match self.phase.clone() {
             Phase::Reset => {
-                self.tx
-                    .push_back(CanFrame::new(0x000, &[0x82, self.cfg.node_id]));
+                self.nmt(NmtCommand::ResetCommunication);
                 self.say(
                     now_us,
                     format!("NMT reset communication of node {}", self.cfg.node_id),
@@ -545,8 +570,7 @@ impl Master {
             }
             Phase::Configure(k) => {
                 if k >= self.configuration.len() {
-                    self.tx
-                        .push_back(CanFrame::new(0x000, &[0x01, self.cfg.node_id]));
+                    self.nmt(NmtCommand::StartRemoteNode);
                     self.say(now_us, "PDOs mapped; NMT start; SYNC and heartbeat on");
                     self.sync_on = true;
                     self.heartbeat_on = true;
@@ -588,43 +612,49 @@ impl Master {
             Step::Enable { mode } | Step::SetMode { mode } => {
                 let enable = matches!(step, Step::Enable { .. });
                 match self.step.stage {
-                    0 => {
+                    Stage::Start => {
                         if let Some(true) = self.sdo_step(now_us, 0x6060, 0, mode as u8 as u32, 1) {
                             self.mode = mode;
-                            self.step.stage = 1;
+                            self.step.stage = Stage::WaitModeDisplay;
                         }
                     }
-                    1 if self.latest.mode_display == mode && self.have_actual => {
+                    Stage::WaitModeDisplay
+                        if self.latest.mode_display == mode && self.have_actual =>
+                    {
                         // Start from where the axis is, so enabling never jumps.
                         self.target_uu = f64::from(self.latest.position_uu);
                         self.velocity_uu_s = 0.0;
-                        self.step.stage = if enable { 2 } else { 9 };
+                        self.step.stage = if enable {
+                            Stage::SwitchOn
+                        } else {
+                            Stage::Reached
+                        };
                     }
-                    2 => {
+                    Stage::SwitchOn => {
                         // Fault reset first if needed, then shutdown, switch on, enable.
-                        let state = state_name(sw);
+                        let state = Cia402State::from_statusword(sw);
                         self.controlword = match state {
-                            "FAULT" => {
+                            Some(Cia402State::Fault) => {
                                 if self.controlword & 0x80 != 0 {
                                     0x00
                                 } else {
                                     0x80
                                 }
                             }
-                            "SWITCH ON DISABLED" => 0x06,
-                            "READY TO SWITCH ON" => 0x07,
-                            "SWITCHED ON" => 0x0F,
-                            "OPERATION ENABLED" => {
-                                self.step.stage = 9;
+                            Some(Cia402State::SwitchOnDisabled) => 0x06,
+                            Some(Cia402State::ReadyToSwitchOn) => 0x07,
+                            Some(Cia402State::SwitchedOn) => 0x0F,
+                            Some(Cia402State::OperationEnabled) => {
+                                self.step.stage = Stage::Reached;
                                 0x0F
                             }
                             _ => self.controlword,
                         };
-                        if state != "OPERATION ENABLED" {
+                        if state != Some(Cia402State::OperationEnabled) {
                             self.target_uu = f64::from(self.latest.position_uu);
                         }
                     }
-                    9 => {
+                    Stage::Reached => {
                         self.say(
                             now_us,
                             format!("drive in {} in {}", state_name(sw), mode_short(self.mode)),
@@ -655,24 +685,37 @@ impl Master {
                     (0x6083, accel_uu_s2),
                     (0x6084, accel_uu_s2),
                 ];
-                let stage = usize::from(self.step.stage);
-                if stage < sdo.len() {
-                    let (idx, v) = sdo[stage];
-                    if let Some(true) = self.sdo_step(now_us, idx, 0, v, 4) {
-                        self.step.sdo_sent = false;
-                        self.step.stage += 1;
+                match self.step.stage {
+                    Stage::Start | Stage::PpParameter(_) => {
+                        let k = match self.step.stage {
+                            Stage::PpParameter(k) => k,
+                            _ => 0,
+                        };
+                        let (idx, v) = sdo[k];
+                        if let Some(true) = self.sdo_step(now_us, idx, 0, v, 4) {
+                            self.step.sdo_sent = false;
+                            self.step.stage = if k + 1 < sdo.len() {
+                                Stage::PpParameter(k + 1)
+                            } else {
+                                Stage::PpNewSetpoint
+                            };
+                        }
                     }
-                } else if stage == 3 {
-                    self.target_uu = f64::from(target_uu);
-                    self.controlword = 0x0F | 0x10; // new set-point
-                    self.step.stage = 4;
-                } else if stage == 4 && sw & 0x1000 != 0 {
-                    self.controlword = 0x0F; // acknowledge seen: clear bit 4
-                    self.step.stage = 5;
-                } else if stage == 5 && sw & 0x1000 == 0 && sw & 0x0400 != 0 {
-                    self.say(now_us, format!("PP move to {target_uu} uu: target reached"));
-                    self.next_step(now_us, i);
-                    return;
+                    Stage::PpNewSetpoint => {
+                        self.target_uu = f64::from(target_uu);
+                        self.controlword = 0x0F | 0x10; // new set-point
+                        self.step.stage = Stage::PpWaitAcknowledge;
+                    }
+                    Stage::PpWaitAcknowledge if sw & 0x1000 != 0 => {
+                        self.controlword = 0x0F; // acknowledge seen: clear bit 4
+                        self.step.stage = Stage::PpWaitTarget;
+                    }
+                    Stage::PpWaitTarget if sw & 0x1000 == 0 && sw & 0x0400 != 0 => {
+                        self.say(now_us, format!("PP move to {target_uu} uu: target reached"));
+                        self.next_step(now_us, i);
+                        return;
+                    }
+                    _ => {}
                 }
                 if self.timed_out(now_us) {
                     self.fail(
@@ -682,8 +725,8 @@ impl Master {
                 }
             }
             Step::Cruise { duration_s, .. } | Step::Dwell { duration_s } => {
-                if self.step.stage == 0 {
-                    self.step.stage = 1;
+                if self.step.stage == Stage::Start {
+                    self.step.stage = Stage::Running;
                     self.say(now_us, step.to_string());
                 }
                 if (now_us - self.step.started_us) as f64 >= duration_s * 1e6 {
@@ -740,9 +783,10 @@ impl Master {
     fn produce(&mut self, now_us: u64) {
         let n = u32::from(self.cfg.node_id);
         if self.heartbeat_on && now_us >= self.next_heartbeat_us {
+            let hb = Heartbeat { state: 0x05 };
             self.tx.push_back(CanFrame::new(
-                0x700 + u32::from(self.cfg.master_id),
-                &[0x05],
+                cob::HEARTBEAT + u32::from(self.cfg.master_id),
+                &hb.emit(),
             ));
             self.next_heartbeat_us += u64::from(self.cfg.heartbeat_ms) * 1000;
         }
@@ -776,7 +820,15 @@ impl Master {
         r2[..4].copy_from_slice(&vel.to_le_bytes());
         r2[4..].copy_from_slice(&self.target_torque.to_le_bytes());
         self.tx.push_back(CanFrame::new(0x300 + n, &r2));
-        self.tx.push_back(CanFrame::new(0x080, &[]));
+        self.tx.push_back(CanFrame::new(cob::SYNC, &[]));
+    }
+
+    fn nmt(&mut self, command: NmtCommand) {
+        let f = NmtFrame {
+            command,
+            node: self.cfg.node_id,
+        };
+        self.tx.push_back(CanFrame::new(cob::NMT, &f.emit()));
     }
 }
 

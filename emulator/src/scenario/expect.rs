@@ -3,6 +3,7 @@
 use super::file::{ProgramOutcome, Verdict};
 use crate::analysis::detector::DetectorReport;
 use crate::master::{state_name, Sample};
+use drive_protocol::Cia402State;
 use std::collections::HashMap;
 
 #[derive(Debug, Clone, PartialEq)]
@@ -18,7 +19,7 @@ pub enum Expectation {
     NoEmcy { from_us: u64, until_us: Option<u64> },
     /// The drive is in this CiA 402 state at `at_us` (at the end when None).
     State {
-        state: &'static str,
+        state: Cia402State,
         at_us: Option<u64>,
     },
     /// |following error| stays within `max_uu` while OPERATION ENABLED in `from_us .. until_us`.
@@ -222,10 +223,15 @@ impl Expectation {
                 match s {
                     None => (false, "no sample recorded by then".into()),
                     Some(s) => {
-                        let got = state_name(s.statusword);
+                        let got = Cia402State::from_statusword(s.statusword);
                         (
-                            got == *state,
-                            format!("statusword {:#06X} ({got}) at {:.3} s", s.statusword, s.t_s),
+                            got == Some(*state),
+                            format!(
+                                "statusword {:#06X} ({}) at {:.3} s",
+                                s.statusword,
+                                state_name(s.statusword),
+                                s.t_s
+                            ),
                         )
                     }
                 }
@@ -241,7 +247,10 @@ impl Expectation {
                     .samples
                     .iter()
                     .filter(|s| s.t_s >= from && s.t_s <= until)
-                    .filter(|s| state_name(s.statusword) == "OPERATION ENABLED")
+                    .filter(|s| {
+                        Cia402State::from_statusword(s.statusword)
+                            == Some(Cia402State::OperationEnabled)
+                    })
                     .map(|s| (s.following_error_uu.unsigned_abs(), s.t_s))
                     .max_by_key(|x| x.0);
                 match worst {

@@ -20,13 +20,13 @@ use super::Scenario;
 use crate::analysis::detector::{analyze, AxisTrace, DetectorReport};
 use crate::bus::fault::{FaultyBus, RuleId};
 use crate::bus::CanBus;
-use crate::master::{state_name, Sample};
+use crate::master::Sample;
 use crate::presets::{AxisConfig, AxisKind};
 use crate::runtime::axis_drive::AxisDrive;
 use crate::runtime::trace::node_sample;
 use crate::runtime::Runtime;
 use crossbeam::queue::ArrayQueue;
-use drive_protocol::{AxisParam, Drive};
+use drive_protocol::{AxisParam, Cia402State, Drive, NodeEvent};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
@@ -87,11 +87,10 @@ impl Default for LiveLink {
     }
 }
 
-/// The loop thread's half: owns the CAN rules in force and the EMCY history cursor.
+/// The loop thread's half: owns the CAN rules in force; drains axis 0's node events.
 pub struct LoopInjector {
     master_id: u8,
     rules: heapless::Vec<(RuleId, Option<u64>), 16>,
-    emcy_seen: (u32, u32),
 }
 
 impl LoopInjector {
@@ -100,7 +99,6 @@ impl LoopInjector {
         Self {
             master_id,
             rules: heapless::Vec::new(),
-            emcy_seen: (0, 0),
         }
     }
 
@@ -145,18 +143,17 @@ impl LoopInjector {
                 k += 1;
             }
         }
-        let node = &rt.axes[0].node;
-        let raw = |i: u16, s: u8| node.object_raw(i, s).unwrap_or(0);
+        let node = &mut rt.axes[0].node;
         let sample = node_sample(node, now);
         if link.samples.push(sample).is_err() {
             link.samples_lost.fetch_add(1, Ordering::Relaxed);
         }
-        // A new EMCY shows as a new newest entry in the error history 0x1003.
-        let history = (raw(0x1003, 0), raw(0x1003, 1));
-        if history != self.emcy_seen && history.0 > 0 {
-            let _ = link.emcys.push((now, history.1 as u16));
+        // Every error the node raises, repeats included (the 0x1003 history saturates at 8).
+        while let Some(e) = node.poll_event() {
+            if let NodeEvent::EmcyRaised { code } = e {
+                let _ = link.emcys.push((now, code));
+            }
         }
-        self.emcy_seen = history;
     }
 }
 
@@ -315,7 +312,9 @@ pub fn run_timeline(
             emcys.push((t, code));
             new_codes.push(code);
         }
-        let state = samples.last().map(|x| state_name(x.statusword));
+        let state = samples
+            .last()
+            .and_then(|x| Cia402State::from_statusword(x.statusword));
         let obs = Observation {
             state,
             new_emcy: &new_codes,

@@ -20,10 +20,11 @@ use crate::analysis::detector::{analyze, AxisTrace, DetectorConfig, DetectorRepo
 use crate::bus::fault::{FaultRule, FaultStats, FaultyBus, RuleId};
 use crate::bus::inproc::{InProcBus, InProcEndpoint};
 use crate::bus::CanBus;
-use crate::master::{state_name, Master, Sample};
+use crate::master::{Master, Sample};
 use crate::presets::{AxisConfig, AxisKind};
 use crate::runtime::axis_drive::{AxisDrive, Encoder};
 use crate::runtime::{AxisSlot, Runtime};
+use drive_protocol::Cia402State;
 use drive_protocol::{Drive, Node};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -220,9 +221,9 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
         }
         let now = phys + offset_us;
         // Timeline.
-        let state = state_name(master.latest().statusword);
+        let state = Cia402State::from_statusword(master.latest().statusword);
         let obs = Observation {
-            state: Some(state),
+            state,
             new_emcy: &new_codes,
         };
         let due: Vec<_> = timeline.due(now, &obs).cloned().collect();

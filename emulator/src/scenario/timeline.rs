@@ -5,6 +5,7 @@
 
 use super::file::{ProfileShape, SensorKind};
 use super::units::ParamKey;
+use drive_protocol::Cia402State;
 
 /// When an event fires.
 #[derive(Debug, Clone, PartialEq)]
@@ -12,7 +13,7 @@ pub enum Trigger {
     /// At this scenario time, us.
     At(u64),
     /// `delay_us` after the drive is first seen in this CiA 402 state (master's decoding).
-    OnState { state: &'static str, delay_us: u64 },
+    OnState { state: Cia402State, delay_us: u64 },
     /// `delay_us` after this EMCY code is first seen.
     OnEmcy { code: u16, delay_us: u64 },
 }
@@ -151,8 +152,8 @@ fn can_text(fault: &CanFault) -> String {
 /// What the driving loop saw, for conditional triggers.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Observation<'a> {
-    /// CiA 402 state as the master decodes it, e.g. "OPERATION ENABLED".
-    pub state: Option<&'a str>,
+    /// CiA 402 state as the master decodes it from the statusword.
+    pub state: Option<Cia402State>,
     /// EMCY codes received since the previous call.
     pub new_emcy: &'a [u16],
 }
@@ -408,7 +409,7 @@ mod tests {
             ev(Trigger::At(1000), Action::Set { key, value: 0.01 }),
             ev(
                 Trigger::OnState {
-                    state: "OPERATION ENABLED",
+                    state: Cia402State::OperationEnabled,
                     delay_us: 500,
                 },
                 Action::CanRestore,
@@ -426,7 +427,7 @@ mod tests {
         assert_eq!(tl.due(1000, &none).count(), 1);
         assert_eq!(tl.due(2000, &none).count(), 0);
         let enabled = Observation {
-            state: Some("OPERATION ENABLED"),
+            state: Some(Cia402State::OperationEnabled),
             new_emcy: &[],
         };
         assert_eq!(tl.due(3000, &enabled).count(), 0);

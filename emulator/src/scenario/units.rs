@@ -2,7 +2,7 @@
 //! CiA 402 state names, EMCY codes. Each type's `Deserialize` rejects bad input with a reason,
 //! and the TOML deserializer attaches the span of the offending value (or key) to the error.
 
-use drive_protocol::AxisParam;
+use drive_protocol::{AxisParam, Cia402State};
 use serde::de::{self, Deserializer, Visitor};
 use std::fmt;
 
@@ -314,36 +314,31 @@ impl<'de> de::Deserialize<'de> for MachineKey {
     }
 }
 
-/// CiA 402 states, as the master decodes them (`master::state_name`).
-pub const STATES: &[(&str, &str)] = &[
-    ("not_ready_to_switch_on", "NOT READY TO SWITCH ON"),
-    ("switch_on_disabled", "SWITCH ON DISABLED"),
-    ("ready_to_switch_on", "READY TO SWITCH ON"),
-    ("switched_on", "SWITCHED ON"),
-    ("operation_enabled", "OPERATION ENABLED"),
-    ("quick_stop_active", "QUICK STOP ACTIVE"),
-    ("fault_reaction_active", "FAULT REACTION ACTIVE"),
-    ("fault", "FAULT"),
-];
+/// A CiA 402 state as a scenario file names it: `operation_enabled` or `OPERATION ENABLED`
+/// (case-insensitive); serialised as the standard's name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StateName(pub Cia402State);
 
-/// A CiA 402 state name: `operation_enabled` or `OPERATION ENABLED` (case-insensitive).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub struct StateName(pub &'static str);
+impl serde::Serialize for StateName {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.0.name())
+    }
+}
 
 impl<'de> de::Deserialize<'de> for StateName {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let s = String::deserialize(d)?;
         let norm = s.trim().to_ascii_lowercase().replace([' ', '-'], "_");
-        STATES
+        Cia402State::ALL
             .iter()
-            .find(|(k, _)| *k == norm)
-            .map(|(_, v)| StateName(v))
+            .find(|st| st.key() == norm)
+            .map(|st| StateName(*st))
             .ok_or_else(|| {
                 de::Error::custom(format!(
                     "unknown CiA 402 state `{s}` (known: {})",
-                    STATES
+                    Cia402State::ALL
                         .iter()
-                        .map(|(k, _)| *k)
+                        .map(|st| st.key())
                         .collect::<Vec<_>>()
                         .join(", ")
                 ))

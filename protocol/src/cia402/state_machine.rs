@@ -4,19 +4,80 @@
 
 use super::controlword::Command;
 
+/// A state of the CiA 402 device-control state machine (exported as `Cia402State`).
+/// `Display` gives the standard's name in capitals, e.g. `OPERATION ENABLED`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum State {
+    /// Not ready to switch on (initialising).
     NotReadyToSwitchOn,
+    /// Switch on disabled.
     SwitchOnDisabled,
+    /// Ready to switch on.
     ReadyToSwitchOn,
+    /// Switched on.
     SwitchedOn,
+    /// Operation enabled.
     OperationEnabled,
+    /// Quick stop active.
     QuickStopActive,
+    /// Fault reaction active.
     FaultReactionActive,
+    /// Fault.
     Fault,
 }
 
+impl core::fmt::Display for State {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 impl State {
+    /// Every state, in the order of the standard.
+    pub const ALL: [State; 8] = [
+        State::NotReadyToSwitchOn,
+        State::SwitchOnDisabled,
+        State::ReadyToSwitchOn,
+        State::SwitchedOn,
+        State::OperationEnabled,
+        State::QuickStopActive,
+        State::FaultReactionActive,
+        State::Fault,
+    ];
+
+    /// The standard's name in capitals (`OPERATION ENABLED`).
+    pub fn name(self) -> &'static str {
+        match self {
+            State::NotReadyToSwitchOn => "NOT READY TO SWITCH ON",
+            State::SwitchOnDisabled => "SWITCH ON DISABLED",
+            State::ReadyToSwitchOn => "READY TO SWITCH ON",
+            State::SwitchedOn => "SWITCHED ON",
+            State::OperationEnabled => "OPERATION ENABLED",
+            State::QuickStopActive => "QUICK STOP ACTIVE",
+            State::FaultReactionActive => "FAULT REACTION ACTIVE",
+            State::Fault => "FAULT",
+        }
+    }
+
+    /// The name as a snake-case key (`operation_enabled`), as scenario files write it.
+    pub fn key(self) -> &'static str {
+        match self {
+            State::NotReadyToSwitchOn => "not_ready_to_switch_on",
+            State::SwitchOnDisabled => "switch_on_disabled",
+            State::ReadyToSwitchOn => "ready_to_switch_on",
+            State::SwitchedOn => "switched_on",
+            State::OperationEnabled => "operation_enabled",
+            State::QuickStopActive => "quick_stop_active",
+            State::FaultReactionActive => "fault_reaction_active",
+            State::Fault => "fault",
+        }
+    }
+
+    /// The state a statusword shows (CiA 402 masks), `None` for a pattern that is none.
+    pub fn from_statusword(sw: u16) -> Option<State> {
+        super::statusword::decode_state(sw)
+    }
+
     /// The power stage produces torque in these states.
     pub fn enabled(self) -> bool {
         matches!(

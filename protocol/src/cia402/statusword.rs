@@ -39,3 +39,30 @@ pub fn decode_state(sw: u16) -> Option<State> {
         _ => return None,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every state survives statusword encoding and decoding, whatever the common bits
+    /// (remote, target reached, warning, mode-specific) around it; names are distinct.
+    #[test]
+    fn every_state_decodes_from_its_statusword() {
+        let extra = [
+            0,
+            BIT_REMOTE,
+            BIT_REMOTE | BIT_TARGET_REACHED | BIT_OMS12,
+            BIT_WARNING | BIT_INTERNAL_LIMIT | BIT_OMS13,
+        ];
+        for s in State::ALL {
+            for e in extra {
+                assert_eq!(State::from_statusword(state_bits(s) | e), Some(s), "{s}");
+            }
+            assert_eq!(s.to_string(), s.name());
+            assert_eq!(s.key(), s.name().to_ascii_lowercase().replace(' ', "_"));
+        }
+        let mut names: Vec<_> = State::ALL.iter().map(|s| s.name()).collect();
+        names.dedup();
+        assert_eq!(names.len(), 8);
+    }
+}

@@ -3,7 +3,6 @@
 use core::fmt::Write;
 
 use super::{default_value, DataType, Def, Obj, ObjType, OBJECTS};
-use crate::cia301::pdo::valid_ttype;
 use crate::drive::DriveInfo;
 use crate::params::param_at;
 
@@ -59,7 +58,6 @@ fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo) {
 /// The EDS text for a node.
 pub fn export(node_id: u8, info: &DriveInfo) -> String {
     let mut s = String::with_capacity(64 * 1024);
-    let _ = valid_ttype(0, true);
     s.push_str(
         "[FileInfo]\nFileName=drive-emulator.eds\nFileVersion=1\nFileRevision=0\nEDSVersion=4.0\n",
     );

@@ -1,0 +1,265 @@
+//! The PDO engine: 4 RPDOs and 4 TPDOs (CiA 301 7.2.2), in one place, as CANopenNode's
+//! CO_PDO.c owns its PDOs:
+//!
+//! - [`layout`]: where the communication and mapping parameters (0x1400.., 0x1600..,
+//!   0x1800.., 0x1A00..) sit in the object table, by name;
+//! - [`mapping`]: mapping validation (dynamic mapping), packing and unpacking;
+//! - [`rules`]: the SDO write rules of the PDO parameters (the one place to add checks);
+//! - [`rpdo`]: reception (length check, synchronous RPDOs held until SYNC);
+//! - [`tpdo`]: transmission (SYNC, RTR, event-driven with inhibit time and event timer).
+//!
+//! The engine never allocates; frames go out through a callback.
+
+pub mod layout;
+pub mod mapping;
+pub mod rpdo;
+pub mod rules;
+pub mod tpdo;
+
+pub use mapping::{check_entry, compile, Mapped};
+
+use crate::frame::CanFrame;
+use crate::od::Store;
+
+/// Transmission type (0x14xx / 0x18xx sub 2), CiA 301 table 71/72.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TransmissionType {
+    /// 0: synchronous, acyclic (TPDO: at SYNC when the data changed).
+    #[default]
+    SyncAcyclic,
+    /// 1..=240: synchronous, every n-th SYNC.
+    SyncCyclic(u8),
+    /// 252: sampled at SYNC, sent on RTR (TPDO only).
+    RtrSync,
+    /// 253: sent on RTR (TPDO only).
+    RtrEvent,
+    /// 254: event-driven, manufacturer-specific.
+    EventManufacturer,
+    /// 255: event-driven, device profile.
+    EventProfile,
+    /// 241..=251: reserved.
+    Reserved(u8),
+}
+
+impl TransmissionType {
+    /// From the object value.
+    pub fn from_u8(t: u8) -> TransmissionType {
+        match t {
+            0 => TransmissionType::SyncAcyclic,
+            1..=240 => TransmissionType::SyncCyclic(t),
+            252 => TransmissionType::RtrSync,
+            253 => TransmissionType::RtrEvent,
+            254 => TransmissionType::EventManufacturer,
+            255 => TransmissionType::EventProfile,
+            _ => TransmissionType::Reserved(t),
+        }
+    }
+
+    /// The object value.
+    pub fn as_u8(self) -> u8 {
+        match self {
+            TransmissionType::SyncAcyclic => 0,
+            TransmissionType::SyncCyclic(n) | TransmissionType::Reserved(n) => n,
+            TransmissionType::RtrSync => 252,
+            TransmissionType::RtrEvent => 253,
+            TransmissionType::EventManufacturer => 254,
+            TransmissionType::EventProfile => 255,
+        }
+    }
+
+    /// Synchronous (0..=240): an RPDO of this type is applied at the next SYNC.
+    pub fn is_sync(self) -> bool {
+        matches!(
+            self,
+            TransmissionType::SyncAcyclic | TransmissionType::SyncCyclic(_)
+        )
+    }
+
+    /// Event-driven (254, 255).
+    pub fn is_event(self) -> bool {
+        matches!(
+            self,
+            TransmissionType::EventManufacturer | TransmissionType::EventProfile
+        )
+    }
+
+    /// Sent on request (252, 253).
+    pub fn is_rtr(self) -> bool {
+        matches!(self, TransmissionType::RtrSync | TransmissionType::RtrEvent)
+    }
+
+    /// Whether a PDO of this direction may have this type (written to sub 2).
+    pub fn allowed(self, dir: Direction) -> bool {
+        match self {
+            TransmissionType::Reserved(_) => false,
+            TransmissionType::RtrSync | TransmissionType::RtrEvent => dir == Direction::Tx,
+            _ => true,
+        }
+    }
+}
+
+/// Which way a PDO goes, seen from the node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Direction {
+    /// Received (RPDO).
+    Rx,
+    /// Transmitted (TPDO).
+    Tx,
+}
+
+/// COB-ID bit 31: PDO not valid.
+pub const COB_INVALID: u32 = 0x8000_0000;
+/// COB-ID bit 30: no RTR allowed (TPDO).
+pub const COB_NO_RTR: u32 = 0x4000_0000;
+/// COB-ID bit 29: 29-bit identifier.
+pub const COB_EXTENDED: u32 = 0x2000_0000;
+
+/// Runtime state of one PDO.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Pdo {
+    /// Valid (COB-ID bit 31 clear and the mapping compiles).
+    pub valid: bool,
+    /// COB-ID entry (sub 1).
+    pub cob: u32,
+    /// Transmission type (sub 2).
+    pub ttype: TransmissionType,
+    /// Compiled mapping.
+    pub map: [Mapped; 8],
+    /// Mapped entries.
+    pub n: u8,
+    /// Data length in bytes.
+    pub len: u8,
+    // TPDO
+    /// Data of the last transmission.
+    pub last: [u8; 8],
+    /// `last` holds data.
+    pub has_last: bool,
+    /// SYNCs since the last transmission (types 1..=240).
+    pub sync_count: u8,
+    /// Time of the last transmission.
+    pub last_tx_us: Option<u64>,
+    /// Data sampled at the last SYNC (type 252).
+    pub sampled: [u8; 8],
+    // RPDO
+    /// Data received, waiting for SYNC (synchronous RPDO).
+    pub rx: [u8; 8],
+    /// `rx` waits for SYNC.
+    pub rx_pending: bool,
+    /// A wrong-length frame was reported (until a good one comes).
+    pub len_error: bool,
+}
+
+impl Pdo {
+    /// Pack the mapped values into `out`; returns the length.
+    pub fn pack(&self, store: &Store, out: &mut [u8; 8]) -> usize {
+        mapping::pack(self, store, out)
+    }
+
+    /// Write received data to the mapped objects.
+    pub fn unpack(&self, store: &mut Store, data: &[u8]) {
+        mapping::unpack(self, store, data)
+    }
+
+    /// Whether the data to send differs from the last transmission (or none was sent).
+    fn changed(&self, store: &Store) -> bool {
+        let mut d = [0u8; 8];
+        let n = self.pack(store, &mut d);
+        !self.has_last || d[..n] != self.last[..n]
+    }
+
+    /// The 11-bit identifier.
+    pub fn id(&self) -> u32 {
+        self.cob & 0x7FF
+    }
+}
+
+/// The node's PDOs.
+#[derive(Clone, Debug, Default)]
+pub struct PdoEngine {
+    /// RPDO 1..=4.
+    pub rpdo: [Pdo; 4],
+    /// TPDO 1..=4.
+    pub tpdo: [Pdo; 4],
+}
+
+impl PdoEngine {
+    fn pdo_mut(&mut self, k: usize, dir: Direction) -> &mut Pdo {
+        match dir {
+            Direction::Rx => &mut self.rpdo[k],
+            Direction::Tx => &mut self.tpdo[k],
+        }
+    }
+
+    /// Rebuild PDO `k` from its parameters in the store.
+    pub fn refresh(&mut self, store: &Store, k: usize, dir: Direction) {
+        let c = layout::comm_row(k, dir);
+        let m = layout::map_row(k, dir);
+        let cob = store.u32(c + layout::COB_ID);
+        let ttype = TransmissionType::from_u8(store.u32(c + layout::TRANSMISSION_TYPE) as u8);
+        let count = store.u32(m) as usize;
+        let p = self.pdo_mut(k, dir);
+        p.cob = cob;
+        p.ttype = ttype;
+        match compile(store, m, count, dir == Direction::Tx) {
+            Ok((map, n, len)) => {
+                p.map = map;
+                p.n = n;
+                p.len = len;
+                p.valid = cob & COB_INVALID == 0;
+            }
+            Err(_) => {
+                p.n = 0;
+                p.len = 0;
+                p.valid = false;
+            }
+        }
+        p.has_last = false;
+        p.sync_count = 0;
+        p.rx_pending = false;
+    }
+
+    /// Rebuild every PDO.
+    pub fn refresh_all(&mut self, store: &Store) {
+        for k in 0..4 {
+            self.refresh(store, k, Direction::Rx);
+            self.refresh(store, k, Direction::Tx);
+        }
+    }
+
+    /// Entering operational: forget what was sent and received before.
+    pub fn restart(&mut self) {
+        for p in self.tpdo.iter_mut().chain(self.rpdo.iter_mut()) {
+            p.has_last = false;
+            p.sync_count = 0;
+            p.rx_pending = false;
+        }
+    }
+
+    /// An SDO write to a PDO parameter (0x1400..=0x1BFF), after type and limits were
+    /// checked: `None` when `index` is not a PDO parameter, else the outcome (the value is
+    /// stored and the PDO rebuilt when the rules accept it).
+    pub fn write(
+        &mut self,
+        store: &mut Store,
+        row: usize,
+        index: u16,
+        sub: u8,
+        raw: u32,
+    ) -> Option<Result<(), u32>> {
+        let slot = layout::Slot::of(index)?;
+        Some(rules::check_write(store, slot, sub, raw).map(|()| {
+            store.set(row, raw);
+            self.refresh(store, slot.number, slot.dir);
+        }))
+    }
+}
+
+/// Send through `out` the frame of TPDO `k` with its current data.
+pub(crate) fn send(p: &mut Pdo, store: &Store, now_us: u64, out: &mut impl FnMut(CanFrame)) {
+    let mut d = [0u8; 8];
+    let n = p.pack(store, &mut d);
+    p.last = d;
+    p.has_last = true;
+    p.last_tx_us = Some(now_us);
+    out(CanFrame::new(p.id(), &d[..n]));
+}

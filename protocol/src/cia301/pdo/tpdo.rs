@@ -1,0 +1,103 @@
+//! TPDO transmission: at SYNC (types 0, 1..=240, sampling for 252), on RTR (252, 253), and
+//! event-driven (254, 255) limited by the inhibit time and refreshed by the event timer.
+
+use super::{layout, send, Direction, PdoEngine, TransmissionType};
+use crate::frame::CanFrame;
+use crate::od::Store;
+
+impl PdoEngine {
+    /// At SYNC in operational.
+    pub fn on_sync(&mut self, store: &Store, now_us: u64, out: &mut impl FnMut(CanFrame)) {
+        for p in self.tpdo.iter_mut() {
+            if !p.valid {
+                continue;
+            }
+            match p.ttype {
+                TransmissionType::SyncAcyclic if p.changed(store) => {
+                    send(p, store, now_us, out);
+                }
+                TransmissionType::SyncCyclic(n) => {
+                    p.sync_count = p.sync_count.saturating_add(1);
+                    if p.sync_count >= n {
+                        p.sync_count = 0;
+                        send(p, store, now_us, out);
+                    }
+                }
+                TransmissionType::RtrSync => {
+                    let mut d = [0u8; 8];
+                    p.pack(store, &mut d);
+                    p.sampled = d;
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// A remote frame in operational: answer it if a TPDO of type 252/253 has its
+    /// identifier (252 with the data sampled at the last SYNC). Returns whether one did.
+    pub fn on_rtr(
+        &mut self,
+        store: &Store,
+        frame: &CanFrame,
+        now_us: u64,
+        out: &mut impl FnMut(CanFrame),
+    ) -> bool {
+        for p in self.tpdo.iter_mut() {
+            if !(p.valid && frame.rtr && p.id() == frame.id && p.ttype.is_rtr()) {
+                continue;
+            }
+            if p.ttype == TransmissionType::RtrSync {
+                out(CanFrame::new(p.id(), &p.sampled[..p.len as usize]));
+            } else {
+                send(p, store, now_us, out);
+            }
+            return true;
+        }
+        false
+    }
+
+    /// Event-driven TPDOs, every poll in operational: send on change once the inhibit time
+    /// has passed, and when the event timer expires.
+    pub fn poll_events(&mut self, store: &Store, now_us: u64, out: &mut impl FnMut(CanFrame)) {
+        for k in 0..4 {
+            let p = &mut self.tpdo[k];
+            if !p.valid || !p.ttype.is_event() {
+                continue;
+            }
+            let (inhibit, timer) = timers_us(store, k);
+            let inhibit_ok = p.last_tx_us.is_none_or(|l| now_us >= l + inhibit);
+            let timer_due = timer > 0 && p.last_tx_us.is_none_or(|l| now_us >= l + timer);
+            if inhibit_ok && (p.changed(store) || timer_due) {
+                send(p, store, now_us, out);
+            }
+        }
+    }
+
+    /// When event-driven TPDO `k` next needs a look: its event timer, or the end of its
+    /// inhibit time when its data changed meanwhile; `now_us` when it never sent.
+    pub fn deadline_us(&self, store: &Store, k: usize, now_us: u64) -> Option<u64> {
+        let p = &self.tpdo[k];
+        if !p.valid || !p.ttype.is_event() {
+            return None;
+        }
+        let Some(last) = p.last_tx_us else {
+            return Some(now_us);
+        };
+        let (inhibit, timer) = timers_us(store, k);
+        let mut at = (timer > 0).then(|| (last + timer).max(last + inhibit));
+        if p.changed(store) {
+            let t = last + inhibit;
+            at = Some(at.map_or(t, |a| a.min(t)));
+        }
+        at
+    }
+}
+
+/// Inhibit time and event timer of TPDO `k`, us.
+fn timers_us(store: &Store, k: usize) -> (u64, u64) {
+    let c = layout::comm_row(k, Direction::Tx);
+    (
+        store.u32(c + layout::INHIBIT_TIME) as u64 * 100,
+        store.u32(c + layout::EVENT_TIMER) as u64 * 1000,
+    )
+}
