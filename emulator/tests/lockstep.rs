@@ -118,3 +118,41 @@ fn batched_frames_give_the_same_run_as_one_period_at_a_time() {
         );
     }
 }
+
+#[test]
+fn loop_statistics_are_live_in_lock_step() {
+    // A master reading 0x2100 sub 1 (ticks) in the middle of a lock-step run sees the ticks
+    // run so far, not 0 until the loop stops.
+    let mut eps = InProcBus::endpoints(2, 1 << 16);
+    let mut peer = eps.pop().unwrap();
+    let mut rt = Runtime::new(eps.pop().unwrap(), vec![axis()], 1000);
+    rt.boot();
+    let syncs = 1000u64;
+    for _ in 0..syncs {
+        peer.send(&CanFrame::new(0x80, &[])).unwrap();
+    }
+    let n = u32::from(NODE);
+    peer.send(&CanFrame::new(
+        0x600 + n,
+        &[0x40, 0x00, 0x21, 0x01, 0, 0, 0, 0],
+    ))
+    .unwrap();
+    let stop = AtomicBool::new(false);
+    rt.run_lockstep(1000, &stop, |rt| {
+        if rt.sim_time_us >= syncs * 1000 {
+            stop.store(true, Ordering::Relaxed);
+        }
+    });
+    let mut ticks = None;
+    while let Ok(Some(f)) = peer.recv() {
+        if f.id == 0x580 + n && f.data[..4] == [0x43, 0x00, 0x21, 0x01] {
+            ticks = Some(u32::from_le_bytes(f.data[4..8].try_into().unwrap()));
+        }
+    }
+    let ticks = ticks.expect("no SDO answer for 0x2100 sub 1");
+    // Refreshed every 256 ticks: within 256 of the 1000 run when the request came.
+    assert!(
+        ticks as u64 > syncs - 256 && ticks as u64 <= syncs,
+        "0x2100:1 read {ticks} after {syncs} lock-step ticks"
+    );
+}

@@ -163,4 +163,8 @@ pub trait Drive {
     /// Clear latched hardware faults on a CiA 402 fault reset. Returns false while the cause
     /// persists (the node then stays in FAULT).
     fn reset_fault(&mut self) -> bool;
+    /// NMT reset node: the drive's application resets as well (parameters back to their
+    /// power-on values, state re-initialised at rest). Latched faults whose cause is gone
+    /// clear. The default does nothing.
+    fn reset(&mut self) {}
 }

@@ -462,10 +462,12 @@ impl Node {
         self.core.observe();
     }
 
-    fn nmt_command(&mut self, cmd: NmtCommand, now_us: u64) {
+    fn nmt_command(&mut self, cmd: NmtCommand, now_us: u64, drive: &mut impl Drive) {
         let c = &mut self.core;
         match cmd {
             NmtCommand::ResetNode => {
+                // The application resets too: the drive re-initialises its axis.
+                drive.reset();
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
                 c.cia = Cia402::new(f);
@@ -525,7 +527,7 @@ impl Node {
         if id == 0 {
             return match nmt::decode(frame, self.core.node_id) {
                 Some(cmd) => {
-                    self.nmt_command(cmd, now_us);
+                    self.nmt_command(cmd, now_us, drive);
                     FrameEvent::Handled
                 }
                 None => FrameEvent::Ignored,

@@ -73,6 +73,36 @@ fn pp_handshake_trapezoid_and_target_reached() {
 }
 
 #[test]
+fn pp_internal_limit_bit_is_held_while_the_clamped_target_is_in_force() {
+    // A master polling the statusword at any time during the clamped move (and after it
+    // stops at the limit) sees bit 11; a target inside the limits clears it.
+    let mut b = pp_bench();
+    b.w32(0x607D, 2, 4500).unwrap();
+    b.w32(0x607D, 1, (-100i32) as u32).unwrap();
+    b.w32(0x607A, 0, 9000).unwrap();
+    b.cw(0x1F);
+    b.tick();
+    b.cw(0x0F);
+    for i in 0..1000 {
+        b.tick();
+        assert!(
+            b.node.statusword() & (1 << 11) != 0,
+            "bit 11 dropped {i} ticks after the clamped set-point"
+        );
+    }
+    assert_eq!(b.node.position_actual(), 4500);
+    b.w32(0x607A, 0, 1000).unwrap();
+    b.cw(0x1F);
+    b.tick();
+    b.cw(0x0F);
+    b.ticks(10);
+    assert!(
+        b.node.statusword() & (1 << 11) == 0,
+        "a target inside the limits clears bit 11"
+    );
+}
+
+#[test]
 fn pp_change_set_immediately_vs_buffered() {
     let mut b = pp_bench();
     b.w32(0x607A, 0, 10_000).unwrap();

@@ -90,10 +90,16 @@ impl Encoder {
         if self.params.noise_counts > 0.0 {
             c += self.params.noise_counts * self.rng.normal();
         }
-        // floor without a libm call (no SSE4.1 on the baseline target).
+        // floor without a libm call (no SSE4.1 on the baseline target). The cast saturates
+        // (NaN gives 0); an absurd position saturates the count instead of overflowing, and
+        // the drive's supervision faults on it.
         let t = c as i64;
-        let floor = if (t as f64) > c { t - 1 } else { t };
-        self.last = floor + self.glitch;
+        let floor = if (t as f64) > c {
+            t.saturating_sub(1)
+        } else {
+            t
+        };
+        self.last = floor.saturating_add(self.glitch);
         self.last
     }
 
@@ -120,7 +126,7 @@ impl Encoder {
     /// A count glitch: the reading jumps by `counts` from now on (as a missed/extra count
     /// burst on an incremental track does).
     pub fn inject_glitch(&mut self, counts: i64) {
-        self.glitch += counts;
+        self.glitch = self.glitch.saturating_add(counts);
     }
 
     /// Clear accumulated glitches (e.g. on re-homing).
@@ -162,6 +168,25 @@ mod tests {
         e.set_signal_lost(false);
         e.inject_glitch(7);
         assert_eq!(e.read(1e-3), 1007);
+    }
+
+    #[test]
+    fn absurd_positions_saturate_instead_of_overflowing() {
+        // Overflow-checked arithmetic (debug build): no panic for any position.
+        let mut e = Encoder::new(EncoderParams {
+            counts_per_unit: 1e6,
+            offset: 0.0,
+            noise_counts: 0.0,
+            seed: 1,
+        });
+        assert_eq!(e.read(-1e300), i64::MIN);
+        assert_eq!(e.read(1e300), i64::MAX);
+        assert_eq!(e.read(f64::NEG_INFINITY), i64::MIN);
+        assert_eq!(e.read(f64::NAN), 0);
+        e.inject_glitch(5);
+        assert_eq!(e.read(1e300), i64::MAX);
+        e.inject_glitch(-10);
+        assert_eq!(e.read(-1e300), i64::MIN);
     }
 
     #[test]

@@ -49,6 +49,41 @@ pub struct DemoArgs {
     pub node: u8,
 }
 
+/// Check the numeric flags before anything runs.
+fn validate(args: &DemoArgs) -> Result<()> {
+    let cfg =
+        AxisConfig::from_preset(&args.preset).map_err(|e| anyhow::anyhow!("--preset: {e}"))?;
+    let rotary = cfg.kind == crate::presets::AxisKind::Rotary;
+    let (max_gap, unit) = if rotary {
+        (crate::presets::MAX_BACKLASH_RAD.to_degrees(), "deg")
+    } else {
+        (crate::presets::MAX_BACKLASH_M * 1e3, "mm")
+    };
+    anyhow::ensure!(
+        args.backlash.is_finite() && (0.0..=max_gap).contains(&args.backlash),
+        "--backlash {}: must be within 0..={max_gap} {unit} (a worn drive train shows 0.01-0.1 \
+         mm; the drive's 0x2000 accepts no more)",
+        args.backlash
+    );
+    // The constant-speed segment must stay below the motor's maximum speed.
+    let built = cfg.build().map_err(|e| anyhow::anyhow!("--preset: {e}"))?;
+    let per_unit = if rotary { 1f64.to_radians() } else { 1e-3 };
+    let v_max = built.axis.motor.max_speed / built.axis.mech.ratio / per_unit;
+    anyhow::ensure!(
+        args.velocity.is_finite() && args.velocity > 0.0 && args.velocity <= v_max,
+        "--velocity {}: must be > 0 and <= {v_max:.1} {unit}/s (the motor's maximum speed on \
+         this preset)",
+        args.velocity
+    );
+    anyhow::ensure!(
+        args.cruise_s.is_finite() && args.cruise_s >= 1.0 && args.cruise_s <= 600.0,
+        "--cruise-s {}: must be within 1..=600 s (the analysis needs at least 1 s of constant \
+         speed; the master keeps every sample in memory)",
+        args.cruise_s
+    );
+    Ok(())
+}
+
 /// The analysis of one run, from what the master received.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct RunReport {
@@ -240,6 +275,7 @@ fn chart(values: &[f64], lo: f64, hi: f64, rows: usize) -> Vec<String> {
 }
 
 pub fn run(args: &DemoArgs) -> Result<()> {
+    validate(args)?;
     let unit = if AxisConfig::from_preset(&args.preset)?
         .backlash_deg
         .is_some()

@@ -78,6 +78,48 @@ pub struct RunArgs {
     pub trace: Option<PathBuf>,
 }
 
+/// Longest `--duration` accepted, s (about 31 years: beyond it the number is a typo).
+pub const MAX_DURATION_S: f64 = 1e9;
+/// Longest `--sync-period-us` accepted: CiA 301 0x1006 is in us; a SYNC slower than 1 s is
+/// no longer a control cycle.
+pub const MAX_SYNC_PERIOD_US: u64 = 1_000_000;
+
+/// Check the numeric flags that the machine file does not cover.
+pub fn validate_args(args: &RunArgs) -> Result<()> {
+    if let Some(d) = args.duration {
+        if !(d.is_finite() && d > 0.0 && d <= MAX_DURATION_S) {
+            bail!(
+                "--duration {d}: must be a number of seconds > 0 and <= {MAX_DURATION_S:e} (omit \
+                 it to run until Ctrl-C / SIGTERM)"
+            );
+        }
+    }
+    if !(0..=99).contains(&args.rt_priority) {
+        bail!(
+            "--rt-priority {}: must be 0..=99 (SCHED_FIFO priorities; 0 = normal scheduling)",
+            args.rt_priority
+        );
+    }
+    if let Some(cpu) = args.cpu {
+        let n = std::thread::available_parallelism().map_or(1, |n| n.get());
+        if cpu >= n {
+            bail!("--cpu {cpu}: this machine has CPUs 0..={}", n - 1);
+        }
+    }
+    if let (true, Some(p)) = (args.lockstep, args.sync_period_us) {
+        let tick_us = 1_000_000 / u64::from(args.tick_hz.max(1));
+        if p == 0 || p > MAX_SYNC_PERIOD_US || p % tick_us != 0 {
+            bail!(
+                "--sync-period-us {p}: must be a whole multiple of the tick period ({tick_us} us \
+                 at --tick-hz {}) between {tick_us} and {MAX_SYNC_PERIOD_US} us: each SYNC \
+                 advances simulated time by whole ticks",
+                args.tick_hz
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Build the nodes and drives of a machine.
 pub fn build_axes(entries: &[AxisEntry]) -> Result<Vec<AxisSlot<AxisDrive>>> {
     entries
@@ -311,6 +353,7 @@ pub fn print_outcome(o: &LiveOutcome) {
 /// Run the drive(s) on the bus; with a scenario, inject its timeline into axis 0 and return
 /// what it found.
 pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> {
+    validate_args(args)?;
     let machine = match scenario {
         // The scenario's machine: its first preset with the file's overrides applied.
         Some(s) => {

@@ -53,6 +53,11 @@ pub struct ScenarioArgs {
 }
 
 pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(
+        args.idle_dwell.is_finite() && args.idle_dwell > 0.0 && args.idle_dwell <= 60.0,
+        "--idle-dwell {}: must be within 0..=60 s (> 0: the physical time an idle step keeps)",
+        args.idle_dwell
+    );
     if let Some(iface) = &args.iface {
         return run_live(args, iface);
     }

@@ -38,16 +38,77 @@ pub struct SimArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Memory cap for the samples the run keeps for its analysis (and the trace), MB. A run
+    /// needing more is refused before it starts.
+    #[arg(long, default_value_t = DEFAULT_MAX_MEMORY_MB)]
+    pub max_memory_mb: f64,
+}
+
+/// Default of `--max-memory-mb`: about an hour of samples at a 1 ms position cycle.
+pub const DEFAULT_MAX_MEMORY_MB: f64 = 512.0;
+/// Bytes kept per sample (nine f64 columns of the trace).
+const BYTES_PER_SAMPLE: f64 = 9.0 * 8.0;
+/// Bytes per CSV row of `--trace`, about.
+const CSV_BYTES_PER_SAMPLE: f64 = 110.0;
+/// Largest |velocity| accepted, axis units/s: a feed axis above 1000 mm/s (60 m/min) or a
+/// table above 1000 deg/s is beyond any of the presets' motors.
+const MAX_VELOCITY: f64 = 1000.0;
+
+/// Check the numeric flags: finite, in range, and a run that fits the memory cap.
+fn validate(args: &SimArgs, cycle_s: f64) -> anyhow::Result<()> {
+    let v = args.velocity;
+    anyhow::ensure!(
+        v.is_finite() && v.abs() <= MAX_VELOCITY,
+        "--velocity {v}: must be a finite number within +-{MAX_VELOCITY} axis units/s (mm/s or          deg/s)"
+    );
+    anyhow::ensure!(
+        args.duration.is_finite() && args.duration > 0.0,
+        "--duration {}: must be a finite number of seconds > 0",
+        args.duration
+    );
+    anyhow::ensure!(
+        args.accel.is_finite() && args.accel >= 0.0,
+        "--accel {}: must be a finite acceleration >= 0 axis units/s^2 (0 = reach the velocity          in 0.1 s)",
+        args.accel
+    );
+    if let Some(k) = args.kick {
+        anyhow::ensure!(
+            k.is_finite() && k.abs() <= MAX_VELOCITY,
+            "--kick {k}: must be a finite velocity change within +-{MAX_VELOCITY} axis units/s"
+        );
+    }
+    anyhow::ensure!(
+        args.max_memory_mb.is_finite() && args.max_memory_mb > 0.0,
+        "--max-memory-mb {}: must be > 0",
+        args.max_memory_mb
+    );
+    let samples = (args.duration / cycle_s).ceil();
+    let mb = samples * BYTES_PER_SAMPLE / 1e6;
+    if mb > args.max_memory_mb {
+        let max_s = args.max_memory_mb * 1e6 / BYTES_PER_SAMPLE * cycle_s;
+        anyhow::bail!(
+            "--duration {} s needs {samples:.0} samples ({mb:.0} MB in memory{}): above the cap              of {} MB (--max-memory-mb); at this preset's {} us position cycle the cap allows              {max_s:.0} s. Shorten --duration or raise --max-memory-mb.",
+            args.duration,
+            if args.trace.is_some() {
+                format!(", a {:.0} MB trace", samples * CSV_BYTES_PER_SAMPLE / 1e6)
+            } else {
+                String::new()
+            },
+            args.max_memory_mb,
+            cycle_s * 1e6,
+        );
+    }
+    Ok(())
 }
 
 pub fn run(args: &SimArgs) -> anyhow::Result<()> {
     let cfg = AxisConfig::from_preset(&args.preset)
         .and_then(|c| c.with_overrides(args.set.iter().map(String::as_str)))
         .map_err(|e| anyhow::anyhow!("invalid configuration: {e}"))?;
-    anyhow::ensure!(
-        args.duration > 0.0 && args.duration.is_finite(),
-        "--duration must be > 0"
-    );
+    let built = cfg
+        .build()
+        .map_err(|e| anyhow::anyhow!("invalid configuration: {e}"))?;
+    validate(args, built.control.position_cycle)?;
     let opts = RunOptions {
         velocity: args.velocity,
         duration: args.duration,

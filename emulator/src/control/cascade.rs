@@ -120,6 +120,14 @@ pub struct Cascade {
     pub estimator: SpeedEstimator,
     last_kind: u8,
     out: CascadeOutputs,
+    /// Both encoders as sampled at the start of the last position cycle (the same instant),
+    /// counts: what the drive reports as 0x6063 / 0x60E4, so a master comparing the two
+    /// measuring systems sees no skew.
+    sampled_motor: i64,
+    sampled_direct: i64,
+    /// The motor reading of the position-cycle sample, used by the first speed cycle (same
+    /// instant: one reading, not two).
+    fresh_motor: Option<i64>,
 }
 
 impl Cascade {
@@ -135,7 +143,33 @@ impl Cascade {
             ),
             last_kind: 0,
             out: CascadeOutputs::default(),
+            sampled_motor: 0,
+            sampled_direct: 0,
+            fresh_motor: None,
         }
+    }
+
+    /// Motor and direct encoder counts sampled at the same instant (start of the last
+    /// position cycle).
+    pub fn sampled_counts(&self) -> (i64, i64) {
+        (self.sampled_motor, self.sampled_direct)
+    }
+
+    /// Sample both encoders now (both live whichever closes the position loop).
+    #[inline(always)]
+    fn sample(&mut self, axis: &mut Axis) {
+        self.sampled_motor = axis.read_motor_encoder();
+        self.sampled_direct = axis.read_direct_encoder();
+        self.fresh_motor = Some(self.sampled_motor);
+    }
+
+    /// Forget the controller state (estimator, integrator, following error, outputs), as at
+    /// power-up, and sample the encoders at the axis' present position.
+    pub fn reset(&mut self, axis: &mut Axis) {
+        let counts_per_rad = axis.motor_encoder.params.counts_per_unit;
+        *self = Cascade::new(self.params, counts_per_rad);
+        self.sample(axis);
+        self.fresh_motor = None;
     }
 
     pub fn outputs(&self) -> &CascadeOutputs {
@@ -173,11 +207,10 @@ impl Cascade {
     pub fn position_cycle(&mut self, axis: &mut Axis, cmd: &Command) {
         self.switch_mode(&cmd.setpoint);
         let ratio = axis.ratio();
+        self.sample(axis);
         let actual = if self.params.position_from_direct {
-            axis.read_direct_encoder();
             axis.direct_encoder.position()
         } else {
-            axis.read_motor_encoder();
             axis.motor_encoder.position() / ratio
         };
         self.out.position_actual = actual;
@@ -200,7 +233,10 @@ impl Cascade {
     /// Speed cycle: sample the motor encoder, run the speed PI, set the motor's torque demand.
     #[inline(always)]
     pub fn speed_cycle(&mut self, axis: &mut Axis, cmd: &Command) {
-        let counts = axis.read_motor_encoder();
+        let counts = match self.fresh_motor.take() {
+            Some(c) => c,
+            None => axis.read_motor_encoder(),
+        };
         let w = self.estimator.update(counts);
         self.out.motor_velocity = w;
         let limit = cmd.torque_limit.abs().min(axis.motor.torque_limit());
@@ -354,6 +390,15 @@ impl Servo {
     }
     pub fn set_position_from_direct(&mut self, direct: bool) {
         self.cascade.params.position_from_direct = direct;
+    }
+
+    /// Re-initialise the state at rest at `load_position` (m or rad): both masses still, the
+    /// gap centred, power stage off, controllers as at power-up. Parameters are kept.
+    pub fn reset_at_rest(&mut self, load_position: f64) {
+        self.axis.set_position(load_position);
+        self.axis.motor.disable();
+        self.cascade.reset(&mut self.axis);
+        self.command = Command::DISABLED;
     }
 
     // ---- what a drive reports (encoder-based, SI) ----

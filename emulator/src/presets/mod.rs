@@ -168,6 +168,23 @@ fn positive(key: &str, v: f64) -> Result<f64, ConfigError> {
     }
 }
 
+/// Largest backlash a configuration (and the drive's 0x2000) accepts: 10 mm on a linear
+/// axis, 0.1 rad (5.7 deg) on a rotary one; worn machines show 0.01-0.1 mm.
+pub const MAX_BACKLASH_M: f64 = 0.01;
+pub const MAX_BACKLASH_RAD: f64 = 0.1;
+
+/// `v <= max`, else an error naming the key, the value, the limit and why.
+fn at_most(key: &str, v: f64, max: f64, why: &str) -> Result<f64, ConfigError> {
+    if v > max {
+        Err(ConfigError::new(
+            key,
+            format!("must be <= {max:.6}, got {v}: {why}"),
+        ))
+    } else {
+        Ok(v)
+    }
+}
+
 fn non_negative(key: &str, v: f64) -> Result<f64, ConfigError> {
     if !v.is_finite() {
         Err(ConfigError::new(
@@ -357,13 +374,21 @@ impl AxisConfig {
             ("backlash_mm", self.backlash_mm),
             ("backlash_deg", self.backlash_deg),
         )?;
-        let backlash = non_negative(
-            if rotary {
-                "backlash_deg"
-            } else {
-                "backlash_mm"
-            },
-            backlash,
+        let backlash_key = if rotary {
+            "backlash_deg"
+        } else {
+            "backlash_mm"
+        };
+        let max_gap = if rotary {
+            MAX_BACKLASH_RAD
+        } else {
+            MAX_BACKLASH_M
+        };
+        let backlash = at_most(
+            backlash_key,
+            non_negative(backlash_key, backlash)?,
+            max_gap / unit,
+            "a worn drive train shows 0.01-0.1 mm; the drive's 0x2000 accepts no more either",
         )? * unit;
         let stiffness = pick(
             kind,
@@ -541,7 +566,21 @@ impl AxisConfig {
 
         let kv = positive("kv_per_s", self.kv_per_s)?;
         let kp = positive("speed_kp_nms_per_rad", self.speed_kp_nms_per_rad)?;
-        let ti = non_negative("speed_ti_ms", self.speed_ti_ms)? * 1e-3;
+        let ti_ms = positive("speed_ti_ms", self.speed_ti_ms).map_err(|e| {
+            ConfigError::new(
+                "speed_ti_ms",
+                format!(
+                    "{} (the speed PI's integral time; the integral gain is k_sp * cycle / T_si)",
+                    e.reason
+                ),
+            )
+        })?;
+        let ti = at_most(
+            "speed_ti_ms",
+            ti_ms,
+            10_000.0,
+            "the drive's 0x2009 accepts at most 10 s",
+        )? * 1e-3;
         let filter = non_negative("speed_filter_ms", self.speed_filter_ms)? * 1e-3;
         let h = positive("physics_step_us", self.physics_step_us)? * 1e-6;
         let speed_cycle = positive("speed_cycle_us", self.speed_cycle_us)? * 1e-6;
@@ -555,6 +594,22 @@ impl AxisConfig {
                 ),
             ));
         }
+        // A discrete P loop x += k_v T e converges monotonically only for k_v T < 1.
+        at_most(
+            "kv_per_s",
+            kv,
+            1.0 / position_cycle,
+            "k_v times the position cycle must stay below 1 for a stable discrete position loop",
+        )?;
+        // Inside the backlash gap the motor turns alone: the discrete speed loop on J_m is
+        // stable only for k_sp T / J_m < 2.
+        at_most(
+            "speed_kp_nms_per_rad",
+            kp,
+            2.0 * jm / speed_cycle,
+            "k_sp times the speed cycle over the motor inertia must stay below 2 for a stable \
+             discrete speed loop",
+        )?;
         if cycle_ratio(position_cycle, speed_cycle).is_none() {
             return Err(ConfigError::new(
                 "position_cycle_us",
@@ -599,6 +654,29 @@ impl AxisConfig {
                      (omega_n h <= 0.5, c h / m_red <= 0.5)",
                     self.physics_step_us,
                     max_step * 1e6
+                ),
+            ));
+        }
+        // Softer than this, the motor's peak force deflects the drive train by more than the
+        // largest backlash accepted: no longer a drive train (the drive's 0x2001 likewise).
+        let peak_force = kt * max_current * ratio;
+        let min_stiffness = peak_force / max_gap;
+        if stiffness < min_stiffness {
+            let (key, scale) = if rotary {
+                (
+                    "stiffness_nm_per_arcsec",
+                    std::f64::consts::PI / (180.0 * 3600.0),
+                )
+            } else {
+                ("stiffness_n_per_um", 1e-6)
+            };
+            return Err(ConfigError::new(
+                key,
+                format!(
+                    "must be >= {:.6}, got {}: the motor's peak force would deflect the drive \
+                     train by more than the largest backlash accepted",
+                    min_stiffness * scale,
+                    stiffness * scale
                 ),
             ));
         }

@@ -24,7 +24,7 @@ const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 const W: u32 = 1000;
 const H: u32 = 600;
 
-fn font_ready() {
+pub(crate) fn font_ready() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         // Cannot fail for the embedded font; if it did, plots would lack text only.
@@ -381,6 +381,7 @@ pub fn plot_amplitude_trend(
         use crate::analysis::detector::Verdict;
         let orange = RGBColor(230, 140, 0);
         let colour = |v: Verdict| match v {
+            Verdict::Inconclusive => RGBColor(128, 128, 128),
             Verdict::Ok => BLUE,
             Verdict::BacklashSuspected => orange,
             Verdict::Backlash => RED,
@@ -399,7 +400,12 @@ pub fn plot_amplitude_trend(
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
         }
         // One legend entry per verdict colour, drawn with the windows of that level.
-        for v in [Verdict::Ok, Verdict::BacklashSuspected, Verdict::Backlash] {
+        for v in [
+            Verdict::Inconclusive,
+            Verdict::Ok,
+            Verdict::BacklashSuspected,
+            Verdict::Backlash,
+        ] {
             if !rep.windows.iter().any(|w| w.level == v) {
                 continue;
             }

@@ -15,6 +15,39 @@ use super::SimulatedDrive;
 
 /// CiA 402 error code for an encoder (sensor) fault.
 pub const ERROR_SENSOR: u16 = 0x7300;
+/// Overcurrent (CiA 402 0x2310, continuous overcurrent): the motor current left the power
+/// stage's range.
+pub const ERROR_OVERCURRENT: u16 = 0x2310;
+/// Overspeed (CiA 402 0x8400, velocity speed controller): motor speed, or the load's speed
+/// seen at the motor, beyond the motor's maximum speed times [`OVERSPEED_MARGIN`].
+pub const ERROR_OVERSPEED: u16 = 0x8400;
+/// Position range (CiA 402 0x8612, reference limit): the axis left the range the drive can
+/// report in 0x6064 (32-bit user units).
+pub const ERROR_POSITION_RANGE: u16 = 0x8612;
+/// Physics sanity (CiA 301 0x6100, internal software): the simulated state is not finite.
+pub const ERROR_PHYSICS: u16 = 0x6100;
+
+/// Overspeed trips at the motor's maximum speed (0x6080 default) times this, as a drive's
+/// n_max monitoring trips a margin above the speed limit the speed loop enforces.
+pub const OVERSPEED_MARGIN: f64 = 1.2;
+/// Overcurrent trips at the power stage's current limit times this (the current loop never
+/// exceeds the limit; beyond it the model has left its range).
+pub const OVERCURRENT_MARGIN: f64 = 1.2;
+/// Lowest damping the drive train may be given, as a fraction of critical damping: a steel
+/// drive train never has less (structural damping is about 0.5-5 %), and without damping the
+/// contact rings forever.
+pub const MIN_DAMPING_RATIO: f64 = 1e-3;
+
+/// Supervision thresholds, derived from the preset the drive was built from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Supervision {
+    /// Motor speed that trips [`ERROR_OVERSPEED`], rad/s.
+    pub overspeed_rad_per_s: f64,
+    /// Motor current that trips [`ERROR_OVERCURRENT`], A.
+    pub overcurrent_a: f64,
+    /// |load position| that trips [`ERROR_POSITION_RANGE`], m or rad.
+    pub position_range: f64,
+}
 
 /// User unit of the factor-group default: 1 um on a linear axis, 0.001 deg on a rotary one.
 pub const USER_UNIT_LINEAR_M: f64 = 1e-6;
@@ -44,6 +77,11 @@ pub struct AxisDrive {
     pending_us: f64,
     position_cycle_us: f64,
     fault_latched: bool,
+    /// Supervision fault latched (axis held at rest until a fault reset or reset node).
+    trip: Option<u16>,
+    supervision: Supervision,
+    /// The servo as built from the preset, at rest: what reset node restores.
+    initial: Servo,
 }
 
 /// `x` as a fraction n/d with d <= 1000, reduced.
@@ -96,9 +134,17 @@ impl AxisDrive {
             max_motor_speed_rpm: cfg.max_speed_rpm.round() as u32,
             rotary,
         };
+        let supervision = Supervision {
+            overspeed_rad_per_s: built.axis.motor.max_speed * OVERSPEED_MARGIN,
+            overcurrent_a: built.axis.motor.max_current * OVERCURRENT_MARGIN,
+            position_range: f64::from(i32::MAX) * user_unit,
+        };
         Ok(Self {
             position_cycle_us: built.control.position_cycle * 1e6,
+            initial: servo.clone(),
             servo,
+            trip: None,
+            supervision,
             info,
             inc_per_motor_rad,
             inc_per_load: inc_per_motor_rad * ratio,
@@ -138,6 +184,66 @@ impl AxisDrive {
     fn torque_nm(&self, permille: f64) -> f64 {
         permille * 1e-3 * self.rated_torque_nm
     }
+
+    /// The supervision thresholds in force.
+    pub fn supervision(&self) -> Supervision {
+        self.supervision
+    }
+
+    /// The latched supervision fault, if any.
+    pub fn supervision_fault(&self) -> Option<u16> {
+        self.trip
+    }
+
+    /// Highest force (N) or torque (N m) the motor can exert at the load.
+    pub fn peak_load_force(&self) -> f64 {
+        self.servo.axis.motor.torque_limit() * self.servo.axis.ratio()
+    }
+
+    /// Check the state after a position cycle, as a drive's monitoring does every cycle.
+    #[inline]
+    fn supervise(&self) -> Option<u16> {
+        let ax = &self.servo.axis;
+        let st = &ax.mech.state;
+        let finite = st.pos[0].is_finite()
+            && st.pos[1].is_finite()
+            && st.vel[0].is_finite()
+            && st.vel[1].is_finite()
+            && ax.motor.torque().is_finite();
+        if !finite {
+            return Some(ERROR_PHYSICS);
+        }
+        let lim = &self.supervision;
+        if ax.motor.current().abs() > lim.overcurrent_a {
+            return Some(ERROR_OVERCURRENT);
+        }
+        let measured = self.servo.motor_velocity();
+        if !measured.is_finite()
+            || measured.abs() > lim.overspeed_rad_per_s
+            || st.vel[0].abs() > lim.overspeed_rad_per_s
+            || (st.vel[1] * ax.ratio()).abs() > lim.overspeed_rad_per_s
+        {
+            return Some(ERROR_OVERSPEED);
+        }
+        if ax.direct_encoder.position().abs() > lim.position_range
+            || st.pos[1].abs() > lim.position_range
+        {
+            return Some(ERROR_POSITION_RANGE);
+        }
+        None
+    }
+
+    /// A sane place to put the axis at rest: the direct encoder's position, inside the
+    /// supervised range.
+    fn rest_position(&self) -> f64 {
+        let x = self.servo.axis.direct_encoder.position();
+        let r = self.supervision.position_range * 0.999;
+        if x.is_finite() {
+            x.clamp(-r, r)
+        } else {
+            0.0
+        }
+    }
 }
 
 fn check(value: f64, min: f64, max: f64) -> Result<f64, ParamError> {
@@ -156,9 +262,12 @@ impl Drive for AxisDrive {
     fn feedback(&self) -> Feedback {
         let s = &self.servo;
         let cps = self.inc_per_motor_rad;
+        // Both encoders as sampled at the same instant (start of the last position cycle).
+        let (motor_counts, direct_counts) = s.cascade.sampled_counts();
+        let direct_m = direct_counts as f64 / s.axis.direct_encoder.params.counts_per_unit;
         Feedback {
-            motor_position_inc: s.axis.motor_encoder.counts(),
-            direct_position_inc: (s.direct_encoder_position() * self.inc_per_load).round() as i64,
+            motor_position_inc: motor_counts,
+            direct_position_inc: (direct_m * self.inc_per_load).round() as i64,
             position_from_direct: s.cascade.params.position_from_direct,
             motor_velocity_inc_per_s: s.motor_velocity() * cps,
             velocity_demand_inc_per_s: s.velocity_demand() * cps,
@@ -167,7 +276,9 @@ impl Drive for AxisDrive {
             home_switch: s.axis.load_position() > self.home_switch_at,
             negative_limit_switch: false,
             positive_limit_switch: false,
-            drive_fault: (self.fault_latched || s.encoder_fault()).then_some(ERROR_SENSOR),
+            drive_fault: self
+                .trip
+                .or((self.fault_latched || s.encoder_fault()).then_some(ERROR_SENSOR)),
         }
     }
 
@@ -232,44 +343,61 @@ impl Drive for AxisDrive {
 
     fn set_param(&mut self, param: AxisParam, value: f64) -> Result<(), ParamError> {
         let rotary = self.info.rotary;
-        // Ranges: what a worn or faulty machine can physically show, in SI at the load.
-        let max_gap = if rotary { 0.1 } else { 0.01 }; // 5.7 deg / 10 mm
+        // Ranges: what a worn or faulty machine can physically show, in SI at the load, and
+        // what the physics step can integrate.
+        let max_gap = if rotary {
+            crate::presets::MAX_BACKLASH_RAD
+        } else {
+            crate::presets::MAX_BACKLASH_M
+        };
+        // The motor's peak force (torque) at the load bounds loads and friction: beyond it
+        // the motor could never hold or move the axis.
+        let f_peak = self.peak_load_force();
+        let v_max_load = self.servo.axis.motor.params.max_speed / self.servo.axis.ratio();
         let s = &mut self.servo;
         match param {
             AxisParam::Backlash => s.axis.set_backlash(check(value, 0.0, max_gap)?),
             AxisParam::Stiffness => {
-                let k = check(value, f64::MIN_POSITIVE, f64::MAX)?;
+                // Softer than this, the motor's peak force deflects the drive train by more
+                // than the largest backlash the drive accepts: no longer a drive train.
+                let min = f_peak / max_gap;
+                let k = check(value, min, f64::MAX)?;
                 s.axis
                     .set_stiffness(k)
                     .map_err(|e| ParamError::OutOfRange {
-                        min: 0.0,
+                        min,
                         // The stable step scales with 1/sqrt(k).
                         max: k * (e.max_step / e.step).powi(2),
                     })?;
             }
             AxisParam::Damping => {
-                let c = check(value, 0.0, f64::MAX)?;
-                s.axis.set_damping(c).map_err(|_| ParamError::OutOfRange {
-                    min: 0.0,
-                    max: s.axis.mech.params.contact.damping,
+                let m = &s.axis.mech.params;
+                let min = MIN_DAMPING_RATIO * 2.0 * (m.contact.stiffness * m.reduced_mass()).sqrt();
+                let c = check(value, min, f64::MAX)?;
+                s.axis.set_damping(c).map_err(|e| ParamError::OutOfRange {
+                    min,
+                    // c h / m_red <= 0.5: the limit scales with 1/h.
+                    max: c * e.max_step / e.step,
                 })?;
             }
             AxisParam::LoadCoulombFriction => {
                 let f = s.axis.mech.params.load_friction;
                 s.axis
-                    .set_load_friction(f.with_coulomb(check(value, 0.0, 1e7)?));
+                    .set_load_friction(f.with_coulomb(check(value, 0.0, f_peak)?));
             }
             AxisParam::LoadViscousFriction => {
                 let mut f = s.axis.mech.params.load_friction;
-                f.viscous = check(value, 0.0, 1e9)?;
+                // At the maximum speed the viscous force stays within the motor's force.
+                f.viscous = check(value, 0.0, f_peak / v_max_load)?;
                 s.axis.set_load_friction(f);
             }
             AxisParam::MotorCoulombFriction => {
                 let f = s.axis.mech.params.motor_friction;
+                let max = s.axis.motor.torque_limit();
                 s.axis
-                    .set_motor_friction(f.with_coulomb(check(value, 0.0, 1e4)?));
+                    .set_motor_friction(f.with_coulomb(check(value, 0.0, max)?));
             }
-            AxisParam::ExternalLoad => s.axis.set_external_load(check(value, -1e7, 1e7)?),
+            AxisParam::ExternalLoad => s.axis.set_external_load(check(value, -f_peak, f_peak)?),
             AxisParam::Kv => s.set_kv(check(value, 0.0, 1000.0)?),
             AxisParam::SpeedKp => {
                 let ti = s.cascade.params.speed_ti;
@@ -304,7 +432,27 @@ impl Drive for AxisDrive {
             return false;
         }
         self.fault_latched = false;
+        if self.trip.take().is_some() {
+            // Re-initialised at rest when it tripped; start again from there.
+            let x = self.rest_position();
+            self.servo.reset_at_rest(x);
+        }
         true
+    }
+
+    fn reset(&mut self) {
+        // Parameters back to the preset's, the state at rest where the direct encoder is;
+        // an injected encoder signal loss belongs to the machine and survives the reset.
+        let x = self.rest_position();
+        let motor_lost = self.servo.axis.motor_encoder.fault();
+        let direct_lost = self.servo.axis.direct_encoder.fault();
+        self.servo.clone_from(&self.initial);
+        self.servo.reset_at_rest(x);
+        self.servo.axis.motor_encoder.set_signal_lost(motor_lost);
+        self.servo.axis.direct_encoder.set_signal_lost(direct_lost);
+        self.trip = None;
+        self.fault_latched = motor_lost || direct_lost;
+        self.pending_us = 0.0;
     }
 }
 
@@ -313,8 +461,17 @@ impl SimulatedDrive for AxisDrive {
         self.pending_us += dt_us as f64;
         // Half a microsecond of slack absorbs rounding of non-integer cycle times.
         while self.pending_us + 0.5 >= self.position_cycle_us {
-            self.servo.step();
             self.pending_us -= self.position_cycle_us;
+            if self.trip.is_some() {
+                // Held at rest (power stage off, holding brake closed) until reset.
+                continue;
+            }
+            self.servo.step();
+            if let Some(code) = self.supervise() {
+                self.trip = Some(code);
+                let x = self.rest_position();
+                self.servo.reset_at_rest(x);
+            }
         }
     }
 }
@@ -405,5 +562,233 @@ mod tests {
         assert_eq!(d.feedback().drive_fault, Some(ERROR_SENSOR), "latched");
         assert!(d.reset_fault());
         assert_eq!(d.feedback().drive_fault, None);
+    }
+
+    fn torque_command(permille: f64) -> DriveCommand {
+        DriveCommand {
+            setpoint: Setpoint::Torque {
+                torque_permille: permille,
+            },
+            max_torque_permille: 3000.0,
+            max_velocity_inc_per_s: 0.0,
+        }
+    }
+
+    /// Run `ms` position cycles with `cmd`; the first supervision fault and when it came.
+    fn run_until_fault(d: &mut AxisDrive, cmd: &DriveCommand, ms: u64) -> Option<(u16, u64)> {
+        for t in 0..ms {
+            d.command(cmd);
+            d.advance(1000);
+            if let Some(code) = d.feedback().drive_fault {
+                return Some((code, t));
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn cst_at_full_torque_faults_on_overspeed_and_never_runs_away() {
+        // A drive's n_max monitoring: at full torque with nothing to resist, the motor must
+        // fault a margin above its maximum speed, on every preset, and stay there.
+        for name in ["cnc1", "cnc2", "cnc3", "cnc4", "cnc5"] {
+            let mut d = cnc(name);
+            let max = d.supervision().overspeed_rad_per_s;
+            let mut peak = 0.0f64;
+            let mut fault = None;
+            // 100 s simulated at full (peak) torque.
+            for _ in 0..100_000 {
+                d.command(&torque_command(10_000.0));
+                d.advance(1000);
+                peak = peak.max(d.servo.axis.motor_speed().abs());
+                if let Some(code) = d.feedback().drive_fault {
+                    fault.get_or_insert(code);
+                }
+            }
+            assert_eq!(fault, Some(ERROR_OVERSPEED), "{name}");
+            // One position cycle of overshoot at most beyond the threshold.
+            assert!(
+                peak < max * 1.5,
+                "{name}: peak {peak} rad/s, trips at {max}"
+            );
+            let fb = d.feedback();
+            assert!(
+                fb.motor_velocity_inc_per_s.abs() < 1.0,
+                "{name}: held at rest"
+            );
+        }
+    }
+
+    #[test]
+    fn normal_operation_does_not_trip_supervision() {
+        // Full-speed positioning with the preset's own limits: no fault.
+        for name in ["cnc1", "cnc2", "cnc3", "cnc4", "cnc5"] {
+            let mut d = cnc(name);
+            let target_inc = 0.02 * d.inc_per_load(); // 20 mm or 1.1 deg
+            let cmd = DriveCommand {
+                setpoint: Setpoint::Position {
+                    position_inc: target_inc,
+                    velocity_ff_inc_per_s: 0.0,
+                    torque_ff_permille: 0.0,
+                },
+                max_torque_permille: 3000.0,
+                max_velocity_inc_per_s: 0.0,
+            };
+            assert_eq!(run_until_fault(&mut d, &cmd, 3000), None, "{name}");
+        }
+    }
+
+    #[test]
+    fn unphysical_parameters_are_refused_with_the_limit_that_applies() {
+        for name in ["cnc1", "cnc2", "cnc3", "cnc4", "cnc5"] {
+            let mut d = cnc(name);
+            // The preset itself is inside the limits.
+            for p in [
+                AxisParam::Stiffness,
+                AxisParam::Damping,
+                AxisParam::LoadCoulombFriction,
+                AxisParam::LoadViscousFriction,
+                AxisParam::MotorCoulombFriction,
+                AxisParam::ExternalLoad,
+            ] {
+                let v = d.param(p).unwrap();
+                d.set_param(p, v)
+                    .unwrap_or_else(|e| panic!("{name}: preset {p:?} = {v} refused: {e:?}"));
+            }
+            let too_low = |r| matches!(r, Err(ParamError::OutOfRange { min, .. }) if min > 0.0);
+            assert!(too_low(d.set_param(AxisParam::Damping, 0.0)), "{name}");
+            assert!(too_low(d.set_param(AxisParam::Stiffness, 1e-24)), "{name}");
+            let f = d.peak_load_force();
+            for (p, v) in [
+                (AxisParam::ExternalLoad, 1.01 * f),
+                (AxisParam::ExternalLoad, -1.01 * f),
+                (AxisParam::LoadCoulombFriction, 1.01 * f),
+                (AxisParam::LoadCoulombFriction, -1.0),
+                (AxisParam::LoadViscousFriction, -1.0),
+                (AxisParam::LoadViscousFriction, 1e12),
+                (AxisParam::MotorCoulombFriction, -1.0),
+                (AxisParam::MotorCoulombFriction, 1e6),
+                (AxisParam::Damping, f64::INFINITY),
+                (AxisParam::Stiffness, f64::NAN),
+            ] {
+                let before = d.param(p).unwrap();
+                assert!(
+                    matches!(d.set_param(p, v), Err(ParamError::OutOfRange { .. })),
+                    "{name}: {p:?} = {v} accepted"
+                );
+                assert_eq!(d.param(p).unwrap(), before, "{name}: refused but changed");
+            }
+            // Loads the motor can hold are accepted.
+            d.set_param(AxisParam::ExternalLoad, 0.5 * f).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_runaway_faults_and_reset_node_restores_the_preset_at_rest() {
+        // The sequence: the writes that would make the model unphysical are refused;
+        // a load the motor could hold, on an axis nobody holds, runs away and the drive
+        // faults on overspeed before anything absurd happens; after reset node the axis is
+        // at rest with the preset's parameters and positions normally again.
+        let mut d = cnc("cnc1");
+        let k0 = d.param(AxisParam::Stiffness).unwrap();
+        assert!(d.set_param(AxisParam::Damping, 0.0).is_err());
+        assert!(d.set_param(AxisParam::Stiffness, 1e-30 * 1e6).is_err());
+        d.set_param(AxisParam::ExternalLoad, 1e4).unwrap();
+        let disabled = DriveCommand {
+            setpoint: Setpoint::Disabled,
+            max_torque_permille: 3000.0,
+            max_velocity_inc_per_s: 0.0,
+        };
+        let (code, _) = run_until_fault(&mut d, &disabled, 5000).expect("no fault");
+        assert_eq!(code, ERROR_OVERSPEED);
+        // 5 s more: held, nothing moves, values stay finite and small.
+        for _ in 0..5000 {
+            d.advance(1000);
+        }
+        let fb = d.feedback();
+        assert!(fb.motor_velocity_inc_per_s.abs() < 1.0);
+        assert!(fb.motor_position_inc.unsigned_abs() < (1u64 << 40));
+        d.set_param(AxisParam::Stiffness, k0).unwrap();
+        d.reset();
+        assert_eq!(d.feedback().drive_fault, None);
+        assert_eq!(d.param(AxisParam::ExternalLoad).unwrap(), 0.0);
+        // Usable: positions 1 mm further and settles there.
+        d.set_param(AxisParam::Backlash, 0.0).unwrap();
+        let start = d.feedback().direct_position_inc as f64;
+        let target_inc = start + 1e-3 * d.inc_per_load();
+        let cmd = DriveCommand {
+            setpoint: Setpoint::Position {
+                position_inc: target_inc,
+                velocity_ff_inc_per_s: 0.0,
+                torque_ff_permille: 0.0,
+            },
+            max_torque_permille: 3000.0,
+            max_velocity_inc_per_s: 0.0,
+        };
+        assert_eq!(run_until_fault(&mut d, &cmd, 2000), None);
+        let err_m = (d.feedback().direct_position_inc as f64 - target_inc) / d.inc_per_load();
+        assert!(err_m.abs() < 1e-6, "{err_m} m off after reset");
+    }
+
+    #[test]
+    fn fault_reset_after_a_trip_starts_from_rest() {
+        let mut d = cnc("cnc4");
+        let (code, _) =
+            run_until_fault(&mut d, &torque_command(10_000.0), 100_000).expect("no fault");
+        assert_eq!(code, ERROR_OVERSPEED);
+        assert!(d.reset_fault());
+        assert_eq!(d.feedback().drive_fault, None);
+        d.advance(1000);
+        assert_eq!(
+            d.feedback().drive_fault,
+            None,
+            "a fresh start does not trip at once"
+        );
+        assert!(d.servo.axis.motor_speed().abs() < 1.0);
+    }
+
+    #[test]
+    fn both_encoders_are_sampled_at_the_same_instant_and_the_direct_one_is_always_live() {
+        // Constant speed, no backlash: motor encoder (at the load) and direct encoder agree
+        // within their quantisation, whichever encoder closes the position loop.
+        for direct in [1.0, 0.0] {
+            let mut d = cnc("cnc1");
+            d.set_param(AxisParam::Backlash, 0.0).unwrap();
+            d.set_param(AxisParam::PositionFromDirect, direct).unwrap();
+            let v = 10e-3 * d.inc_per_load(); // 10 mm/s
+            let mut worst: f64 = 0.0;
+            let mut first = None;
+            for t in 0..3000 {
+                d.command(&DriveCommand {
+                    setpoint: Setpoint::Velocity {
+                        velocity_inc_per_s: v,
+                        torque_ff_permille: 0.0,
+                    },
+                    max_torque_permille: 3000.0,
+                    max_velocity_inc_per_s: 0.0,
+                });
+                d.advance(1000);
+                let fb = d.feedback();
+                if t == 1000 {
+                    first = Some(fb.direct_position_inc);
+                }
+                if t > 1000 {
+                    // Static deflection of the drive train under the friction force is part
+                    // of the difference; quantisation of the 10 nm scale is the rest.
+                    let diff = (fb.motor_position_inc - fb.direct_position_inc) as f64;
+                    worst = worst.max((diff / d.inc_per_load()).abs());
+                }
+            }
+            let moved =
+                (d.feedback().direct_position_inc - first.unwrap()) as f64 / d.inc_per_load();
+            assert!(
+                moved > 15e-3,
+                "direct encoder frozen: moved {moved} m (direct={direct})"
+            );
+            // 10 mm/s for 0.875 ms would be 8.75 um.
+            assert!(
+                worst < 0.5e-6,
+                "motor - direct up to {worst} m (direct={direct})"
+            );
+        }
     }
 }

@@ -286,6 +286,10 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         self.flush_tx();
         self.bus.end_tick();
         self.stats.record_tick(0, 0);
+        // 0x2100 refreshed as in the real-time loop.
+        if self.stats.ticks.is_multiple_of(256) {
+            self.publish_stats();
+        }
         hook(self);
     }
 }

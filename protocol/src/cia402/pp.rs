@@ -14,6 +14,10 @@ pub struct Pp {
     target_uu: f64,
     target_inc: f64,
     buffered: Option<(f64, f64)>,
+    /// 0x607D clamped the current / the buffered target: statusword bit 11 (internal limit
+    /// active) stays set while such a target is in force.
+    target_limited: bool,
+    buffered_limited: bool,
     moving: bool,
     ack: bool,
     reached: TimedWindow,
@@ -24,6 +28,8 @@ impl Pp {
         self.target_inc = ctx.axis.pos;
         self.target_uu = ctx.to_uu_pos(ctx.axis.pos);
         self.buffered = None;
+        self.target_limited = false;
+        self.buffered_limited = false;
         self.moving = false;
         self.ack = false;
         self.reached = TimedWindow::default();
@@ -43,16 +49,18 @@ impl Pp {
                 0.0
             };
             let (uu, limited) = ctx.clamp_sw_limits(base + raw);
-            out.limit = limited;
             let inc = ctx.to_inc_pos(uu);
             if !self.moving || ctx.cw & BIT_CHANGE_IMMEDIATELY != 0 {
                 self.target_uu = uu;
                 self.target_inc = inc;
+                self.target_limited = limited;
                 self.buffered = None;
+                self.buffered_limited = false;
                 self.moving = true;
                 self.ack = true;
             } else if self.buffered.is_none() {
                 self.buffered = Some((uu, inc));
+                self.buffered_limited = limited;
                 self.ack = true;
             }
         }
@@ -72,6 +80,8 @@ impl Pp {
                     if let Some((uu, inc)) = self.buffered.take() {
                         self.target_uu = uu;
                         self.target_inc = inc;
+                        self.target_limited = self.buffered_limited;
+                        self.buffered_limited = false;
                     } else {
                         self.moving = false;
                     }
@@ -84,6 +94,7 @@ impl Pp {
                 .update(inside, ctx.now, ctx.store.u32(o::POS_WINDOW_TIME));
         }
         out.target_reached = reached_now;
+        out.limit = self.target_limited || self.buffered_limited;
         out.oms12 = self.ack;
         out.position_mode = true;
         out.setpoint = Setpoint::Position {
