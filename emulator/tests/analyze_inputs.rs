@@ -110,7 +110,7 @@ fn a_nan_trace_is_inconclusive_never_ok() {
                     if i == 0 {
                         l.to_string()
                     } else {
-                        vec!["NaN"; 6].join(",")
+                        ["NaN"; 6].join(",")
                     }
                 })
                 .collect::<Vec<_>>()

@@ -124,7 +124,10 @@ pub fn read_csv(path: &Path) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
 
 /// Parse CSV text (read from `path`) into named columns, and notes: a last line cut short (no
 /// newline at the end: the writer was killed mid-line) is skipped and reported.
-fn parse_csv(path: &Path, text: &str) -> anyhow::Result<(Vec<(String, Vec<f64>)>, Vec<String>)> {
+/// A CSV's named numeric columns and its notes.
+type CsvColumns = (Vec<(String, Vec<f64>)>, Vec<String>);
+
+fn parse_csv(path: &Path, text: &str) -> anyhow::Result<CsvColumns> {
     let all: Vec<(usize, &str)> = text
         .lines()
         .enumerate()
