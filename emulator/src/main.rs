@@ -34,9 +34,9 @@ enum Command {
     Presets,
 }
 
-fn main() -> anyhow::Result<ExitCode> {
+fn main() -> ExitCode {
     let ok = |r: anyhow::Result<()>| r.map(|()| ExitCode::SUCCESS);
-    match Cli::parse().command {
+    let result = match Cli::parse().command {
         Command::Demo(args) => ok(cli::demo::run(&args)),
         Command::Run(args) => ok(cli::run::run(&args)),
         Command::Sim(args) => ok(cli::sim::run(&args)),
@@ -46,5 +46,16 @@ fn main() -> anyhow::Result<ExitCode> {
         Command::Analyze(args) => cli::analyze::run(&args),
         Command::Eds(args) => ok(cli::eds::run_eds(&args)),
         Command::Presets => ok(cli::eds::run_presets()),
+    };
+    match result {
+        Ok(code) => code,
+        // A user error: the message and its causes, no backtrace (even with RUST_BACKTRACE).
+        Err(e) => {
+            eprintln!("error: {e}");
+            for cause in e.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            ExitCode::FAILURE
+        }
     }
 }

@@ -9,8 +9,8 @@ use drive_emu::bus::CanBus;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
 use drive_emu::runtime::axis_drive::AxisDrive;
 use drive_emu::runtime::clock::{Clock, MonotonicClock};
-use drive_emu::runtime::{AxisSlot, Runtime};
-use drive_emu::scenario::live::{run_timeline, LiveLink, LoopInjector};
+use drive_emu::runtime::{AxisSlot, Lockstep, Runtime};
+use drive_emu::scenario::live::{run_timeline, LiveEnd, LiveLink, LoopInjector};
 use drive_protocol::{AxisParam, Drive, Node};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -73,7 +73,8 @@ fn a_live_timeline_changes_the_running_drive_and_its_expectations_are_checked() 
     let scenario_thread = {
         let (s, cfg, link, stop) = (s.clone(), cfg.clone(), link.clone(), stop.clone());
         std::thread::spawn(move || {
-            let o = run_timeline(&s, &cfg, &snapshot, &link, &stop);
+            let end = LiveEnd::for_scenario(&s, None);
+            let o = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
             stop.store(true, Ordering::Relaxed);
             o
         })
@@ -116,5 +117,119 @@ fn a_live_timeline_changes_the_running_drive_and_its_expectations_are_checked() 
     assert!(
         master.emcys().iter().any(|e| e.code == 0x7300),
         "the controller saw the EMCY too"
+    );
+}
+
+/// The shipped SYNC-loss scenario live, with the drive in lock-step: the scenario cuts the
+/// SYNCs, so the drive's simulated time would stand still for ever. One second (here 0.2 s) of
+/// wall time after the last SYNC the drive's own clock takes over: its SYNC supervision
+/// reports the loss (EMCY 0x8100), and the run ends by itself, once the event has run its
+/// course, with the event at the time the drive applied it and every expectation checked.
+#[test]
+fn a_lockstep_live_scenario_whose_sync_stops_ends_by_itself_with_the_sync_loss_reported() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/sync-loss.toml");
+    let s = drive_emu::scenario::load(&file).unwrap_or_else(|e| panic!("{e}"));
+    let cfg = s.machine.configs[0].clone();
+    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let snapshot = AxisDrive::from_config(&cfg).unwrap();
+    let node = Node::new(5, drive.info()).unwrap();
+    let mut eps = InProcBus::endpoints(2, 4096);
+    let mut master_bus = eps.pop().unwrap();
+    let bus = FaultyBus::new(eps.pop().unwrap(), 1);
+    let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
+    let link = Arc::new(LiveLink::new());
+    let stop = Arc::new(AtomicBool::new(false));
+    let scenario_thread = {
+        let (s, cfg, link, stop) = (s.clone(), cfg.clone(), link.clone(), stop.clone());
+        std::thread::spawn(move || {
+            let end = LiveEnd::for_scenario(&s, None);
+            assert_eq!(end, LiveEnd::EventsDone, "the file has no duration");
+            let o = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
+            stop.store(true, Ordering::Relaxed);
+            o
+        })
+    };
+    let loop_thread = {
+        let (link, stop) = (link.clone(), stop.clone());
+        std::thread::spawn(move || {
+            let mut injector = LoopInjector::new(0x7F);
+            rt.boot();
+            let cfg = Lockstep {
+                // From 0x1006, which the master writes.
+                sync_period_us: None,
+                free_run_after_us: Some(200_000),
+            };
+            rt.run_lockstep_with(cfg, &stop, |rt| injector.on_tick(&link, rt));
+            rt
+        })
+    };
+    // The controller: the reference master on its own virtual clock, one SYNC period per
+    // round, waiting a little for the drive's answers.
+    let mut master = Master::new(
+        MasterConfig::default(),
+        vec![
+            Step::Enable { mode: MODE_CSP },
+            Step::Cruise {
+                velocity_uu_s: 10_000.0,
+                accel_uu_s2: 100_000.0,
+                duration_s: 600.0,
+            },
+        ],
+    );
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    let mut t_us = 0;
+    while !stop.load(Ordering::Relaxed) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the live run did not end after SYNC stopped reaching the drive"
+        );
+        master.poll(t_us);
+        while let Some(f) = master.pop_tx() {
+            master_bus.send(&f).unwrap();
+        }
+        std::thread::sleep(std::time::Duration::from_micros(300));
+        while let Ok(Some(f)) = master_bus.recv() {
+            master.handle(&f, t_us);
+        }
+        t_us += 1000;
+    }
+    let outcome = scenario_thread.join().unwrap();
+    let rt = loop_thread.join().unwrap();
+    for e in &outcome.expectations {
+        eprintln!("{e}");
+    }
+    eprintln!("{} | {:?}", outcome.end_reason, outcome.fired);
+    assert_eq!(rt.lockstep_period_us, 1000, "SYNC period from 0x1006");
+    assert!(
+        rt.lockstep_free_ticks > 0,
+        "the drive's clock ran without SYNC"
+    );
+    assert_eq!(outcome.fired.len(), 1, "{:?}", outcome.fired);
+    assert!(
+        outcome.fired[0].1.contains("SYNC lost"),
+        "{:?}",
+        outcome.fired
+    );
+    assert!(outcome.not_fired.is_empty());
+    let (t_event, _) = outcome.fired[0];
+    let sync_loss = outcome
+        .record
+        .emcys
+        .iter()
+        .find(|(_, c)| *c == 0x8100)
+        .unwrap_or_else(|| panic!("no EMCY 0x8100: {:?}", outcome.record.emcys));
+    // Supervision fires 1.5 SYNC periods after the last SYNC the drive saw, which came
+    // before the event was applied: a few ms at most.
+    assert!(
+        sync_loss.0 > t_event && sync_loss.0 <= t_event + 5_000,
+        "EMCY 0x8100 at {} us, event applied at {t_event} us",
+        sync_loss.0
+    );
+    assert!(outcome.passed(), "{:?}", outcome.expectations);
+    // The run ended about the settle time (1 s) after the event, not much later.
+    assert!(
+        outcome.record.end_us >= t_event + 1_000_000 && outcome.record.end_us < t_event + 1_500_000,
+        "ended at {} us, event at {t_event} us",
+        outcome.record.end_us
     );
 }

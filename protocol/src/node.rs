@@ -518,9 +518,11 @@ impl Core {
                 }
             }
             let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
-            let missed =
-                self.pdo
-                    .on_sync(&self.store, now_us, window_closed, &mut |f| push(tx, overflows, f));
+            let missed = self
+                .pdo
+                .on_sync(&self.store, now_us, window_closed, &mut |f| {
+                    push(tx, overflows, f)
+                });
             self.sync_window_missed = self.sync_window_missed.wrapping_add(missed);
         }
         self.event(NodeEvent::Sync { counter: s.counter });

@@ -1,7 +1,7 @@
 //! Live runs on vcan: `drive-emu run --trace` flushing its trace on SIGTERM, and
 //! `drive-emu scenario FILE --iface` injecting a scenario's timeline into a drive that an
 //! external controller (this test, a minimal CANopen master) runs in lock-step.
-//! Node IDs: 32 (trace), 33 (scenario).
+//! Node IDs: 32 (trace), 33 (scenario), 34 (SYNC loss in lock-step).
 
 use e2e::*;
 use std::process::{Command, Stdio};
@@ -116,6 +116,9 @@ fn scenario_timeline_live_on_vcan_against_an_external_controller() {
             &ifname,
             "--node",
             "33",
+            // The scenario's end (without it: once its event has run its course).
+            "--duration",
+            "3",
         ])
         .args(["--lockstep", "--trace", trace.to_str().unwrap()])
         .stdin(Stdio::null())
@@ -209,5 +212,97 @@ fn scenario_timeline_live_on_vcan_against_an_external_controller() {
     assert!(
         rows[fault..].iter().all(|r| state(r) & 0x4F == 0x08),
         "stays in FAULT"
+    );
+}
+
+/// `run --scenario sync-loss.toml --lockstep --json` with this test as the controller: the
+/// scenario cuts the SYNCs on their way into the drive, so its lock-step clock would stand
+/// still and the run would never end. A second after the last SYNC the drive's own clock
+/// takes over: it reports the SYNC loss (EMCY 0x8100) after the event, and the run ends by
+/// itself. Its stdout is one JSON document with the events, the EMCYs and the expectations.
+#[test]
+fn sync_loss_in_lockstep_ends_the_live_run_and_json_reports_it() {
+    const NODE: u8 = 34;
+    let ifname = iface(0);
+    let sock = open_bus(&ifname);
+    let file = repo_root().join("scenarios/sync-loss.toml");
+    let mut child = Command::new(drive_emu_bin())
+        .args([
+            "run",
+            "--rt-priority",
+            "0",
+            "--no-mlock",
+            "--iface",
+            &ifname,
+        ])
+        .args(["--node", "34", "--lockstep", "--json", "--scenario"])
+        .arg(&file)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start drive-emu run --scenario");
+    assert!(wait_bootup(&sock, NODE, PEER_TIMEOUT), "no boot-up");
+    // The controller: 1 ms communication cycle (the drive's lock-step period comes from
+    // 0x1006), CSP, enable, then SYNC until the run ends.
+    sdo_download(&sock, NODE, 0x1006, 0, &1000u32.to_le_bytes()).expect("0x1006");
+    nmt(&sock, 0x01, NODE);
+    sdo_download(&sock, NODE, 0x6060, 0, &[8]).expect("mode CSP");
+    for cw in [0x06u16, 0x07, 0x0F] {
+        sdo_download(&sock, NODE, 0x6040, 0, &cw.to_le_bytes()).expect("controlword");
+        sync_and_wait(&sock, NODE, 0);
+    }
+    let deadline = Instant::now() + Duration::from_secs(300);
+    let mut syncs = 0usize;
+    let status = loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            break st;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the run did not end after its SYNCs were cut ({syncs} SYNCs sent)"
+        );
+        send(&sock, 0x080, &[]);
+        syncs += 1;
+        // Paced by the drive's answer while it sees SYNC; after the cut there is none.
+        let _ = recv_matching(&sock, Duration::from_millis(20), |f| {
+            id_data(f).0 == 0x480 + u32::from(NODE)
+        });
+    };
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    eprintln!("{stderr}");
+    assert!(
+        status.success(),
+        "{status}\nstdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&stdout)
+        .unwrap_or_else(|e| panic!("stdout is not one JSON document ({e}):\n{stdout}"));
+    let sc = &v["scenario"];
+    assert_eq!(sc["passed"], true, "{stdout}");
+    assert_eq!(v["lockstep_sync_period_us"], 1000, "{stdout}");
+    assert!(
+        v["free_run_ticks_without_sync"].as_u64().unwrap() > 0,
+        "{stdout}"
+    );
+    let events = sc["events"].as_array().expect("events");
+    assert_eq!(events.len(), 1, "{stdout}");
+    assert!(
+        events[0]["event"].as_str().unwrap().contains("SYNC lost"),
+        "{stdout}"
+    );
+    let t_event = events[0]["t_s"].as_f64().unwrap();
+    let emcy = sc["emcys"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["code"] == "0x8100")
+        .unwrap_or_else(|| panic!("no EMCY 0x8100 in {stdout}"));
+    assert!(emcy["t_s"].as_f64().unwrap() > t_event, "{stdout}");
+    let exps = sc["expectations"].as_array().expect("expectations");
+    assert!(
+        !exps.is_empty() && exps.iter().all(|e| e["passed"] == true),
+        "{stdout}"
     );
 }

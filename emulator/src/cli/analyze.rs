@@ -64,10 +64,15 @@ pub struct AnalyzeArgs {
     /// takes it from --preset).
     #[arg(long)]
     pub rotary: bool,
-    /// Amplitude thresholds (displacement equivalent, um or mdeg).
-    #[arg(long)]
+    /// Threshold for "suspected": displacement-equivalent amplitude of the limit cycle
+    /// (µm on linear axes, mdeg on rotary ones) at which a window in the k_v band is flagged
+    /// as suspected backlash (default 1).
+    #[arg(long, value_name = "AMPLITUDE")]
     pub suspect: Option<f64>,
-    #[arg(long)]
+    /// Threshold for "backlash": the same amplitude (µm or mdeg) at which a window is flagged
+    /// as backlash, the verdict once it holds for the confirm windows; severity is the
+    /// amplitude over this threshold (default 3).
+    #[arg(long, value_name = "AMPLITUDE")]
     pub alarm: Option<f64>,
     /// Output directory (default out/analyze-<trace stem>/).
     #[arg(long, short)]
@@ -496,7 +501,7 @@ pub fn render_text(o: &AnalyzeOutput) -> String {
         "verdict {} | amplitude {:.2} {} | severity {:.2} | frequency {} | windows {} | k_v {:.2} 1/s ({}) | report {}",
         rep.verdict.as_str(),
         rep.amplitude,
-        rep.position_unit,
+        crate::report::unit_text(&rep.position_unit),
         rep.severity,
         rep.frequency_hz
             .or(rep.dominant_hz)

@@ -250,11 +250,9 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
     })
 }
 
-/// A few lines of text chart: `values` scaled into `rows` rows.
-fn chart(values: &[f64], rows: usize) -> Vec<String> {
-    let (lo, hi) = values
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+/// A few lines of text chart: `values` on the scale `lo .. hi` (shared by the charts to be
+/// compared, so a flat run looks flat), in `rows` rows.
+fn chart(values: &[f64], lo: f64, hi: f64, rows: usize) -> Vec<String> {
     let span = (hi - lo).max(1e-9);
     (0..rows)
         .rev()
@@ -262,7 +260,9 @@ fn chart(values: &[f64], rows: usize) -> Vec<String> {
             values
                 .iter()
                 .map(|&v| {
-                    let level = ((v - lo) / span * (rows as f64 - 1.0)).round() as usize;
+                    let level = ((v - lo) / span * (rows as f64 - 1.0))
+                        .round()
+                        .clamp(0.0, rows as f64 - 1.0) as usize;
                     if level == r {
                         '*'
                     } else {
@@ -319,26 +319,51 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         println!("  t={:>7.3} s  {msg}", *t as f64 * 1e-6);
     }
     println!(
-        "\nMotor speed (0x606C, from TPDO) at {} {unit}/s, 0.3 s of the constant-speed window:",
+        "  (uu: the drive's user unit on the bus, here 1 uu = {})",
+        crate::report::user_unit(unit == "deg")
+    );
+    println!(
+        "\nMotor speed (0x606C, from TPDO) at {} {unit}/s, 0.3 s of the constant-speed window, \
+         both runs on the same scale:",
         args.velocity
     );
-    for (label, r) in [("no backlash", &healthy), ("worn", &worn)] {
-        let v: Vec<f64> = r
-            .window
-            .iter()
-            .take(300)
-            .step_by(4)
-            .map(|s| f64::from(s.velocity_uu_s) / UU_PER_AXIS_UNIT)
-            .collect();
-        let (lo, hi) = v
-            .iter()
-            .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+    let series: Vec<Vec<f64>> = [&healthy, &worn]
+        .iter()
+        .map(|r| {
+            r.window
+                .iter()
+                .take(300)
+                .step_by(4)
+                .map(|s| f64::from(s.velocity_uu_s) / UU_PER_AXIS_UNIT)
+                .collect()
+        })
+        .collect();
+    let range = |v: &[f64]| {
+        v.iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)))
+    };
+    let (lo, hi) = series.iter().fold((f64::MAX, f64::MIN), |(a, b), v| {
+        let (l, h) = range(v);
+        (a.min(l), b.max(h))
+    });
+    for ((label, r), v) in [("no backlash", &healthy), ("worn", &worn)]
+        .into_iter()
+        .zip(&series)
+    {
+        let (l, h) = range(v);
         println!(
-            "  {label} ({} {unit}): {lo:.2} .. {hi:.2} {unit}/s",
+            "  {label} ({} {unit}): {l:.2} .. {h:.2} {unit}/s",
             r.backlash
         );
-        for line in chart(&v, 5) {
-            println!("    |{line}|");
+        let lines = chart(v, lo, hi, 5);
+        let n = lines.len();
+        for (i, line) in lines.iter().enumerate() {
+            let tick = match i {
+                0 => format!("{hi:>7.2}"),
+                i if i + 1 == n => format!("{lo:>7.2}"),
+                _ => " ".repeat(7),
+            };
+            println!("  {tick} |{line}|");
         }
     }
     println!("\nSpectrum of the constant-speed window (band k_v/4 .. k_v):");
@@ -375,11 +400,26 @@ pub fn run(args: &DemoArgs) -> Result<()> {
              k_v/4 < f < k_v, about 0.6 k_v); the healthy axis runs smooth.",
             args.backlash, worn.kv_per_s
         ),
-        _ => println!(
-            "\nNo clear backlash signature in this run (worn: {:?} Hz, healthy: {:?} Hz).",
-            worn.fundamental_hz, healthy.fundamental_hz
-        ),
+        _ => {
+            let hz = |f: Option<f64>| f.map_or("none".to_string(), |f| format!("{f:.1} Hz"));
+            println!(
+                "\nNo clear backlash signature in this run (vibration found: worn {}, healthy {}).",
+                hz(worn.fundamental_hz),
+                hz(healthy.fundamental_hz)
+            )
+        }
     }
-    println!("Next: drive-emu sim --preset cnc1 --velocity 16.7 --json; drive-emu run --iface vcan0 (see README).");
+    let key = if unit == "deg" {
+        "backlash_deg"
+    } else {
+        "backlash_mm"
+    };
+    println!(
+        "Next: drive-emu sim --preset {p} --set {key}={b} --velocity {v} --json; \
+         drive-emu run --iface vcan0 --preset {p} --set {key}={b} (see README).",
+        p = args.preset,
+        b = args.backlash,
+        v = args.velocity
+    );
     Ok(())
 }

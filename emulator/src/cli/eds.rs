@@ -102,8 +102,8 @@ pub fn run_eds(args: &EdsArgs) -> Result<()> {
 /// One line per preset: name, kind, key figures.
 pub fn run_presets() -> Result<()> {
     println!(
-        "{:<6} {:<8} {:>9} {:>11}  description",
-        "name", "kind", "kv_per_s", "backlash"
+        "{:<6} {:<8} {:>9} {:>11} {:>10}  description",
+        "name", "kind", "kv_per_s", "backlash", "1 uu ="
     );
     for name in preset_names() {
         let c = AxisConfig::from_preset(name)?;
@@ -112,14 +112,20 @@ pub fn run_presets() -> Result<()> {
             (_, Some(deg)) => format!("{deg} deg"),
             _ => "-".into(),
         };
+        let rotary = c.kind == crate::presets::AxisKind::Rotary;
         println!(
-            "{:<6} {:<8} {:>9} {:>11}  {}",
+            "{:<6} {:<8} {:>9} {:>11} {:>10}  {}",
             name,
-            format!("{:?}", c.kind).to_lowercase(),
+            if rotary { "rotary" } else { "linear" },
             c.kv_per_s,
             backlash,
+            crate::report::user_unit(rotary),
             c.description
         );
     }
+    println!(
+        "\nuu = user unit: positions and speeds on the bus (0x607A, 0x6064, 0x606C, ...) are in \
+         user units, set by the factor group 0x608F/0x6091/0x6092."
+    );
     Ok(())
 }

@@ -8,8 +8,8 @@ use crate::runtime::clock::MonotonicClock;
 use crate::runtime::machine::{self, AxisEntry, MachineFile};
 use crate::runtime::realtime::{self, RealtimeRequest};
 use crate::runtime::trace::{trace_paths, Recorder, TraceTap};
-use crate::runtime::{AxisSlot, Runtime};
-use crate::scenario::live::{run_timeline, LiveLink, LiveOutcome, LoopInjector};
+use crate::runtime::{AxisSlot, Lockstep, Runtime};
+use crate::scenario::live::{run_timeline, LiveEnd, LiveLink, LiveOutcome, LoopInjector};
 use crate::scenario::Scenario;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -43,9 +43,10 @@ pub struct RunArgs {
     /// the wall clock.
     #[arg(long)]
     pub lockstep: bool,
-    /// SYNC period for lock-step, us.
-    #[arg(long, default_value_t = 1000)]
-    pub sync_period_us: u64,
+    /// Lock-step: simulated time per SYNC, us. Default: the communication cycle period 0x1006
+    /// once the master writes it, else 1000.
+    #[arg(long, value_name = "US", value_parser = clap::value_parser!(u64).range(100..=1_000_000))]
+    pub sync_period_us: Option<u64>,
     /// SCHED_FIFO priority for the loop thread (needs CAP_SYS_NICE); 0 = normal scheduling.
     #[arg(long, default_value_t = 80)]
     pub rt_priority: i32,
@@ -55,14 +56,19 @@ pub struct RunArgs {
     /// Do not lock memory (mlockall).
     #[arg(long)]
     pub no_mlock: bool,
-    /// Stop after this many seconds (default: until Ctrl-C / SIGTERM).
-    #[arg(long)]
+    /// Stop after this many seconds (default: until Ctrl-C / SIGTERM). With --scenario: the
+    /// scenario's end in the drive's simulated time (in lock-step, SYNC periods).
+    #[arg(long, value_name = "S", value_parser = positive_seconds)]
     pub duration: Option<f64>,
-    /// Print the final statistics as JSON on stdout.
+    /// Print only JSON on stdout (loop statistics and, with --scenario, events, EMCYs, detector
+    /// and expectations); everything else goes to stderr.
     #[arg(long)]
     pub json: bool,
     /// Inject this scenario's timeline (wear, faults) into the running drive; the machine comes
-    /// from the scenario file, the motion from your controller. Stops at the scenario's end.
+    /// from the scenario file, the motion from your controller. Ends at --duration, else at the
+    /// file's `duration`, else once every event has fired and run its course. In lock-step, a
+    /// SYNC missing for 1 s of wall time hands the drive's clock to the wall clock (as a real
+    /// drive's), so SYNC supervision fires and the run ends.
     #[arg(long)]
     pub scenario: Option<PathBuf>,
     /// Record what the drive reports, one row per tick (the sample-log CSV that `drive-emu
@@ -116,9 +122,8 @@ pub fn validate_args(args: &RunArgs) -> Result<()> {
             bail!("--cpu {cpu}: this machine has CPUs 0..={}", n - 1);
         }
     }
-    if args.lockstep {
+    if let (true, Some(p)) = (args.lockstep, args.sync_period_us) {
         let tick_us = 1_000_000 / u64::from(args.tick_hz.max(1));
-        let p = args.sync_period_us;
         if p == 0 || p > MAX_SYNC_PERIOD_US || !p.is_multiple_of(tick_us) {
             bail!(
                 "--sync-period-us {p}: must be a whole multiple of the tick period ({tick_us} us \
@@ -180,20 +185,90 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
     Ok(m)
 }
 
-/// What the loop thread publishes for the status line: plain atomics, no locks.
+/// What the loop thread publishes for the status line, per axis: plain atomics, no locks.
 #[derive(Default)]
-struct Status {
+struct AxisStatus {
+    node_id: AtomicU64,
+    nmt: AtomicU64,
     statusword: AtomicU64,
     mode: AtomicI64,
     position_uu: AtomicI64,
     following_error_uu: AtomicI64,
+}
+
+#[derive(Default)]
+struct Status {
+    axes: Vec<AxisStatus>,
     overruns: AtomicU64,
     ticks: AtomicU64,
+    sim_time_us: AtomicU64,
+    lockstep_period_us: AtomicU64,
     link_up: AtomicBool,
     sync_lock: AtomicU64,
     sync_phase_error_us: AtomicU64,
     /// Every node has sent its boot-up (power-on boot delay over).
     booted: AtomicBool,
+}
+
+impl Status {
+    fn new(n_axes: usize) -> Self {
+        Self {
+            axes: (0..n_axes).map(|_| AxisStatus::default()).collect(),
+            ..Self::default()
+        }
+    }
+
+    /// One line: per axis node ID, NMT state, CiA 402 state, mode, position and following
+    /// error (in user units, uu), then the loop's ticks and overruns.
+    fn line(&self, iface: &str, lockstep: bool) -> String {
+        let mut out = format!(
+            "{iface} t={:.1} s",
+            self.sim_time_us.load(Ordering::Relaxed) as f64 * 1e-6
+        );
+        for a in &self.axes {
+            let sw = a.statusword.load(Ordering::Relaxed) as u16;
+            out += &format!(
+                " | node {} {} {} {} pos {} uu ferr {} uu",
+                a.node_id.load(Ordering::Relaxed),
+                crate::master::nmt_name(a.nmt.load(Ordering::Relaxed) as u8),
+                crate::master::state_name(sw),
+                crate::master::mode_short(a.mode.load(Ordering::Relaxed) as i8),
+                a.position_uu.load(Ordering::Relaxed),
+                a.following_error_uu.load(Ordering::Relaxed),
+            );
+        }
+        out += &format!(
+            " | ticks {} overruns {}",
+            self.ticks.load(Ordering::Relaxed),
+            self.overruns.load(Ordering::Relaxed)
+        );
+        if lockstep {
+            out += " | lock-step";
+        } else {
+            let lock = self.sync_lock.load(Ordering::Relaxed);
+            out += " | ";
+            out += crate::runtime::stats::lock_name(lock as u32);
+            if lock == 2 {
+                out += &format!(
+                    " (phase error {} us)",
+                    self.sync_phase_error_us.load(Ordering::Relaxed)
+                );
+            }
+        }
+        if !self.link_up.load(Ordering::Relaxed) {
+            out += " | LINK DOWN";
+        }
+        out
+    }
+}
+
+/// `--duration`: a positive number of seconds.
+pub fn positive_seconds(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v < 1e9 => Ok(v),
+        Ok(_) => Err(format!("{s}: a duration in seconds, more than 0")),
+        Err(_) => Err(format!("{s}: not a number of seconds")),
+    }
 }
 
 pub fn run(args: &RunArgs) -> Result<()> {
@@ -202,29 +277,98 @@ pub fn run(args: &RunArgs) -> Result<()> {
         None => None,
     };
     let outcome = run_live(args, scenario.as_ref())?;
-    if let Some(o) = outcome {
-        print_outcome(&o);
+    if let (Some(o), Some(s)) = (&outcome.scenario, &scenario) {
+        if args.json {
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&outcome_json(&outcome, s))?
+            );
+        } else {
+            print_outcome(o);
+            println!(
+                "{} (live on {}): {}",
+                s.name,
+                args.iface,
+                if o.passed() { "passed" } else { "FAILED" }
+            );
+        }
         if !o.passed() {
             bail!("scenario expectations failed");
         }
+    } else if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&outcome_json_stats(&outcome))?
+        );
     }
     Ok(())
 }
 
+/// What `run_live` found: the loop's statistics and, with a scenario, its outcome.
+pub struct LiveRun {
+    pub stats: crate::runtime::stats::StatsSummary,
+    /// Lock-step: simulated time per SYNC in force at the end, us.
+    pub lockstep_period_us: Option<u64>,
+    /// Lock-step: ticks run on the drive's own clock while SYNC was missing.
+    pub free_run_ticks: u64,
+    pub scenario: Option<LiveOutcome>,
+}
+
+fn outcome_json_stats(run: &LiveRun) -> serde_json::Value {
+    serde_json::json!({
+        "stats": run.stats,
+        "lockstep_sync_period_us": run.lockstep_period_us,
+        "free_run_ticks_without_sync": run.free_run_ticks,
+    })
+}
+
+/// The JSON document of `run --scenario --json` and `scenario --iface --json`.
+pub fn outcome_json(run: &LiveRun, s: &Scenario) -> serde_json::Value {
+    let mut v = outcome_json_stats(run);
+    if let Some(o) = &run.scenario {
+        v["scenario"] = serde_json::json!({
+            "name": s.name,
+            "passed": o.passed(),
+            "end_s": o.record.end_us as f64 * 1e-6,
+            "end_reason": o.end_reason,
+            "events": o.fired.iter().map(|(t, what)| serde_json::json!({
+                "t_s": *t as f64 * 1e-6, "event": what })).collect::<Vec<_>>(),
+            "events_not_fired": o.not_fired.iter().map(|(line, what)| serde_json::json!({
+                "line": line, "event": what })).collect::<Vec<_>>(),
+            "emcys": o.record.emcys.iter().map(|(t, c)| serde_json::json!({
+                "t_s": *t as f64 * 1e-6, "code": format!("{c:#06X}"),
+                "meaning": crate::master::emcy_name(*c) })).collect::<Vec<_>>(),
+            "detector": o.detector,
+            "expectations": o.expectations,
+            "samples": o.record.samples.len(),
+            "samples_lost": o.samples_lost,
+        });
+    }
+    v
+}
+
 /// Print what a live scenario run found.
 pub fn print_outcome(o: &LiveOutcome) {
+    println!("  run {}", o.end_reason);
     for (t, what) in &o.fired {
         println!("  t={:>9.3} s  event: {what}", *t as f64 * 1e-6);
     }
+    for (line, what) in &o.not_fired {
+        println!("  not fired: line {line}: {what}");
+    }
     for (t, code) in &o.record.emcys {
-        println!("  t={:>9.3} s  EMCY {code:#06X}", *t as f64 * 1e-6);
+        println!(
+            "  t={:>9.3} s  EMCY {code:#06X} ({})",
+            *t as f64 * 1e-6,
+            crate::master::emcy_name(*code)
+        );
     }
     if let Some(d) = &o.detector {
         println!(
             "  detector: {} | amplitude {:.2} {} | frequency {}",
             d.verdict.as_str(),
             d.amplitude,
-            d.position_unit,
+            crate::report::unit_text(&d.position_unit),
             d.frequency_hz.map_or("-".into(), |f| format!("{f:.2} Hz"))
         );
     }
@@ -241,7 +385,7 @@ pub fn print_outcome(o: &LiveOutcome) {
 
 /// Run the drive(s) on the bus; with a scenario, inject its timeline into axis 0 and return
 /// what it found.
-pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<LiveOutcome>> {
+pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> {
     validate_args(args)?;
     let machine = match scenario {
         // The scenario's machine: its first preset with the file's overrides applied.
@@ -287,20 +431,28 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
         ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed))
             .context("cannot install the Ctrl-C / SIGTERM handler")?;
     }
-    if let Some(d) = args.duration {
+    // Without a scenario, --duration is wall time; with one, the scenario's end.
+    if let (Some(d), None) = (args.duration, scenario) {
         let stop = Arc::clone(&stop);
         std::thread::spawn(move || {
             std::thread::sleep(std::time::Duration::from_secs_f64(d));
             stop.store(true, Ordering::Relaxed);
         });
     }
-    let status = Arc::new(Status::default());
+    let status = Arc::new(Status::new(n_axes));
     let request = RealtimeRequest {
         fifo_priority: (args.rt_priority > 0).then_some(args.rt_priority),
         cpu: args.cpu,
         lock_memory: !args.no_mlock,
     };
-    let lockstep = args.lockstep.then_some(args.sync_period_us);
+    let lockstep = args.lockstep.then_some(Lockstep {
+        sync_period_us: args.sync_period_us,
+        // A live scenario must end: a SYNC missing for a second hands the clock to the wall.
+        free_run_after_us: scenario.map(|_| {
+            args.sync_period_us
+                .map_or(1_000_000, |p| (10 * p).max(1_000_000))
+        }),
+    });
     // The trace files are created before the loop starts: a bad path loses nothing.
     let node_ids: Vec<u8> = rt.axes.iter().map(|a| a.node.node_id()).collect();
     let tap = args.trace.as_ref().map(|_| Arc::new(TraceTap::new(n_axes)));
@@ -316,10 +468,12 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
         n_axes,
         args.iface,
         machine.tick_hz,
-        if lockstep.is_some() {
-            " (lock-step on SYNC)"
-        } else {
-            ""
+        match (&lockstep, args.sync_period_us) {
+            (None, _) => String::new(),
+            (Some(_), Some(p)) => format!(" (lock-step: {p} us per SYNC)"),
+            (Some(_), None) => {
+                " (lock-step: per SYNC the period in 0x1006, else 1000 us)".into()
+            }
         },
         machine
             .axes
@@ -329,17 +483,37 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
             .join(", "),
         scenario.map_or(String::new(), |s| format!("; scenario {}", s.name)),
     );
+    eprintln!(
+        "drive-emu: positions in user units (uu): {}",
+        machine
+            .axes
+            .iter()
+            .map(|a| {
+                let rotary = AxisConfig::from_preset(&a.preset)
+                    .map(|c| c.kind == crate::presets::AxisKind::Rotary)
+                    .unwrap_or(false);
+                format!(
+                    "node {}: 1 uu = {}",
+                    a.node_id,
+                    crate::report::user_unit(rotary)
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
 
     // The scenario thread follows the loop's time and feeds it injections.
     let link = Arc::new(LiveLink::new());
     let mut injector = scenario.map(|s| LoopInjector::new(s.run.master.master_id));
     let scenario_thread = match scenario {
         Some(s) => {
+            let end = LiveEnd::for_scenario(s, args.duration.map(|d| (d * 1e6) as u64));
+            eprintln!("drive-emu: scenario {} ends {}", s.name, end.describe(s));
             let (s, snapshot) = (s.clone(), AxisDrive::from_config(&s.machine.configs[0])?);
             let (link, stop) = (Arc::clone(&link), Arc::clone(&stop));
             Some(std::thread::spawn(move || {
                 let cfg = s.machine.configs[0].clone();
-                let outcome = run_timeline(&s, &cfg, &snapshot, &link, &stop);
+                let outcome = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
                 stop.store(true, Ordering::Relaxed);
                 outcome
             }))
@@ -374,19 +548,24 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
                     if let Some(tap) = &tap {
                         tap.on_tick(rt);
                     }
-                    let n = &rt.axes[0].node;
-                    status
-                        .statusword
-                        .store(u64::from(n.statusword()), Ordering::Relaxed);
-                    status.mode.store(i64::from(n.mode()), Ordering::Relaxed);
-                    status
-                        .position_uu
-                        .store(i64::from(n.position_actual()), Ordering::Relaxed);
-                    status
-                        .following_error_uu
-                        .store(n.following_error().round() as i64, Ordering::Relaxed);
+                    for (a, st) in rt.axes.iter().zip(&status.axes) {
+                        let n = &a.node;
+                        st.node_id.store(u64::from(n.node_id()), Ordering::Relaxed);
+                        st.nmt.store(n.nmt_state() as u64, Ordering::Relaxed);
+                        st.statusword
+                            .store(u64::from(n.statusword()), Ordering::Relaxed);
+                        st.mode.store(i64::from(n.mode()), Ordering::Relaxed);
+                        st.position_uu
+                            .store(i64::from(n.position_actual()), Ordering::Relaxed);
+                        st.following_error_uu
+                            .store(n.following_error().round() as i64, Ordering::Relaxed);
+                    }
                     status.overruns.store(rt.stats.overruns, Ordering::Relaxed);
                     status.ticks.store(rt.stats.ticks, Ordering::Relaxed);
+                    status.sim_time_us.store(rt.sim_time_us, Ordering::Relaxed);
+                    status
+                        .lockstep_period_us
+                        .store(rt.lockstep_period_us, Ordering::Relaxed);
                     status
                         .sync_lock
                         .store(u64::from(rt.stats.sync_lock_state), Ordering::Relaxed);
@@ -398,14 +577,15 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
                         .store(rt.bus.inner().link_up(), Ordering::Relaxed);
                 };
                 match lockstep {
-                    Some(sync_us) => rt.run_lockstep(sync_us, &stop, hook),
+                    Some(cfg) => rt.run_lockstep_with(cfg, &stop, hook),
                     None => rt.run_realtime(&mut MonotonicClock::new(), &stop, hook),
                 }
                 rt
             })?
     };
 
-    let tty = std::io::stdout().is_terminal();
+    // The status line goes to stderr, so stdout stays clean (--json, pipes).
+    let tty = std::io::stderr().is_terminal();
     let mut ready_sent = !args.ready;
     while !stop.load(Ordering::Relaxed) && !loop_thread.is_finished() {
         if !ready_sent && status.booted.load(Ordering::Acquire) {
@@ -418,7 +598,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
                 })).collect::<Vec<_>>(),
                 "tick_hz": machine.tick_hz,
                 "lockstep": args.lockstep,
-                "sync_period_us": lockstep,
+                "sync_period_us": lockstep.and_then(|l| l.sync_period_us),
                 "boot_delay_ms": args.boot_delay_ms,
                 "pid": std::process::id(),
             });
@@ -432,39 +612,15 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
             5
         }));
         if tty {
-            let sw = status.statusword.load(Ordering::Relaxed) as u16;
-            print!(
-                "\r{} | {} mode {} | pos {} uu | ferr {} uu | ticks {} overruns {} | {}{}{}   ",
-                args.iface,
-                crate::master::state_name(sw),
-                status.mode.load(Ordering::Relaxed),
-                status.position_uu.load(Ordering::Relaxed),
-                status.following_error_uu.load(Ordering::Relaxed),
-                status.ticks.load(Ordering::Relaxed),
-                status.overruns.load(Ordering::Relaxed),
-                if lockstep.is_some() {
-                    "lock-step"
-                } else {
-                    crate::runtime::stats::lock_name(status.sync_lock.load(Ordering::Relaxed) as u32)
-                },
-                match status.sync_lock.load(Ordering::Relaxed) {
-                    2 if lockstep.is_none() => format!(
-                        " (phase error {} us)",
-                        status.sync_phase_error_us.load(Ordering::Relaxed)
-                    ),
-                    _ => String::new(),
-                },
-                if status.link_up.load(Ordering::Relaxed) {
-                    ""
-                } else {
-                    " | LINK DOWN"
-                },
-            );
-            let _ = std::io::stdout().flush();
+            eprint!("\r{}   ", status.line(&args.iface, lockstep.is_some()));
+            let _ = std::io::stderr().flush();
         }
     }
     stop.store(true, Ordering::Relaxed);
     let joined = loop_thread.join();
+    if tty {
+        eprintln!();
+    }
     // The trace is flushed whatever happened to the loop.
     if let (Some(rec), Some(tap)) = (recorder, &tap) {
         let t = rec.finish(tap).context("writing the trace")?;
@@ -484,20 +640,30 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Option<Li
         );
     }
     let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
-    if tty {
-        println!();
-    }
     let summary = rt.stats.summary();
     eprintln!("drive-emu: stopped. {summary}");
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+    let lockstep_period_us =
+        (lockstep.is_some() && rt.lockstep_period_us > 0).then_some(rt.lockstep_period_us);
+    if let Some(p) = lockstep_period_us {
+        eprintln!("drive-emu: lock-step: {p} us of simulated time per SYNC");
     }
-    match scenario_thread {
-        Some(t) => {
-            Ok(Some(t.join().map_err(|_| {
-                anyhow::anyhow!("the scenario thread panicked")
-            })?))
-        }
-        None => Ok(None),
+    if rt.lockstep_free_ticks > 0 {
+        eprintln!(
+            "drive-emu: SYNC stopped: the drive's own clock ran {} ticks without it",
+            rt.lockstep_free_ticks
+        );
     }
+    let scenario = match scenario_thread {
+        Some(t) => Some(
+            t.join()
+                .map_err(|_| anyhow::anyhow!("the scenario thread panicked"))?,
+        ),
+        None => None,
+    };
+    Ok(LiveRun {
+        stats: summary,
+        lockstep_period_us,
+        free_run_ticks: rt.lockstep_free_ticks,
+        scenario,
+    })
 }

@@ -31,8 +31,22 @@ pub struct ScenarioArgs {
     #[arg(long, default_value_t = 5)]
     pub node: u8,
     /// Live: advance simulated time one SYNC period per SYNC received.
-    #[arg(long)]
+    #[arg(long, requires = "iface")]
     pub lockstep: bool,
+    /// Live, lock-step: simulated time per SYNC, us. Default: the communication cycle period
+    /// 0x1006 once the master writes it, else 1000.
+    #[arg(long, value_name = "US", requires = "lockstep",
+          value_parser = clap::value_parser!(u64).range(100..=1_000_000))]
+    pub sync_period_us: Option<u64>,
+    /// Live: end the scenario at this simulated time, s (default: the file's `duration`, else
+    /// once every event has fired and run its course). A SYNC missing for 1 s in lock-step
+    /// hands the drive's clock to the wall clock, so the run ends either way.
+    #[arg(long, value_name = "S", requires = "iface", value_parser = crate::cli::run::positive_seconds)]
+    pub duration: Option<f64>,
+    /// Print only JSON on stdout: live, the events, EMCYs, detector and expectations (as `run
+    /// --scenario --json`); offline, the summary (as summary.json). Text goes to stderr.
+    #[arg(long)]
+    pub json: bool,
     /// Live: record what the drive reports, one row per tick (as `run --trace`).
     #[arg(long, value_name = "FILE", requires = "iface")]
     pub trace: Option<PathBuf>,
@@ -49,7 +63,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
     }
     let opts = RunOptions {
         idle_dwell_s: args.idle_dwell,
-        progress: !args.quiet,
+        progress: !args.quiet && !args.json,
         ..RunOptions::default()
     };
     let (out, dir) = match run_file(&args.file, args.out.as_deref(), &opts, !args.no_plots) {
@@ -60,6 +74,20 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
         }
         Err(RunError::Run(e)) => return Err(e),
     };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        eprintln!(
+            "{}: {}; report in {}",
+            out.scenario,
+            if out.passed { "passed" } else { "FAILED" },
+            dir.display()
+        );
+        return Ok(if out.passed {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::from(1)
+        });
+    }
     for r in &out.runs {
         println!(
             "[{}] scenario {:.1} s (physical {:.1} s, fast-forwarded {:.1} s) in {:.2} s wall",
@@ -67,10 +95,10 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
         );
         if let Some(d) = &r.detector {
             println!(
-                "  detector: {} | amplitude {:.2} {} | severity {:.2} | frequency {} | first flagged {}",
+                "  detector: {} | amplitude {:.2} {} | severity {:.2} | frequency {} | first flagged: {}",
                 d.verdict.as_str(),
                 d.amplitude,
-                d.position_unit,
+                crate::report::unit_text(&d.position_unit),
                 d.severity,
                 d.frequency_hz
                     .or(d.dominant_hz)
@@ -117,16 +145,29 @@ fn run_live(args: &ScenarioArgs, iface: &str) -> anyhow::Result<ExitCode> {
     run.iface = iface.to_string();
     run.node = args.node;
     run.lockstep = args.lockstep;
+    run.sync_period_us = args.sync_period_us;
+    run.duration = args.duration;
+    run.json = args.json;
     run.trace = args.trace.clone();
     run.tick_hz = (1_000_000 / s.run.tick_us) as u32;
-    let outcome = crate::cli::run::run_live(&run, Some(&s))?
+    let live = crate::cli::run::run_live(&run, Some(&s))?;
+    let outcome = live
+        .scenario
+        .as_ref()
         .ok_or_else(|| anyhow::anyhow!("no scenario outcome"))?;
-    crate::cli::run::print_outcome(&outcome);
-    println!(
-        "{} (live on {iface}): {}",
-        s.name,
-        if outcome.passed() { "passed" } else { "FAILED" }
-    );
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&crate::cli::run::outcome_json(&live, &s))?
+        );
+    } else {
+        crate::cli::run::print_outcome(outcome);
+        println!(
+            "{} (live on {iface}): {}",
+            s.name,
+            if outcome.passed() { "passed" } else { "FAILED" }
+        );
+    }
     Ok(if outcome.passed() {
         ExitCode::SUCCESS
     } else {

@@ -92,6 +92,66 @@ pub enum Step {
     Disable,
 }
 
+impl std::fmt::Display for Step {
+    /// For people: "cruise at 10000 uu/s (ramp 500000 uu/s², 4 s in all)".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Step::Enable { mode } => write!(f, "enable in {}", mode_short(*mode)),
+            Step::SetMode { mode } => write!(f, "switch to {}", mode_short(*mode)),
+            Step::MoveTo {
+                target_uu,
+                velocity_uu_s,
+                accel_uu_s2,
+            } => write!(
+                f,
+                "PP move to {target_uu} uu at {velocity_uu_s} uu/s, {accel_uu_s2} uu/s²"
+            ),
+            Step::Cruise {
+                velocity_uu_s,
+                accel_uu_s2,
+                duration_s,
+            } => write!(
+                f,
+                "cruise at {velocity_uu_s:.0} uu/s (ramp {accel_uu_s2:.0} uu/s², {duration_s} s in all)"
+            ),
+            Step::Dwell { duration_s } => write!(f, "dwell {duration_s} s"),
+            Step::WriteSdo {
+                index,
+                sub,
+                value,
+                len,
+            } => write!(f, "write {}", sdo_value_text(*index, *sub, *value, *len)),
+            Step::StopHeartbeat => write!(f, "stop the master heartbeat"),
+            Step::StopSync => write!(f, "stop SYNC"),
+            Step::Disable => write!(f, "disable voltage"),
+        }
+    }
+}
+
+/// "0x2000 sub 0 (Backlash_mm) = 0.05": an SDO value decoded with the object's data type from
+/// the object table (REAL32 as a number, signed as signed), raw when the object is unknown.
+pub fn sdo_value_text(index: u16, sub: u8, value: u32, len: u8) -> String {
+    use drive_protocol::od::{self, DataType, Lookup};
+    let (name, shown) = match od::find(index, sub) {
+        Lookup::Found(i) => {
+            let o = &od::OBJECTS[i];
+            let v = match o.dtype {
+                DataType::Real32 => format!("{}", f32::from_bits(value)),
+                DataType::I8 => format!("{}", value as u8 as i8),
+                DataType::I16 => format!("{}", value as u16 as i16),
+                DataType::I32 => format!("{}", value as i32),
+                _ => format!("{value}"),
+            };
+            (format!(" ({})", o.name), v)
+        }
+        _ => (
+            String::new(),
+            format!("{value:#0w$X}", w = 2 + 2 * usize::from(len)),
+        ),
+    };
+    format!("{index:#06X} sub {sub}{name} = {shown}")
+}
+
 /// What the drive reported at one SYNC (the latest TPDO values), plus our own set-point.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct Sample {
@@ -186,7 +246,70 @@ struct StepState {
     sdo_sent: bool,
 }
 
-/// The name of the CiA 402 state a statusword shows (DOMAIN.md section 4 masks), for
+/// A CiA 402 mode of operation (0x6060 / 0x6061) by name, e.g. "CSP (cyclic synchronous
+/// position)".
+pub fn mode_name(mode: i8) -> &'static str {
+    match mode {
+        0 => "no mode",
+        1 => "PP (profile position)",
+        3 => "PV (profile velocity)",
+        4 => "PT (profile torque)",
+        6 => "HM (homing)",
+        7 => "IP (interpolated position)",
+        8 => "CSP (cyclic synchronous position)",
+        9 => "CSV (cyclic synchronous velocity)",
+        10 => "CST (cyclic synchronous torque)",
+        m if m < 0 => "manufacturer-specific mode",
+        _ => "reserved mode",
+    }
+}
+
+/// The short name of a mode: "CSP", "PP", ... (the number when it has none).
+pub fn mode_short(mode: i8) -> String {
+    let n = mode_name(mode);
+    match n.split_once(' ') {
+        Some((short, _)) if n.contains('(') => short.to_string(),
+        _ => format!("mode {mode}"),
+    }
+}
+
+/// An NMT state from its heartbeat code, e.g. "OPERATIONAL".
+pub fn nmt_name(code: u8) -> &'static str {
+    match code {
+        0x00 => "BOOT-UP",
+        0x04 => "STOPPED",
+        0x05 => "OPERATIONAL",
+        0x7F => "PRE-OPERATIONAL",
+        _ => "UNKNOWN",
+    }
+}
+
+/// What an EMCY error code means (CiA 301 / CiA 402 codes this drive sends).
+pub fn emcy_name(code: u16) -> &'static str {
+    match code {
+        0x0000 => "error reset / no error",
+        0x1000 => "generic error",
+        0x2310 => "continuous over-current",
+        0x3210 => "DC link over-voltage",
+        0x4310 => "drive over-temperature",
+        0x5530 => "data storage error",
+        0x6100 => "internal software error",
+        0x7300 => "sensor (encoder) error",
+        0x8100 => "SYNC loss (communication)",
+        0x8110 => "CAN overrun",
+        0x8120 => "CAN error passive",
+        0x8130 => "heartbeat / life guard error",
+        0x8140 => "recovered from bus-off",
+        0x8210 => "PDO length error",
+        0x8220 => "PDO length exceeded",
+        0x8240 => "unexpected SYNC data length",
+        0x8611 => "following error",
+        0xFF00..=0xFFFF => "manufacturer-specific",
+        _ => "see CiA 301 / CiA 402",
+    }
+}
+
+/// The name of the CiA 402 state a statusword shows (CiA 402 statusword masks), for
 /// messages; `UNKNOWN` for a pattern that is no state. Compare [`Cia402State`]s, not names.
 pub fn state_name(sw: u16) -> &'static str {
     Cia402State::from_statusword(sw).map_or("UNKNOWN", Cia402State::name)
@@ -534,7 +657,7 @@ impl Master {
                     Stage::Reached => {
                         self.say(
                             now_us,
-                            format!("drive in {} in mode {}", state_name(sw), self.mode),
+                            format!("drive in {} in {}", state_name(sw), mode_short(self.mode)),
                         );
                         self.next_step(now_us, i);
                         return;
@@ -545,9 +668,9 @@ impl Master {
                     self.fail(
                         now_us,
                         format!(
-                            "{step:?} not reached: statusword {sw:#06X} ({}), mode display {}",
+                            "{step} not reached: statusword {sw:#06X} ({}), mode display {}",
                             state_name(sw),
-                            self.latest.mode_display
+                            mode_short(self.latest.mode_display)
                         ),
                     );
                 }
@@ -604,7 +727,7 @@ impl Master {
             Step::Cruise { duration_s, .. } | Step::Dwell { duration_s } => {
                 if self.step.stage == Stage::Start {
                     self.step.stage = Stage::Running;
-                    self.say(now_us, format!("{step:?}"));
+                    self.say(now_us, step.to_string());
                 }
                 if (now_us - self.step.started_us) as f64 >= duration_s * 1e6 {
                     self.next_step(now_us, i);
@@ -617,7 +740,10 @@ impl Master {
                 len,
             } => {
                 if let Some(true) = self.sdo_step(now_us, index, sub, value, len) {
-                    self.say(now_us, format!("wrote {index:04X}sub{sub} = {value}"));
+                    self.say(
+                        now_us,
+                        format!("wrote {}", sdo_value_text(index, sub, value, len)),
+                    );
                     self.next_step(now_us, i);
                 }
             }

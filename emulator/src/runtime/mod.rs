@@ -33,6 +33,8 @@ use std::time::Instant;
 
 /// At most this many received frames are handled per tick; the rest wait for the next tick.
 pub const MAX_RX_PER_TICK: usize = 256;
+/// Lock-step: simulated time per SYNC when neither the caller nor the master (0x1006) says.
+pub const DEFAULT_SYNC_PERIOD_US: u64 = 1000;
 /// Falling further behind than this many periods skips ticks instead of catching up (when no
 /// received frame paces the catch-up: frames read after a stall are interleaved with the ticks
 /// that were due before each arrived, see [`Runtime::realtime_wake`]).
@@ -74,6 +76,11 @@ pub struct Runtime<B, D> {
     pub stats: LoopStats,
     /// Lock-step: when each node's pending boot started on the wall clock.
     boot_started: Vec<Option<Instant>>,
+    /// Lock-step: the simulated time one SYNC advances, us (0 before the first SYNC and when
+    /// not in lock-step).
+    pub lockstep_period_us: u64,
+    /// Lock-step: ticks run on the drive's own clock while SYNC was missing.
+    pub lockstep_free_ticks: u64,
 }
 
 impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
@@ -87,6 +94,8 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             sim_time_us: 0,
             stats: LoopStats::new(period_us),
             boot_started: vec![None; axes_len],
+            lockstep_period_us: 0,
+            lockstep_free_ticks: 0,
         }
     }
 
@@ -320,11 +329,34 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         &mut self,
         sync_period_us: u64,
         stop: &AtomicBool,
+        hook: impl FnMut(&mut Self),
+    ) {
+        let cfg = Lockstep {
+            sync_period_us: Some(sync_period_us),
+            free_run_after_us: None,
+        };
+        self.run_lockstep_with(cfg, stop, hook);
+    }
+
+    /// Lock-step as [`Runtime::run_lockstep`], with the SYNC period from the master when
+    /// `cfg.sync_period_us` is `None` (axis 0's 0x1006 once the master writes it, else 1 ms),
+    /// and, with `cfg.free_run_after_us`, the drive's own
+    /// clock taking over when SYNC stops (see [`Lockstep`]). The period in force is published
+    /// in [`Runtime::lockstep_period_us`].
+    pub fn run_lockstep_with(
+        &mut self,
+        cfg: Lockstep,
+        stop: &AtomicBool,
         mut hook: impl FnMut(&mut Self),
     ) {
-        let ticks_per_sync = (sync_period_us / self.period_us).max(1);
+        let mut last_sync: Option<std::time::Instant> = None;
+        // Ticks run on the wall clock since SYNC stopped.
+        let mut free_ticks = 0u64;
+        let wait_us = cfg
+            .free_run_after_us
+            .map_or(10_000, |_| self.period_us.min(10_000));
         while !stop.load(Ordering::Relaxed) {
-            let wait_us = self.lockstep_boots();
+            let wait_us = wait_us.min(self.lockstep_boots());
             self.bus.wait_readable(wait_us);
             // Frames in bus order: each SYNC advances time before the frames after it are
             // seen, so a batch read after a stall gives the same run as frames read one by one
@@ -339,16 +371,32 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                 if !sync {
                     continue;
                 }
+                last_sync = Some(std::time::Instant::now());
+                free_ticks = 0;
+                let sync_us = cfg
+                    .sync_period_us
+                    .or_else(|| {
+                        let p = self.axes.first()?.node.object_raw(0x1006, 0)?;
+                        (p > 0).then_some(u64::from(p))
+                    })
+                    .unwrap_or(DEFAULT_SYNC_PERIOD_US);
+                let ticks_per_sync = ((sync_us + self.period_us / 2) / self.period_us).max(1);
+                self.lockstep_period_us = ticks_per_sync * self.period_us;
                 for _ in 0..ticks_per_sync {
-                    self.step();
-                    self.flush_tx();
-                    self.bus.end_tick();
-                    self.stats.record_tick(0, 0);
-                    // 0x2100 refreshed as in the real-time loop.
-                    if self.stats.ticks.is_multiple_of(256) {
-                        self.publish_stats();
+                    self.lockstep_tick(&mut hook);
+                }
+            }
+            // SYNC stopped: after the grace time the drive's clock runs on the wall's.
+            if let (Some(limit), Some(last)) = (cfg.free_run_after_us, last_sync) {
+                let since_us = last.elapsed().as_micros() as u64;
+                if since_us > limit {
+                    let due = (since_us - limit) / self.period_us;
+                    let n = due.saturating_sub(free_ticks).min(MAX_CATCH_UP_TICKS);
+                    for _ in 0..n {
+                        self.lockstep_tick(&mut hook);
                     }
-                    hook(self);
+                    free_ticks += n;
+                    self.lockstep_free_ticks += n;
                 }
             }
         }
@@ -380,6 +428,32 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         self.flush_tx();
         wait_us.max(1)
     }
+
+    fn lockstep_tick(&mut self, hook: &mut impl FnMut(&mut Self)) {
+        self.step();
+        self.flush_tx();
+        self.bus.end_tick();
+        self.stats.record_tick(0, 0);
+        // 0x2100 refreshed as in the real-time loop.
+        if self.stats.ticks.is_multiple_of(256) {
+            self.publish_stats();
+        }
+        hook(self);
+    }
+}
+
+/// How [`Runtime::run_lockstep_with`] turns SYNCs into simulated time.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Lockstep {
+    /// Simulated time per SYNC, us (rounded to whole ticks). `None`: axis 0's communication
+    /// cycle period 0x1006 when the master has set it, else [`DEFAULT_SYNC_PERIOD_US`]. (Not
+    /// the interval seen on the wall clock: lock-step results must not depend on the host.)
+    pub sync_period_us: Option<u64>,
+    /// When no SYNC has arrived for this long (wall clock, us) after the first one, the
+    /// drive's own clock takes over, one tick per period of wall time, until SYNC returns, as
+    /// a real drive's clock would: its SYNC supervision reports the loss and a run with an end
+    /// reaches it. `None`: simulated time waits for SYNC forever.
+    pub free_run_after_us: Option<u64>,
 }
 
 /// The real-time loop's state between wake-ups: the next control deadline and the SYNC lock.

@@ -91,6 +91,15 @@ fn secs(us: u64) -> f64 {
     us as f64 * 1e-6
 }
 
+/// A duration for people: "10 ms", "1.5 s".
+pub fn seconds_text(us: u64) -> String {
+    if us < 1_000_000 {
+        format!("{} ms", fs(us * 1000))
+    } else {
+        format!("{} s", fs(us))
+    }
+}
+
 /// Seconds, at most three decimals, no trailing zeros.
 fn fs(us: u64) -> String {
     let s = format!("{:.3}", secs(us));
@@ -146,7 +155,10 @@ impl Expectation {
                 format!("detected frequency {hz} Hz +- {tolerance_pct} %")
             }
             Expectation::FrequencyOverKv { min, max } => format!("f / k_v in {min} .. {max}"),
-            Expectation::Program(o) => format!("master program {o:?}").to_lowercase(),
+            Expectation::Program(o) => match o {
+                ProgramOutcome::Finished => "master program finished".into(),
+                ProgramOutcome::Failed => "master program failed".into(),
+            },
         }
     }
 
@@ -265,7 +277,7 @@ impl Expectation {
                     "verdict {} (amplitude {:.2} {}, severity {:.2}); first suspected {}, first backlash {}",
                     d.verdict.as_str(),
                     d.amplitude,
-                    d.position_unit,
+                    crate::report::unit_text(&d.position_unit),
                     d.severity,
                     fmt_t(d.first_suspected_s),
                     fmt_t(d.first_backlash_s)

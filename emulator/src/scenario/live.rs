@@ -46,6 +46,11 @@ pub enum Injection {
         until_us: Option<u64>,
     },
     CanRestore,
+    /// The injections of event `event` (index in the timeline) are in: the loop answers with
+    /// the simulated time it applied them, so the reported event time is the bus's.
+    Mark {
+        event: u16,
+    },
 }
 
 /// The queues between the loop and the scenario thread, sized once.
@@ -55,6 +60,8 @@ pub struct LiveLink {
     pub samples: ArrayQueue<Sample>,
     /// (simulated time us, EMCY code).
     pub emcys: ArrayQueue<(u64, u16)>,
+    /// (event index, simulated time us at which the loop applied it).
+    pub applied: ArrayQueue<(u16, u64)>,
     /// The loop's simulated time, us.
     pub now_us: AtomicU64,
     /// Samples lost because the scenario thread fell behind.
@@ -67,6 +74,7 @@ impl LiveLink {
             injections: ArrayQueue::new(1024),
             samples: ArrayQueue::new(1 << 16),
             emcys: ArrayQueue::new(256),
+            applied: ArrayQueue::new(256),
             now_us: AtomicU64::new(0),
             samples_lost: AtomicU64::new(0),
         }
@@ -121,6 +129,9 @@ impl LoopInjector {
                     rt.bus.clear_rules();
                     self.rules.clear();
                 }
+                Injection::Mark { event } => {
+                    let _ = link.applied.push((event, now));
+                }
             }
         }
         let mut k = 0;
@@ -152,7 +163,13 @@ pub struct LiveOutcome {
     pub record: RunRecord,
     pub detector: Option<DetectorReport>,
     pub expectations: Vec<ExpectResult>,
+    /// (simulated time us, description) of every event that fired, in time order; the time
+    /// is when the loop applied it.
     pub fired: Vec<(u64, String)>,
+    /// Events that had not fired when the run ended: (file line, description).
+    pub not_fired: Vec<(usize, String)>,
+    /// Why the run ended, for people.
+    pub end_reason: String,
     pub samples_lost: u64,
 }
 
@@ -176,14 +193,87 @@ fn initial_values(cfg: &AxisConfig, drive: &AxisDrive) -> Vec<(&'static ParamKey
         .collect()
 }
 
-/// The scenario thread: follow the loop's time until the scenario's duration (or `stop`),
-/// inject the timeline, record, and check the expectations.
+/// When a live run ends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LiveEnd {
+    /// At this simulated time, us (`--duration`, or the file's `duration`).
+    At(u64),
+    /// Once every event has fired and what it started has run its course (ramps, profiles
+    /// and CAN faults with a length), plus the longest `within` of the expectations (at least
+    /// 1 s), and no earlier than the latest time an expectation names.
+    EventsDone,
+}
+
+impl LiveEnd {
+    /// `--duration` if given, else the file's `duration`, else [`LiveEnd::EventsDone`].
+    pub fn for_scenario(s: &Scenario, duration_us: Option<u64>) -> Self {
+        duration_us
+            .or(s.run.duration_us)
+            .map_or(LiveEnd::EventsDone, LiveEnd::At)
+    }
+
+    /// For people: "at 3 s" / "once its events have run their course (...)".
+    pub fn describe(&self, s: &Scenario) -> String {
+        match self {
+            LiveEnd::At(t) => format!("at {}", super::expect::seconds_text(*t)),
+            LiveEnd::EventsDone => format!(
+                "once its {} event(s) have fired and run their course, {} after (Ctrl-C ends it earlier)",
+                s.events.len(),
+                super::expect::seconds_text(settle_us(s).0)
+            ),
+        }
+    }
+}
+
+/// (time left after the last event for its effect to show, latest absolute time an
+/// expectation names), us.
+fn settle_us(s: &Scenario) -> (u64, u64) {
+    use super::expect::Expectation as E;
+    let mut settle = 1_000_000u64;
+    let mut horizon = 0u64;
+    for e in &s.expectations {
+        match &e.what {
+            E::Emcy {
+                within_us: Some(w), ..
+            } => settle = settle.max(*w),
+            E::NoEmcy { from_us, until_us } => horizon = horizon.max(until_us.unwrap_or(*from_us)),
+            E::State { at_us: Some(t), .. } => horizon = horizon.max(*t),
+            E::FollowingError {
+                from_us, until_us, ..
+            } => horizon = horizon.max(until_us.unwrap_or(*from_us)),
+            E::Verdict {
+                by_us,
+                not_before_us,
+                ..
+            } => {
+                horizon = horizon
+                    .max(by_us.unwrap_or(0))
+                    .max(not_before_us.unwrap_or(0))
+            }
+            _ => {}
+        }
+    }
+    (settle, horizon)
+}
+
+/// How long what an event starts lasts, us.
+fn event_length_us(a: &Action) -> u64 {
+    match a {
+        Action::Ramp { over_us, .. } => *over_us,
+        Action::Profile { over_us, .. } | Action::Can { over_us, .. } => over_us.unwrap_or(0),
+        _ => 0,
+    }
+}
+
+/// The scenario thread: follow the loop's time until `end` (or `stop`), inject the timeline,
+/// record, and check the expectations.
 pub fn run_timeline(
     s: &Scenario,
     cfg: &AxisConfig,
     drive_before_start: &AxisDrive,
     link: &LiveLink,
     stop: &AtomicBool,
+    end: LiveEnd,
 ) -> LiveOutcome {
     let mut current = initial_values(cfg, drive_before_start);
     let mut timeline = Timeline::new(s.events.clone());
@@ -192,8 +282,13 @@ pub fn run_timeline(
     let mut samples: Vec<Sample> = Vec::new();
     let mut emcys: Vec<(u64, u16)> = Vec::new();
     let mut new_codes: Vec<u16> = Vec::new();
-    let mut fired = Vec::new();
-    let end_us = s.run.duration_us.unwrap_or_else(|| s.program_duration_us());
+    // Per event: when the scenario thread fired it, and when the loop applied it.
+    let n_events = s.events.len();
+    let mut fired_us: Vec<Option<u64>> = vec![None; n_events];
+    let mut applied_us: Vec<Option<u64>> = vec![None; n_events];
+    // The end of what the fired events started.
+    let mut busy_until_us = 0u64;
+    let (settle, horizon) = settle_us(s);
     let mut last_ramp_us = 0u64;
     let inject = |i: Injection| {
         // The loop drains the queue every tick; a full queue means the loop is stalled.
@@ -201,11 +296,16 @@ pub fn run_timeline(
             std::thread::sleep(Duration::from_millis(1));
         }
     };
-    loop {
+    let end_reason = loop {
         std::thread::sleep(Duration::from_millis(1));
         let now = link.now_us.load(Ordering::Relaxed);
         while let Some(smp) = link.samples.pop() {
             samples.push(smp);
+        }
+        while let Some((i, t)) = link.applied.pop() {
+            if let Some(slot) = applied_us.get_mut(usize::from(i)) {
+                *slot = Some(t);
+            }
         }
         new_codes.clear();
         while let Some((t, code)) = link.emcys.pop() {
@@ -219,9 +319,11 @@ pub fn run_timeline(
             state,
             new_emcy: &new_codes,
         };
-        let due: Vec<_> = timeline.due(now, &obs).cloned().collect();
-        for ev in due {
-            fired.push((now, ev.describe()));
+        let due = timeline.due_indices(now, &obs).to_vec();
+        for i in due {
+            let ev = &timeline.events()[i];
+            fired_us[i] = Some(now);
+            busy_until_us = busy_until_us.max(now + event_length_us(&ev.action));
             match ev.action {
                 Action::Set { key, value } => {
                     drivers.stop(key);
@@ -245,6 +347,7 @@ pub fn run_timeline(
                 }),
                 Action::CanRestore => inject(Injection::CanRestore),
             }
+            inject(Injection::Mark { event: i as u16 });
         }
         // Ramps every 10 ms of simulated time, profiles every millisecond.
         if !drivers.is_empty() && (drivers.has_profile() || now >= last_ramp_us + 10_000) {
@@ -258,8 +361,30 @@ pub fn run_timeline(
                 });
             }
         }
-        if now >= end_us || stop.load(Ordering::Relaxed) {
-            break;
+        if stop.load(Ordering::Relaxed) {
+            break "stopped (Ctrl-C, SIGTERM or --duration of the run)".to_string();
+        }
+        match end {
+            LiveEnd::At(t) if now >= t => {
+                break format!("reached its end at {}", super::expect::seconds_text(t));
+            }
+            LiveEnd::EventsDone if timeline.all_fired() => {
+                let t = (busy_until_us + settle).max(horizon);
+                if now >= t {
+                    break format!(
+                        "every event fired and ran its course; ended at {}",
+                        super::expect::seconds_text(now)
+                    );
+                }
+            }
+            _ => {}
+        }
+    };
+    // What the loop applied in the last moments (it keeps ticking until told to stop).
+    std::thread::sleep(Duration::from_millis(5));
+    while let Some((i, t)) = link.applied.pop() {
+        if let Some(slot) = applied_us.get_mut(usize::from(i)) {
+            *slot = Some(t);
         }
     }
     let rotary = cfg.kind == AxisKind::Rotary;
@@ -270,11 +395,21 @@ pub fn run_timeline(
         )
     });
     let mut events = std::collections::HashMap::new();
+    let mut fired = Vec::new();
+    let mut not_fired = Vec::new();
     for (i, e) in timeline.events().iter().enumerate() {
-        if let (Some(id), Some(t)) = (&e.id, timeline.fired_at(i)) {
-            events.insert(id.clone(), t);
+        // The time the drive got it; the scenario thread's when the loop stopped first.
+        match applied_us[i].or(fired_us[i]) {
+            Some(t) => {
+                if let Some(id) = &e.id {
+                    events.insert(id.clone(), t);
+                }
+                fired.push((t, e.describe()));
+            }
+            None => not_fired.push((e.line, e.describe())),
         }
     }
+    fired.sort_by_key(|f| f.0);
     let record = RunRecord {
         end_us: link.now_us.load(Ordering::Relaxed),
         samples,
@@ -285,12 +420,24 @@ pub fn run_timeline(
         program_finished: true,
         program_error: None,
     };
-    let expectations = check_all(&s.expectations, &record);
+    let mut expectations = check_all(&s.expectations, &record);
+    // An expectation on an event that had not fired says so plainly.
+    for x in &mut expectations {
+        if !x.passed && x.detail.contains("never fired") {
+            x.detail = format!(
+                "{} before the run ended at {}",
+                x.detail.replace("never fired", "had not fired"),
+                super::expect::seconds_text(record.end_us)
+            );
+        }
+    }
     LiveOutcome {
         record,
         detector,
         expectations,
         fired,
+        not_fired,
+        end_reason,
         samples_lost: link.samples_lost.load(Ordering::Relaxed),
     }
 }

@@ -36,15 +36,26 @@ pub struct ScenarioError {
 
 impl fmt::Display for ScenarioError {
     fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
-        write!(
-            f,
-            "{}:{}:{}: key `{}`: {}",
-            self.file.display(),
-            self.line,
-            self.column,
-            self.key,
-            self.reason
-        )
+        match (self.line, self.key.is_empty()) {
+            (0, _) => write!(f, "{}: {}", self.file.display(), self.reason),
+            (_, true) => write!(
+                f,
+                "{}:{}:{}: {}",
+                self.file.display(),
+                self.line,
+                self.column,
+                self.reason
+            ),
+            _ => write!(
+                f,
+                "{}:{}:{}: key `{}`: {}",
+                self.file.display(),
+                self.line,
+                self.column,
+                self.key,
+                self.reason
+            ),
+        }
     }
 }
 

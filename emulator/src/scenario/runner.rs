@@ -99,6 +99,18 @@ pub struct Outcome {
     pub runs: Vec<PresetRun>,
 }
 
+/// Why the drive refused a value, in the file's units (`scale`: file unit -> SI).
+fn param_error_text(e: drive_protocol::ParamError, scale: f64) -> String {
+    match e {
+        drive_protocol::ParamError::OutOfRange { min, max } => format!(
+            "outside what the drive accepts ({} .. {})",
+            min / scale,
+            max / scale
+        ),
+        drive_protocol::ParamError::Unsupported => "this drive has no such parameter".into(),
+    }
+}
+
 /// Apply an encoder fault event to a drive.
 pub(crate) fn sensor(drive: &mut AxisDrive, kind: SensorKind, counts: i64) {
     match kind {
@@ -162,7 +174,7 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
     let mcfg = s.run.master.clone();
     let tick = s.run.tick_us;
     let drive = AxisDrive::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", cfg.name))?;
-    let node = Node::new(mcfg.node_id, drive.info()).map_err(|e| anyhow::anyhow!("node: {e:?}"))?;
+    let node = Node::new(mcfg.node_id, drive.info()).map_err(|e| anyhow::anyhow!("node: {e}"))?;
     let mut eps = InProcBus::endpoints(2, 4096);
     let mut master_ep: InProcEndpoint = eps.pop().expect("two endpoints");
     let bus = FaultyBus::new(eps.pop().expect("two endpoints"), s.run.seed);
@@ -222,14 +234,23 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
                 Action::Set { key, value } => {
                     drivers.stop(key);
                     drive.set_param(key.param, value * key.scale).map_err(|e| {
-                        anyhow::anyhow!("line {}: {} = {value}: {e:?}", ev.line, key.key)
+                        anyhow::anyhow!(
+                            "line {}: {} = {value}: {}",
+                            ev.line,
+                            key.key,
+                            param_error_text(e, key.scale)
+                        )
                     })?;
                 }
                 Action::Ramp { key, .. } | Action::Profile { key, .. } => {
-                    let cur = drive
-                        .param(key.param)
-                        .map_err(|e| anyhow::anyhow!("line {}: {}: {e:?}", ev.line, key.key))?
-                        / key.scale;
+                    let cur = drive.param(key.param).map_err(|e| {
+                        anyhow::anyhow!(
+                            "line {}: {}: {}",
+                            ev.line,
+                            key.key,
+                            param_error_text(e, key.scale)
+                        )
+                    })? / key.scale;
                     drivers.start(&ev.action, now, cur);
                 }
                 Action::Sensor { kind, counts } => sensor(drive, *kind, *counts),
@@ -259,7 +280,9 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
                 rt.axes[0]
                     .drive
                     .set_param(key.param, v * key.scale)
-                    .map_err(|e| anyhow::anyhow!("{} = {v}: {e:?}", key.key))?;
+                    .map_err(|e| {
+                        anyhow::anyhow!("{} = {v}: {}", key.key, param_error_text(e, key.scale))
+                    })?;
                 if Some(*key) == ramp_key && ticks.is_multiple_of(100) {
                     ramp_series.push((now as f64 * 1e-6, *v));
                 }
@@ -424,7 +447,10 @@ pub fn write_report(out: &Outcome, dir: &Path, plots: bool) -> anyhow::Result<Ve
             }
         }
     }
-    if plots && !points.is_empty() {
+    // Frequency against k_v says something only across several gains (a sweep).
+    let mut gains: Vec<f64> = points.iter().map(|p| p.kv_per_s).collect();
+    gains.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    if plots && gains.len() >= 2 {
         let p = dir.join("frequency_vs_kv.png");
         crate::report::plot_frequency_vs_kv(&p, &points)?;
         files.push(p);

@@ -105,10 +105,47 @@ impl Event {
                 "profile {} = {mean} +- {amplitude} at {frequency_hz} Hz",
                 key.key
             ),
-            Action::Sensor { kind, counts } => format!("sensor {kind:?} {counts}"),
-            Action::Can { fault, .. } => format!("CAN {fault:?}"),
-            Action::CanRestore => "CAN restore".into(),
+            Action::Sensor { kind, counts } => format!("sensor: {}", sensor_text(*kind, *counts)),
+            Action::Can { fault, over_us } => format!(
+                "CAN: {}{}",
+                can_text(fault),
+                over_us.map_or(String::new(), |o| format!(
+                    " for {}",
+                    super::expect::seconds_text(o)
+                ))
+            ),
+            Action::CanRestore => "CAN: faults removed".into(),
         }
+    }
+}
+
+fn sensor_text(kind: SensorKind, counts: i64) -> String {
+    match kind {
+        SensorKind::MotorEncoderLoss => "motor encoder signal lost".into(),
+        SensorKind::DirectEncoderLoss => "direct encoder signal lost".into(),
+        SensorKind::MotorEncoderGlitch => format!("motor encoder jumps {counts} counts"),
+        SensorKind::DirectEncoderGlitch => format!("direct encoder jumps {counts} counts"),
+        SensorKind::Restore => "encoder signals restored".into(),
+    }
+}
+
+fn can_text(fault: &CanFault) -> String {
+    let only = |c: &Option<u32>| c.map_or(String::new(), |c| format!(" with COB-ID {c:#05X}"));
+    match fault {
+        CanFault::Drop { share, cob_id } => {
+            format!("{} % of the frames{} dropped", share * 100.0, only(cob_id))
+        }
+        CanFault::Delay {
+            share,
+            ticks,
+            cob_id,
+        } => format!(
+            "{} % of the frames{} delayed by {ticks} ticks",
+            share * 100.0,
+            only(cob_id)
+        ),
+        CanFault::SyncLoss => "SYNC lost (no SYNC reaches the drive)".into(),
+        CanFault::HeartbeatLoss => "master heartbeat lost (no heartbeat reaches the drive)".into(),
     }
 }
 
@@ -177,6 +214,12 @@ impl Timeline {
                 }
             })
             .min()
+    }
+
+    /// As [`Timeline::due`], as indices into [`Timeline::events`].
+    pub fn due_indices(&mut self, now_us: u64, obs: &Observation) -> &[usize] {
+        let _ = self.due(now_us, obs).count();
+        &self.due
     }
 
     /// Mark and return the events due at `now_us` (each fires once), in file order.

@@ -188,7 +188,7 @@ fn required<'a, T>(
         ctx.err(
             at.span(),
             Some(key),
-            format!("a `{:?}` step needs `{key}`", at.get_ref()).to_lowercase(),
+            format!("a `{}` step needs `{key}`", step_name(at.get_ref())),
         )
     })
 }
@@ -203,7 +203,7 @@ fn steps(
         let s = s.get_ref();
         let kind = *s.step.get_ref();
         let present = s.present();
-        let what = format!("a `{}` step", format!("{kind:?}").to_lowercase());
+        let what = format!("a `{}` step", step_name(&kind));
         let vel = &[
             "velocity_mm_min",
             "velocity_mm_s",
@@ -926,4 +926,21 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
         expectations,
         detector,
     })
+}
+
+/// A step's name as written in the file (`write_sdo`, `move_to`, ...).
+fn step_name(k: &StepKind) -> &'static str {
+    match k {
+        StepKind::Enable => "enable",
+        StepKind::SetMode => "set_mode",
+        StepKind::MoveTo => "move_to",
+        StepKind::Cruise => "cruise",
+        StepKind::Dwell => "dwell",
+        StepKind::Idle => "idle",
+        StepKind::WriteSdo => "write_sdo",
+        StepKind::StopHeartbeat => "stop_heartbeat",
+        StepKind::StopSync => "stop_sync",
+        StepKind::Disable => "disable",
+        StepKind::Repeat => "repeat",
+    }
 }

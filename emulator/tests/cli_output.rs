@@ -1,0 +1,229 @@
+//! What a user reads: the main commands run as a user runs them (the built binary), their
+//! output checked for Rust Debug text and raw bits, `--json` for pure, parseable JSON with the
+//! expectations, and errors for a plain message without a backtrace, even with
+//! RUST_BACKTRACE=1.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_drive-emu"));
+    c.current_dir(repo());
+    c
+}
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("drive-emu-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn run(args: &[&str]) -> Output {
+    let out = bin().args(args).output().expect("start drive-emu");
+    out
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Rust Debug formatting in user text: `Some(..)`, `None`, `Name { field: .. }`, a struct or
+/// enum variant name in CamelCase (`SyncLoss`, `MotorEncoderLoss`), `Ok(`/`Err(`.
+fn debug_text(s: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    for line in s.lines() {
+        for pat in ["Some(", "None", "Ok(", "Err(", " { ", ": {"] {
+            if line.contains(pat) {
+                found.push(format!("`{pat}` in: {line}"));
+            }
+        }
+        for word in line.split(|c: char| !c.is_ascii_alphanumeric() && c != '_') {
+            let upper_after_lower = word
+                .as_bytes()
+                .windows(2)
+                .any(|w| w[0].is_ascii_lowercase() && w[1].is_ascii_uppercase());
+            let starts_upper = word.chars().next().is_some_and(|c| c.is_ascii_uppercase());
+            // CamelCase words, not units like kHz or names like k_v.
+            if starts_upper && upper_after_lower && !word.contains('_') && word != "CiA" {
+                found.push(format!("`{word}` in: {line}"));
+            }
+        }
+    }
+    found
+}
+
+fn assert_clean(what: &str, o: &Output) {
+    let t = text(o);
+    assert!(o.status.success(), "{what}: {}\n{t}", o.status);
+    let bad = debug_text(&t);
+    assert!(
+        bad.is_empty(),
+        "{what}: Debug text:\n{}\n\n{t}",
+        bad.join("\n")
+    );
+    assert!(!t.contains("panicked"), "{what}:\n{t}");
+}
+
+#[test]
+fn the_main_commands_print_no_debug_text() {
+    assert_clean("presets", &run(&["presets"]));
+    let demo = run(&["demo"]);
+    assert_clean("demo", &demo);
+    let demo_text = text(&demo);
+    // The SDO write of the demo's master is decoded with the object's type, not raw bits.
+    assert!(demo_text.contains("uu"), "{demo_text}");
+    assert!(
+        demo_text.contains("--preset cnc1"),
+        "hints follow the preset: {demo_text}"
+    );
+    let demo3 = run(&["demo", "--preset", "cnc3", "--backlash", "0.05"]);
+    assert_clean("demo cnc3", &demo3);
+    let t3 = text(&demo3);
+    assert!(
+        t3.contains("--preset cnc3 --set backlash_deg=0.05"),
+        "hints follow the preset: {t3}"
+    );
+    assert!(!t3.contains("cnc1"), "{t3}");
+    assert!(
+        t3.contains("0.001 deg"),
+        "uu defined for a rotary axis: {t3}"
+    );
+    assert_clean(
+        "sim",
+        &run(&[
+            "sim",
+            "--preset",
+            "cnc1",
+            "--set",
+            "backlash_mm=0.05",
+            "--velocity",
+            "16.7",
+            "--duration",
+            "1",
+        ]),
+    );
+    for name in ["sync-loss", "encoder-loss", "heartbeat-loss"] {
+        let dir = out_dir(name);
+        let file = format!("scenarios/{name}.toml");
+        let o = run(&[
+            "scenario",
+            &file,
+            "--quiet",
+            "--no-plots",
+            "-o",
+            dir.to_str().unwrap(),
+        ]);
+        assert_clean(name, &o);
+        let t = text(&o);
+        assert!(!t.contains("never fired"), "{t}");
+        if name == "sync-loss" {
+            let samples = dir.join("cnc1-samples.csv");
+            let a = run(&[
+                "analyze",
+                samples.to_str().unwrap(),
+                "--kv",
+                "30",
+                "-o",
+                dir.join("analyze").to_str().unwrap(),
+            ]);
+            assert_clean("analyze", &a);
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+#[test]
+fn a_master_sdo_write_of_a_real32_prints_the_number() {
+    use drive_emu::master::{sdo_value_text, Step};
+    // 0x2000 backlash_mm is REAL32: on the wire 0.05 is the bits 1028443341 (0x3D4CCCCD).
+    let t = sdo_value_text(0x2000, 0, 0.05f32.to_bits(), 4);
+    assert!(t.ends_with("= 0.05"), "{t}");
+    assert!(t.starts_with("0x2000 sub 0"), "{t}");
+    // Signed objects as signed: target position 0x607A = -1000.
+    let t = sdo_value_text(0x607A, 0, (-1000i32) as u32, 4);
+    assert!(t.ends_with("= -1000"), "{t}");
+    // The master's program steps in words, not Debug.
+    for step in [
+        Step::Cruise {
+            velocity_uu_s: 10_000.0,
+            accel_uu_s2: 100_000.0,
+            duration_s: 4.0,
+        },
+        Step::Enable { mode: 8 },
+        Step::WriteSdo {
+            index: 0x2000,
+            sub: 0,
+            value: 0.05f32.to_bits(),
+            len: 4,
+        },
+    ] {
+        let text = step.to_string();
+        assert!(debug_text(&text).is_empty(), "{text}");
+        assert!(!text.contains("1028443341"), "{text}");
+    }
+}
+
+#[test]
+fn scenario_json_is_pure_json_with_the_expectations() {
+    let dir = out_dir("json");
+    let o = run(&[
+        "scenario",
+        "scenarios/sync-loss.toml",
+        "--json",
+        "--no-plots",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not JSON ({e}):\n{}", text(&o)));
+    let exps = v["runs"][0]["expectations"]
+        .as_array()
+        .expect("expectations in the JSON");
+    assert!(!exps.is_empty());
+    assert!(exps
+        .iter()
+        .all(|e| e["passed"] == true && e["expectation"].is_string()));
+    assert_eq!(v["passed"], true);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn user_errors_print_a_message_and_no_backtrace() {
+    let cases: &[&[&str]] = &[
+        &["run", "--preset", "nope"],
+        &["run", "--set", "backlash_mm=-3"],
+        &["scenario", "does-not-exist.toml"],
+        &["analyze", "does-not-exist.csv", "--kv", "30"],
+        &["sim", "--preset", "cnc9", "--velocity", "1"],
+        &["run", "--duration", "-1"],
+    ];
+    for args in cases {
+        let o = bin()
+            .args(*args)
+            .env("RUST_BACKTRACE", "1")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} succeeded:\n{err}");
+        assert!(err.contains("error"), "{args:?}: {err}");
+        for bad in [
+            "backtrace",
+            "Backtrace",
+            "panicked",
+            "Caused by",
+            "src/",
+            ".rs:",
+        ] {
+            assert!(!err.contains(bad), "{args:?}: `{bad}` in:\n{err}");
+        }
+    }
+}
