@@ -29,7 +29,7 @@ fn sim_refuses_non_finite_and_absurd_values() {
         &["--duration inf"],
     );
     refused(
-        &["sim", "--velocity", "10", "--accel", "-5"],
+        &["sim", "--velocity", "10", "--accel=-5"],
         &["--accel -5", ">= 0"],
     );
     refused(

@@ -103,7 +103,7 @@ pub fn validate_args(args: &RunArgs) -> Result<()> {
     if args.lockstep {
         let tick_us = 1_000_000 / u64::from(args.tick_hz.max(1));
         let p = args.sync_period_us;
-        if p == 0 || p > MAX_SYNC_PERIOD_US || p % tick_us != 0 {
+        if p == 0 || p > MAX_SYNC_PERIOD_US || !p.is_multiple_of(tick_us) {
             bail!(
                 "--sync-period-us {p}: must be a whole multiple of the tick period ({tick_us} us \
                  at --tick-hz {}) between {tick_us} and {MAX_SYNC_PERIOD_US} us: each SYNC \
