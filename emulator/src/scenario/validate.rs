@@ -810,6 +810,7 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
         heartbeat_ms: mr.heartbeat_ms.unwrap_or(d.heartbeat_ms),
         drive_heartbeat_ms: mr.drive_heartbeat_ms.unwrap_or(d.drive_heartbeat_ms),
         step_timeout_us: mr.step_timeout.map_or(d.step_timeout_us, |t| t.us()),
+        sdo_timeout_us: d.sdo_timeout_us,
     };
     let mspan = raw.machine.span();
     if !(1..=127).contains(&master.node_id) || !(1..=127).contains(&master.master_id) {
