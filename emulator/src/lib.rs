@@ -13,3 +13,4 @@ pub mod presets;
 pub mod report;
 pub mod runtime;
 pub mod scenario;
+pub mod study;

@@ -20,6 +20,10 @@ enum Command {
     Run(cli::run::RunArgs),
     /// Run a preset axis offline at constant velocity and analyse its vibration.
     Sim(cli::sim::SimArgs),
+    /// Sweep k_v x backlash x preset on all cores; one CSV/JSON row per case.
+    Sweep(cli::sweep::SweepArgs),
+    /// The paper's Fig. 3, 10 and 11 from simulated runs (PNG + JSON).
+    Figures(cli::figures::FiguresArgs),
     /// Run a scenario (wear, faults, expectations) offline and write its report.
     Scenario(cli::scenario::ScenarioArgs),
     /// Run the backlash detector on a trace: trace CSV, sample log or candump log.
@@ -36,6 +40,8 @@ fn main() -> anyhow::Result<ExitCode> {
         Command::Demo(args) => ok(cli::demo::run(&args)),
         Command::Run(args) => ok(cli::run::run(&args)),
         Command::Sim(args) => ok(cli::sim::run(&args)),
+        Command::Sweep(args) => ok(cli::sweep::run(&args)),
+        Command::Figures(args) => ok(cli::figures::run(&args)),
         Command::Scenario(args) => cli::scenario::run(&args),
         Command::Analyze(args) => cli::analyze::run(&args),
         Command::Eds(args) => ok(cli::eds::run_eds(&args)),

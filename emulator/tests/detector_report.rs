@@ -28,7 +28,7 @@ fn analyze_writes_json_and_plots_from_a_sim_trace() {
     let out = dir.join("report");
     let code = run(&AnalyzeArgs {
         trace: csv,
-        kv: cfg.kv_per_s,
+        kv: Some(cfg.kv_per_s),
         rotary: false,
         suspect: None,
         alarm: None,
@@ -39,7 +39,7 @@ fn analyze_writes_json_and_plots_from_a_sim_trace() {
     .unwrap();
     assert_eq!(
         code,
-        std::process::ExitCode::from(2),
+        std::process::ExitCode::from(1),
         "backlash must be flagged"
     );
     let json: serde_json::Value =

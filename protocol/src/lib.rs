@@ -9,13 +9,16 @@
 pub mod cia301;
 pub mod cia402;
 pub mod drive;
+pub mod event;
 pub mod frame;
 pub mod node;
 pub mod od;
 pub mod params;
+pub mod wire;
 
 pub use cia301::nmt::NmtState;
 pub use cia402::State as Cia402State;
 pub use drive::{AxisParam, Drive, DriveCommand, DriveInfo, Feedback, ParamError, Setpoint};
+pub use event::{NodeEvent, SdoDirection, SdoTransfer, EVENT_QUEUE};
 pub use frame::CanFrame;
 pub use node::{ConfigError, FrameEvent, Node, RuntimeStats, TX_QUEUE};

@@ -13,9 +13,11 @@ use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
 use crate::cia402::factor::Factor;
 use crate::cia402::{mode, objects as o402, Cia402, State};
 use crate::drive::{Drive, DriveInfo, ParamError};
+use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
 use crate::od::{self, idx, Lookup, Store, OBJECTS};
 use crate::params;
+use crate::wire::{cob, Heartbeat};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
 /// [`Node::tx_overflows`] and dropped.
@@ -99,6 +101,11 @@ struct Core {
     pending_sync: Option<u64>,
     injected_fault: u16,
     now_us: u64,
+    events: Deque<NodeEvent, EVENT_QUEUE>,
+    events_dropped: u32,
+    /// CiA 402 and NMT state as last reported in an event.
+    seen_cia: State,
+    seen_nmt: NmtState,
 }
 
 /// A CiA 301 + CiA 402 servo-drive node.
@@ -230,6 +237,49 @@ fn map_row(k: usize, tx: bool) -> usize {
 }
 
 impl Core {
+    fn event(&mut self, e: NodeEvent) {
+        if self.events.push_back(e).is_err() {
+            self.events_dropped = self.events_dropped.wrapping_add(1);
+        }
+    }
+
+    /// Report state changes since the last call as events.
+    fn observe(&mut self) {
+        if self.cia.state != self.seen_cia {
+            let from = self.seen_cia;
+            self.seen_cia = self.cia.state;
+            self.event(NodeEvent::Cia402State {
+                from,
+                to: self.cia.state,
+            });
+        }
+        if self.nmt != self.seen_nmt {
+            let from = self.seen_nmt;
+            self.seen_nmt = self.nmt;
+            self.event(NodeEvent::NmtState { from, to: self.nmt });
+        }
+    }
+
+    fn raise_emcy(&mut self, code: u16, info: [u8; 5]) {
+        if self.emcy.raise(&mut self.store, code, info) {
+            self.event(NodeEvent::EmcyRaised { code });
+        }
+    }
+
+    fn clear_emcy(&mut self, code: u16) {
+        if self.emcy.clear(&mut self.store, code) {
+            self.event(NodeEvent::EmcyCleared { code });
+        }
+    }
+
+    fn clear_all_emcy(&mut self) {
+        let active: heapless::Vec<u16, 8> = self.emcy.active().iter().copied().collect();
+        self.emcy.clear_all(&mut self.store);
+        for code in active {
+            self.event(NodeEvent::EmcyCleared { code });
+        }
+    }
+
     fn push(&mut self, f: CanFrame) {
         if self.tx.push_back(f).is_err() {
             self.tx_overflows = self.tx_overflows.wrapping_add(1);
@@ -413,8 +463,8 @@ impl Core {
 
     /// Report a communication event without keeping it active (history + EMCY frame).
     fn report(&mut self, code: u16, info: [u8; 5]) {
-        self.emcy.raise(&mut self.store, code, info);
-        self.emcy.clear(&mut self.store, code);
+        self.raise_emcy(code, info);
+        self.clear_emcy(code);
     }
 
     fn boot(&mut self, now_us: u64) {
@@ -424,7 +474,10 @@ impl Core {
         self.pending_sync = None;
         self.hb_lost = false;
         self.hb.restart(now_us, self.store.u32(R_1017) as u16);
-        self.push(CanFrame::new(0x700 + self.node_id as u32, &[0x00]));
+        self.push(CanFrame::new(
+            cob::HEARTBEAT + self.node_id as u32,
+            &Heartbeat::BOOTUP.emit(),
+        ));
     }
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
@@ -438,6 +491,29 @@ impl Core {
             }
             None => self.store.reset_range(lo, hi, self.node_id, &self.info),
         }
+    }
+
+    /// When event-driven TPDO `k` has to be looked at: its event timer, or the end of its
+    /// inhibit time when its data changed meanwhile.
+    fn tpdo_deadline_us(&self, k: usize) -> Option<u64> {
+        let p = &self.tpdo[k];
+        if !p.valid || p.ttype < 254 {
+            return None;
+        }
+        let Some(last) = p.last_tx_us else {
+            return Some(self.now_us);
+        };
+        let crow = comm_row(k, true);
+        let inhibit = self.store.u32(crow + 3) as u64 * 100;
+        let timer = self.store.u32(crow + 4) as u64 * 1000;
+        let mut at = (timer > 0).then(|| (last + timer).max(last + inhibit));
+        let mut d = [0u8; 8];
+        let n = p.pack(&self.store, &mut d);
+        if !p.has_last || d[..n] != p.last[..n] {
+            let t = last + inhibit;
+            at = Some(at.map_or(t, |a: u64| a.min(t)));
+        }
+        at
     }
 
     fn send_tpdo(&mut self, k: usize, now_us: u64) {
@@ -462,7 +538,7 @@ impl Core {
                 self.report(EMCY_SYNC_LENGTH, [frame.len, 0, 0, 0, 0]);
             }
             if s.recovered {
-                self.emcy.clear(&mut self.store, EMCY_SYNC_LOSS);
+                self.clear_emcy(EMCY_SYNC_LOSS);
             }
         }
         self.pending_sync = Some(now_us);
@@ -505,6 +581,7 @@ impl Core {
                 }
             }
         }
+        self.event(NodeEvent::Sync { counter: s.counter });
         FrameEvent::Sync { counter: s.counter }
     }
 }
@@ -536,7 +613,12 @@ impl Node {
             pending_sync: None,
             injected_fault: 0,
             now_us: 0,
+            events: Deque::new(),
+            events_dropped: 0,
+            seen_cia: State::NotReadyToSwitchOn,
+            seen_nmt: NmtState::Initialising,
         };
+        core.seen_cia = core.cia.state;
         core.refresh_all();
         Ok(Node {
             sdo: SdoServer::default(),
@@ -548,6 +630,7 @@ impl Node {
     pub fn boot(&mut self, now_us: u64) {
         self.core.now_us = now_us;
         self.core.boot(now_us);
+        self.core.observe();
     }
 
     fn nmt_command(&mut self, cmd: NmtCommand, now_us: u64, drive: &mut impl Drive) {
@@ -559,6 +642,7 @@ impl Node {
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
                 c.cia = Cia402::new(f);
+                c.clear_all_emcy();
                 c.emcy.reset(&mut c.store);
                 c.injected_fault = 0;
                 self.sdo.reset();
@@ -566,6 +650,7 @@ impl Node {
             }
             NmtCommand::ResetCommunication => {
                 c.restore_range(0x1000, 0x1FFF);
+                c.clear_all_emcy();
                 c.emcy.reset(&mut c.store);
                 self.sdo.reset();
                 c.boot(now_us);
@@ -595,6 +680,20 @@ impl Node {
 
     /// Handle one received frame.
     pub fn handle(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
+        let ev = self.handle_frame(frame, now_us, drive);
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+        ev
+    }
+
+    fn handle_frame(
+        &mut self,
+        frame: &CanFrame,
+        now_us: u64,
+        drive: &mut impl Drive,
+    ) -> FrameEvent {
         self.core.now_us = now_us;
         if frame.extended || frame.id > 0x7FF || self.core.nmt == NmtState::Initialising {
             return FrameEvent::Ignored;
@@ -621,7 +720,7 @@ impl Node {
             }
             return FrameEvent::Ignored;
         }
-        if id == 0x600 + self.core.node_id as u32 {
+        if id == cob::SDO_RX + self.core.node_id as u32 {
             if frame.rtr || frame.len != 8 {
                 return FrameEvent::Ignored;
             }
@@ -633,9 +732,9 @@ impl Node {
             self.sdo.handle(&frame.data, now_us, &mut acc, &mut |f| {
                 let _ = outv.push(f);
             });
-            let cob = 0x580 + self.core.node_id as u32;
+            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
             for f in outv {
-                self.core.push(CanFrame::new(cob, &f));
+                self.core.push(CanFrame::new(tx_cob, &f));
             }
             return FrameEvent::Handled;
         }
@@ -691,13 +790,65 @@ impl Node {
             c.hbc.on_heartbeat(node, now_us);
             if c.hb_lost {
                 c.hb_lost = false;
-                c.emcy.clear(&mut c.store, EMCY_HEARTBEAT);
+                c.clear_emcy(EMCY_HEARTBEAT);
             }
         }
     }
 
     /// Timers, the CiA 402 state machine and mode, and exactly one `drive.command(..)`.
     pub fn poll(&mut self, now_us: u64, drive: &mut impl Drive) {
+        self.poll_timers_and_drive(now_us, drive);
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+    }
+
+    /// The next event (state change, EMCY raised or cleared, SYNC, finished SDO transfer),
+    /// oldest first. Events beyond [`EVENT_QUEUE`] unread are dropped and counted in
+    /// [`Node::events_dropped`].
+    pub fn poll_event(&mut self) -> Option<NodeEvent> {
+        self.core.events.pop_front()
+    }
+
+    /// Events dropped because the event queue was full.
+    pub fn events_dropped(&self) -> u32 {
+        self.core.events_dropped
+    }
+
+    /// The next time (us, on the clock given to `handle` / `poll`) at which [`Node::poll`]
+    /// has a communication deadline: an SDO transfer timeout, the heartbeat producer, a
+    /// heartbeat consumer timeout, SYNC supervision (1.5 periods), a TPDO event timer or the
+    /// end of a TPDO or EMCY inhibit time holding back a frame. A SYNC received and not yet
+    /// processed makes it the time of that SYNC (poll now). `None`: no deadline; the node
+    /// then needs `poll` only for its CiA 402 cycle, which the caller runs at its own rate.
+    pub fn poll_at(&self) -> Option<u64> {
+        let c = &self.core;
+        let mut at = self.sdo.deadline_us();
+        let mut take = |t: Option<u64>| {
+            if let Some(t) = t {
+                at = Some(at.map_or(t, |a| a.min(t)));
+            }
+        };
+        if c.nmt == NmtState::Initialising {
+            return at;
+        }
+        take(c.pending_sync);
+        take(c.hb.deadline_us(c.store.u32(R_1017) as u16));
+        take(c.hbc.deadline_us());
+        if c.nmt == NmtState::Operational {
+            take(c.sync.deadline_us(c.store.u32(R_1006)));
+            for k in 0..4 {
+                take(c.tpdo_deadline_us(k));
+            }
+        }
+        if c.emcy_allowed() {
+            take(c.emcy.next_at_us(c.store.u32(R_1015) as u16));
+        }
+        at
+    }
+
+    fn poll_timers_and_drive(&mut self, now_us: u64, drive: &mut impl Drive) {
         self.core.now_us = now_us;
         let fb = drive.feedback();
         // SDO timeout
@@ -706,9 +857,9 @@ impl Node {
             self.sdo.poll(now_us, &mut |f| {
                 let _ = outv.push(f);
             });
-            let cob = 0x580 + self.core.node_id as u32;
+            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
             for f in outv {
-                self.core.push(CanFrame::new(cob, &f));
+                self.core.push(CanFrame::new(tx_cob, &f));
             }
         }
         let c = &mut self.core;
@@ -722,18 +873,19 @@ impl Node {
         }
         // heartbeat producer
         if c.hb.due(now_us, c.store.u32(R_1017) as u16) {
-            let f = CanFrame::new(0x700 + c.node_id as u32, &[c.nmt as u8]);
+            let hb = Heartbeat { state: c.nmt as u8 };
+            let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
             c.push(f);
         }
         // heartbeat consumer
         if let Some(n) = c.hbc.poll(now_us) {
             c.hb_lost = true;
-            c.emcy.raise(&mut c.store, EMCY_HEARTBEAT, [n, 0, 0, 0, 0]);
+            c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0]);
             c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
         }
         // SYNC supervision
         if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
-            c.emcy.raise(&mut c.store, EMCY_SYNC_LOSS, [0; 5]);
+            c.raise_emcy(EMCY_SYNC_LOSS, [0; 5]);
             c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
         }
         if c.injected_fault != 0 {
@@ -746,10 +898,10 @@ impl Node {
             .cia
             .step(&mut c.store, &fb, now_us, sync_at, period, drive);
         if let Some(code) = out.new_fault {
-            c.emcy.raise(&mut c.store, code, [0; 5]);
+            c.raise_emcy(code, [0; 5]);
         }
         if out.fault_cleared {
-            c.emcy.clear_all(&mut c.store);
+            c.clear_all_emcy();
         }
         drive.command(&out.command);
         // event-driven TPDOs

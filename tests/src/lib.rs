@@ -17,6 +17,7 @@ use std::sync::mpsc;
 use std::thread;
 use std::time::{Duration, Instant};
 
+use drive_protocol::wire::{cob, Initiate, Mux, SdoRequest, SdoResponse};
 pub use socketcan;
 use socketcan::{CanFrame, CanSocket, EmbeddedFrame, Socket, StandardId};
 
@@ -422,62 +423,54 @@ pub enum SdoError {
 /// SDO answer timeout in the tests (an upper bound only).
 pub const SDO_TIMEOUT: Duration = Duration::from_secs(5);
 
-fn sdo_request(sock: &CanSocket, node: u8, req: [u8; 8]) -> Result<Vec<u8>, SdoError> {
-    let tx = 0x600 + u16::from(node);
-    let rx = 0x580 + u32::from(node);
-    send(sock, tx, &req);
+fn sdo_request(sock: &CanSocket, node: u8, req: SdoRequest) -> Result<SdoResponse, SdoError> {
+    let tx = cob::SDO_RX as u16 + u16::from(node);
+    let rx = cob::SDO_TX + u32::from(node);
+    send(sock, tx, &req.emit());
     let ans = recv_matching(sock, SDO_TIMEOUT, |f| {
         let (id, d) = id_data(f);
+        let Ok(d) = <[u8; 8]>::try_from(d.as_slice()) else {
+            return false;
+        };
         // An answer to this request: same multiplexer, or a segment answer (no mux).
-        id == rx
-            && d.len() == 8
-            && (req[0] & 0xE0 == 0x60 || req[0] & 0xE0 == 0x00 || d[1..4] == req[1..4])
+        id == rx && (req.mux().is_none() || req.mux() == Some(Mux::of(&d)))
     })
     .ok_or(SdoError::Timeout)?;
     let d = id_data(&ans).1;
-    if d[0] == 0x80 {
-        return Err(SdoError::Abort(u32::from_le_bytes([
-            d[4], d[5], d[6], d[7],
-        ])));
+    let frame: [u8; 8] = d.as_slice().try_into().expect("8 bytes checked above");
+    match SdoResponse::parse(&frame) {
+        Ok(SdoResponse::Abort { code, .. }) => Err(SdoError::Abort(code)),
+        Ok(r) => Ok(r),
+        Err(_) => Err(SdoError::Unexpected(d)),
     }
-    Ok(d)
 }
 
 /// SDO upload (expedited or segmented) of `index:sub` from `node`.
 pub fn sdo_upload(sock: &CanSocket, node: u8, index: u16, sub: u8) -> Result<Vec<u8>, SdoError> {
-    let [il, ih] = index.to_le_bytes();
-    let d = sdo_request(sock, node, [0x40, il, ih, sub, 0, 0, 0, 0])?;
-    if d[0] & 0xE0 != 0x40 {
-        return Err(SdoError::Unexpected(d));
-    }
-    if d[0] & 0x02 != 0 {
-        // expedited
-        let n = if d[0] & 0x01 != 0 {
-            4 - usize::from((d[0] >> 2) & 3)
-        } else {
-            4
-        };
-        return Ok(d[4..4 + n].to_vec());
-    }
-    // segmented
-    let total = if d[0] & 0x01 != 0 {
-        Some(u32::from_le_bytes([d[4], d[5], d[6], d[7]]) as usize)
-    } else {
-        None
+    let mux = Mux::new(index, sub);
+    let total = match sdo_request(sock, node, SdoRequest::InitiateUpload { mux })? {
+        SdoResponse::InitiateUpload {
+            data: data @ Initiate::Expedited { .. },
+            ..
+        } => return Ok(data.bytes().to_vec()),
+        SdoResponse::InitiateUpload {
+            data: Initiate::Segmented { size },
+            ..
+        } => size.map(|s| s as usize),
+        other => return Err(SdoError::Unexpected(other.emit().to_vec())),
     };
     let mut out = Vec::new();
-    let mut toggle = 0u8;
+    let mut toggle = false;
     loop {
-        let s = sdo_request(sock, node, [0x60 | toggle, 0, 0, 0, 0, 0, 0, 0])?;
-        if s[0] & 0xE0 != 0x00 || s[0] & 0x10 != toggle {
-            return Err(SdoError::Unexpected(s));
-        }
-        let n = 7 - usize::from((s[0] >> 1) & 7);
-        out.extend_from_slice(&s[1..1 + n]);
-        if s[0] & 0x01 != 0 {
+        let s = match sdo_request(sock, node, SdoRequest::UploadSegment { toggle })? {
+            SdoResponse::UploadSegment(s) if s.toggle == toggle => s,
+            other => return Err(SdoError::Unexpected(other.emit().to_vec())),
+        };
+        out.extend_from_slice(s.bytes());
+        if s.last {
             break;
         }
-        toggle ^= 0x10;
+        toggle = !toggle;
     }
     if let Some(t) = total {
         if t != out.len() {
@@ -496,23 +489,14 @@ pub fn sdo_download(
     data: &[u8],
 ) -> Result<(), SdoError> {
     assert!((1..=4).contains(&data.len()), "expedited: 1..=4 bytes");
-    let [il, ih] = index.to_le_bytes();
-    let mut req = [
-        0x23 | (((4 - data.len()) as u8) << 2),
-        il,
-        ih,
-        sub,
-        0,
-        0,
-        0,
-        0,
-    ];
-    req[4..4 + data.len()].copy_from_slice(data);
-    let d = sdo_request(sock, node, req)?;
-    if d[0] != 0x60 {
-        return Err(SdoError::Unexpected(d));
+    let req = SdoRequest::InitiateDownload {
+        mux: Mux::new(index, sub),
+        data: Initiate::expedited(data),
+    };
+    match sdo_request(sock, node, req)? {
+        SdoResponse::InitiateDownload { .. } => Ok(()),
+        other => Err(SdoError::Unexpected(other.emit().to_vec())),
     }
-    Ok(())
 }
 
 /// Upload of a U32 (or shorter unsigned) object as u32.

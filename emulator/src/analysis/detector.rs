@@ -19,7 +19,7 @@
 //! fluctuation, and the lost motion between opposite directions when both are present).
 
 use super::spectrum::SpectrumAnalyzer;
-use super::windows::{constant_velocity_windows, median_dt, Window, WindowOptions};
+use super::windows::{median_dt, scan_windows, Window, WindowOptions};
 use std::collections::HashMap;
 
 /// A trace as the detector needs it. Positions in one unit `u` (um for a linear axis, mdeg for a
@@ -36,6 +36,9 @@ pub struct AxisTrace {
     /// Unit names for reports, e.g. ("um", "permille").
     pub position_unit: String,
     pub current_unit: String,
+    /// Where `set_velocity` came from, for the report (e.g. "0x607A target position (CSP,
+    /// RPDO)"); empty: "set velocity column".
+    pub set_velocity_source: String,
 }
 
 impl AxisTrace {
@@ -119,6 +122,7 @@ impl AxisTrace {
             direct_position: uu(direct_position),
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "A".into(),
+            set_velocity_source: "derivative of the position set-point".into(),
         }
     }
 
@@ -139,6 +143,7 @@ impl AxisTrace {
                 .collect(),
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
+            set_velocity_source: "the master's interpolator velocity".into(),
         }
     }
 }
@@ -156,6 +161,7 @@ impl AxisTrace {
             &demand,
             super::windows::DEMAND_SPAN_S,
         );
+        tr.set_velocity_source = "position demand 0x6062".into();
         tr
     }
 }
@@ -166,6 +172,9 @@ impl AxisTrace {
 )]
 #[serde(rename_all = "snake_case")]
 pub enum Verdict {
+    /// Nothing could be measured (no usable constant-speed window): never "ok". Only a
+    /// report's verdict, never a window's level.
+    Inconclusive,
     Ok,
     BacklashSuspected,
     Backlash,
@@ -174,6 +183,7 @@ pub enum Verdict {
 impl Verdict {
     pub fn as_str(self) -> &'static str {
         match self {
+            Verdict::Inconclusive => "inconclusive",
             Verdict::Ok => "ok",
             Verdict::BacklashSuspected => "backlash_suspected",
             Verdict::Backlash => "backlash",
@@ -245,6 +255,34 @@ pub struct WindowResult {
     pub encoder_difference_mean: f64,
     pub encoder_difference_half_pp: f64,
     pub level: Verdict,
+    /// Why the window got its level: frequency against the band, prominence, amplitude
+    /// against the thresholds.
+    pub reason: String,
+}
+
+/// Why a trace gave no usable window.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Inconclusive {
+    /// No stretch of constant, non-zero set speed.
+    NoConstantSpeed,
+    /// Constant-speed stretches, all too short for a window.
+    TooShort,
+    /// The capture lacks an object the detector needs (motor speed, any set-point source).
+    MissingObjects,
+    /// The motor speed has no finite sample in any window (NaN, infinite).
+    NoFiniteSamples,
+}
+
+impl Inconclusive {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Inconclusive::NoConstantSpeed => "no_constant_speed",
+            Inconclusive::TooShort => "too_short",
+            Inconclusive::MissingObjects => "missing_objects",
+            Inconclusive::NoFiniteSamples => "no_finite_samples",
+        }
+    }
 }
 
 /// The detector's result for a trace.
@@ -254,6 +292,13 @@ pub struct DetectorReport {
     pub band_hz: (f64, f64),
     pub config: DetectorConfig,
     pub verdict: Verdict,
+    /// Set when the verdict is inconclusive.
+    pub inconclusive: Option<Inconclusive>,
+    /// Why: which windows decided, frequency, amplitude against which threshold, band check;
+    /// or why nothing could be measured. One sentence each, in the order to print them.
+    pub reasons: Vec<String>,
+    /// Where the constant speed came from (set-point object, or the actual values).
+    pub window_source: String,
     /// Displacement amplitude of the deciding windows over `alarm_um` (1.0 = at the alarm).
     pub severity: f64,
     /// Median displacement amplitude of the deciding windows, position unit.
@@ -353,16 +398,58 @@ pub fn analyze_window(
         .collect();
     let mean = diff.iter().sum::<f64>() / n.max(1) as f64;
     let half_pp = super::spectrum::half_peak_to_peak(&diff);
-    let level = if in_band && prominence >= cfg.min_prominence {
-        if displacement_amplitude >= cfg.alarm_um {
-            Verdict::Backlash
-        } else if displacement_amplitude >= cfg.suspect_um {
-            Verdict::BacklashSuspected
-        } else {
-            Verdict::Ok
-        }
+    let unit = &trace.position_unit;
+    // A line, not noise: prominent over the band's median. A clear limit cycle (at or above
+    // the alarm amplitude) needs half the prominence, so that a small change of the capture
+    // (a few samples more, a little more noise) cannot flip a clear case to ok.
+    let needed = if displacement_amplitude >= cfg.alarm_um {
+        0.5 * cfg.min_prominence
     } else {
-        Verdict::Ok
+        cfg.min_prominence
+    };
+    let (level, reason) = match speed_hz {
+        None => (
+            Verdict::Ok,
+            "no spectral line in the search band".to_string(),
+        ),
+        Some(f) if !in_band => (
+            Verdict::Ok,
+            format!(
+                "strongest line {f:.2} Hz is outside the band {lo:.2}..{hi:.2} Hz (k_v/4..k_v)"
+            ),
+        ),
+        Some(f) if prominence < needed => (
+            Verdict::Ok,
+            format!(
+                "{f:.2} Hz in band but no clear line: prominence {prominence:.1}x the band's \
+                 median < {needed:.1}x ({displacement_amplitude:.2} {unit})"
+            ),
+        ),
+        Some(f) => {
+            let lvl = if displacement_amplitude >= cfg.alarm_um {
+                Verdict::Backlash
+            } else if displacement_amplitude >= cfg.suspect_um {
+                Verdict::BacklashSuspected
+            } else {
+                Verdict::Ok
+            };
+            let cmp = match lvl {
+                Verdict::Backlash => format!(">= alarm {:.2} {unit}", cfg.alarm_um),
+                Verdict::BacklashSuspected => format!(
+                    ">= suspect {:.2} {unit}, < alarm {:.2} {unit}",
+                    cfg.suspect_um, cfg.alarm_um
+                ),
+                _ => format!("< suspect {:.2} {unit}", cfg.suspect_um),
+            };
+            (
+                lvl,
+                format!(
+                    "{f:.2} Hz = {:.2} k_v in band {lo:.2}..{hi:.2} Hz, prominence \
+                     {prominence:.1}x, amplitude {displacement_amplitude:.2} {unit} {cmp}",
+                    f / cfg.kv_per_s
+                ),
+            )
+        }
     };
     WindowResult {
         t_start_s: trace.t_s[w.start],
@@ -381,19 +468,98 @@ pub fn analyze_window(
         encoder_difference_mean: mean,
         encoder_difference_half_pp: half_pp,
         level,
+        reason,
     }
 }
 
 /// Run the detector on a trace.
 pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
-    let windows = constant_velocity_windows(&trace.t_s, &trace.set_velocity, &cfg.windows);
+    let scan = scan_windows(&trace.t_s, &trace.set_velocity, &cfg.windows);
+    let finite = |w: &Window| {
+        trace.motor_velocity[w.start..w.end]
+            .iter()
+            .all(|v| v.is_finite())
+    };
+    let usable: Vec<&Window> = scan.windows.iter().filter(|w| w.len() >= 16).collect();
+    let non_finite = usable.iter().filter(|w| !finite(w)).count();
     let mut analyzers = HashMap::new();
-    let results: Vec<WindowResult> = windows
+    let results: Vec<WindowResult> = usable
         .iter()
-        .filter(|w| w.len() >= 16)
+        .filter(|w| finite(w))
         .map(|w| analyze_window(trace, w, cfg, &mut analyzers))
         .collect();
-    summarize(results, trace, cfg)
+    let mut rep = summarize(results, trace, cfg);
+    let o = &cfg.windows;
+    let need = format!(
+        "a window needs {:.1} s of settling plus {:.1} s at constant set speed (|v| >= {} {}/s)",
+        o.settle_s, o.min_len_s, o.min_speed, trace.position_unit
+    );
+    if rep.windows.is_empty() {
+        let any_finite = trace.motor_velocity.iter().any(|v| v.is_finite());
+        let (why, text) = if !any_finite || non_finite > 0 {
+            (
+                Inconclusive::NoFiniteSamples,
+                if any_finite {
+                    format!("all {non_finite} constant-speed windows hold non-finite motor-speed samples (NaN or infinite)")
+                } else {
+                    format!("no finite motor-speed sample in the trace ({} samples, all NaN or infinite)", trace.len())
+                },
+            )
+        } else if scan.runs == 0 {
+            (
+                Inconclusive::NoConstantSpeed,
+                format!(
+                    "no constant set speed anywhere in the trace ({} samples, {:.2} s; set speed from {})",
+                    trace.len(),
+                    trace.t_s.last().copied().unwrap_or(0.0) - trace.t_s.first().copied().unwrap_or(0.0),
+                    rep.window_source
+                ),
+            )
+        } else {
+            (
+                Inconclusive::TooShort,
+                format!(
+                    "{} constant-speed stretches, the longest {:.2} s: too short ({need})",
+                    scan.runs, scan.longest_run_s
+                ),
+            )
+        };
+        rep.mark_inconclusive(why, text);
+    } else if non_finite > 0 {
+        rep.reasons.push(format!(
+            "{non_finite} windows skipped: non-finite motor-speed samples (NaN or infinite)"
+        ));
+    }
+    rep
+}
+
+impl DetectorReport {
+    /// Nothing was measured: the verdict is inconclusive, for `why`, explained by `text`.
+    pub fn mark_inconclusive(&mut self, why: Inconclusive, text: String) {
+        self.verdict = Verdict::Inconclusive;
+        self.inconclusive = Some(why);
+        self.severity = 0.0;
+        self.amplitude = 0.0;
+        self.reasons
+            .insert(0, format!("inconclusive ({}): {text}", why.as_str()));
+    }
+
+    /// The report of a trace that could not be built (missing objects): inconclusive.
+    pub fn inconclusive(
+        cfg: &DetectorConfig,
+        why: Inconclusive,
+        text: String,
+        position_unit: &str,
+    ) -> Self {
+        let tr = AxisTrace {
+            position_unit: position_unit.into(),
+            ..AxisTrace::default()
+        };
+        let mut rep = summarize(Vec::new(), &tr, cfg);
+        rep.window_source = "-".into();
+        rep.mark_inconclusive(why, text);
+        rep
+    }
 }
 
 fn summarize(
@@ -426,8 +592,34 @@ fn summarize(
     let verdict = if !results.is_empty() {
         last.iter().map(|r| r.level).min().unwrap_or(Verdict::Ok)
     } else {
-        Verdict::Ok
+        Verdict::Inconclusive
     };
+    let mut reasons = Vec::new();
+    if let (Some(first), Some(end)) = (last.first(), last.last()) {
+        let lowest = last.iter().map(|r| r.level).min().unwrap_or(Verdict::Ok);
+        reasons.push(format!(
+            "verdict {}: the lowest level of the last {} of {} windows ({:.2}..{:.2} s); a level \
+             needs {} windows in a row",
+            verdict.as_str(),
+            last.len(),
+            results.len(),
+            first.t_start_s,
+            end.t_end_s,
+            cfg.confirm_windows.min(results.len()).max(1),
+        ));
+        debug_assert_eq!(lowest, verdict);
+    }
+    for r in &results {
+        reasons.push(format!(
+            "window {:.2}..{:.2} s at {:.1} {}/s: {}: {}",
+            r.t_start_s,
+            r.t_end_s,
+            r.set_velocity,
+            trace.position_unit,
+            r.level.as_str(),
+            r.reason
+        ));
+    }
     let amplitude = median(
         &mut last
             .iter()
@@ -478,6 +670,13 @@ fn summarize(
         band_hz: cfg.band_hz(),
         config: *cfg,
         verdict,
+        inconclusive: None,
+        reasons,
+        window_source: if trace.set_velocity_source.is_empty() {
+            "the trace's set-point column".into()
+        } else {
+            trace.set_velocity_source.clone()
+        },
         severity,
         amplitude,
         frequency_hz,

@@ -59,6 +59,17 @@ pub fn median_dt(t: &[f64]) -> f64 {
     *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
+/// What a search for windows found: the windows, and the constant-speed stretches they came
+/// from (for the reason when there is no window).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct WindowScan {
+    pub windows: Vec<Window>,
+    /// Stretches of constant, non-zero set speed.
+    pub runs: usize,
+    /// The longest of them, s.
+    pub longest_run_s: f64,
+}
+
 /// Find the constant-velocity windows. A time gap larger than 1.5 sample intervals (skipped
 /// idle time, lost samples) ends a window.
 pub fn constant_velocity_windows(
@@ -66,14 +77,22 @@ pub fn constant_velocity_windows(
     set_velocity: &[f64],
     o: &WindowOptions,
 ) -> Vec<Window> {
+    scan_windows(t, set_velocity, o).windows
+}
+
+/// [`constant_velocity_windows`], with what the search saw.
+pub fn scan_windows(t: &[f64], set_velocity: &[f64], o: &WindowOptions) -> WindowScan {
     assert_eq!(t.len(), set_velocity.len());
     let dt = median_dt(t);
     let mut out = Vec::new();
+    let (mut runs, mut longest_run_s) = (0usize, 0.0f64);
     if dt <= 0.0 {
-        return out;
+        return WindowScan::default();
     }
     let mut push_run = |a: usize, b: usize| {
         // Run a..b (exclusive) at constant velocity: settle, then cut into windows.
+        runs += 1;
+        longest_run_s = longest_run_s.max(t[b - 1] - t[a] + dt);
         let t0 = t[a] + o.settle_s;
         let Some(s) = (a..b).find(|&i| t[i] >= t0) else {
             return;
@@ -115,7 +134,11 @@ pub fn constant_velocity_windows(
     if let Some(a) = run_start {
         push_run(a, t.len());
     }
-    out
+    WindowScan {
+        windows: out,
+        runs,
+        longest_run_s,
+    }
 }
 
 /// Span of the derivative in [`set_velocity_from_demand`] as the analysis uses it, s: two
@@ -131,13 +154,65 @@ pub const DEMAND_SPAN_S: f64 = 0.2;
 /// share that mean), so that constant-speed stretches come out exactly constant for
 /// [`constant_velocity_windows`] and ramps break into short segments that it skips.
 pub fn set_velocity_from_demand(t: &[f64], demand: &[f64], span_s: f64) -> Vec<f64> {
+    piecewise_constant_velocity(t, &repair_glitches(demand), span_s, 5e-3, 2.0)
+}
+
+/// Span of the derivative in [`set_velocity_from_actual`], s: long against the limit cycle's
+/// period (> 8 periods at 18 Hz), so its +-20 um make less than 1 % of a 10 mm/s cruise.
+pub const ACTUAL_SPAN_S: f64 = 0.5;
+
+/// Where the set-point is not in the capture (a PP move, a log of actual values only): the
+/// paper's criterion (set acceleration zero) applied to the measured position (or the
+/// integral of the measured speed). The same piecewise-constant derivative as
+/// [`set_velocity_from_demand`], over [`ACTUAL_SPAN_S`], with a tolerance of 2 % or 20 units
+/// per span (the limit cycle and encoder noise ride on the measured position).
+pub fn set_velocity_from_actual(t: &[f64], position: &[f64]) -> Vec<f64> {
+    piecewise_constant_velocity(t, &despike(position), ACTUAL_SPAN_S, 0.02, 20.0)
+}
+
+/// A measured position with single-sample spikes taken out: a sample missed or late in the
+/// capture holds the previous value (increments 0 then 2 steps), half a step off the line
+/// through its neighbours. A sample more than 0.35 of the local step (median of 9
+/// increments) off that line becomes the midpoint. The limit cycle bends the line far less
+/// (its second difference is (2 pi f dt)^2 x: 0.2 of a step at 10 ms, 15 um and 10 mm/s).
+fn despike(x: &[f64]) -> Vec<f64> {
+    let mut out = x.to_vec();
+    let n = x.len();
+    if n < 3 {
+        return out;
+    }
+    let d: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    let mut buf = [0.0f64; 9];
+    for i in 1..n - 1 {
+        let (a, b) = (i.saturating_sub(4), (i + 5).min(d.len()));
+        let w = &mut buf[..b - a];
+        w.copy_from_slice(&d[a..b]);
+        w.sort_unstable_by(f64::total_cmp);
+        let step = w[w.len() / 2];
+        let mid = 0.5 * (x[i - 1] + x[i + 1]);
+        if step > 0.0 && (x[i] - mid).abs() > 0.35 * step {
+            out[i] = mid;
+        }
+    }
+    out
+}
+
+/// A piecewise-constant derivative of `x` over `t`: the centred difference over `span_s`;
+/// consecutive samples within `rel_tol` of their segment's running mean, or `abs_units` per
+/// span, share one value (the secant of `x` over the segment's interior).
+fn piecewise_constant_velocity(
+    t: &[f64],
+    demand: &[f64],
+    span_s: f64,
+    rel_tol: f64,
+    abs_units: f64,
+) -> Vec<f64> {
     assert_eq!(t.len(), demand.len());
     let n = t.len();
     let dt = median_dt(t);
     if n < 2 || dt <= 0.0 {
         return vec![0.0; n];
     }
-    let demand = &repair_glitches(demand);
     let k = ((0.5 * span_s / dt).round() as usize).max(1);
     let v: Vec<f64> = (0..n)
         .map(|i| {
@@ -150,12 +225,12 @@ pub fn set_velocity_from_demand(t: &[f64], demand: &[f64], span_s: f64) -> Vec<f
             }
         })
         .collect();
-    let abs_tol = 2.0 / span_s;
+    let abs_tol = abs_units / span_s;
     let mut out = vec![0.0; n];
     let (mut start, mut sum) = (0usize, v[0]);
     for i in 1..=n {
         let mean = sum / (i - start) as f64;
-        let same = i < n && (v[i] - mean).abs() <= (5e-3 * mean.abs()).max(abs_tol);
+        let same = i < n && (v[i] - mean).abs() <= (rel_tol * mean.abs()).max(abs_tol);
         if same {
             sum += v[i];
         } else {

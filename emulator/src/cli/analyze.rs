@@ -15,7 +15,9 @@
 //!   `velocity_uu_s`, `current_permille`, `position_uu`, `direct_position_uu`.
 
 use crate::analysis::candump;
-use crate::analysis::detector::{analyze, AxisTrace, DetectorConfig, Verdict};
+use crate::analysis::detector::{
+    analyze, AxisTrace, DetectorConfig, DetectorReport, Inconclusive, Verdict,
+};
 use crate::analysis::windows::{set_velocity_from_demand, DEMAND_SPAN_S};
 use anyhow::{bail, Context};
 use std::path::{Path, PathBuf};
@@ -23,19 +25,41 @@ use std::path::{Path, PathBuf};
 /// Arguments of `drive-emu analyze`.
 #[derive(clap::Args, Debug, Clone)]
 #[command(after_help = "\
-TRACE formats, recognised by content:
+TRACE formats, recognised by content (gzip-compressed files are read too; at most 256 MiB,
+lines at most 64 KiB):
   candump log  `candump -L` (`(1700000000.123456) vcan0 185#...`) or `candump -ta`; decoded with
                the PDO mapping of drive --node/--preset, following the SDO remaps and NMT resets
-               in the log; one sample per SYNC at k * period.
-  CSV          `drive-emu sim --trace` output, or a scenario report's samples.csv.
+               in the log, and the set-points written over SDO; one sample per SYNC.
+  CSV          `drive-emu run --trace`, `drive-emu sim --trace`, a scenario report's samples.csv.
+  A last line cut short (a writer killed mid-line) is skipped and reported, not an error.
 
-Example: drive-emu analyze run.log --kv 30 --node 5 --preset cnc1")]
+Constant-speed windows: from the set-point in force (CSP 0x607A targets, CSV/PV 0x60FF, in an
+RPDO or written over SDO); where there is none (a PP move, an unknown mode) from the actual
+position (constant speed over 0.5 s); the report says which source was used.
+
+Verdicts and reasons:
+  ok                  windows were measured; no in-band line above the suspect threshold
+  backlash_suspected  line in k_v/4..k_v, prominent, amplitude >= --suspect (default 1 um)
+  backlash            ... amplitude >= --alarm (default 3 um); a level holds when the last
+                      2 windows agree (the lowest of them)
+  inconclusive        nothing measured: no_constant_speed, too_short (settle 0.4 s + 1 s
+                      needed), missing_objects (no motor speed 0x606C, no set-point or
+                      position), no_finite_samples (NaN)
+Every verdict is printed with its reasons: the windows, frequency against the band, prominence,
+amplitude against the threshold.
+
+Exit status: 0 verdict given (ok, or backlash without --fail-on-backlash); 1 backlash or
+backlash_suspected with --fail-on-backlash; 2 usage error (bad flags, no k_v known);
+3 inconclusive; 4 the trace cannot be read (missing file, malformed line, too large).
+
+Example: drive-emu analyze run.log --node 5 --preset cnc1      # k_v from 0x2007 or the preset")]
 pub struct AnalyzeArgs {
     /// Trace: candump log (`candump -L` / `-ta`), simulator trace CSV or master sample log CSV.
     pub trace: PathBuf,
-    /// Position-loop gain k_v of the axis, 1/s (the band check is k_v/4 .. k_v).
+    /// Position-loop gain k_v of the axis, 1/s (the band check is k_v/4 .. k_v). Default: the
+    /// last k_v written to 0x2007 over SDO in a candump log, else --preset's k_v.
     #[arg(long)]
-    pub kv: f64,
+    pub kv: Option<f64>,
     /// The trace is of a rotary axis (deg / mdeg); only for units in the report (a candump log
     /// takes it from --preset).
     #[arg(long)]
@@ -48,15 +72,20 @@ pub struct AnalyzeArgs {
     /// Output directory (default out/analyze-<trace stem>/).
     #[arg(long, short)]
     pub out: Option<PathBuf>,
-    /// Exit with status 2 when the verdict is not ok.
+    /// Exit with status 1 when backlash is found (verdict backlash or backlash_suspected).
     #[arg(long)]
     pub fail_on_backlash: bool,
+    /// Print everything as one JSON document on stdout (verdict, reasons, windows, k_v and
+    /// its source, what was decoded) instead of text.
+    #[arg(long)]
+    pub json: bool,
     /// candump log: node ID of the drive.
     #[arg(long, default_value_t = 5)]
     pub node: u8,
-    /// candump log: preset of the drive, for its default PDO mapping and units.
-    #[arg(long, default_value = "cnc1")]
-    pub preset: String,
+    /// Preset of the drive: its k_v when --kv is not given (and the log wrote no 0x2007);
+    /// for a candump log also its default PDO mapping and units (default cnc1).
+    #[arg(long)]
+    pub preset: Option<String>,
     /// candump log: SYNC period, us (default: 0x1006 if written in the log, else the median
     /// SYNC interval of the timestamps).
     #[arg(long)]
@@ -68,14 +97,15 @@ impl Default for AnalyzeArgs {
     fn default() -> Self {
         Self {
             trace: PathBuf::new(),
-            kv: 0.0,
+            kv: None,
             rotary: false,
             suspect: None,
             alarm: None,
             out: None,
             fail_on_backlash: false,
+            json: false,
             node: 5,
-            preset: "cnc1".into(),
+            preset: None,
             sync_period_us: None,
         }
     }
@@ -83,56 +113,79 @@ impl Default for AnalyzeArgs {
 
 /// Read a CSV into named columns.
 pub fn read_csv(path: &Path) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    parse_csv(path, &text)
+    let text = read_trace_text(path)?;
+    Ok(parse_csv(path, &text)?.0)
 }
 
-/// Parse CSV text (read from `path`) into named columns.
-fn parse_csv(path: &Path, text: &str) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
-    let mut lines = text
+/// Parse CSV text (read from `path`) into named columns, and notes: a last line cut short (no
+/// newline at the end: the writer was killed mid-line) is skipped and reported.
+fn parse_csv(path: &Path, text: &str) -> anyhow::Result<(Vec<(String, Vec<f64>)>, Vec<String>)> {
+    let all: Vec<(usize, &str)> = text
         .lines()
-        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'));
-    let header = lines.next().context("empty trace")?;
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'))
+        .collect();
+    let cut_at_end = !text.ends_with('\n');
+    let mut notes = Vec::new();
+    let mut lines = all.iter().copied();
+    let (_, header) = lines.next().context("empty trace")?;
     let mut cols: Vec<(String, Vec<f64>)> = header
         .split(',')
         .map(|h| (h.trim().to_string(), Vec::new()))
         .collect();
-    for (i, line) in lines.enumerate() {
+    let last_no = all.last().map(|(i, _)| *i);
+    for (i, line) in lines {
         let fields: Vec<&str> = line.split(',').collect();
-        if fields.len() != cols.len() {
-            bail!(
-                "{}: data line {}: {} fields, header has {}",
-                path.display(),
-                i + 2,
+        let parsed: Result<Vec<f64>, String> = if cut_at_end && Some(i) == last_no {
+            // No newline at the end: the writer stopped mid-line; even a line that parses
+            // may have lost digits.
+            Err("no newline at the end".to_string())
+        } else if fields.len() != cols.len() {
+            Err(format!(
+                "{} fields, header has {}",
                 fields.len(),
                 cols.len()
-            );
-        }
-        for (c, f) in cols.iter_mut().zip(fields) {
-            let v: f64 = f.trim().parse().with_context(|| {
-                format!(
-                    "{}: data line {}: column {}: `{f}` is not a number",
-                    path.display(),
-                    i + 2,
-                    c.0
-                )
-            })?;
-            c.1.push(v);
+            ))
+        } else {
+            fields
+                .iter()
+                .zip(&cols)
+                .map(|(f, c)| {
+                    f.trim()
+                        .parse::<f64>()
+                        .map_err(|_| format!("column {}: `{f}` is not a number", c.0))
+                })
+                .collect()
+        };
+        match parsed {
+            Ok(v) => {
+                for (c, x) in cols.iter_mut().zip(v) {
+                    c.1.push(x);
+                }
+            }
+            Err(e) if cut_at_end && Some(i) == last_no => notes.push(format!(
+                "{}:{}: last line cut short ({e}: the writer was stopped mid-line): skipped",
+                path.display(),
+                i + 1
+            )),
+            Err(e) => bail!("{}:{}: {e}", path.display(), i + 1),
         }
     }
-    Ok(cols)
+    Ok((cols, notes))
 }
 
 /// Build the detector's trace from either CSV layout.
 pub fn trace_from_csv(path: &Path, rotary: bool) -> anyhow::Result<AxisTrace> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    trace_from_csv_text(path, &text, rotary)
+    let text = read_trace_text(path)?;
+    Ok(trace_from_csv_text(path, &text, rotary)?.0)
 }
 
-fn trace_from_csv_text(path: &Path, text: &str, rotary: bool) -> anyhow::Result<AxisTrace> {
-    let cols = parse_csv(path, text)?;
+fn trace_from_csv_text(
+    path: &Path,
+    text: &str,
+    rotary: bool,
+) -> anyhow::Result<(AxisTrace, Vec<String>)> {
+    let (cols, notes) = parse_csv(path, text)?;
     let find = |names: &[&str]| -> Option<&Vec<f64>> {
         cols.iter()
             .find(|(n, _)| names.contains(&n.as_str()))
@@ -157,6 +210,7 @@ fn trace_from_csv_text(path: &Path, text: &str, rotary: bool) -> anyhow::Result<
             direct_position: need(&["direct_position_uu"])?.clone(),
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
+            set_velocity_source: "column target_uu (position demand)".into(),
         }
     } else {
         let rot = find(&["position_setpoint_deg"]).is_some();
@@ -173,36 +227,209 @@ fn trace_from_csv_text(path: &Path, text: &str, rotary: bool) -> anyhow::Result<
     };
     tr.check()
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(tr)
+    Ok((tr, notes))
 }
 
-pub fn run(args: &AnalyzeArgs) -> anyhow::Result<std::process::ExitCode> {
-    anyhow::ensure!(args.kv > 0.0 && args.kv.is_finite(), "--kv must be > 0");
-    let path = &args.trace;
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let tr = if candump::looks_like_candump(&text) {
-        let (tr, log) = candump::trace_from_candump(
-            path,
-            &text,
-            args.node,
-            &args.preset,
-            args.sync_period_us,
-            args.rotary,
-        )?;
-        println!("{}", log.summary());
-        tr
+/// Largest trace read, bytes (a 1 kHz candump log grows by about 0.2 MB/s: over 20 minutes).
+pub const MAX_TRACE_BYTES: u64 = 256 << 20;
+/// Longest line accepted, bytes: anything longer is not a candump log or a CSV trace.
+pub const MAX_LINE_BYTES: usize = 64 << 10;
+
+/// Read a trace file as text: gzip-compressed or plain, at most [`MAX_TRACE_BYTES`] and lines
+/// of at most [`MAX_LINE_BYTES`], streamed so that `/dev/zero` or a binary file is refused
+/// early with a clear error instead of filling memory.
+pub fn read_trace_text(path: &Path) -> anyhow::Result<String> {
+    use std::io::Read;
+    let mut f =
+        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut magic = [0u8; 2];
+    let n = f
+        .read(&mut magic)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let head = std::io::Cursor::new(magic[..n].to_vec());
+    let gz = n == 2 && magic == [0x1f, 0x8b];
+    let raw = head.chain(f);
+    let mut src: Box<dyn Read> = if gz {
+        Box::new(flate2::read::MultiGzDecoder::new(raw))
     } else {
-        trace_from_csv_text(path, &text, args.rotary)?
+        Box::new(raw)
     };
-    let mut cfg = DetectorConfig::new(args.kv);
+    let mut out = Vec::new();
+    let mut buf = vec![0u8; 64 << 10];
+    let mut line_len = 0usize;
+    let mut line_no = 1usize;
+    loop {
+        let k = src.read(&mut buf).with_context(|| {
+            format!(
+                "{}: cannot read{}",
+                path.display(),
+                if gz { " (gzip)" } else { "" }
+            )
+        })?;
+        if k == 0 {
+            break;
+        }
+        for &b in &buf[..k] {
+            if b == b'\n' {
+                line_len = 0;
+                line_no += 1;
+            } else {
+                line_len += 1;
+                if line_len > MAX_LINE_BYTES {
+                    bail!(
+                        "{}:{line_no}: line longer than {} KiB: not a candump log or CSV trace",
+                        path.display(),
+                        MAX_LINE_BYTES >> 10
+                    );
+                }
+            }
+        }
+        out.extend_from_slice(&buf[..k]);
+        if out.len() as u64 > MAX_TRACE_BYTES {
+            bail!(
+                "{}: more than {} MiB{}: cut it to the part to analyse (e.g. with head or split)",
+                path.display(),
+                MAX_TRACE_BYTES >> 20,
+                if gz { " uncompressed" } else { "" }
+            );
+        }
+    }
+    String::from_utf8(out).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: not text (invalid UTF-8 at byte {}): not a candump log or CSV trace",
+            path.display(),
+            e.utf8_error().valid_up_to()
+        )
+    })
+}
+
+/// Everything `analyze` says, for `--json`.
+#[derive(Debug, serde::Serialize)]
+pub struct AnalyzeOutput {
+    pub trace: String,
+    /// "candump" or "csv".
+    pub format: &'static str,
+    pub kv_per_s: f64,
+    /// "--kv", "0x2007 written in the capture", "preset cnc1".
+    pub kv_source: String,
+    /// What the reader noticed (a cut last line, decoding notes).
+    pub notes: Vec<String>,
+    /// candump: the decoding summary.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub capture: Option<String>,
+    pub report: crate::analysis::detector::DetectorReport,
+    pub exit_code: u8,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub plots: Vec<PathBuf>,
+    pub report_dir: PathBuf,
+}
+
+/// Exit status of `analyze` for a verdict.
+pub fn exit_code(verdict: Verdict, fail_on_backlash: bool) -> u8 {
+    match verdict {
+        Verdict::Inconclusive => 3,
+        Verdict::Ok => 0,
+        Verdict::BacklashSuspected | Verdict::Backlash if fail_on_backlash => 1,
+        _ => 0,
+    }
+}
+
+/// `drive-emu analyze`: exit 2 for usage errors, 4 when the trace cannot be read, else the
+/// verdict's code ([`exit_code`]).
+pub fn run(args: &AnalyzeArgs) -> anyhow::Result<std::process::ExitCode> {
+    match run_inner(args) {
+        Ok(code) => Ok(std::process::ExitCode::from(code)),
+        Err(e) => {
+            let usage = e.downcast_ref::<UsageError>().is_some();
+            eprintln!("drive-emu analyze: error: {e:#}");
+            Ok(std::process::ExitCode::from(if usage { 2 } else { 4 }))
+        }
+    }
+}
+
+/// A usage error (exit 2, as clap's).
+#[derive(Debug)]
+struct UsageError(String);
+impl std::fmt::Display for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+impl std::error::Error for UsageError {}
+
+fn preset_kv(name: &str) -> anyhow::Result<f64> {
+    let cfg = crate::presets::AxisConfig::from_preset(name)
+        .map_err(|e| UsageError(format!("--preset {name}: {e}")))?;
+    Ok(cfg.kv_per_s)
+}
+
+fn run_inner(args: &AnalyzeArgs) -> anyhow::Result<u8> {
+    if let Some(kv) = args.kv {
+        if !(kv > 0.0 && kv.is_finite()) {
+            return Err(UsageError(format!("--kv {kv}: must be a finite number > 0 (1/s)")).into());
+        }
+    }
+    for (name, v) in [("--suspect", args.suspect), ("--alarm", args.alarm)] {
+        if v.is_some_and(|v| !(v > 0.0 && v.is_finite())) {
+            return Err(UsageError(format!("{name}: must be a finite number > 0")).into());
+        }
+    }
+    let preset = args.preset.clone().unwrap_or_else(|| "cnc1".into());
+    if args.preset.is_some() {
+        preset_kv(&preset)?;
+    }
+    let path = &args.trace;
+    let text = read_trace_text(path)?;
+    let mut notes = Vec::new();
+    let mut capture = None;
+    let mut kv_written = None;
+    let candump = candump::looks_like_candump(&text);
+    let rotary_units = args.rotary;
+    let built: Result<AxisTrace, String> = if candump {
+        let (defaults, preset_rotary) = candump::PdoConfig::drive_defaults(args.node, &preset)?;
+        let log = candump::decode(
+            &text,
+            &path.display().to_string(),
+            &candump::DecodeOptions {
+                node_id: args.node,
+                defaults,
+                sync_period_us: args.sync_period_us,
+            },
+        )?;
+        capture = Some(log.summary());
+        kv_written = log.kv_written;
+        match log.to_axis_trace(rotary_units || preset_rotary) {
+            Ok(t) => Ok(t),
+            Err(e) => match e.downcast::<candump::MissingObjects>() {
+                Ok(m) => Err(m.0),
+                Err(e) => return Err(e),
+            },
+        }
+    } else {
+        let (t, n) = trace_from_csv_text(path, &text, rotary_units)?;
+        notes.extend(n);
+        Ok(t)
+    };
+    let (kv, kv_source) = match (args.kv, kv_written, &args.preset) {
+        (Some(k), _, _) => (k, "--kv".to_string()),
+        (None, Some(k), _) if k > 0.0 && k.is_finite() => {
+            (k, "0x2007 kv_per_s written in the capture".to_string())
+        }
+        (None, _, Some(p)) => (preset_kv(p)?, format!("preset {p}")),
+        (None, _, None) => {
+            return Err(UsageError(
+                "no k_v: give --kv, or --preset (its k_v), or a capture that writes 0x2007".into(),
+            )
+            .into())
+        }
+    };
+    let mut cfg = DetectorConfig::new(kv);
     if let Some(s) = args.suspect {
         cfg.suspect_um = s;
     }
     if let Some(a) = args.alarm {
         cfg.alarm_um = a;
     }
-    let rep = analyze(&tr, &cfg);
     let out = args.out.clone().unwrap_or_else(|| {
         let stem = args
             .trace
@@ -212,29 +439,77 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<std::process::ExitCode> {
         PathBuf::from("out").join(format!("analyze-{stem}"))
     });
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    let unit = if rotary_units { "mdeg" } else { "um" };
+    let (rep, plots) = match &built {
+        Ok(tr) => {
+            let rep = analyze(tr, &cfg);
+            let plots = if rep.windows.is_empty() {
+                Vec::new()
+            } else {
+                crate::report::detector_plots(&out, "", tr, &rep, None)?
+            };
+            (rep, plots)
+        }
+        Err(why) => (
+            DetectorReport::inconclusive(&cfg, Inconclusive::MissingObjects, why.clone(), unit),
+            Vec::new(),
+        ),
+    };
     crate::report::write_json(&out.join("detector.json"), &rep)?;
-    let plots = crate::report::detector_plots(&out, "", &tr, &rep, None)?;
-    println!(
-        "verdict {} | amplitude {:.2} {} | severity {:.2} | frequency {} | windows {} | report {}",
+    let code = exit_code(rep.verdict, args.fail_on_backlash);
+    let output = AnalyzeOutput {
+        trace: path.display().to_string(),
+        format: if candump { "candump" } else { "csv" },
+        kv_per_s: kv,
+        kv_source,
+        notes,
+        capture,
+        report: rep,
+        exit_code: code,
+        plots,
+        report_dir: out,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&output)?);
+    } else {
+        print!("{}", render_text(&output));
+    }
+    Ok(code)
+}
+
+/// The text report: what was read, the verdict line, the reasons, the plots.
+pub fn render_text(o: &AnalyzeOutput) -> String {
+    use std::fmt::Write as _;
+    let rep = &o.report;
+    let mut s = String::new();
+    if let Some(c) = &o.capture {
+        let _ = writeln!(s, "{c}");
+    }
+    for n in &o.notes {
+        let _ = writeln!(s, "note: {n}");
+    }
+    let _ = writeln!(
+        s,
+        "verdict {} | amplitude {:.2} {} | severity {:.2} | frequency {} | windows {} | k_v {:.2} 1/s ({}) | report {}",
         rep.verdict.as_str(),
         rep.amplitude,
         rep.position_unit,
         rep.severity,
         rep.frequency_hz
             .or(rep.dominant_hz)
-            .map_or("-".into(), |f| format!(
-                "{f:.2} Hz ({:.2} k_v)",
-                f / args.kv
-            )),
+            .map_or("-".into(), |f| format!("{f:.2} Hz ({:.2} k_v)", f / o.kv_per_s)),
         rep.windows.len(),
-        out.display()
+        o.kv_per_s,
+        o.kv_source,
+        o.report_dir.display()
     );
-    for p in plots {
-        println!("  {}", p.display());
+    let _ = writeln!(s, "  constant speed from: {}", rep.window_source);
+    for r in &rep.reasons {
+        let _ = writeln!(s, "  {r}");
     }
-    Ok(if args.fail_on_backlash && rep.verdict != Verdict::Ok {
-        std::process::ExitCode::from(2)
-    } else {
-        std::process::ExitCode::SUCCESS
-    })
+    for p in &o.plots {
+        let _ = writeln!(s, "  {}", p.display());
+    }
+    let _ = writeln!(s, "exit status {}", o.exit_code);
+    s
 }

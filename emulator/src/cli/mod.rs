@@ -3,6 +3,8 @@
 pub mod analyze;
 pub mod demo;
 pub mod eds;
+pub mod figures;
 pub mod run;
 pub mod scenario;
 pub mod sim;
+pub mod sweep;

@@ -15,6 +15,7 @@ pub mod on_bus;
 pub mod sdo_client;
 
 use crate::bus::CanFrame;
+use drive_protocol::wire::{cob, EmcyFrame, Heartbeat, NmtCommand, NmtFrame};
 use sdo_client::{SdoClient, SdoResult};
 use std::collections::VecDeque;
 
@@ -334,21 +335,30 @@ impl Master {
         let i32_at = |o: usize| i32::from_le_bytes([d[o], d[o + 1], d[o + 2], d[o + 3]]);
         let i16_at = |o: usize| i16::from_le_bytes([d[o], d[o + 1]]);
         match frame.id {
-            id if id == 0x580 + n => {
+            id if id == cob::SDO_TX + n => {
                 self.sdo.handle(frame);
             }
-            id if id == 0x700 + n && len >= 1 && d[0] == 0x00 => {
+            id if id == cob::HEARTBEAT + n
+                && Heartbeat::parse(frame.payload()).is_some_and(|h| h.is_bootup()) =>
+            {
                 if let Phase::WaitBoot { .. } = self.phase {
                     self.say(now_us, "drive booted (boot-up message)");
                     self.phase = Phase::Configure(0);
                 }
             }
-            id if id == 0x80 + n && len >= 3 => self.emcys.push(Emcy {
-                t_us: now_us,
-                node_id: self.cfg.node_id,
-                code: u16::from_le_bytes([d[0], d[1]]),
-                error_register: d[2],
-            }),
+            id if id == cob::EMCY + n && len >= 3 => {
+                // A short EMCY (3..7 bytes) from a sloppy producer still counts; pad it.
+                let mut p = [0u8; 8];
+                p[..len.min(8)].copy_from_slice(&d[..len.min(8)]);
+                if let Some(e) = EmcyFrame::parse(&p) {
+                    self.emcys.push(Emcy {
+                        t_us: now_us,
+                        node_id: self.cfg.node_id,
+                        code: e.code,
+                        error_register: e.register,
+                    })
+                }
+            }
             id if id == 0x180 + n && len == 6 => {
                 self.latest.statusword = u16::from_le_bytes([d[0], d[1]]);
                 self.latest.position_uu = i32_at(2);
@@ -410,8 +420,7 @@ impl Master {
     pub fn poll(&mut self, now_us: u64) {
         match self.phase.clone() {
             Phase::Reset => {
-                self.tx
-                    .push_back(CanFrame::new(0x000, &[0x82, self.cfg.node_id]));
+                self.nmt(NmtCommand::ResetCommunication);
                 self.say(
                     now_us,
                     format!("NMT reset communication of node {}", self.cfg.node_id),
@@ -425,8 +434,7 @@ impl Master {
             }
             Phase::Configure(k) => {
                 if k >= self.configuration.len() {
-                    self.tx
-                        .push_back(CanFrame::new(0x000, &[0x01, self.cfg.node_id]));
+                    self.nmt(NmtCommand::StartRemoteNode);
                     self.say(now_us, "PDOs mapped; NMT start; SYNC and heartbeat on");
                     self.sync_on = true;
                     self.heartbeat_on = true;
@@ -617,9 +625,10 @@ impl Master {
     fn produce(&mut self, now_us: u64) {
         let n = u32::from(self.cfg.node_id);
         if self.heartbeat_on && now_us >= self.next_heartbeat_us {
+            let hb = Heartbeat { state: 0x05 };
             self.tx.push_back(CanFrame::new(
-                0x700 + u32::from(self.cfg.master_id),
-                &[0x05],
+                cob::HEARTBEAT + u32::from(self.cfg.master_id),
+                &hb.emit(),
             ));
             self.next_heartbeat_us += u64::from(self.cfg.heartbeat_ms) * 1000;
         }
@@ -653,7 +662,15 @@ impl Master {
         r2[..4].copy_from_slice(&vel.to_le_bytes());
         r2[4..].copy_from_slice(&self.target_torque.to_le_bytes());
         self.tx.push_back(CanFrame::new(0x300 + n, &r2));
-        self.tx.push_back(CanFrame::new(0x080, &[]));
+        self.tx.push_back(CanFrame::new(cob::SYNC, &[]));
+    }
+
+    fn nmt(&mut self, command: NmtCommand) {
+        let f = NmtFrame {
+            command,
+            node: self.cfg.node_id,
+        };
+        self.tx.push_back(CanFrame::new(cob::NMT, &f.emit()));
     }
 }
 

@@ -3,6 +3,7 @@
 //! configuring a drive.
 
 use crate::bus::CanFrame;
+use drive_protocol::wire::{cob, Initiate, Mux, SdoRequest, SdoResponse};
 
 /// One finished transfer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -45,25 +46,22 @@ impl SdoClient {
 
     /// Expedited download of `len` (1-4) bytes of `value`, little endian.
     pub fn write(&mut self, now_us: u64, index: u16, sub: u8, value: u32, len: u8) -> CanFrame {
-        let n = 4 - len.clamp(1, 4);
-        let cmd = 0x23 | (n << 2);
-        let [i0, i1] = index.to_le_bytes();
-        let v = value.to_le_bytes();
+        let n = usize::from(len.clamp(1, 4));
+        let req = SdoRequest::InitiateDownload {
+            mux: Mux::new(index, sub),
+            data: Initiate::expedited(&value.to_le_bytes()[..n]),
+        };
         self.start(now_us, index, sub, false);
-        CanFrame::new(
-            0x600 + u32::from(self.node_id),
-            &[cmd, i0, i1, sub, v[0], v[1], v[2], v[3]],
-        )
+        CanFrame::new(cob::SDO_RX + u32::from(self.node_id), &req.emit())
     }
 
     /// Upload request.
     pub fn read(&mut self, now_us: u64, index: u16, sub: u8) -> CanFrame {
-        let [i0, i1] = index.to_le_bytes();
+        let req = SdoRequest::InitiateUpload {
+            mux: Mux::new(index, sub),
+        };
         self.start(now_us, index, sub, true);
-        CanFrame::new(
-            0x600 + u32::from(self.node_id),
-            &[0x40, i0, i1, sub, 0, 0, 0, 0],
-        )
+        CanFrame::new(cob::SDO_RX + u32::from(self.node_id), &req.emit())
     }
 
     fn start(&mut self, now_us: u64, index: u16, sub: u8, upload: bool) {
@@ -78,30 +76,34 @@ impl SdoClient {
 
     /// Feed a received frame; returns true if it was this client's SDO response.
     pub fn handle(&mut self, frame: &CanFrame) -> bool {
-        if frame.extended || frame.id != 0x580 + u32::from(self.node_id) || frame.len != 8 {
+        if frame.extended || frame.id != cob::SDO_TX + u32::from(self.node_id) || frame.len != 8 {
             return false;
         }
         let Some(p) = self.pending else {
             return true;
         };
-        let d = frame.data;
-        let index = u16::from_le_bytes([d[1], d[2]]);
-        if index != p.index || d[3] != p.sub {
+        let response = SdoResponse::parse(&frame.data);
+        // Only answers naming the pending object (segment answers name none) are ours.
+        let mux = Mux::new(p.index, p.sub);
+        if response
+            .ok()
+            .and_then(|r| r.mux())
+            .unwrap_or(Mux::of(&frame.data))
+            != mux
+        {
             return true;
         }
-        let value = u32::from_le_bytes([d[4], d[5], d[6], d[7]]);
-        let result = match d[0] {
-            0x80 => SdoResult::Aborted(value),
-            0x60 if !p.upload => SdoResult::Written,
-            c if p.upload && c & 0xE0 == 0x40 && c & 0x02 != 0 => {
-                let unused = if c & 0x01 != 0 { (c >> 2) & 0x3 } else { 0 };
-                let bytes = 4 - unused as u32;
-                let mask = if bytes == 4 {
-                    u32::MAX
-                } else {
-                    (1u32 << (8 * bytes)) - 1
-                };
-                SdoResult::Read(value & mask)
+        let result = match response {
+            Ok(SdoResponse::Abort { code, .. }) => SdoResult::Aborted(code),
+            Ok(SdoResponse::InitiateDownload { .. }) if !p.upload => SdoResult::Written,
+            Ok(SdoResponse::InitiateUpload {
+                data: data @ Initiate::Expedited { .. },
+                ..
+            }) if p.upload => {
+                let mut v = [0u8; 4];
+                let b = data.bytes();
+                v[..b.len()].copy_from_slice(b);
+                SdoResult::Read(u32::from_le_bytes(v))
             }
             // A segmented upload answer: more than 4 bytes, which this client does not read.
             _ => SdoResult::Aborted(0x0504_0001),

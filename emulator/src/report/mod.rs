@@ -13,7 +13,7 @@ const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 const W: u32 = 1000;
 const H: u32 = 600;
 
-fn font_ready() {
+pub(crate) fn font_ready() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         // Cannot fail for the embedded font; if it did, plots would lack text only.
@@ -254,7 +254,8 @@ pub fn plot_amplitude_trend(
         }
         c.draw_series(pts.iter().zip(&rep.windows).map(|(p, w)| {
             let col = match w.level {
-                crate::analysis::detector::Verdict::Ok => BLUE,
+                crate::analysis::detector::Verdict::Inconclusive
+                | crate::analysis::detector::Verdict::Ok => BLUE,
                 crate::analysis::detector::Verdict::BacklashSuspected => RGBColor(230, 160, 0),
                 crate::analysis::detector::Verdict::Backlash => RED,
             };

@@ -262,7 +262,7 @@ impl Expectation {
                     fmt_t(d.first_backlash_s)
                 );
                 let first = match verdict {
-                    Verdict::Ok => None,
+                    Verdict::Inconclusive | Verdict::Ok => None,
                     Verdict::BacklashSuspected => d.first_suspected_s,
                     Verdict::Backlash => d.first_backlash_s,
                 };

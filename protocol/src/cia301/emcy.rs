@@ -1,13 +1,18 @@
 //! EMCY producer: 0x1001 error register, 0x1003 pre-defined error field (history, newest in
-//! sub 1), 0x1014 COB-ID, 0x1015 inhibit time. Frames are encoded with canopen-rs's
-//! `EmergencyMessage`.
+//! sub 1), 0x1014 COB-ID, 0x1015 inhibit time. Frames are encoded by [`crate::wire::emcy`].
 
 use crate::od::{idx, Store};
-use canopen_rs::{EmergencyMessage, ErrorRegister};
+use crate::wire::emcy::EmcyFrame;
 use heapless::{Deque, Vec};
 
 const R_1001: usize = idx(0x1001, 0);
 const R_1003: usize = idx(0x1003, 0);
+/// "Error reset / no error".
+const RESET: EmcyFrame = EmcyFrame {
+    code: 0,
+    register: 0,
+    info: [0; 5],
+};
 
 /// Active errors and the frames waiting for the inhibit time.
 #[derive(Clone, Debug, Default)]
@@ -52,12 +57,13 @@ impl Emcy {
         self.active.contains(&code)
     }
 
-    /// Raise an error: update 0x1001 and 0x1003, queue the EMCY frame.
-    pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5]) {
+    /// Raise an error: update 0x1001 and 0x1003, queue the EMCY frame. Returns false when
+    /// the error was already active (nothing done).
+    pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5]) -> bool {
         // An error that is already active is not a new event: one EMCY, one history entry,
         // until it is cleared (e.g. heartbeat loss followed by its 0x6007 fault reaction).
         if self.active.contains(&code) {
-            return;
+            return false;
         }
         if self.active.push(code).is_err() {
             // table full: keep the older errors, still report this one
@@ -75,20 +81,33 @@ impl Emcy {
             code as u32 | (u16::from_le_bytes([info[0], info[1]]) as u32) << 16,
         );
         store.set(R_1003, (n + 1).min(8) as u32);
-        let msg = EmergencyMessage::new(code, ErrorRegister(reg), info);
-        self.push(msg.encode());
+        let msg = EmcyFrame {
+            code,
+            register: reg,
+            info,
+        };
+        self.push(msg.emit());
+        true
     }
 
-    /// An error went away; when none is left, send "error reset / no error".
-    pub fn clear(&mut self, store: &mut Store, code: u16) {
-        if let Some(p) = self.active.iter().position(|&c| c == code) {
-            self.active.swap_remove(p);
-            let reg = self.register();
-            store.set(R_1001, reg as u32);
-            if self.active.is_empty() {
-                self.push(EmergencyMessage::error_reset().encode());
-            }
+    /// An error went away; when none is left, send "error reset / no error". Returns false
+    /// when the error was not active.
+    pub fn clear(&mut self, store: &mut Store, code: u16) -> bool {
+        let Some(p) = self.active.iter().position(|&c| c == code) else {
+            return false;
+        };
+        self.active.swap_remove(p);
+        let reg = self.register();
+        store.set(R_1001, reg as u32);
+        if self.active.is_empty() {
+            self.push(RESET.emit());
         }
+        true
+    }
+
+    /// The active error codes.
+    pub fn active(&self) -> &[u16] {
+        &self.active
     }
 
     /// Clear every active error (CiA 402 fault reset).
@@ -96,7 +115,7 @@ impl Emcy {
         if !self.active.is_empty() {
             self.active.clear();
             store.set(R_1001, 0);
-            self.push(EmergencyMessage::error_reset().encode());
+            self.push(RESET.emit());
         }
     }
 
@@ -104,6 +123,17 @@ impl Emcy {
         if self.queue.push_back(f).is_err() {
             self.dropped = self.dropped.wrapping_add(1);
         }
+    }
+
+    /// When the next queued frame may go (us): `None` with an empty queue.
+    pub fn next_at_us(&self, inhibit_100us: u16) -> Option<u64> {
+        if self.queue.is_empty() {
+            return None;
+        }
+        Some(
+            self.last_tx_us
+                .map_or(0, |l| l + inhibit_100us as u64 * 100),
+        )
     }
 
     /// The next frame allowed by the inhibit time (100 us units), if any.

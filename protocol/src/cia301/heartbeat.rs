@@ -12,6 +12,11 @@ impl Producer {
         self.next_due_us = now_us + period_ms as u64 * 1000;
     }
 
+    /// When the next heartbeat is due (us), `None` when the producer is off.
+    pub fn deadline_us(&self, period_ms: u16) -> Option<u64> {
+        (period_ms != 0).then_some(self.next_due_us)
+    }
+
     /// True when a heartbeat is due now.
     pub fn due(&mut self, now_us: u64, period_ms: u16) -> bool {
         if period_ms == 0 {
@@ -78,7 +83,16 @@ impl Consumer {
         None
     }
 
-    /// Whether any monitored producer is currently lost (timed out and not heard since).
+    /// When the first monitored producer times out (us), if any is being watched.
+    pub fn deadline_us(&self) -> Option<u64> {
+        self.slots
+            .iter()
+            .filter(|s| s.armed && s.time_ms != 0)
+            .map(|s| s.last_us + s.time_ms as u64 * 1000 + 1)
+            .min()
+    }
+
+    /// Whether `node` is configured for monitoring in some 0x1016 entry (non-zero time).
     pub fn is_monitoring(&self, node: u8) -> bool {
         self.slots.iter().any(|s| s.node == node && s.time_ms != 0)
     }

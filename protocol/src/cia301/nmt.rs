@@ -1,8 +1,9 @@
 //! NMT slave: the node's communication state and the commands of the NMT master (COB-ID 0).
-//! Command decoding is canopen-rs's `NmtCommand::from_byte`.
+//! Frame decoding is [`crate::wire::nmt`].
 
 use crate::frame::CanFrame;
-pub use canopen_rs::NmtCommand;
+pub use crate::wire::nmt::NmtCommand;
+use crate::wire::nmt::NmtFrame;
 
 /// NMT state; the discriminant is the heartbeat state byte.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -15,14 +16,11 @@ pub enum NmtState {
 
 /// Decode an NMT frame (COB-ID 0) addressed to `node_id` or to all nodes (0).
 pub fn decode(frame: &CanFrame, node_id: u8) -> Option<NmtCommand> {
-    if frame.id != 0 || frame.rtr || frame.len < 2 {
+    if frame.id != 0 || frame.rtr {
         return None;
     }
-    let target = frame.data[1];
-    if target != 0 && target != node_id {
-        return None;
-    }
-    NmtCommand::from_byte(frame.data[0]).ok()
+    let f = NmtFrame::parse(frame.payload())?;
+    f.addresses(node_id).then_some(f.command)
 }
 
 /// The state a command leads to (resets return `Initialising`; the node then boots again).

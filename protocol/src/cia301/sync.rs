@@ -44,6 +44,15 @@ impl SyncConsumer {
         }
     }
 
+    /// When [`SyncConsumer::poll`] reports SYNC loss if no SYNC comes first (us).
+    pub fn deadline_us(&self, period_us: u32) -> Option<u64> {
+        if period_us == 0 || self.lost {
+            return None;
+        }
+        // poll fires at the first `now` with (now - last) * 2 > 3 * period
+        self.last_us.map(|l| l + period_us as u64 * 3 / 2 + 1)
+    }
+
     /// True once when SYNC has been missing for more than 1.5 x `period_us` (0 = off).
     pub fn poll(&mut self, now_us: u64, period_us: u32) -> bool {
         if period_us == 0 || self.lost {

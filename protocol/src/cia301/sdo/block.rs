@@ -1,7 +1,8 @@
 //! SDO block transfer (CiA 301 7.2.4.3.9 ff.), server side, with CRC (the CRC function is
 //! canopen-rs's `sdo::block::crc16`).
 
-use super::{abort, download_size, mux, ObjectAccess, SdoServer, State, BUF};
+use super::{abort, download_size, ObjectAccess, SdoServer, State, BUF};
+use crate::wire::sdo::{BlockSegment, SdoRequest, SdoResponse};
 use canopen_rs::sdo::block::crc16;
 
 /// Segments per sub-block the server accepts in a block download.
@@ -34,16 +35,14 @@ pub(crate) struct UpState {
 impl SdoServer {
     pub(super) fn block_download(
         &mut self,
-        req: &[u8; 8],
+        req: &SdoRequest,
         od: &mut impl ObjectAccess,
         out: &mut impl FnMut([u8; 8]),
     ) {
-        match self.state {
-            State::Idle if req[0] & 0x01 == 0 => {
-                self.index = u16::from_le_bytes([req[1], req[2]]);
-                self.sub = req[3];
-                let crc = req[0] & 0x04 != 0;
-                let size = match download_size(od, self.index, self.sub, req[0] & 0x02 != 0, req) {
+        match (self.state, *req) {
+            (State::Idle, SdoRequest::BlockDownloadInitiate { mux, crc, size }) => {
+                self.start(mux, false);
+                let size = match download_size(od, self.index, self.sub, size) {
                     Ok(size) => size,
                     Err(c) => return self.fail(c, out),
                 };
@@ -54,14 +53,17 @@ impl SdoServer {
                     size,
                     waiting_end: false,
                 });
-                let mut f = mux(0xA4, self.index, self.sub);
-                f[4] = DOWN_BLKSIZE;
-                out(f);
+                out(SdoResponse::BlockDownloadInitiate {
+                    mux,
+                    crc: true,
+                    blksize: DOWN_BLKSIZE,
+                }
+                .emit());
             }
-            State::BlockDownload(st) if st.waiting_end && req[0] & 0x01 == 1 => {
-                let unused = ((req[0] >> 2) & 7) as usize;
-                let total = self.len.saturating_sub(unused);
-                let crc = u16::from_le_bytes([req[1], req[2]]);
+            (State::BlockDownload(st), SdoRequest::BlockDownloadEnd { unused, crc })
+                if st.waiting_end =>
+            {
+                let total = self.len.saturating_sub(unused as usize);
                 if st.crc && crc16(&self.buf[..total]) != crc {
                     return self.fail(abort::CRC, out);
                 }
@@ -71,8 +73,8 @@ impl SdoServer {
                 let data = self.buf;
                 match od.write(self.index, self.sub, &data[..total]) {
                     Ok(()) => {
-                        out([0xA1, 0, 0, 0, 0, 0, 0, 0]);
-                        self.state = State::Idle;
+                        out(SdoResponse::BlockDownloadEnd.emit());
+                        self.done(None);
                     }
                     Err(c) => self.fail(c, out),
                 }
@@ -84,12 +86,17 @@ impl SdoServer {
     pub(super) fn block_download_segment(
         &mut self,
         mut st: DownState,
-        req: &[u8; 8],
-        _od: &mut impl ObjectAccess,
+        seg: &BlockSegment,
         out: &mut impl FnMut([u8; 8]),
     ) {
-        let seq = req[0] & 0x7F;
-        let last = req[0] & 0x80 != 0;
+        let seq = seg.seqno;
+        let ack = |ackseq| {
+            SdoResponse::BlockDownloadAck {
+                ackseq,
+                blksize: DOWN_BLKSIZE,
+            }
+            .emit()
+        };
         if seq == 0 || seq > DOWN_BLKSIZE {
             return self.fail(abort::SEQUENCE, out);
         }
@@ -97,17 +104,17 @@ impl SdoServer {
             if self.len + 7 > BUF {
                 return self.fail(abort::OUT_OF_MEMORY, out);
             }
-            self.buf[self.len..self.len + 7].copy_from_slice(&req[1..8]);
+            self.buf[self.len..self.len + 7].copy_from_slice(&seg.data);
             self.len += 7;
             st.expected += 1;
-            if last || seq == DOWN_BLKSIZE {
-                out([0xA2, seq, DOWN_BLKSIZE, 0, 0, 0, 0, 0]);
+            if seg.last || seq == DOWN_BLKSIZE {
+                out(ack(seq));
                 st.expected = 1;
-                st.waiting_end = last;
+                st.waiting_end = seg.last;
             }
-        } else if seq == DOWN_BLKSIZE || last {
+        } else if seq == DOWN_BLKSIZE || seg.last {
             // a segment was lost: acknowledge the last good one, the client repeats the rest
-            out([0xA2, st.expected - 1, DOWN_BLKSIZE, 0, 0, 0, 0, 0]);
+            out(ack(st.expected - 1));
             st.expected = 1;
         }
         self.state = State::BlockDownload(st);
@@ -115,16 +122,18 @@ impl SdoServer {
 
     pub(super) fn block_upload(
         &mut self,
-        req: &[u8; 8],
+        req: &SdoRequest,
         od: &mut impl ObjectAccess,
         out: &mut impl FnMut([u8; 8]),
     ) {
-        let cs = req[0] & 0x03;
-        match (self.state, cs) {
-            (State::Idle, 0) => {
-                self.index = u16::from_le_bytes([req[1], req[2]]);
-                self.sub = req[3];
-                let blksize = req[4];
+        match (self.state, *req) {
+            (
+                State::Idle,
+                SdoRequest::BlockUploadInitiate {
+                    mux, crc, blksize, ..
+                },
+            ) => {
+                self.start(mux, true);
                 if blksize == 0 || blksize > 127 {
                     return self.fail(abort::BLOCK_SIZE, out);
                 }
@@ -134,12 +143,15 @@ impl SdoServer {
                     Ok(n) => {
                         self.buf = buf;
                         self.len = n;
-                        let mut f = mux(0xC6, self.index, self.sub);
-                        f[4..8].copy_from_slice(&(n as u32).to_le_bytes());
-                        out(f);
+                        out(SdoResponse::BlockUploadInitiate {
+                            mux,
+                            crc: true,
+                            size: Some(n as u32),
+                        }
+                        .emit());
                         self.state = State::BlockUpload(UpState {
                             blksize,
-                            crc: req[0] & 0x04 != 0,
+                            crc,
                             acked: 0,
                             started: false,
                             ending: false,
@@ -147,14 +159,14 @@ impl SdoServer {
                     }
                 }
             }
-            (State::BlockUpload(mut st), 3) if !st.started => {
+            (State::BlockUpload(mut st), SdoRequest::BlockUploadStart) if !st.started => {
                 st.started = true;
                 self.state = State::BlockUpload(st);
                 self.send_sub_block(st, out);
             }
-            (State::BlockUpload(mut st), 2) if st.started && !st.ending => {
-                let ackseq = req[1];
-                let blksize = req[2];
+            (State::BlockUpload(mut st), SdoRequest::BlockUploadAck { ackseq, blksize })
+                if st.started && !st.ending =>
+            {
                 if ackseq > st.blksize {
                     return self.fail(abort::SEQUENCE, out);
                 }
@@ -172,16 +184,15 @@ impl SdoServer {
                     } else {
                         0
                     };
-                    let c = crc.to_le_bytes();
-                    out([0xC1 | (unused << 2), c[0], c[1], 0, 0, 0, 0, 0]);
+                    out(SdoResponse::BlockUploadEnd { unused, crc }.emit());
                     self.state = State::BlockUpload(st);
                 } else {
                     self.state = State::BlockUpload(st);
                     self.send_sub_block(st, out);
                 }
             }
-            (State::BlockUpload(st), 1) if st.ending => {
-                self.state = State::Idle;
+            (State::BlockUpload(st), SdoRequest::BlockUploadEnd) if st.ending => {
+                self.done(None);
             }
             _ => self.fail(abort::COMMAND, out),
         }
@@ -192,10 +203,7 @@ impl SdoServer {
         for seq in 1..=st.blksize {
             let n = (self.len - pos).min(7);
             let last = pos + n >= self.len;
-            let mut f = [0u8; 8];
-            f[0] = seq | if last { 0x80 } else { 0 };
-            f[1..1 + n].copy_from_slice(&self.buf[pos..pos + n]);
-            out(f);
+            out(BlockSegment::new(seq, &self.buf[pos..pos + n], last).emit());
             pos += n;
             if last {
                 break;

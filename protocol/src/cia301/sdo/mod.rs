@@ -5,6 +5,12 @@
 
 pub mod block;
 
+pub use crate::event::{SdoDirection, SdoTransfer};
+
+use crate::wire::sdo::{
+    self as wire, BlockSegment, Initiate, Mux, SdoRequest, SdoResponse, Segment,
+};
+
 /// Largest value the server moves in one transfer.
 pub const BUF: usize = 64;
 /// Default timeout of a stalled segmented / block transfer.
@@ -69,6 +75,10 @@ pub struct SdoServer {
     pub(crate) buf: [u8; BUF],
     pub(crate) len: usize,
     pub(crate) last_us: u64,
+    /// The transfer in progress (or last) is an upload.
+    upload: bool,
+    /// The transfer that just finished, for the node's event queue.
+    finished: Option<SdoTransfer>,
     /// Timeout of a stalled transfer (abort 0x05040000).
     pub timeout_us: u64,
 }
@@ -82,6 +92,8 @@ impl Default for SdoServer {
             buf: [0; BUF],
             len: 0,
             last_us: 0,
+            upload: false,
+            finished: None,
             timeout_us: DEFAULT_TIMEOUT_US,
         }
     }
@@ -89,14 +101,7 @@ impl Default for SdoServer {
 
 /// An abort frame.
 pub fn abort_frame(index: u16, sub: u8, code: u32) -> [u8; 8] {
-    let i = index.to_le_bytes();
-    let c = code.to_le_bytes();
-    [0x80, i[0], i[1], sub, c[0], c[1], c[2], c[3]]
-}
-
-pub(crate) fn mux(cs: u8, index: u16, sub: u8) -> [u8; 8] {
-    let i = index.to_le_bytes();
-    [cs, i[0], i[1], sub, 0, 0, 0, 0]
+    wire::abort(Mux::new(index, sub), code)
 }
 
 impl SdoServer {
@@ -110,9 +115,48 @@ impl SdoServer {
         self.state = State::Idle;
     }
 
+    pub(crate) fn mux(&self) -> Mux {
+        Mux::new(self.index, self.sub)
+    }
+
+    fn start(&mut self, mux: Mux, upload: bool) {
+        self.index = mux.index;
+        self.sub = mux.sub;
+        self.upload = upload;
+    }
+
     fn fail(&mut self, code: u32, out: &mut impl FnMut([u8; 8])) {
         out(abort_frame(self.index, self.sub, code));
+        self.done(Some(code));
+    }
+
+    /// The transfer ended (completed, or aborted with `abort`): back to idle, remember it.
+    fn done(&mut self, abort: Option<u32>) {
         self.state = State::Idle;
+        self.finished = Some(SdoTransfer {
+            index: self.index,
+            sub: self.sub,
+            direction: if self.upload {
+                SdoDirection::Upload
+            } else {
+                SdoDirection::Download
+            },
+            abort,
+        });
+    }
+
+    /// The transfer that finished since the last call, if any.
+    pub fn take_finished(&mut self) -> Option<SdoTransfer> {
+        self.finished.take()
+    }
+
+    /// When [`SdoServer::poll`] will abort the transfer in progress (us), if one is.
+    pub fn deadline_us(&self) -> Option<u64> {
+        self.busy().then(|| {
+            self.last_us
+                .saturating_add(self.timeout_us)
+                .saturating_add(1)
+        })
     }
 
     /// Abort a stalled transfer.
@@ -134,125 +178,123 @@ impl SdoServer {
         // Block download sub-block segments carry no command specifier.
         if let State::BlockDownload(st) = self.state {
             if st.receiving() && req[0] != 0x80 {
-                return self.block_download_segment(st, req, od, out);
+                return self.block_download_segment(st, &BlockSegment::parse(req), out);
             }
         }
-        let ccs = req[0] >> 5;
-        let index = u16::from_le_bytes([req[1], req[2]]);
-        let sub = req[3];
-        match ccs {
-            4 => {
-                // abort from the client: no answer
-                self.state = State::Idle;
+        let request = match SdoRequest::parse(req) {
+            Ok(r) => r,
+            Err(_) => {
+                if !self.busy() {
+                    self.start(Mux::of(req), false);
+                }
+                return self.fail(abort::COMMAND, out);
             }
-            1 => {
-                self.index = index;
-                self.sub = sub;
-                self.download_initiate(req, od, out)
+        };
+        match request {
+            // abort from the client: no answer
+            SdoRequest::Abort { code, .. } => {
+                if self.busy() {
+                    self.done(Some(code));
+                }
             }
-            2 => {
-                self.index = index;
-                self.sub = sub;
+            SdoRequest::InitiateDownload { mux, data } => {
+                self.start(mux, false);
+                self.download_initiate(data, od, out)
+            }
+            SdoRequest::InitiateUpload { mux } => {
+                self.start(mux, true);
                 self.upload_initiate(od, out)
             }
-            0 => self.download_segment(req, od, out),
-            3 => self.upload_segment(req, out),
-            5 => self.block_upload(req, od, out),
-            6 => self.block_download(req, od, out),
-            _ => {
-                if self.busy() {
-                    self.fail(abort::COMMAND, out)
-                } else {
-                    self.index = index;
-                    self.sub = sub;
-                    self.fail(abort::COMMAND, out)
-                }
+            SdoRequest::DownloadSegment(seg) => self.download_segment(&seg, od, out),
+            SdoRequest::UploadSegment { toggle } => self.upload_segment(toggle, out),
+            SdoRequest::BlockUploadInitiate { .. }
+            | SdoRequest::BlockUploadStart
+            | SdoRequest::BlockUploadAck { .. }
+            | SdoRequest::BlockUploadEnd => self.block_upload(&request, od, out),
+            SdoRequest::BlockDownloadInitiate { .. } | SdoRequest::BlockDownloadEnd { .. } => {
+                self.block_download(&request, od, out)
             }
         }
     }
 
     fn download_initiate(
         &mut self,
-        req: &[u8; 8],
+        data: Initiate,
         od: &mut impl ObjectAccess,
         out: &mut impl FnMut([u8; 8]),
     ) {
-        let e = req[0] & 0x02 != 0;
-        let s = req[0] & 0x01 != 0;
-        if e {
-            let n = if s {
-                4 - ((req[0] >> 2) & 3) as usize
-            } else {
-                4
-            };
-            let res = od.check_write(self.index, self.sub, if s { Some(n) } else { None });
-            let res = res.and_then(|_| {
-                // without a size, the object's own size (<= 4) is taken
-                let mut probe = [0u8; BUF];
-                let n = if s {
-                    n
-                } else {
-                    od.read(self.index, self.sub, &mut probe)
-                        .map(|l| l.clamp(1, 4))
-                        .unwrap_or(4)
-                };
-                od.write(self.index, self.sub, &req[4..4 + n])
-            });
-            match res {
-                Ok(()) => {
-                    out(mux(0x60, self.index, self.sub));
-                    self.state = State::Idle;
+        match data {
+            Initiate::Expedited { data, size } => {
+                let res = od.check_write(self.index, self.sub, size.map(usize::from));
+                let res = res.and_then(|_| {
+                    // without a size, the object's own size (<= 4) is taken
+                    let n = match size {
+                        Some(n) => n as usize,
+                        None => {
+                            let mut probe = [0u8; BUF];
+                            od.read(self.index, self.sub, &mut probe)
+                                .map(|l| l.clamp(1, 4))
+                                .unwrap_or(4)
+                        }
+                    };
+                    od.write(self.index, self.sub, &data[..n])
+                });
+                match res {
+                    Ok(()) => {
+                        out(SdoResponse::InitiateDownload { mux: self.mux() }.emit());
+                        self.done(None);
+                    }
+                    Err(c) => self.fail(c, out),
                 }
-                Err(c) => self.fail(c, out),
             }
-        } else {
-            let size = match download_size(od, self.index, self.sub, s, req) {
-                Ok(size) => size,
-                Err(c) => return self.fail(c, out),
-            };
-            self.len = 0;
-            self.state = State::SegDownload {
-                toggle: false,
-                size,
-            };
-            out(mux(0x60, self.index, self.sub));
+            Initiate::Segmented { size } => {
+                let size = match download_size(od, self.index, self.sub, size) {
+                    Ok(size) => size,
+                    Err(c) => return self.fail(c, out),
+                };
+                self.len = 0;
+                self.state = State::SegDownload {
+                    toggle: false,
+                    size,
+                };
+                out(SdoResponse::InitiateDownload { mux: self.mux() }.emit());
+            }
         }
     }
 
     fn download_segment(
         &mut self,
-        req: &[u8; 8],
+        seg: &Segment,
         od: &mut impl ObjectAccess,
         out: &mut impl FnMut([u8; 8]),
     ) {
         let State::SegDownload { toggle, size } = self.state else {
             return self.fail(abort::COMMAND, out);
         };
-        let t = req[0] & 0x10 != 0;
-        if t != toggle {
+        if seg.toggle != toggle {
             return self.fail(abort::TOGGLE, out);
         }
-        let n = 7 - ((req[0] >> 1) & 7) as usize;
-        let last = req[0] & 1 != 0;
+        let n = seg.bytes().len();
         if self.len + n > BUF {
             return self.fail(abort::OUT_OF_MEMORY, out);
         }
-        self.buf[self.len..self.len + n].copy_from_slice(&req[1..1 + n]);
+        self.buf[self.len..self.len + n].copy_from_slice(seg.bytes());
         self.len += n;
-        if last {
+        let ack = SdoResponse::DownloadSegment { toggle: seg.toggle }.emit();
+        if seg.last {
             if size.is_some_and(|s| s != self.len) {
                 return self.fail(abort::LENGTH_MISMATCH, out);
             }
             let data = self.buf;
             match od.write(self.index, self.sub, &data[..self.len]) {
                 Ok(()) => {
-                    out([0x20 | if t { 0x10 } else { 0 }, 0, 0, 0, 0, 0, 0, 0]);
-                    self.state = State::Idle;
+                    out(ack);
+                    self.done(None);
                 }
                 Err(c) => self.fail(c, out),
             }
         } else {
-            out([0x20 | if t { 0x10 } else { 0 }, 0, 0, 0, 0, 0, 0, 0]);
+            out(ack);
             self.state = State::SegDownload {
                 toggle: !toggle,
                 size,
@@ -265,17 +307,25 @@ impl SdoServer {
         match od.read(self.index, self.sub, &mut buf) {
             Err(c) => self.fail(c, out),
             Ok(n) if n <= 4 && n > 0 => {
-                let mut f = mux(0x43 | (((4 - n) as u8) << 2), self.index, self.sub);
-                f[4..4 + n].copy_from_slice(&buf[..n]);
-                out(f);
-                self.state = State::Idle;
+                let data = Initiate::expedited(&buf[..n]);
+                out(SdoResponse::InitiateUpload {
+                    mux: self.mux(),
+                    data,
+                }
+                .emit());
+                self.done(None);
             }
             Ok(n) => {
                 self.buf = buf;
                 self.len = n;
-                let mut f = mux(0x41, self.index, self.sub);
-                f[4..8].copy_from_slice(&(n as u32).to_le_bytes());
-                out(f);
+                let data = Initiate::Segmented {
+                    size: Some(n as u32),
+                };
+                out(SdoResponse::InitiateUpload {
+                    mux: self.mux(),
+                    data,
+                }
+                .emit());
                 self.state = State::SegUpload {
                     toggle: false,
                     pos: 0,
@@ -284,41 +334,35 @@ impl SdoServer {
         }
     }
 
-    fn upload_segment(&mut self, req: &[u8; 8], out: &mut impl FnMut([u8; 8])) {
+    fn upload_segment(&mut self, t: bool, out: &mut impl FnMut([u8; 8])) {
         let State::SegUpload { toggle, pos } = self.state else {
             return self.fail(abort::COMMAND, out);
         };
-        let t = req[0] & 0x10 != 0;
         if t != toggle {
             return self.fail(abort::TOGGLE, out);
         }
         let n = (self.len - pos).min(7);
         let last = pos + n >= self.len;
-        let mut f = [0u8; 8];
-        f[0] = (if t { 0x10 } else { 0 }) | (((7 - n) as u8) << 1) | last as u8;
-        f[1..1 + n].copy_from_slice(&self.buf[pos..pos + n]);
-        out(f);
-        self.state = if last {
-            State::Idle
+        out(SdoResponse::UploadSegment(Segment::new(t, &self.buf[pos..pos + n], last)).emit());
+        if last {
+            self.done(None);
         } else {
-            State::SegUpload {
+            self.state = State::SegUpload {
                 toggle: !toggle,
                 pos: pos + n,
-            }
-        };
+            };
+        }
     }
 }
 
-/// The size a segmented or block download announces (`announced`: the size-indicated bit,
-/// size in bytes 4..8), checked against the object (access, length) and against our buffer.
+/// The size a segmented or block download announces, checked against the object (access, length) and against our buffer.
 fn download_size(
     od: &mut impl ObjectAccess,
     index: u16,
     sub: u8,
-    announced: bool,
-    req: &[u8; 8],
+    announced: Option<u32>,
 ) -> Result<Option<usize>, u32> {
-    let size = announced.then(|| u32::from_le_bytes([req[4], req[5], req[6], req[7]]) as usize);
+    let size = announced.map(|n| n as usize);
     od.check_write(index, sub, size)?;
     if size.is_some_and(|n| n > BUF) {
         return Err(abort::OUT_OF_MEMORY);

@@ -1,0 +1,87 @@
+//! `drive-emu figures`: the paper's Fig. 3, 10 and 11 from simulated runs, as PNG + JSON.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+
+use crate::study::figures::{fig10, fig11, fig3};
+
+/// Arguments of `drive-emu figures`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct FiguresArgs {
+    /// Output directory (the README's figures live in docs/img).
+    #[arg(long, default_value = "out/figures")]
+    pub out: PathBuf,
+    /// Which figures: comma-separated from 3, 10, 11.
+    #[arg(long, default_value = "3,10,11")]
+    pub only: String,
+    /// Preset whose speed loop Fig. 3 measures.
+    #[arg(long, default_value = "cnc1")]
+    pub fig3_preset: String,
+    /// Override a key of Fig. 3's preset, e.g. --set speed_kp_nms_per_rad=6 (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Worker threads for Fig. 11 (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+}
+
+pub fn run(args: &FiguresArgs) -> anyhow::Result<()> {
+    let mut which = Vec::new();
+    for w in args.only.split(',') {
+        match w.trim() {
+            "3" | "10" | "11" => which.push(w.trim().to_string()),
+            other => anyhow::bail!("--only: unknown figure `{other}` (3, 10, 11)"),
+        }
+    }
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    for w in which {
+        match w.as_str() {
+            "3" => {
+                let (p, r) = fig3(&args.out, &args.fig3_preset, &args.set)?;
+                println!(
+                    "Fig. 3 {}: closed speed loop of {}, -3 dB bandwidth {}",
+                    p.display(),
+                    r.preset,
+                    r.bandwidth_3db_hz
+                        .map_or("not reached below 1 kHz".into(), |b| format!("{b:.0} Hz"))
+                );
+            }
+            "10" => {
+                let (p, d) = fig10(&args.out)?;
+                let s: Vec<String> = d
+                    .traces
+                    .iter()
+                    .map(|t| {
+                        format!(
+                            "{} deg: {} Hz, {:.2} rpm",
+                            t.backlash_deg,
+                            t.fundamental_hz.map_or("-".into(), |f| format!("{f:.2}")),
+                            t.motor_velocity_amplitude_rpm
+                        )
+                    })
+                    .collect();
+                println!("Fig. 10 {}: {}", p.display(), s.join("; "));
+            }
+            _ => {
+                let (p, d) = fig11(&args.out, args.threads)?;
+                let ok = d
+                    .rows
+                    .iter()
+                    .filter(|r| {
+                        r.f_over_kv.is_some_and(|x| (x - 0.6).abs() <= 0.1) && r.limit_cycle
+                    })
+                    .count();
+                println!(
+                    "Fig. 11 {}: {} runs, {} with f/k_v in 0.6 +- 0.1, {} without a limit cycle",
+                    p.display(),
+                    d.rows.len(),
+                    ok,
+                    d.rows.iter().filter(|r| !r.limit_cycle).count()
+                );
+            }
+        }
+    }
+    Ok(())
+}

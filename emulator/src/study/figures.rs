@@ -1,0 +1,348 @@
+//! The paper's figures, every point measured from simulated runs: Fig. 3 (closed speed loop
+//! frequency response), Fig. 10 (rotary axis at two backlash values: same frequency, larger
+//! amplitude) and Fig. 11 (limit-cycle frequency against k_v for the five presets). Each is a
+//! PNG (plotters, bitmap backend, the embedded font of [`crate::report`]) and a JSON file.
+
+use std::path::{Path, PathBuf};
+
+use plotters::prelude::*;
+
+use super::response::{log_frequencies, speed_loop_response, SpeedLoopResponse};
+use super::{backlash_key, default_velocity, run_cases, Case, CaseRow, DEFAULT_DURATION_S};
+use crate::analysis::{constant_velocity_run, RunOptions};
+use crate::presets::{preset_names, AxisConfig};
+use crate::report::{font_ready, write_json};
+
+const W: u32 = 1000;
+const H: u32 = 700;
+
+type DynErr = Box<dyn std::error::Error>;
+
+fn plot_err(e: DynErr) -> anyhow::Error {
+    anyhow::anyhow!("plot: {e}")
+}
+
+fn cfg_err(e: crate::presets::ConfigError) -> anyhow::Error {
+    anyhow::anyhow!("{e}")
+}
+
+/// Fig. 3 data: the closed speed loop of a healthy axis (backlash 0), 5 Hz - 1 kHz.
+/// `sets`: `key=value` overrides applied after.
+pub fn fig3_data(preset: &str, sets: &[String]) -> anyhow::Result<SpeedLoopResponse> {
+    let cfg = AxisConfig::from_preset(preset).map_err(cfg_err)?;
+    let cfg = cfg
+        .with_override(backlash_key(&cfg), "0")
+        .and_then(|c| c.with_overrides(sets.iter().map(String::as_str)))
+        .map_err(cfg_err)?;
+    speed_loop_response(&cfg, &log_frequencies(5.0, 1000.0, 41), 300.0, 5.0).map_err(cfg_err)
+}
+
+/// Fig. 3: magnitude and phase against frequency, the -3 dB bandwidth marked.
+pub fn fig3(
+    dir: &Path,
+    preset: &str,
+    sets: &[String],
+) -> anyhow::Result<(PathBuf, SpeedLoopResponse)> {
+    let r = fig3_data(preset, sets)?;
+    let png = dir.join("fig3-speed-loop.png");
+    write_json(&dir.join("fig3-speed-loop.json"), &r)?;
+    font_ready();
+    let draw = || -> Result<(), DynErr> {
+        let root = BitMapBackend::new(&png, (W, H)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let (top, bottom) = root.split_vertically(H / 2);
+        let (f0, f1) = (5.0, 1000.0);
+        let bw = r.bandwidth_3db_hz.map_or("-3 dB: not reached".into(), |b| {
+            format!("-3 dB at {b:.0} Hz")
+        });
+        let mut c = ChartBuilder::on(&top)
+            .caption(
+                format!("Fig. 3: closed speed loop, {} (measured, {bw})", r.preset),
+                ("sans-serif", 22),
+            )
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d((f0..f1).log_scale(), -25.0..6.0)?;
+        c.configure_mesh()
+            .x_desc("frequency, Hz")
+            .y_desc("magnitude, dB")
+            .draw()?;
+        c.draw_series(LineSeries::new(
+            r.points.iter().map(|p| (p.frequency_hz, p.magnitude_db)),
+            BLUE.stroke_width(2),
+        ))?;
+        c.draw_series(
+            r.points
+                .iter()
+                .map(|p| Circle::new((p.frequency_hz, p.magnitude_db), 3, BLUE.filled())),
+        )?;
+        c.draw_series(LineSeries::new(
+            [(f0, -3.0), (f1, -3.0)],
+            RED.stroke_width(1),
+        ))?;
+        if let Some(b) = r.bandwidth_3db_hz {
+            c.draw_series(LineSeries::new([(b, -25.0), (b, 6.0)], RED.stroke_width(1)))?;
+        }
+        let (plo, phi) = r.points.iter().fold((0.0f64, 0.0f64), |(lo, hi), p| {
+            (lo.min(p.phase_deg), hi.max(p.phase_deg))
+        });
+        let mut c = ChartBuilder::on(&bottom)
+            .margin(8)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d((f0..f1).log_scale(), (plo - 10.0)..(phi + 10.0))?;
+        c.configure_mesh()
+            .x_desc("frequency, Hz")
+            .y_desc("phase, deg")
+            .draw()?;
+        c.draw_series(LineSeries::new(
+            r.points.iter().map(|p| (p.frequency_hz, p.phase_deg)),
+            BLUE.stroke_width(2),
+        ))?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(plot_err)?;
+    Ok((png, r))
+}
+
+/// One trace of Fig. 10.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Fig10Trace {
+    pub backlash_deg: f64,
+    pub fundamental_hz: Option<f64>,
+    pub motor_velocity_amplitude_rpm: f64,
+    pub time_s: Vec<f64>,
+    pub motor_velocity_rpm: Vec<f64>,
+}
+
+/// Fig. 10 data.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Fig10 {
+    pub preset: String,
+    pub gear_ratio: f64,
+    pub velocity_deg_per_s: f64,
+    pub kv_per_s: f64,
+    pub traces: Vec<Fig10Trace>,
+}
+
+/// Fig. 10 data: the paper's rotary axis (CNC3: ratio 1258.5, 0.026 r/s) at 0.01 and 0.04 deg.
+pub fn fig10_data() -> anyhow::Result<Fig10> {
+    let base = AxisConfig::from_preset("cnc3").map_err(cfg_err)?;
+    let v = default_velocity(&base);
+    let mut traces = Vec::new();
+    for b in [0.01, 0.04] {
+        let cfg = base
+            .with_override("backlash_deg", &format!("{b}"))
+            .map_err(cfg_err)?;
+        let mut o = RunOptions::new(v, DEFAULT_DURATION_S);
+        o.record = true;
+        let r = constant_velocity_run(&cfg, &o).map_err(cfg_err)?;
+        // Half a second of the analysis window.
+        let t0 = r.summary.window_start_s + 2.0;
+        let idx: Vec<usize> = (0..r.trace.len())
+            .filter(|&i| r.trace.time_s[i] >= t0 && r.trace.time_s[i] < t0 + 0.5)
+            .collect();
+        traces.push(Fig10Trace {
+            backlash_deg: b,
+            fundamental_hz: r.summary.fundamental_hz,
+            motor_velocity_amplitude_rpm: r.summary.motor_velocity_amplitude_rpm,
+            time_s: idx.iter().map(|&i| r.trace.time_s[i] - t0).collect(),
+            motor_velocity_rpm: idx.iter().map(|&i| r.trace.motor_velocity_rpm[i]).collect(),
+        });
+    }
+    Ok(Fig10 {
+        preset: base.name.clone(),
+        gear_ratio: base.gear_ratio,
+        velocity_deg_per_s: v,
+        kv_per_s: base.kv_per_s,
+        traces,
+    })
+}
+
+/// Fig. 10: motor speed of both runs on one plot.
+pub fn fig10(dir: &Path) -> anyhow::Result<(PathBuf, Fig10)> {
+    let d = fig10_data()?;
+    let png = dir.join("fig10-rotary-backlash.png");
+    write_json(&dir.join("fig10-rotary-backlash.json"), &d)?;
+    font_ready();
+    let draw = || -> Result<(), DynErr> {
+        let root = BitMapBackend::new(&png, (W, H)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let all = d.traces.iter().flat_map(|t| t.motor_velocity_rpm.iter());
+        let (lo, hi) = all.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| {
+            (l.min(x), h.max(x))
+        });
+        let m = 0.1 * (hi - lo).max(1e-6);
+        let mut c = ChartBuilder::on(&root)
+            .caption(
+                format!(
+                    "Fig. 10: rotary axis (ratio {}, {:.3} r/s, k_v {} 1/s), motor speed",
+                    d.gear_ratio,
+                    d.velocity_deg_per_s / 360.0,
+                    d.kv_per_s
+                ),
+                ("sans-serif", 22),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0..0.5, (lo - m)..(hi + m))?;
+        c.configure_mesh()
+            .x_desc("time, s")
+            .y_desc("motor speed, rpm")
+            .draw()?;
+        for (t, col) in d.traces.iter().zip([BLUE, RED]) {
+            let label = format!(
+                "backlash {} deg: f = {} Hz, amplitude {:.1} rpm",
+                t.backlash_deg,
+                t.fundamental_hz.map_or("-".into(), |f| format!("{f:.2}")),
+                t.motor_velocity_amplitude_rpm
+            );
+            c.draw_series(LineSeries::new(
+                t.time_s
+                    .iter()
+                    .copied()
+                    .zip(t.motor_velocity_rpm.iter().copied()),
+                col.stroke_width(2),
+            ))?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+        }
+        c.configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .position(SeriesLabelPosition::LowerRight)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(plot_err)?;
+    Ok((png, d))
+}
+
+/// Fig. 11 data: every preset at its own backlash over half to twice its k_v, and CNC1 over
+/// 10..80 1/s.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Fig11 {
+    pub rows: Vec<CaseRow>,
+    /// The presets' own k_v, for marking.
+    pub own_kv: Vec<(String, f64)>,
+}
+
+/// The cases of Fig. 11.
+pub fn fig11_cases() -> anyhow::Result<Vec<(AxisConfig, Case)>> {
+    let mut cases = Vec::new();
+    for name in preset_names() {
+        let cfg = AxisConfig::from_preset(name).map_err(cfg_err)?;
+        let own = cfg.kv_per_s;
+        let mut kvs: Vec<f64> = (0..7).map(|i| own * (0.5 + 0.25 * i as f64)).collect();
+        if name == "cnc1" {
+            kvs = (1..=8).map(|i| 10.0 * i as f64).collect();
+        }
+        for kv in kvs {
+            cases.push((
+                cfg.clone(),
+                Case {
+                    preset: name.to_string(),
+                    kv_per_s: kv,
+                    backlash: super::own_backlash(&cfg),
+                    velocity: default_velocity(&cfg),
+                    duration_s: DEFAULT_DURATION_S,
+                },
+            ));
+        }
+    }
+    Ok(cases)
+}
+
+/// Fig. 11: f against k_v with the lines k_v/4, 0.6 k_v and k_v (f in Hz, k_v in 1/s).
+pub fn fig11(dir: &Path, threads: usize) -> anyhow::Result<(PathBuf, Fig11)> {
+    let cases = fig11_cases()?;
+    let rows = run_cases(&cases, threads)
+        .into_iter()
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(cfg_err)?;
+    let own_kv = preset_names()
+        .map(|n| {
+            AxisConfig::from_preset(n)
+                .map(|c| (n.to_string(), c.kv_per_s))
+                .map_err(cfg_err)
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let d = Fig11 { rows, own_kv };
+    let png = dir.join("fig11-f-vs-kv.png");
+    write_json(&dir.join("fig11-f-vs-kv.json"), &d)?;
+    font_ready();
+    let draw = || -> Result<(), DynErr> {
+        let root = BitMapBackend::new(&png, (W, H)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let kmax = 85.0;
+        let mut c = ChartBuilder::on(&root)
+            .caption(
+                "Fig. 11: limit-cycle frequency against k_v (every point a simulated run)",
+                ("sans-serif", 22),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..kmax, 0.0..kmax)?;
+        c.configure_mesh()
+            .x_desc("k_v, 1/s")
+            .y_desc("f, Hz")
+            .draw()?;
+        for (k, label, col) in [
+            (1.0, "f = k_v", BLACK),
+            (0.6, "f = 0.6 k_v (eq. 13)", RGBColor(0, 130, 0)),
+            (0.25, "f = k_v / 4", BLACK),
+        ] {
+            c.draw_series(LineSeries::new(
+                [(0.0, 0.0), (kmax, k * kmax)],
+                col.stroke_width(if k == 0.6 { 2 } else { 1 }),
+            ))?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+        }
+        let colors = [
+            RGBColor(31, 119, 180),
+            RGBColor(255, 127, 14),
+            RGBColor(44, 160, 44),
+            RGBColor(214, 39, 40),
+            RGBColor(148, 103, 189),
+        ];
+        for ((name, own), col) in d.own_kv.iter().zip(colors) {
+            let pts: Vec<(f64, f64)> = d
+                .rows
+                .iter()
+                .filter(|r| &r.preset == name && r.limit_cycle)
+                .filter_map(|r| r.fundamental_hz.map(|f| (r.kv_per_s, f)))
+                .collect();
+            c.draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.filled())))?
+                .label(format!("{name} (own k_v {own})"))
+                .legend(move |(x, y)| Circle::new((x + 10, y), 4, col.filled()));
+            // The preset's own k_v: a larger ring.
+            c.draw_series(
+                pts.iter()
+                    .filter(|p| (p.0 - own).abs() < 1e-9)
+                    .map(|&p| Circle::new(p, 9, col.stroke_width(2))),
+            )?;
+            // Cases without a limit cycle: a cross on the axis.
+            c.draw_series(
+                d.rows
+                    .iter()
+                    .filter(|r| &r.preset == name && !r.limit_cycle)
+                    .map(|r| Cross::new((r.kv_per_s, 0.5), 5, col.stroke_width(2))),
+            )?;
+        }
+        c.configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(plot_err)?;
+    Ok((png, d))
+}

@@ -1,0 +1,109 @@
+#!/usr/bin/env python3
+"""Ground truth of a corpus capture, measured independently of drive-emu's decoder.
+
+Usage: truth.py CAPTURE.log.gz NODE MODE REMAPPED   (prints JSON)
+
+The capture is read with python-can's candump log reader; the velocity actual 0x606C is taken
+from the TPDO where the recording master put it (TPDO3: bytes 0-3 when the master remapped,
+else bytes 2-5 after the statusword, the drive's default), sampled at every SYNC, and the
+constant-speed part is the longest run where the speed, averaged over 0.25 s, stays within 10 % of
+the most frequent cruise speed (the first 0.5 s dropped: the transient). numpy's FFT (Hann window) of that part gives
+the limit cycle's frequency and its amplitude (zero-to-peak, um/s) and the displacement
+equivalent A / (2 pi f) (um); `limit_cycle` is true when that line stands 8x above the
+spectrum's median and is at least 1 um (the user unit): a worn axis in a position loop. A
+worn axis in CSV/PV (speed loop only, no k_v) shows none: physically healthy-looking.
+"""
+import gzip
+import json
+import os
+import sys
+import tempfile
+
+import can
+import numpy as np
+
+
+def read_frames(path):
+    with gzip.open(path, "rt") as f:
+        text = f.read()
+    with tempfile.NamedTemporaryFile("w", suffix=".log", delete=False) as tmp:
+        tmp.write(text)
+        name = tmp.name
+    try:
+        return list(can.io.CanutilsLogReader(name))
+    finally:
+        os.remove(name)
+
+
+def measure(path, node, mode, remapped):
+    frames = read_frames(path)
+    tpdo3 = 0x380 + node
+    off = 0 if remapped else 2
+    vel, t_sync, last = [], [], 0
+    for msg in frames:
+        if msg.is_error_frame or msg.is_remote_frame:
+            continue
+        if msg.arbitration_id == tpdo3 and len(msg.data) >= off + 4:
+            last = int.from_bytes(msg.data[off:off + 4], "little", signed=True)
+        elif msg.arbitration_id == 0x80:
+            vel.append(last)
+            t_sync.append(msg.timestamp)
+    vel = np.array(vel, dtype=float)
+    dt = float(np.median(np.diff(t_sync))) if len(t_sync) > 1 else 0.0
+    out = {"syncs": len(vel), "limit_cycle": False, "sync_period_s_measured": round(dt, 6),
+           "frequency_hz": None, "speed_amplitude_uu_s": None, "displacement_um": None,
+           "cruise_s": 0.0, "cruise_speed_uu_s": None}
+    if len(vel) < 16 or dt <= 0:
+        return out
+    # the cruise: the longest run where the speed averaged over 0.25 s (the limit cycle
+    # averages out) stays within 10 % of the averaged speed met most often away from zero
+    k_avg = max(1, int(round(0.25 / dt)))
+    smooth = np.convolve(vel, np.ones(k_avg) / k_avg, mode="same")
+    moving = smooth[np.abs(smooth) > 1000]
+    if len(moving) == 0:
+        return out
+    hist, edges = np.histogram(moving, bins=50)
+    k = int(np.argmax(hist))
+    v_c = 0.5 * (edges[k] + edges[k + 1])
+    near = np.abs(smooth - v_c) <= 0.1 * abs(v_c)
+    best, start = (0, 0), None
+    for i, ok in enumerate(np.append(near, False)):
+        if ok and start is None:
+            start = i
+        elif not ok and start is not None:
+            if i - start > best[1] - best[0]:
+                best = (start, i)
+            start = None
+    a = best[0] + int(round(0.5 / dt))
+    b = best[1]
+    seg = vel[a:b]
+    out["cruise_s"] = round(max(0, b - a) * dt, 3)
+    if len(seg) < int(1.0 / dt):
+        return out
+    # a constant speed has a flat mean: a cruise whose mean drifts by 20 % is not one
+    halves = np.array_split(seg, 4)
+    means = [float(np.mean(h)) for h in halves]
+    if max(means) - min(means) > 0.1 * abs(np.mean(seg)):
+        return out
+    out["cruise_speed_uu_s"] = round(float(np.mean(seg)), 1)
+    x = seg - np.mean(seg)
+    w = np.hanning(len(x))
+    n = 8 * len(x)
+    spec = np.abs(np.fft.rfft(x * w, n)) * 2.0 / np.sum(w)
+    f = np.fft.rfftfreq(n, dt)
+    band = (f >= 3.0) & (f <= min(60.0, 0.4 / dt))
+    i = int(np.argmax(np.where(band, spec, 0.0)))
+    amp = float(spec[i])
+    med = float(np.median(spec[band]))
+    out["frequency_hz"] = round(float(f[i]), 3)
+    out["speed_amplitude_uu_s"] = round(amp, 2)
+    out["displacement_um"] = round(amp / (2 * np.pi * f[i]), 3)
+    out["peak_over_median"] = round(amp / med, 1) if med > 0 else None
+    # a limit cycle: a line 8x above the spectrum's median, of at least 1 um (the user unit)
+    out["limit_cycle"] = bool(out["displacement_um"] >= 1.0 and med > 0 and amp / med >= 8)
+    return out
+
+
+if __name__ == "__main__":
+    p, node, mode, remapped = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4] == "1"
+    print(json.dumps(measure(p, node, mode, remapped), indent=1, sort_keys=True))
