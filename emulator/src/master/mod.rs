@@ -40,6 +40,8 @@ pub struct MasterConfig {
     pub drive_heartbeat_ms: u16,
     /// How long any single step (SDO, state change, PP move) may take.
     pub step_timeout_us: u64,
+    /// How long one SDO transfer may wait for the drive's answer.
+    pub sdo_timeout_us: u64,
 }
 
 impl Default for MasterConfig {
@@ -51,6 +53,7 @@ impl Default for MasterConfig {
             heartbeat_ms: 100,
             drive_heartbeat_ms: 100,
             step_timeout_us: 2_000_000,
+            sdo_timeout_us: 500_000,
         }
     }
 }
@@ -387,7 +390,7 @@ pub struct Master {
 impl Master {
     pub fn new(cfg: MasterConfig, program: Vec<Step>) -> Self {
         let configuration = pdo_configuration(cfg.node_id, cfg.sync_period_us, &cfg);
-        let sdo = SdoClient::new(cfg.node_id, 500_000);
+        let sdo = SdoClient::new(cfg.node_id, cfg.sdo_timeout_us);
         Self {
             cfg,
             program,

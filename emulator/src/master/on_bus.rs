@@ -26,8 +26,9 @@ pub struct BusRunStats {
 
 /// Run `master` on `bus` until its program is finished or failed, `limit_us` of wall time has
 /// passed, or `stop` is set. Each cycle, at an absolute deadline: hand the master what was
-/// received, let it act (SYNC, RPDOs, SDO, heartbeat), send what it queued. Returns the
-/// master's own clock at the end, µs since the start (the master's log and samples use it).
+/// received, let it act (SYNC, RPDOs, SDO, heartbeat), send what it queued. The master's
+/// clock is its cycle count times the period (load-independent timeouts); `limit_us` is wall
+/// time.
 pub fn run_on_bus<B: CanBus, C: Clock>(
     master: &mut Master,
     bus: &mut B,
@@ -44,10 +45,13 @@ pub fn run_on_bus<B: CanBus, C: Clock>(
         if woke > deadline + period_us {
             stats.late_cycles += 1;
         }
-        let now = woke - start_us;
-        if now >= limit_us {
+        if woke - start_us >= limit_us {
             break;
         }
+        // The master's clock counts its SYNC periods, not the wall clock: on a busy host a
+        // stalled cycle does not eat its SDO and step timeouts, and its samples sit at k *
+        // period as the SYNCs it sent do.
+        let now = stats.cycles * period_us;
         loop {
             match bus.recv() {
                 Ok(Some(f)) => {

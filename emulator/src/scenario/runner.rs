@@ -39,7 +39,13 @@ pub struct RunOptions {
     pub progress: bool,
     /// Apply slow drivers (ramps) every this many ticks; profiles are applied every tick.
     pub ramp_every_ticks: u64,
+    /// Memory cap for the master's sample log (and its copies for the report), MB: a
+    /// scenario whose physical program would need more is refused before it runs.
+    pub max_memory_mb: f64,
 }
+
+/// Default of [`RunOptions::max_memory_mb`] (`scenario --max-memory-mb`).
+pub const DEFAULT_MAX_MEMORY_MB: f64 = 2048.0;
 
 impl Default for RunOptions {
     fn default() -> Self {
@@ -47,6 +53,7 @@ impl Default for RunOptions {
             idle_dwell_s: 0.1,
             progress: true,
             ramp_every_ticks: 10,
+            max_memory_mb: DEFAULT_MAX_MEMORY_MB,
         }
     }
 }
@@ -65,6 +72,8 @@ pub struct PresetRun {
     pub wall_s: f64,
     pub program_finished: bool,
     pub program_error: Option<String>,
+    /// Set when the master program failed or did not finish: the run fails.
+    pub program_failure: Option<String>,
     pub emcys: Vec<(f64, String)>,
     pub events: Vec<(f64, String)>,
     pub fault_stats: FaultStats,
@@ -81,9 +90,54 @@ pub struct PresetRun {
 }
 
 impl PresetRun {
+    /// Every expectation met and the master program ran to its end without error.
     pub fn passed(&self) -> bool {
-        self.expectations.iter().all(|e| e.passed)
+        self.program_failure.is_none() && self.expectations.iter().all(|e| e.passed)
     }
+}
+
+/// Why the master program failed, if it did: it reported an error, or it had not finished
+/// when the run stopped (and the scenario set no `duration` that cuts it short on purpose).
+fn program_failure(
+    error: Option<&str>,
+    finished: bool,
+    has_duration: bool,
+    physical_s: f64,
+) -> Option<String> {
+    match error {
+        Some(e) => Some(format!("master program failed: {e}")),
+        None if !finished && !has_duration => Some(format!(
+            "master program did not finish (stopped after {physical_s:.1} s of physical time)"
+        )),
+        None => None,
+    }
+}
+
+/// Refuse a scenario whose sample log would not fit the memory cap.
+fn check_size(s: &Scenario, opts: &RunOptions) -> anyhow::Result<()> {
+    let (_, skip) = s.master_program(opts.idle_dwell_s);
+    let skipped: u64 = skip.iter().sum();
+    let mut physical_us = s.program_duration_us().saturating_sub(skipped);
+    if let Some(d) = s.run.duration_us {
+        physical_us = physical_us.min(d);
+    }
+    let period_us = u64::from(s.run.master.sync_period_us.max(1));
+    let samples = physical_us / period_us;
+    // The log, the copy in scenario time and the report's copy.
+    let mb = samples as f64 * (3 * std::mem::size_of::<Sample>()) as f64 / 1e6;
+    if mb > opts.max_memory_mb {
+        anyhow::bail!(
+            "{}: the motion program runs {:.0} s of physical time ({samples} samples at one per \
+             {period_us} us SYNC, about {mb:.0} MB in memory and a {:.0} MB sample CSV): above \
+             the cap of {:.0} MB (--max-memory-mb). Check the cruise and dwell durations, or \
+             raise --max-memory-mb.",
+            s.name,
+            physical_us as f64 * 1e-6,
+            samples as f64 * 120.0 / 1e6,
+            opts.max_memory_mb
+        );
+    }
+    Ok(())
 }
 
 /// A whole scenario's outcome.
@@ -201,6 +255,7 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
     let mut ramp_series = Vec::new();
     let limit_scenario_us = s.run.duration_us;
     let physical_limit_us = s.program_duration_us().min(24 * 3600 * 1_000_000) + 120_000_000;
+    check_size(s, opts)?;
     let progress = opts.progress && std::io::stderr().is_terminal();
     let total_us = limit_scenario_us
         .unwrap_or_else(|| s.program_duration_us())
@@ -366,7 +421,15 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
         end_us,
     };
     let expectations = check_all(&s.expectations, &rec);
+    let physical_s = rt.sim_time_us as f64 * 1e-6;
+    let program_failure = program_failure(
+        rec.program_error.as_deref(),
+        rec.program_finished,
+        limit_scenario_us.is_some(),
+        physical_s,
+    );
     Ok(PresetRun {
+        program_failure,
         preset: cfg.name.clone(),
         rotary,
         kv_per_s: cfg.kv_per_s,

@@ -29,12 +29,19 @@ pub const TIME_UNITS: &[(&str, f64)] = &[
     ("h", 3600e6),
 ];
 
+/// Longest time a scenario may name, us (about 31.7 years).
+pub const MAX_TIME_US: f64 = 1e15;
+
 /// Parse "3 s", "1.5h", "250 ms".
 pub fn parse_time(s: &str) -> Result<Time, String> {
     let t = s.trim();
-    let split = t.find(|c: char| c.is_ascii_alphabetic()).ok_or_else(|| {
-        format!("time `{s}` has no unit: write e.g. \"{t} s\" (units: us, ms, s, min, h)")
-    })?;
+    // The unit is the trailing run of letters ("1e30 h": the `e` belongs to the number).
+    let split = t.trim_end_matches(|c: char| c.is_ascii_alphabetic()).len();
+    if split == t.len() {
+        return Err(format!(
+            "time `{s}` has no unit: write e.g. \"{t} s\" (units: us, ms, s, min, h)"
+        ));
+    }
     let (num, unit) = t.split_at(split);
     let num = num.trim();
     let value: f64 = num
@@ -52,8 +59,11 @@ pub fn parse_time(s: &str) -> Result<Time, String> {
         return Err(format!("time `{s}` is negative"));
     }
     let us = value * scale;
-    if us > 1e15 {
-        return Err(format!("time `{s}` is too long"));
+    if us > MAX_TIME_US {
+        return Err(format!(
+            "time `{s}` is out of range: at most {} h (1e15 us)",
+            MAX_TIME_US / 3600e6
+        ));
     }
     Ok(Time(us.round() as u64))
 }
@@ -428,6 +438,10 @@ mod tests {
         assert!(parse_time("5 mins")
             .unwrap_err()
             .contains("unknown unit `mins`"));
+        let e = parse_time("1e30 h").unwrap_err();
+        assert!(e.contains("out of range"), "{e}");
+        assert_eq!(parse_time("1e3 ms").unwrap(), Time(1_000_000));
+        assert!(parse_time("1e3").unwrap_err().contains("no unit"));
         assert!(parse_time("-1 s").unwrap_err().contains("negative"));
         assert!(parse_time("x s").unwrap_err().contains("not a number"));
     }

@@ -625,6 +625,19 @@ fn expectation(ctx: &mut Ctx, x: &Spanned<RawExpect>, ids: &[String]) -> R<Expec
         p!(frequency_over_kv_max);
     }
     let t = |v: &Option<Spanned<Time>>| v.as_ref().map(|t| t.get_ref().us());
+    if let (Some(f), Some(u)) = (&x.from, &x.until) {
+        if u.get_ref() < f.get_ref() {
+            return Err(ctx.err(
+                u.span(),
+                Some("until"),
+                format!(
+                    "`until` ({} s) is before `from` ({} s): the window would be empty",
+                    u.get_ref().secs(),
+                    f.get_ref().secs()
+                ),
+            ));
+        }
+    }
     let what = match which {
         0 => {
             ctx.only(&present, &["within", "after"], "an `emcy` expectation")?;
@@ -797,6 +810,7 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
         heartbeat_ms: mr.heartbeat_ms.unwrap_or(d.heartbeat_ms),
         drive_heartbeat_ms: mr.drive_heartbeat_ms.unwrap_or(d.drive_heartbeat_ms),
         step_timeout_us: mr.step_timeout.map_or(d.step_timeout_us, |t| t.us()),
+        sdo_timeout_us: d.sdo_timeout_us,
     };
     let mspan = raw.machine.span();
     if !(1..=127).contains(&master.node_id) || !(1..=127).contains(&master.master_id) {
@@ -835,6 +849,42 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
                 return Err(ctx.err(sp, Some("id"), format!("event id `{id}` used twice")));
             }
             ids.push(id.clone());
+        }
+        // Two timed ramps of one parameter that overlap would fight over its value.
+        if let (Trigger::At(t), Action::Ramp { key, over_us, .. }) = (&ev.trigger, &ev.action) {
+            for other in &events {
+                let Event {
+                    trigger: Trigger::At(t0),
+                    action:
+                        Action::Ramp {
+                            key: k0,
+                            over_us: o0,
+                            ..
+                        },
+                    line,
+                    ..
+                } = other
+                else {
+                    continue;
+                };
+                let (a0, a1) = (*t0, t0.saturating_add(*o0));
+                let (b0, b1) = (*t, t.saturating_add(*over_us));
+                if k0.key == key.key && a0 < b1 && b0 < a1 {
+                    return Err(ctx.err(
+                        e.span(),
+                        Some("ramp"),
+                        format!(
+                            "ramp of `{}` from {} s to {} s overlaps the ramp at line {line} ({} \
+                             s to {} s): one parameter can follow one ramp at a time",
+                            key.key,
+                            b0 as f64 * 1e-6,
+                            b1 as f64 * 1e-6,
+                            a0 as f64 * 1e-6,
+                            a1 as f64 * 1e-6
+                        ),
+                    ));
+                }
+            }
         }
         events.push(ev);
     }

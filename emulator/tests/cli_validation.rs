@@ -1,0 +1,104 @@
+//! Nonsense on the command line is refused before anything runs, with a message that names
+//! the flag or key, the value and the allowed range.
+
+use std::process::Command;
+
+/// Run drive-emu with `args`; it must fail, and its stderr must contain every `needle`.
+fn refused(args: &[&str], needles: &[&str]) {
+    let out = Command::new(env!("CARGO_BIN_EXE_drive-emu"))
+        .args(args)
+        .output()
+        .expect("run drive-emu");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success(),
+        "{args:?} was accepted; stdout:\n{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    for n in needles {
+        assert!(stderr.contains(n), "{args:?}: `{n}` missing in:\n{stderr}");
+    }
+}
+
+#[test]
+fn sim_refuses_non_finite_and_absurd_values() {
+    refused(&["sim", "--velocity", "NaN"], &["--velocity NaN", "finite"]);
+    refused(&["sim", "--velocity", "1e12"], &["--velocity", "1000"]);
+    refused(
+        &["sim", "--velocity", "10", "--duration", "inf"],
+        &["--duration inf"],
+    );
+    refused(
+        &["sim", "--velocity", "10", "--accel=-5"],
+        &["--accel -5", ">= 0"],
+    );
+    refused(
+        &["sim", "--velocity", "10", "--kick", "nan"],
+        &["--kick NaN"],
+    );
+}
+
+#[test]
+fn sim_refuses_a_run_beyond_the_memory_cap_and_says_how_to_raise_it() {
+    refused(
+        &["sim", "--velocity", "10", "--duration", "1e6"],
+        &["--duration 1000000", "--max-memory-mb", "MB"],
+    );
+}
+
+#[test]
+fn preset_overrides_name_the_key_the_value_and_the_limit() {
+    for (set, needles) in [
+        ("backlash_mm=1e9", ["backlash_mm", "must be <= 10"]),
+        ("kv_per_s=1e308", ["kv_per_s", "must be <= 1000"]),
+        ("speed_ti_ms=0", ["speed_ti_ms", "must be > 0"]),
+        (
+            "stiffness_n_per_um=1e-30",
+            ["stiffness_n_per_um", "must be >="],
+        ),
+    ] {
+        refused(&["sim", "--velocity", "10", "--set", set], &needles);
+    }
+}
+
+#[test]
+fn run_refuses_bad_timing_flags_before_touching_the_bus() {
+    refused(
+        &[
+            "run",
+            "--iface",
+            "nonexistent0",
+            "--lockstep",
+            "--sync-period-us",
+            "0",
+        ],
+        &["--sync-period-us 0", "multiple of the tick period"],
+    );
+    refused(
+        &["run", "--iface", "nonexistent0", "--duration", "nan"],
+        &["--duration NaN"],
+    );
+    refused(
+        &["run", "--iface", "nonexistent0", "--rt-priority", "500"],
+        &["--rt-priority 500", "0..=99"],
+    );
+}
+
+#[test]
+fn demo_and_scenario_refuse_nonsense() {
+    refused(&["demo", "--velocity", "nan"], &["--velocity NaN"]);
+    refused(&["demo", "--cruise-s", "0"], &["--cruise-s 0"]);
+    refused(
+        &["demo", "--backlash", "1e9"],
+        &["--backlash", "0.01-0.1 mm"],
+    );
+    refused(
+        &[
+            "scenario",
+            "scenarios/cnc1-wear-ramp.toml",
+            "--idle-dwell",
+            "0",
+        ],
+        &["--idle-dwell 0"],
+    );
+}
