@@ -72,11 +72,22 @@ fn run_refuses_bad_timing_flags_before_touching_the_bus() {
             "--sync-period-us",
             "0",
         ],
-        &["--sync-period-us 0", "multiple of the tick period"],
+        &["--sync-period-us", "'0'", "100..=1000000"],
+    );
+    refused(
+        &[
+            "run",
+            "--iface",
+            "nonexistent0",
+            "--lockstep",
+            "--sync-period-us",
+            "1500",
+        ],
+        &["--sync-period-us 1500", "multiple of the tick period"],
     );
     refused(
         &["run", "--iface", "nonexistent0", "--duration", "nan"],
-        &["--duration NaN"],
+        &["--duration", "'nan'", "more than 0"],
     );
     refused(
         &["run", "--iface", "nonexistent0", "--rt-priority", "500"],
