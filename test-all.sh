@@ -44,11 +44,11 @@ mkdir "$tmp/extract"
 # (CARGO_TARGET_DIR or the workspace's target/), unless DRIVE_EMU_BIN names one already.
 emu_ok=1
 if [[ -z ${DRIVE_EMU_BIN:-} ]]; then
-    if cargo build -p drive-emu --bin drive-emu; then
+    if cargo build --release -p drive-emu --bin drive-emu; then
         tdir=$(cargo metadata --no-deps --format-version 1 |
             python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])') ||
             tdir=${CARGO_TARGET_DIR:-$ROOT/target}
-        export DRIVE_EMU_BIN=$tdir/debug/drive-emu
+        export DRIVE_EMU_BIN=$tdir/release/drive-emu
         [[ -x $DRIVE_EMU_BIN ]] || { echo "test-all.sh: $DRIVE_EMU_BIN missing after the build" >&2; emu_ok=0; }
     else
         echo "test-all.sh: building drive-emu failed" >&2; emu_ok=0

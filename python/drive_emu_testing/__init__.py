@@ -197,7 +197,12 @@ class DriveEmu:
         text = "\n".join(rest).strip()
         if text:
             try:
-                self.exit_statistics = json.loads(text)
+                stats = json.loads(text)
+                # `run --json` prints {"stats": {...}, ...}: the loop statistics at the top
+                # level, the rest (lock-step period, free-run ticks) beside them.
+                if isinstance(stats, dict) and isinstance(stats.get("stats"), dict):
+                    stats = {**{k: v for k, v in stats.items() if k != "stats"}, **stats["stats"]}
+                self.exit_statistics = stats
             except ValueError:
                 self.exit_statistics = None
         self._proc = None

@@ -100,10 +100,11 @@ impl SocketCanBus {
     }
 }
 
-/// Receive buffer asked for: some thousands of frames, so a loop that stalls for a while (a
-/// loaded or virtualised host) reads them late instead of losing them. The kernel's default
-/// (net.core.rmem_default, ~200 KiB) holds a few hundred.
-pub const RECEIVE_BUFFER_BYTES: i32 = 4 << 20;
+/// Receive buffer asked for: tens of thousands of frames (a frame costs about 1 KiB of buffer
+/// in the kernel), so a loop that stalls or falls behind for seconds (a loaded or virtualised
+/// host) reads them late instead of losing them. With 4 MiB a lock-step drive on a loaded host
+/// lost SYNCs (e2e reference_master). The kernel's default (~200 KiB) holds a few hundred.
+pub const RECEIVE_BUFFER_BYTES: i32 = 32 << 20;
 
 /// Ask for a receive buffer of `bytes`: SO_RCVBUFFORCE where permitted (CAP_NET_ADMIN), else
 /// SO_RCVBUF (capped by net.core.rmem_max). Neither failing matters: the default still works.
