@@ -14,3 +14,4 @@ pub mod report;
 pub mod runtime;
 pub mod scenario;
 pub mod study;
+pub mod time;

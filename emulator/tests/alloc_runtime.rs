@@ -141,9 +141,9 @@ fn the_runtime_tick_does_not_allocate() {
 /// a virtual clock, with the master's SYNC and set-points every millisecond and SDO traffic.
 #[test]
 fn the_realtime_wake_does_not_allocate() {
-    use drive_emu::runtime::clock::{Clock, VirtualClock};
     use drive_emu::runtime::pll::LockState;
     use drive_emu::runtime::RealtimeLoop;
+    use drive_emu::time::{Clock, VirtualClock};
     let cfg = AxisConfig::from_preset("cnc1").unwrap();
     let drive = AxisDrive::from_config(&cfg).unwrap();
     let node = Node::new(5, drive.info()).unwrap();

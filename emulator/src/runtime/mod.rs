@@ -15,7 +15,6 @@
 //! - [`Runtime::tick`] called by an offline driver with a virtual clock (demo, scenarios).
 
 pub mod axis_drive;
-pub mod clock;
 pub mod machine;
 pub mod offline;
 pub mod pll;
@@ -24,7 +23,7 @@ pub mod stats;
 pub mod trace;
 
 use crate::bus::{CanBus, CanFrame, SendError};
-use clock::Clock;
+use crate::time::Clock;
 use drive_protocol::{Drive, FrameEvent, Node, RuntimeStats};
 use pll::SyncPll;
 use stats::LoopStats;
