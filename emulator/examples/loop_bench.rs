@@ -6,8 +6,8 @@
 
 use drive_emu::bus::inproc::InProcBus;
 use drive_emu::bus::{CanBus, CanFrame};
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::AxisDrive;
 use drive_emu::runtime::realtime::{self, RealtimeRequest};
 use drive_emu::runtime::{AxisSlot, Runtime};
 use drive_emu::time::{Clock, MonotonicClock};

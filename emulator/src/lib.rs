@@ -8,6 +8,7 @@ pub mod axis;
 pub mod bus;
 pub mod cli;
 pub mod control;
+pub mod drive;
 pub mod master;
 pub mod presets;
 pub mod report;

@@ -4,9 +4,9 @@
 //! at constant speed with backlash, answers SDO requests and consumes the master's heartbeat.
 
 use drive_emu::bus::CanFrame;
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::AxisDrive;
 use drive_emu::runtime::offline::OfflineRun;
 use drive_emu::runtime::trace::TraceTap;
 use drive_emu::runtime::{AxisSlot, SimulatedDrive};

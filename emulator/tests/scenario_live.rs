@@ -6,8 +6,8 @@
 use drive_emu::bus::fault::FaultyBus;
 use drive_emu::bus::inproc::InProcBus;
 use drive_emu::bus::CanBus;
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
-use drive_emu::runtime::axis_drive::AxisDrive;
 use drive_emu::runtime::{AxisSlot, Lockstep, Runtime};
 use drive_emu::scenario::live::{run_timeline, LiveEnd, LiveLink, LoopInjector};
 use drive_emu::time::{Clock, MonotonicClock};

@@ -9,10 +9,10 @@
 
 use crate::analysis::spectrum::fundamental;
 use crate::bus::socketcan::SocketCanBus;
+use crate::drive::axis_drive::AxisDrive;
 use crate::master::on_bus::{run_on_bus, BusRunStats};
 use crate::master::{Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
 use crate::presets::AxisConfig;
-use crate::runtime::axis_drive::AxisDrive;
 use crate::runtime::offline::OfflineRun;
 use crate::runtime::AxisSlot;
 use crate::time::MonotonicClock;

@@ -2,9 +2,9 @@
 
 use crate::bus::fault::FaultyBus;
 use crate::bus::socketcan::SocketCanBus;
+use crate::drive::axis_drive::AxisDrive;
+use crate::drive::machine::{self, AxisEntry, MachineFile};
 use crate::presets::AxisConfig;
-use crate::runtime::axis_drive::AxisDrive;
-use crate::runtime::machine::{self, AxisEntry, MachineFile};
 use crate::runtime::realtime::{self, RealtimeRequest};
 use crate::runtime::trace::{trace_paths, Recorder, TraceTap};
 use crate::runtime::{AxisSlot, Lockstep, Runtime};

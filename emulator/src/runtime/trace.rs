@@ -179,9 +179,9 @@ impl Recorder {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::drive::axis_drive::AxisDrive;
     use crate::master::{Master, MasterConfig, Step, MODE_CSP};
     use crate::presets::AxisConfig;
-    use crate::runtime::axis_drive::AxisDrive;
     use crate::runtime::offline::OfflineRun;
     use drive_protocol::Drive;
 

@@ -20,9 +20,9 @@ use crate::analysis::detector::{analyze, AxisTrace, DetectorConfig, DetectorRepo
 use crate::bus::fault::{FaultRule, FaultStats, FaultyBus, RuleId};
 use crate::bus::inproc::{InProcBus, InProcEndpoint};
 use crate::bus::CanBus;
+use crate::drive::axis_drive::{AxisDrive, Encoder};
 use crate::master::{Master, Sample};
 use crate::presets::{AxisConfig, AxisKind};
-use crate::runtime::axis_drive::{AxisDrive, Encoder};
 use crate::runtime::{AxisSlot, Runtime};
 use drive_protocol::Cia402State;
 use drive_protocol::{Drive, Node};
