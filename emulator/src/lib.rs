@@ -13,6 +13,7 @@ pub mod master;
 pub mod presets;
 pub mod report;
 pub mod runtime;
+pub mod samples;
 pub mod scenario;
 pub mod study;
 pub mod time;

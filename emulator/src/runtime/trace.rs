@@ -11,7 +11,7 @@
 
 use super::{AxisSlot, Runtime, SimulatedDrive};
 use crate::bus::CanBus;
-use crate::master::Sample;
+use crate::samples::Sample;
 use crossbeam::queue::ArrayQueue;
 use drive_protocol::Node;
 use std::io::{BufWriter, Write};
@@ -221,7 +221,7 @@ mod tests {
         let summary = rec.finish(&tap).unwrap();
         assert_eq!(summary.samples, 2 * ticks);
         assert_eq!(summary.lost, 0);
-        let cols = crate::cli::analyze::read_csv(&paths[0]).unwrap();
+        let cols = crate::samples::csv::read_csv(&paths[0]).unwrap();
         let col = |name: &str| &cols.iter().find(|(n, _)| n == name).unwrap().1;
         let t = col("t_s");
         assert_eq!(t.len() as u64, ticks);
@@ -233,7 +233,7 @@ mod tests {
         );
         assert!(last_position > 3_000, "node 5 cruised: {last_position}");
         // Node 6 got no commands: it never moved, and its file says so.
-        let cols6 = crate::cli::analyze::read_csv(&paths[1]).unwrap();
+        let cols6 = crate::samples::csv::read_csv(&paths[1]).unwrap();
         let pos6 = &cols6.iter().find(|(n, _)| n == "position_uu").unwrap().1;
         assert_eq!(pos6.len() as u64, ticks);
         assert!(pos6.iter().all(|p| p.abs() < 50.0), "node 6 stood still");
