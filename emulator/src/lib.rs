@@ -15,5 +15,6 @@ pub mod report;
 pub mod runtime;
 pub mod samples;
 pub mod scenario;
+pub mod session;
 pub mod study;
 pub mod time;

@@ -14,7 +14,6 @@
 //!   results do not depend on how busy the host is;
 //! - [`Runtime::tick`] called by an offline driver with a virtual clock (demo, scenarios).
 
-pub mod offline;
 pub mod pll;
 pub mod realtime;
 pub mod stats;

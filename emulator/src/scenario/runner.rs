@@ -1,5 +1,5 @@
 //! Offline scenario execution: the reference master and the simulated drive on an in-process
-//! bus in lock-step with a virtual clock (the loop of `runtime::offline::OfflineRun`, with the
+//! bus in lock-step with a virtual clock (the loop of `session::OfflineRun`, with the
 //! drive's endpoint wrapped in a [`FaultyBus`] for CAN faults), the timeline applied every
 //! tick, the detector run on the master's sample log, expectations checked, report written.
 //!

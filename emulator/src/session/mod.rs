@@ -3,10 +3,10 @@
 //! only the wire and the wall clock are replaced. Same input, same output, as fast as the CPU
 //! allows.
 
-use super::{AxisSlot, Runtime, SimulatedDrive};
 use crate::bus::inproc::{InProcBus, InProcEndpoint};
 use crate::bus::CanBus;
 use crate::master::Master;
+use crate::runtime::{AxisSlot, Runtime, SimulatedDrive};
 
 /// Receive-queue depth of each in-process endpoint, frames.
 const QUEUE_FRAMES: usize = 4096;
