@@ -5,6 +5,63 @@
 //! block transfer is running decides that a frame is a [`BlockSegment`], so they have their
 //! own type and the state machines (or a capture decoder following the transfer) pick it.
 
+/// SDO abort codes (CiA 301 7.2.4.3.17) the server sends and the master reads: the 32-bit
+/// value of bytes 4..8 of an abort frame.
+pub mod abort {
+    /// 0x0503_0000: toggle bit not alternated.
+    pub const TOGGLE: u32 = 0x0503_0000;
+    /// 0x0504_0000: SDO protocol timed out.
+    pub const TIMEOUT: u32 = 0x0504_0000;
+    /// 0x0504_0001: client/server command specifier not valid or unknown.
+    pub const COMMAND: u32 = 0x0504_0001;
+    /// 0x0504_0002: invalid block size (block mode).
+    pub const BLOCK_SIZE: u32 = 0x0504_0002;
+    /// 0x0504_0003: invalid sequence number (block mode).
+    pub const SEQUENCE: u32 = 0x0504_0003;
+    /// 0x0504_0004: CRC error (block mode).
+    pub const CRC: u32 = 0x0504_0004;
+    /// 0x0504_0005: out of memory (value larger than the transfer buffer).
+    pub const OUT_OF_MEMORY: u32 = 0x0504_0005;
+    /// 0x0601_0000: unsupported access to an object.
+    pub const UNSUPPORTED_ACCESS: u32 = 0x0601_0000;
+    /// 0x0601_0001: attempt to read a write-only object.
+    pub const WRITE_ONLY: u32 = 0x0601_0001;
+    /// 0x0601_0002: attempt to write a read-only object.
+    pub const READ_ONLY: u32 = 0x0601_0002;
+    /// 0x0602_0000: object does not exist in the object dictionary.
+    pub const NO_OBJECT: u32 = 0x0602_0000;
+    /// 0x0604_0041: object cannot be mapped to the PDO.
+    pub const NOT_MAPPABLE: u32 = 0x0604_0041;
+    /// 0x0604_0042: the mapped objects would exceed the PDO length (8 bytes).
+    pub const PDO_LENGTH: u32 = 0x0604_0042;
+    /// 0x0604_0043: general parameter incompatibility.
+    pub const PARAM_INCOMPATIBLE: u32 = 0x0604_0043;
+    /// 0x0606_0000: access failed due to a hardware error.
+    pub const HARDWARE: u32 = 0x0606_0000;
+    /// 0x0607_0010: data type does not match, length of service parameter does not match.
+    pub const LENGTH_MISMATCH: u32 = 0x0607_0010;
+    /// 0x0607_0012: data type does not match, length of service parameter too high.
+    pub const TOO_LONG: u32 = 0x0607_0012;
+    /// 0x0607_0013: data type does not match, length of service parameter too low.
+    pub const TOO_SHORT: u32 = 0x0607_0013;
+    /// 0x0609_0011: sub-index does not exist.
+    pub const NO_SUB: u32 = 0x0609_0011;
+    /// 0x0609_0030: value range of parameter exceeded (write access only).
+    pub const VALUE_RANGE: u32 = 0x0609_0030;
+    /// 0x0609_0031: value of parameter written too high.
+    pub const VALUE_HIGH: u32 = 0x0609_0031;
+    /// 0x0609_0032: value of parameter written too low.
+    pub const VALUE_LOW: u32 = 0x0609_0032;
+    /// 0x0609_0036: maximum value is less than minimum value.
+    pub const MAX_LT_MIN: u32 = 0x0609_0036;
+    /// 0x0800_0000: general error.
+    pub const GENERAL: u32 = 0x0800_0000;
+    /// 0x0800_0020: data cannot be transferred or stored to the application.
+    pub const CANNOT_STORE: u32 = 0x0800_0020;
+    /// 0x0800_0022: data cannot be transferred or stored because of the present device state.
+    pub const DEVICE_STATE: u32 = 0x0800_0022;
+}
+
 /// The object an SDO transfer addresses: index and sub-index (bytes 1..4 of an initiate
 /// frame or an abort).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
