@@ -3,8 +3,10 @@
 //! time only), the limit-cycle frequency follows the position gain k_v and not the gap.
 //!
 //! - f / k_v within 0.6 +- 0.1 and k_v/4 < f < k_v (eq. 11-13) from half to twice each preset's
-//!   own k_v, and for CNC1 over 10..80 1/s; the one known exception (no limit cycle below
-//!   about 15 1/s at the presets' own gap, docs/physics.md) is asserted to stay down there;
+//!   own k_v, and for CNC1 over 10..80 1/s, wherever the drag number `D / (m k_v^2 b)` is
+//!   below the boundary the next test measures (docs/physics.md);
+//! - the limit cycle's boundary: it lives below drag number 1.2 and dies above 2.5, whatever
+//!   k_v, the gap or the drag (a sweep across the boundary on CNC1);
 //! - f(2 k_v) / f(k_v) close to 2;
 //! - f independent of the gap (spread <= 5 %) over 0.02-0.07 mm / 0.01-0.04 deg, amplitude
 //!   growing with it;
@@ -16,12 +18,8 @@ use drive_emu::presets::{preset_names, AxisConfig};
 use drive_emu::study::response::{log_frequencies, speed_loop_response};
 use drive_emu::study::{
     backlash_key, default_velocity, own_backlash, run_cases, Case, CaseRow,
-    LIMIT_CYCLE_MIN_RELATIVE_AMPLITUDE,
+    DRAG_NUMBER_CYCLE_BELOW, DRAG_NUMBER_NO_CYCLE_ABOVE, LIMIT_CYCLE_MIN_RELATIVE_AMPLITUDE,
 };
-
-/// Below this k_v the presets' own gap may give no limit cycle (docs/physics.md, "Limits":
-/// measured cnc1 at 10, cnc3 at 8.4 and 12.5, cnc4 at 10 1/s).
-const KV_NO_CYCLE_BELOW: f64 = 15.0;
 const DURATION_S: f64 = 6.0;
 
 fn preset(name: &str) -> AxisConfig {
@@ -50,7 +48,7 @@ fn run(cases: &[(AxisConfig, Case)]) -> Vec<CaseRow> {
 
 fn show(r: &CaseRow) -> String {
     format!(
-        "{} k_v {:.1} backlash {} {}: f {:?} Hz, f/k_v {:?}, amplitude {:.4} {}/s, cycle {}",
+        "{} k_v {:.1} backlash {} {}: f {:?} Hz, f/k_v {:?}, amplitude {:.4} {}/s, cycle {}, drag number {:.2}",
         r.preset,
         r.kv_per_s,
         r.backlash,
@@ -59,7 +57,8 @@ fn show(r: &CaseRow) -> String {
         r.f_over_kv.map(|x| (x * 1000.0).round() / 1000.0),
         r.load_velocity_amplitude,
         r.unit,
-        r.limit_cycle
+        r.limit_cycle,
+        r.drag_number
     )
 }
 
@@ -86,8 +85,8 @@ fn law_from_half_to_twice_kv_on_every_preset() {
     for r in &rows {
         println!("{}", show(r));
         if !r.limit_cycle {
-            if r.kv_per_s >= KV_NO_CYCLE_BELOW {
-                failures.push(format!("no limit cycle: {}", show(r)));
+            if r.drag_number <= DRAG_NUMBER_CYCLE_BELOW {
+                failures.push(format!("no limit cycle below the drag boundary: {}", show(r)));
             }
             continue;
         }
@@ -105,6 +104,46 @@ fn law_from_half_to_twice_kv_on_every_preset() {
         .filter(|r| r.kv_per_s >= preset(&r.preset).kv_per_s && !r.limit_cycle)
         .count();
     assert_eq!(own_missing, 0, "no limit cycle at or above the own k_v");
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn limit_cycle_lives_below_the_drag_boundary() {
+    // CNC1 with Coulomb drag only (viscous 0), set so that the drag number D / (m k_v^2 b)
+    // takes values on both sides of the boundary, at three k_v and two gaps: the boundary is a
+    // number, not a k_v or a gap.
+    let base = preset("cnc1")
+        .with_override("load_viscous_friction_n_per_m_per_s", "0")
+        .unwrap();
+    let mut cases = Vec::new();
+    let mut expect = Vec::new();
+    for kv in [10.0, 20.0, 40.0] {
+        for gap_mm in [0.03, 0.06] {
+            for pi in [0.5, 1.0, 3.0, 4.0] {
+                let drag_n = pi * base.carriage_mass_kg.unwrap() * kv * kv * gap_mm * 1e-3;
+                let cfg = base
+                    .with_override("load_coulomb_friction_n", &format!("{drag_n}"))
+                    .unwrap();
+                cases.push(case(&cfg, kv, gap_mm));
+                expect.push(pi);
+            }
+        }
+    }
+    let rows = run(&cases);
+    let mut failures = Vec::new();
+    for (r, pi) in rows.iter().zip(expect) {
+        println!("{}", show(r));
+        assert!((r.drag_number - pi).abs() < 1e-6 * pi, "{}", show(r));
+        if pi <= DRAG_NUMBER_CYCLE_BELOW && !r.limit_cycle {
+            failures.push(format!("no cycle below the boundary: {}", show(r)));
+        }
+        if pi >= DRAG_NUMBER_NO_CYCLE_ABOVE && r.limit_cycle {
+            failures.push(format!("a cycle above the boundary: {}", show(r)));
+        }
+        if r.limit_cycle && (r.f_over_kv.unwrap() - 0.6).abs() > 0.1 {
+            failures.push(format!("f/k_v outside 0.6 +- 0.1: {}", show(r)));
+        }
+    }
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
