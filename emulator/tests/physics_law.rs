@@ -86,7 +86,10 @@ fn law_from_half_to_twice_kv_on_every_preset() {
         println!("{}", show(r));
         if !r.limit_cycle {
             if r.drag_number <= DRAG_NUMBER_CYCLE_BELOW {
-                failures.push(format!("no limit cycle below the drag boundary: {}", show(r)));
+                failures.push(format!(
+                    "no limit cycle below the drag boundary: {}",
+                    show(r)
+                ));
             }
             continue;
         }
