@@ -11,8 +11,8 @@
 //! - f independent of the gap (spread <= 5 %) over 0.02-0.07 mm / 0.01-0.04 deg, amplitude
 //!   growing with it;
 //! - no sustained oscillation without backlash;
-//! - the closed speed loop, measured by exciting the drive, is ~1 (|H| < 3 dB, phase lag
-//!   < 20 deg) up to 50 Hz, its -3 dB bandwidth at least 150 Hz.
+//! - the closed speed loop, measured by exciting the drive: -3 dB bandwidth in the paper's
+//!   150-250 Hz, ~1 (|H| < 3 dB, phase lag < 20 deg) up to 40 Hz.
 
 use drive_emu::presets::{preset_names, AxisConfig};
 use drive_emu::study::response::{log_frequencies, speed_loop_response};
@@ -254,12 +254,12 @@ fn no_sustained_oscillation_without_backlash() {
 }
 
 #[test]
-fn speed_loop_is_fast_against_the_vibration() {
-    // The paper's premise (section III): the closed speed loop is ~1 (within 3 dB, "nearly
-    // 0 dB") at the vibration frequencies (< 50 Hz), its bandwidth far above them. Measured by
-    // exciting the drive. The presets' -3 dB point lies above the paper's 180 Hz (cnc1: about
-    // 480 Hz with a 3.8 dB peak near 300 Hz; docs/physics.md), so only the lower bound of the
-    // paper's 150-250 Hz is asserted.
+fn speed_loop_bandwidth_in_the_papers_band() {
+    // The paper (section III, Fig. 3): closed speed loop -3 dB at about 180 Hz (the issue: 150 to
+    // 250 Hz), and ~1 at the vibration frequencies ("less than 3 dB"; most vibrations below
+    // 30 Hz). Measured by exciting the drive; the presets derive k_sp and T_si by the symmetric
+    // optimum on the drive's small time constants (docs/physics.md), which peaks by about
+    // 3.8 dB near 55 Hz: the magnitude is asserted within 3 dB up to 40 Hz, the peak below 4 dB.
     for name in preset_names() {
         let cfg = preset(name);
         let cfg = cfg.with_override(backlash_key(&cfg), "0").unwrap();
@@ -267,8 +267,9 @@ fn speed_loop_is_fast_against_the_vibration() {
         let bw = r.bandwidth_3db_hz.expect("a -3 dB point below 1 kHz");
         let peak = r.points.iter().fold(f64::MIN, |m, p| m.max(p.magnitude_db));
         println!("{name}: closed speed loop -3 dB at {bw:.0} Hz, peak {peak:.2} dB");
-        assert!(bw >= 150.0, "{name}: {bw} Hz");
-        for p in r.points.iter().filter(|p| p.frequency_hz <= 50.0) {
+        assert!((150.0..=250.0).contains(&bw), "{name}: -3 dB at {bw} Hz");
+        assert!(peak < 4.0, "{name}: peak {peak} dB");
+        for p in r.points.iter().filter(|p| p.frequency_hz <= 40.0) {
             assert!(
                 p.magnitude_db.abs() < 3.0 && p.phase_deg > -20.0,
                 "{name}: not ~1 at {:.1} Hz: {:.2} dB, {:.1} deg",
