@@ -140,7 +140,7 @@ pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
     if let Some(id) = meta.node_id {
         let _ = writeln!(
             s,
-            "`[DeviceComissioning]`\nNodeID={id}\nNodeName=drive-emu node {id}\nBaudrate=1000\n\
+            "[DeviceComissioning]\nNodeID={id}\nNodeName=drive-emu node {id}\nBaudrate=1000\n\
              NetNumber=1\nNetworkName=drive-emu\nCANopenManager=0\n\
              LSS_SerialNumber={id}\n"
         );
