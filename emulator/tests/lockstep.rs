@@ -204,11 +204,10 @@ fn loop_statistics_are_live_in_lock_step() {
         peer.send(&CanFrame::new(0x80, &[])).unwrap();
     }
     let n = u32::from(NODE);
-    peer.send(&CanFrame::new(
-        0x600 + n,
-        &[0x40, 0x00, 0x21, 0x01, 0, 0, 0, 0],
-    ))
-    .unwrap();
+    let stats_ticks = drive_protocol::wire::Mux::new(0x2100, 1);
+    let upload = drive_protocol::wire::SdoRequest::InitiateUpload { mux: stats_ticks };
+    peer.send(&CanFrame::new(0x600 + n, &upload.emit()))
+        .unwrap();
     let stop = AtomicBool::new(false);
     rt.run_lockstep(1000, &stop, |rt| {
         if rt.sim_time_us >= syncs * 1000 {
@@ -217,8 +216,15 @@ fn loop_statistics_are_live_in_lock_step() {
     });
     let mut ticks = None;
     while let Ok(Some(f)) = peer.recv() {
-        if f.id == 0x580 + n && f.data[..4] == [0x43, 0x00, 0x21, 0x01] {
-            ticks = Some(u32::from_le_bytes(f.data[4..8].try_into().unwrap()));
+        if f.id != 0x580 + n {
+            continue;
+        }
+        if let Ok(drive_protocol::wire::SdoResponse::InitiateUpload { mux, data }) =
+            drive_protocol::wire::SdoResponse::parse(&f.data)
+        {
+            if mux == stats_ticks && data.bytes().len() == 4 {
+                ticks = Some(u32::from_le_bytes(data.bytes().try_into().unwrap()));
+            }
         }
     }
     let ticks = ticks.expect("no SDO answer for 0x2100 sub 1");

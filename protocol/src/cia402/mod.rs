@@ -291,8 +291,11 @@ impl Cia402 {
         }
     }
 
-    /// One tick. `sync_at`: time of the latest SYNC since the previous tick;
-    /// `csp_period_us`: the CSP interpolation period (0 = none).
+    /// One tick, in stages: read the inputs, enter a fault the drive or a reaction raised,
+    /// apply the controlword's transition, run what the state does (the mode of operation
+    /// in OPERATION ENABLED, the stop ramps elsewhere), monitor the following error, then
+    /// compose the statusword and publish the actual values. `sync_at`: time of the latest
+    /// SYNC since the previous tick; `csp_period_us`: the CSP interpolation period (0 = none).
     pub fn step(
         &mut self,
         store: &mut Store,
@@ -302,6 +305,48 @@ impl Cia402 {
         csp_period_us: u64,
         drive: &mut impl Drive,
     ) -> StepOut {
+        let input = self.read_inputs(store, fb, now_us);
+        let mut out = StepOut {
+            command: DriveCommand {
+                setpoint: Setpoint::Disabled,
+                max_torque_permille: store.u32(o::MAX_TORQUE) as f64,
+                max_velocity_inc_per_s: max_motor_inc_per_s(store),
+            },
+            new_fault: None,
+            fault_cleared: false,
+        };
+        self.enter_raised_fault(store, fb, &mut out);
+        if self.state == State::NotReadyToSwitchOn {
+            // automatic transitions 0 / 1
+            self.state = State::SwitchOnDisabled;
+        }
+        let was = self.state;
+        let deferred = self.apply_controlword(store, input.cw, drive, &mut out);
+
+        let requested = store.i32(o::MODE) as i8;
+        let mut ctx = self.context(store, fb, &input, now_us);
+        self.track_axis(&mut ctx, &input, was, requested);
+        let mut mo = self.run_state(&mut ctx, deferred, requested, sync_at, csp_period_us);
+        if !self.state.enabled() {
+            mo.setpoint = Setpoint::Disabled;
+            mo.position_mode = false;
+        }
+        if let Some(org) = ctx.new_origin {
+            self.origin = org;
+            ctx.origin = org;
+        }
+        let fe_uu = self.monitor_following_error(&mut ctx, &mut mo, &input, now_us, &mut out);
+        self.statusword = self.compose_statusword(&mo);
+        self.publish_actual_values(ctx.store, fb, &input, ctx.axis.pos, fe_uu);
+        self.axis = ctx.axis;
+        self.prev_cw = input.cw;
+        out.command.setpoint = mo.setpoint;
+        out
+    }
+
+    /// Stage 1: the tick's time step, the factor group (0x608F, 0x6091, 0x6092, if valid),
+    /// the actual position and speed the loops use, and the controlword 0x6040.
+    fn read_inputs(&mut self, store: &Store, fb: &Feedback, now_us: u64) -> TickInput {
         let dt = match self.last_now {
             Some(l) => (now_us.saturating_sub(l) as f64 * 1e-6).min(0.1),
             None => 0.0,
@@ -328,21 +373,20 @@ impl Cia402 {
             0.0
         };
         let cw = store.u32(o::CONTROLWORD) as u16;
-        let cmd = controlword::decode(cw, self.prev_cw);
-        let mut out = StepOut {
-            command: DriveCommand {
-                setpoint: Setpoint::Disabled,
-                max_torque_permille: store.u32(o::MAX_TORQUE) as f64,
-                max_velocity_inc_per_s: max_motor_inc_per_s(store),
-            },
-            new_fault: None,
-            fault_cleared: false,
-        };
         if cw & 0x04 == 0 {
             self.local_qs = false;
         }
+        TickInput {
+            dt,
+            act_inc,
+            act_vel,
+            cw,
+        }
+    }
 
-        // ---- faults (transition 13) ----
+    /// Stage 2 (transition 13): a fault the drive reports or a reaction requested enters
+    /// FAULT REACTION ACTIVE, sets 0x603F and asks the node for an EMCY.
+    fn enter_raised_fault(&mut self, store: &mut Store, fb: &Feedback, out: &mut StepOut) {
         let fault = fb.drive_fault.or(self.pending_fault.take());
         if let Some(code) = fault {
             if !matches!(self.state, State::Fault | State::FaultReactionActive) {
@@ -352,44 +396,57 @@ impl Cia402 {
                 out.new_fault = Some(code);
             }
         }
-        // ---- automatic transitions 0 / 1 ----
-        if self.state == State::NotReadyToSwitchOn {
-            self.state = State::SwitchOnDisabled;
-        }
-        // ---- command transitions ----
-        let qs_opt = store.i32(o::QS_OPTION) as i16;
-        let mut deferred: Option<(State, f64)> = None;
-        let was = self.state;
-        if let Some((next, n)) = state_machine::transition(self.state, cmd, qs_opt) {
-            match n {
-                15 => {
-                    if drive.reset_fault() {
-                        self.state = next;
-                        self.fault_code = 0;
-                        self.fe_flag = false;
-                        store.set(o::ERROR_CODE, 0);
-                        out.fault_cleared = true;
-                    }
-                }
-                5 if store.i32(o::DISABLE_OP_OPTION) == 1 => deferred = Some((next, 0.0)),
-                8 if store.i32(o::SHUTDOWN_OPTION) == 1 => deferred = Some((next, 0.0)),
-                16 if self.local_qs => {}
-                _ => self.state = next,
-            }
-        }
+    }
 
-        let requested = store.i32(o::MODE) as i8;
+    /// Stage 3: the transition the controlword asks for. Returns the state to enter once the axis has stopped when 0x605C / 0x605B ask
+    /// for a ramp before disabling (transitions 5 and 8).
+    fn apply_controlword(
+        &mut self,
+        store: &mut Store,
+        cw: u16,
+        drive: &mut impl Drive,
+        out: &mut StepOut,
+    ) -> Option<State> {
+        let cmd = controlword::decode(cw, self.prev_cw);
+        let qs_opt = store.i32(o::QS_OPTION) as i16;
+        let (next, n) = state_machine::transition(self.state, cmd, qs_opt)?;
+        match n {
+            15 => {
+                if drive.reset_fault() {
+                    self.state = next;
+                    self.fault_code = 0;
+                    self.fe_flag = false;
+                    store.set(o::ERROR_CODE, 0);
+                    out.fault_cleared = true;
+                }
+            }
+            5 if store.i32(o::DISABLE_OP_OPTION) == 1 => return Some(next),
+            8 if store.i32(o::SHUTDOWN_OPTION) == 1 => return Some(next),
+            16 if self.local_qs => {}
+            _ => self.state = next,
+        }
+        None
+    }
+
+    /// The context the modes run in this tick.
+    fn context<'a>(
+        &self,
+        store: &'a mut Store,
+        fb: &'a Feedback,
+        input: &TickInput,
+        now_us: u64,
+    ) -> Ctx<'a> {
         let halt_opt = store.i32(o::HALT_OPTION);
         let mut ctx = Ctx {
             store,
             fb,
             f: self.factor,
             origin: self.origin,
-            act_inc,
-            act_vel,
+            act_inc: input.act_inc,
+            act_vel: input.act_vel,
             now: now_us,
-            dt,
-            cw,
+            dt: input.dt,
+            cw: input.cw,
             prev_cw: self.prev_cw,
             halt: false,
             halt_dec: 0.0,
@@ -401,110 +458,157 @@ impl Cia402 {
         } else {
             ctx.acc(o::QS_DEC)
         };
-        let entered_oe = self.state == State::OperationEnabled && was != State::OperationEnabled;
+        ctx
+    }
+
+    /// Stage 4: the demand follows the actual axis while disabled; entering OPERATION
+    /// ENABLED starts the requested mode from where the axis stands.
+    fn track_axis(&mut self, ctx: &mut Ctx, input: &TickInput, was: State, requested: i8) {
         if !self.state.enabled() {
             ctx.axis = Axis {
-                pos: act_inc,
-                vel: act_vel,
+                pos: input.act_inc,
+                vel: input.act_vel,
             };
         }
-        if entered_oe {
+        if self.state == State::OperationEnabled && was != State::OperationEnabled {
             self.mode_display = requested;
             if was != State::QuickStopActive {
                 ctx.axis = Axis {
-                    pos: act_inc,
+                    pos: input.act_inc,
                     vel: 0.0,
                 };
             }
-            self.enter_mode(&mut ctx, requested);
+            self.enter_mode(ctx, requested);
         }
+    }
 
-        let mut mo = ModeOut::default();
+    /// Stage 5: what the state does this tick: the mode of operation (or the ramp of a
+    /// deferred disable) in OPERATION ENABLED, the stop ramps of QUICK STOP ACTIVE (0x605A)
+    /// and FAULT REACTION ACTIVE (0x605E), nothing elsewhere.
+    fn run_state(
+        &mut self,
+        ctx: &mut Ctx,
+        deferred: Option<State>,
+        requested: i8,
+        sync_at: Option<u64>,
+        csp_period_us: u64,
+    ) -> ModeOut {
         match self.state {
-            State::OperationEnabled => {
-                if let Some((_, ref mut d)) = deferred {
-                    *d = ctx.acc(o::PROFILE_DEC);
-                    let standing = ctx.axis.stop(*d, dt);
-                    mo.setpoint = hold(&ctx.axis);
-                    mo.position_mode = true;
-                    if standing {
-                        self.state = deferred.map(|(s, _)| s).unwrap_or(self.state);
-                        mo.setpoint = Setpoint::Disabled;
-                        mo.position_mode = false;
-                    }
-                } else {
-                    if requested != self.mode_display {
-                        self.mode_display = requested;
-                        self.enter_mode(&mut ctx, requested);
-                    }
-                    ctx.halt = cw & BIT_HALT != 0
-                        && matches!(self.mode_display, mode::PP | mode::PV | mode::HM);
-                    mo = match self.mode_display {
-                        mode::PP => self.pp.step(&mut ctx),
-                        mode::PV => self.pv.step(&mut ctx),
-                        mode::HM => self.hm.step(&mut ctx),
-                        mode::CSP => self.csp.step(&mut ctx, sync_at, csp_period_us),
-                        mode::CSV => csv::step(&mut ctx),
-                        mode::CST => cst::step(&mut ctx),
-                        _ => {
-                            let standing = ctx.axis.stop(ctx.acc(o::QS_DEC), dt);
-                            ModeOut {
-                                setpoint: hold(&ctx.axis),
-                                target_reached: standing,
-                                position_mode: true,
-                                ..ModeOut::default()
-                            }
-                        }
-                    };
-                }
-            }
-            State::QuickStopActive => {
-                let dec = match qs_opt {
-                    1 | 5 => ctx.acc(o::PROFILE_DEC),
-                    _ => ctx.acc(o::QS_DEC),
-                };
-                if qs_opt == 0 {
-                    self.state = State::SwitchOnDisabled;
-                } else {
-                    let standing = ctx.axis.stop(dec, dt);
-                    mo.setpoint = hold(&ctx.axis);
-                    mo.position_mode = true;
-                    mo.target_reached = standing;
-                    if standing && (1..=4).contains(&qs_opt) {
-                        self.state = State::SwitchOnDisabled;
-                        mo.setpoint = Setpoint::Disabled;
-                    }
-                }
-            }
-            State::FaultReactionActive => {
-                let opt = ctx.store.i32(o::FAULT_OPTION);
-                let dec = if opt == 1 {
-                    ctx.acc(o::PROFILE_DEC)
-                } else {
-                    ctx.acc(o::QS_DEC)
-                };
-                if opt == 0 || ctx.axis.stop(dec, dt) {
-                    self.state = State::Fault;
-                } else {
-                    mo.setpoint = hold(&ctx.axis);
-                }
-            }
+            State::OperationEnabled => match deferred {
+                Some(next) => self.ramp_then_disable(ctx, next),
+                None => self.run_mode(ctx, requested, sync_at, csp_period_us),
+            },
+            State::QuickStopActive => self.quick_stop(ctx),
+            State::FaultReactionActive => self.fault_reaction(ctx),
             _ => {
                 self.mode_display = requested;
+                ModeOut::default()
             }
         }
-        if !self.state.enabled() {
-            mo.setpoint = Setpoint::Disabled;
-            mo.position_mode = false;
-        }
-        if let Some(org) = ctx.new_origin {
-            self.origin = org;
-            ctx.origin = org;
-        }
+    }
 
-        // ---- following error ----
+    /// Transitions 5 / 8 with option code 1: ramp down on 0x6084, then enter `next`.
+    fn ramp_then_disable(&mut self, ctx: &mut Ctx, next: State) -> ModeOut {
+        let dec = ctx.acc(o::PROFILE_DEC);
+        let standing = ctx.axis.stop(dec, ctx.dt);
+        if standing {
+            self.state = next;
+            return ModeOut::default();
+        }
+        ModeOut {
+            setpoint: hold(&ctx.axis),
+            position_mode: true,
+            ..ModeOut::default()
+        }
+    }
+
+    /// The mode of operation: switch to a newly requested mode, then run it.
+    fn run_mode(
+        &mut self,
+        ctx: &mut Ctx,
+        requested: i8,
+        sync_at: Option<u64>,
+        csp_period_us: u64,
+    ) -> ModeOut {
+        if requested != self.mode_display {
+            self.mode_display = requested;
+            self.enter_mode(ctx, requested);
+        }
+        ctx.halt =
+            ctx.cw & BIT_HALT != 0 && matches!(self.mode_display, mode::PP | mode::PV | mode::HM);
+        match self.mode_display {
+            mode::PP => self.pp.step(ctx),
+            mode::PV => self.pv.step(ctx),
+            mode::HM => self.hm.step(ctx),
+            mode::CSP => self.csp.step(ctx, sync_at, csp_period_us),
+            mode::CSV => csv::step(ctx),
+            mode::CST => cst::step(ctx),
+            _ => {
+                let standing = ctx.axis.stop(ctx.acc(o::QS_DEC), ctx.dt);
+                ModeOut {
+                    setpoint: hold(&ctx.axis),
+                    target_reached: standing,
+                    position_mode: true,
+                    ..ModeOut::default()
+                }
+            }
+        }
+    }
+
+    /// QUICK STOP ACTIVE: ramp on 0x6084 or 0x6085 as 0x605A says; options 1..=4 then go to
+    /// SWITCH ON DISABLED, 5..=8 stay and hold; option 0 disables at once.
+    fn quick_stop(&mut self, ctx: &mut Ctx) -> ModeOut {
+        let qs_opt = ctx.store.i32(o::QS_OPTION) as i16;
+        let dec = match qs_opt {
+            1 | 5 => ctx.acc(o::PROFILE_DEC),
+            _ => ctx.acc(o::QS_DEC),
+        };
+        let mut mo = ModeOut::default();
+        if qs_opt == 0 {
+            self.state = State::SwitchOnDisabled;
+        } else {
+            let standing = ctx.axis.stop(dec, ctx.dt);
+            mo.setpoint = hold(&ctx.axis);
+            mo.position_mode = true;
+            mo.target_reached = standing;
+            if standing && (1..=4).contains(&qs_opt) {
+                self.state = State::SwitchOnDisabled;
+                mo.setpoint = Setpoint::Disabled;
+            }
+        }
+        mo
+    }
+
+    /// FAULT REACTION ACTIVE: ramp as 0x605E says (0: disable at once), then FAULT.
+    fn fault_reaction(&mut self, ctx: &mut Ctx) -> ModeOut {
+        let opt = ctx.store.i32(o::FAULT_OPTION);
+        let dec = if opt == 1 {
+            ctx.acc(o::PROFILE_DEC)
+        } else {
+            ctx.acc(o::QS_DEC)
+        };
+        let mut mo = ModeOut::default();
+        if opt == 0 || ctx.axis.stop(dec, ctx.dt) {
+            self.state = State::Fault;
+        } else {
+            mo.setpoint = hold(&ctx.axis);
+        }
+        mo
+    }
+
+    /// Stage 6: following error (0x60F4) against the window 0x6065 for the time 0x6066 in
+    /// the position modes; over it, a fault 0x8611 and the axis held where it is. Returns
+    /// the following error in user units.
+    fn monitor_following_error(
+        &mut self,
+        ctx: &mut Ctx,
+        mo: &mut ModeOut,
+        input: &TickInput,
+        now_us: u64,
+        out: &mut StepOut,
+    ) -> f64 {
         let fe_inc = if mo.position_mode {
-            ctx.axis.pos - act_inc
+            ctx.axis.pos - input.act_inc
         } else {
             0.0
         };
@@ -523,14 +627,17 @@ impl Cia402 {
             out.new_fault = Some(EMCY_FOLLOWING_ERROR);
             // hold where the axis is
             ctx.axis = Axis {
-                pos: act_inc,
-                vel: act_vel,
+                pos: input.act_inc,
+                vel: input.act_vel,
             };
             mo.setpoint = hold(&ctx.axis);
         }
         self.following_error_uu = fe_uu;
+        fe_uu
+    }
 
-        // ---- statusword ----
+    /// Stage 7: statusword 0x6041 from the state and what the mode reported.
+    fn compose_statusword(&self, mo: &ModeOut) -> u16 {
         let mut s = sw::state_bits(self.state) | sw::BIT_REMOTE;
         let oe = self.state == State::OperationEnabled;
         if (oe || self.state == State::QuickStopActive) && mo.target_reached {
@@ -550,16 +657,27 @@ impl Cia402 {
         if self.fe_flag && matches!(self.mode_display, mode::PP | mode::CSP) {
             s |= sw::BIT_OMS13;
         }
-        self.statusword = s;
+        s
+    }
 
-        // ---- actual values ----
-        let st = &mut *ctx.store;
+    /// Stage 8: the statusword, mode display and actual values (0x6062..0x6078, 0x60E4,
+    /// 0x60F4, 0x60FD) into the object store, in user units through the factor group.
+    fn publish_actual_values(
+        &mut self,
+        st: &mut Store,
+        fb: &Feedback,
+        input: &TickInput,
+        demand_inc: f64,
+        fe_uu: f64,
+    ) {
         let f = self.factor;
-        let to_uu = |inc: f64| f.to_uu(inc - self.origin);
-        self.position_actual_uu = sat_i32(to_uu(act_inc));
-        st.set(o::STATUSWORD, s as u32);
+        let origin = self.origin;
+        let to_uu = |inc: f64| f.to_uu(inc - origin);
+        let act_vel = input.act_vel;
+        self.position_actual_uu = sat_i32(to_uu(input.act_inc));
+        st.set(o::STATUSWORD, self.statusword as u32);
         st.set_i32(o::MODE_DISPLAY, self.mode_display as i32);
-        st.set_i32(o::POS_DEMAND, sat_i32(to_uu(ctx.axis.pos)));
+        st.set_i32(o::POS_DEMAND, sat_i32(to_uu(demand_inc)));
         st.set_i32(o::POS_INTERNAL, fb.motor_position_inc as i32);
         st.set_i32(o::POS_ACTUAL, self.position_actual_uu);
         st.set_i32(o::VEL_SENSOR, sat_i32(act_vel));
@@ -584,11 +702,19 @@ impl Cia402 {
                 | (fb.positive_limit_switch as u32) << 1
                 | (fb.home_switch as u32) << 2,
         );
-        self.axis = ctx.axis;
-        self.prev_cw = cw;
-        out.command.setpoint = mo.setpoint;
-        out
     }
+}
+
+/// What a tick reads before anything changes.
+struct TickInput {
+    /// Seconds since the previous tick (0 at the first, at most 0.1).
+    dt: f64,
+    /// Actual position, increments, from the encoder that closes the position loop.
+    act_inc: f64,
+    /// Motor speed, increments/s (0 if the drive reported a non-finite value).
+    act_vel: f64,
+    /// Controlword 0x6040.
+    cw: u16,
 }
 
 fn hold(a: &Axis) -> Setpoint {
