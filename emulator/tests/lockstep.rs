@@ -234,3 +234,37 @@ fn loop_statistics_are_live_in_lock_step() {
         "0x2100:1 read {ticks} after {syncs} lock-step ticks"
     );
 }
+
+#[test]
+fn a_lock_step_drive_that_lost_syncs_on_receive_says_so() {
+    // The drive's receive queue holds 64 frames; a master sends 200 SYNCs before the drive
+    // reads any (a stalled host): 136 are lost before the drive could see them. Lock-step
+    // time then advances by 64 SYNCs only, and the drive reports the loss in 0x2100:13 and
+    // on its statistics line instead of silently running slow.
+    const QUEUE: usize = 64;
+    const SENT: u64 = 200;
+    let mut eps = InProcBus::endpoints(2, QUEUE);
+    let mut peer = eps.pop().unwrap();
+    let mut rt = Runtime::new(eps.pop().unwrap(), vec![axis()], 1000);
+    rt.boot();
+    while let Ok(Some(_)) = peer.recv() {}
+    for _ in 0..SENT {
+        peer.send(&CanFrame::new(0x80, &[])).unwrap();
+    }
+    let stop = AtomicBool::new(false);
+    rt.run_lockstep(1000, &stop, |rt| {
+        if rt.sim_time_us >= QUEUE as u64 * 1000 {
+            stop.store(true, Ordering::Relaxed);
+        }
+    });
+    let lost = SENT - QUEUE as u64;
+    assert_eq!(rt.stats.syncs, QUEUE as u64, "SYNCs the drive read");
+    assert_eq!(rt.stats.rx_overflows, lost);
+    assert_eq!(
+        rt.axes[0].node.object_raw(0x2100, 13),
+        Some(lost as u32),
+        "0x2100:13 rx_overflows"
+    );
+    let line = rt.stats.summary().to_string();
+    assert!(line.contains(&format!("rx overflow {lost},")), "{line}");
+}

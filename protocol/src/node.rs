@@ -67,6 +67,8 @@ pub struct RuntimeStats {
     pub sync_period_us: u32,
     /// Times the transport's transmit queue was full and the runtime waited for room.
     pub tx_full_waits: u32,
+    /// Received frames the kernel dropped (receive queue full), cumulative.
+    pub rx_overflows: u32,
 }
 
 /// What a received frame was.
@@ -941,6 +943,7 @@ impl Node {
             s.sync_period_us,
             s.tx_full_waits,
             self.core.sync_window_missed,
+            s.rx_overflows,
         ];
         for (i, x) in v.iter().enumerate() {
             self.core.store.set(R_STATS + i, *x);

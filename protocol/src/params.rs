@@ -69,12 +69,14 @@ pub const INJECT_FAULT_INDEX: u16 = 0x2101;
 /// SYNC; `sync_phase_error_us`: smoothed magnitude of the SYNC's arrival minus the loop's
 /// prediction; `sync_period_us`: the SYNC period the loop measured; `tx_full_waits`: times the
 /// transport's transmit queue was full and the loop waited for room; `sync_window_missed`:
-/// synchronous TPDOs not sent because the 0x1007 window had closed.
+/// synchronous TPDOs not sent because the 0x1007 window had closed; `rx_overflows`: frames
+/// the kernel dropped because the receive queue of the runtime's socket was full
+/// (SO_RXQ_OVFL, cumulative; a lock-step drive that lost SYNCs there says so here).
 #[rustfmt::skip]
-pub const STATS_NAMES: [&str; 12] = [
+pub const STATS_NAMES: [&str; 13] = [
     "ticks", "overruns", "lateness_p50_us", "lateness_p99_us", "lateness_max_us",
     "dropped_tx_frames", "node_tx_queue_overflows", "sync_lock_state", "sync_phase_error_us",
-    "sync_period_us", "tx_full_waits", "sync_window_missed",
+    "sync_period_us", "tx_full_waits", "sync_window_missed", "rx_overflows",
 ];
 
 /// Which parameter lives at `index`.

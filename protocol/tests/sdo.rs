@@ -324,12 +324,14 @@ fn runtime_statistics_are_read_only() {
         sync_phase_error_us: 7,
         sync_period_us: 1000,
         tx_full_waits: 4,
+        rx_overflows: 5,
     });
     assert_eq!(b.r32(0x2100, 1), 42);
     assert_eq!(b.r32(0x2100, 8), 2, "lock state");
     assert_eq!(b.r32(0x2100, 9), 7, "phase error");
     assert_eq!(b.r32(0x2100, 10), 1000, "SYNC period");
     assert_eq!(b.r32(0x2100, 11), 4, "transmit waits");
+    assert_eq!(b.r32(0x2100, 13), 5, "kernel receive overflows");
     assert_eq!(b.r32(0x2100, 4), 30);
     assert_eq!(b.r32(0x2100, 5), 300);
     assert_eq!(b.w32(0x2100, 1, 0), Err(0x0601_0002));

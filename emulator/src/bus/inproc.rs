@@ -60,6 +60,10 @@ impl CanBus for InProcEndpoint {
         Ok(self.shared.queues[self.index].pop())
     }
 
+    fn rx_overflows(&self) -> u64 {
+        self.rx_overruns()
+    }
+
     fn wait_readable(&mut self, timeout_us: u64) {
         let deadline = std::time::Instant::now() + std::time::Duration::from_micros(timeout_us);
         while self.shared.queues[self.index].is_empty() && std::time::Instant::now() < deadline {

@@ -53,6 +53,11 @@ pub trait CanBus {
     fn last_rx_age_us(&self) -> Option<u64> {
         None
     }
+    /// Received frames the transport lost before the runtime could read them (the kernel's
+    /// receive queue overflowed), cumulative since the bus was opened; 0 if it cannot tell.
+    fn rx_overflows(&self) -> u64 {
+        0
+    }
     /// After [`SendError::Full`]: wait up to `timeout_us` for room in the transmit queue.
     /// Implementations may return early; the default returns at once.
     fn wait_writable(&mut self, timeout_us: u64) {

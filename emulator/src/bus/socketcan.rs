@@ -75,6 +75,9 @@ pub struct SocketCanBus {
     link_up: bool,
     /// Age of the last received frame (kernel timestamp vs CLOCK_REALTIME now), if known.
     last_rx_age_us: Option<u64>,
+    /// Frames the kernel dropped on this socket's full receive queue (SO_RXQ_OVFL), summed
+    /// from its wrapping 32-bit counter.
+    rx_overflows: RxOverflows,
 }
 
 impl SocketCanBus {
@@ -87,10 +90,12 @@ impl SocketCanBus {
         socket.set_nonblocking(true).map_err(err)?;
         set_receive_buffer(&socket, RECEIVE_BUFFER_BYTES);
         enable_rx_timestamps(&socket);
+        enable_rx_overflow_count(socket.as_raw_fd());
         Ok(Self {
             socket,
             link_up: true,
             last_rx_age_us: None,
+            rx_overflows: RxOverflows::default(),
         })
     }
 
@@ -159,6 +164,47 @@ fn enable_rx_timestamps(socket: &CanSocket) {
     };
 }
 
+/// Ask the kernel to attach its count of frames dropped on this socket (receive queue full)
+/// to the frames received after a drop (SO_RXQ_OVFL), so a drive that lost frames in the kernel can say
+/// so. Failing is harmless: the count then stays 0.
+fn enable_rx_overflow_count(fd: libc::c_int) {
+    let on: libc::c_int = 1;
+    // SAFETY: setsockopt on our own descriptor with a valid c_int option value.
+    unsafe {
+        libc::setsockopt(
+            fd,
+            libc::SOL_SOCKET,
+            libc::SO_RXQ_OVFL,
+            (&on as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+}
+
+/// The kernel's drop counter (a wrapping u32, cumulative for the socket) as a u64 total.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct RxOverflows {
+    last_raw: u32,
+    total: u64,
+}
+
+impl RxOverflows {
+    /// The kernel reported `raw` drops so far with a received frame.
+    fn update(&mut self, raw: u32) {
+        self.total += u64::from(raw.wrapping_sub(self.last_raw));
+        self.last_raw = raw;
+    }
+}
+
+/// What the kernel attached to a received frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct RxMeta {
+    /// Receive timestamp, ns, CLOCK_REALTIME (SO_TIMESTAMPNS).
+    stamp_ns: Option<i128>,
+    /// The socket's cumulative drop count (SO_RXQ_OVFL).
+    drops: Option<u32>,
+}
+
 fn realtime_ns() -> i128 {
     let mut ts = libc::timespec {
         tv_sec: 0,
@@ -169,9 +215,10 @@ fn realtime_ns() -> i128 {
     ts.tv_sec as i128 * 1_000_000_000 + ts.tv_nsec as i128
 }
 
-/// One non-blocking `recvmsg` of a `can_frame` with its receive timestamp (ns, CLOCK_REALTIME).
-/// No allocation: the frame and the control message live on the stack.
-fn recv_stamped(fd: libc::c_int) -> std::io::Result<(libc::can_frame, Option<i128>)> {
+/// One non-blocking `recvmsg` of a `can_frame` with its receive timestamp (ns, CLOCK_REALTIME)
+/// and the kernel's drop count. No allocation: the frame and the control messages live on the
+/// stack.
+fn recv_stamped(fd: libc::c_int) -> std::io::Result<(libc::can_frame, RxMeta)> {
     let mut raw = can_frame_default();
     let mut iov = libc::iovec {
         iov_base: (&mut raw as *mut libc::can_frame).cast(),
@@ -193,19 +240,36 @@ fn recv_stamped(fd: libc::c_int) -> std::io::Result<(libc::can_frame, Option<i12
     if (n as usize) < std::mem::size_of::<libc::can_frame>() {
         return Err(std::io::Error::from(std::io::ErrorKind::UnexpectedEof));
     }
-    let mut stamp = None;
-    // SAFETY: walking the control messages the kernel wrote into `control`, as cmsg(3) says.
+    Ok((raw, parse_control(&msg)))
+}
+
+/// The timestamp and drop count among the control messages of a received `msg`.
+fn parse_control(msg: &libc::msghdr) -> RxMeta {
+    let mut meta = RxMeta::default();
+    // SAFETY: walking the control messages the kernel wrote into the buffer `msg` points at,
+    // as cmsg(3) says; each payload is read unaligned at its advertised type.
     unsafe {
-        let mut c = libc::CMSG_FIRSTHDR(&msg);
+        let mut c = libc::CMSG_FIRSTHDR(msg);
         while !c.is_null() {
-            if (*c).cmsg_level == libc::SOL_SOCKET && (*c).cmsg_type == libc::SCM_TIMESTAMPNS {
-                let ts = std::ptr::read_unaligned(libc::CMSG_DATA(c).cast::<libc::timespec>());
-                stamp = Some(ts.tv_sec as i128 * 1_000_000_000 + ts.tv_nsec as i128);
+            if (*c).cmsg_level == libc::SOL_SOCKET {
+                match (*c).cmsg_type {
+                    libc::SCM_TIMESTAMPNS => {
+                        let ts =
+                            std::ptr::read_unaligned(libc::CMSG_DATA(c).cast::<libc::timespec>());
+                        meta.stamp_ns =
+                            Some(ts.tv_sec as i128 * 1_000_000_000 + ts.tv_nsec as i128);
+                    }
+                    libc::SO_RXQ_OVFL => {
+                        meta.drops =
+                            Some(std::ptr::read_unaligned(libc::CMSG_DATA(c).cast::<u32>()));
+                    }
+                    _ => {}
+                }
             }
-            c = libc::CMSG_NXTHDR(&msg, c);
+            c = libc::CMSG_NXTHDR(msg, c);
         }
     }
-    Ok((raw, stamp))
+    meta
 }
 
 fn is_down(e: &std::io::Error) -> bool {
@@ -285,9 +349,14 @@ impl CanBus for SocketCanBus {
     fn recv(&mut self) -> Result<Option<CanFrame>, RecvError> {
         self.last_rx_age_us = None;
         match recv_stamped(self.socket.as_raw_fd()) {
-            Ok((raw, stamp)) => {
+            Ok((raw, meta)) => {
                 self.link_up = true;
-                self.last_rx_age_us = stamp.map(|t| ((realtime_ns() - t).max(0) / 1000) as u64);
+                self.last_rx_age_us = meta
+                    .stamp_ns
+                    .map(|t| ((realtime_ns() - t).max(0) / 1000) as u64);
+                if let Some(drops) = meta.drops {
+                    self.rx_overflows.update(drops);
+                }
                 Ok(from_raw(&raw))
             }
             Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => Ok(None),
@@ -319,6 +388,10 @@ impl CanBus for SocketCanBus {
         self.last_rx_age_us
     }
 
+    fn rx_overflows(&self) -> u64 {
+        self.rx_overflows.total
+    }
+
     fn wait_writable(&mut self, timeout_us: u64) {
         // A full CAN transmit queue (ENOBUFS, the interface's qdisc) does not clear POLLOUT,
         // so poll cannot say when room comes: sleep the bounded time and let the caller retry.
@@ -334,6 +407,75 @@ impl CanBus for SocketCanBus {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn kernel_drop_counter_is_summed_across_its_wrap() {
+        let mut o = RxOverflows::default();
+        o.update(0);
+        o.update(3);
+        o.update(3);
+        assert_eq!(o.total, 3);
+        o.update(u32::MAX);
+        o.update(2); // the kernel's u32 wrapped: 3 more drops
+        assert_eq!(o.total, u64::from(u32::MAX) + 3);
+    }
+
+    /// The same `recvmsg` path on a socket this kernel has (UDP on loopback; SO_RXQ_OVFL and
+    /// SO_TIMESTAMPNS are socket-level options, as on a CAN socket): flood a small receive
+    /// buffer, then every datagram sent is either read or counted as dropped by the kernel.
+    #[test]
+    fn receive_overflow_count_and_timestamp_come_with_each_frame() {
+        use std::net::UdpSocket;
+        use std::os::fd::AsRawFd;
+        let rx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let small: libc::c_int = 4096;
+        let on: libc::c_int = 1;
+        // SAFETY: setsockopt on our own sockets with c_int values.
+        unsafe {
+            libc::setsockopt(
+                rx.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_RCVBUF,
+                (&small as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            );
+            libc::setsockopt(
+                rx.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_TIMESTAMPNS,
+                (&on as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            );
+        }
+        enable_rx_overflow_count(rx.as_raw_fd());
+        let frame = [0u8; std::mem::size_of::<libc::can_frame>()];
+        const SENT: u64 = 2000;
+        for _ in 0..SENT {
+            tx.send_to(&frame, rx.local_addr().unwrap()).expect("send");
+        }
+        let mut read = 0u64;
+        let mut counter = RxOverflows::default();
+        while let Ok((_, meta)) = recv_stamped(rx.as_raw_fd()) {
+            read += 1;
+            assert!(meta.stamp_ns.is_some(), "no receive timestamp");
+            // The kernel attaches the count once there is one (dropcount > 0).
+            if let Some(drops) = meta.drops {
+                counter.update(drops);
+            }
+        }
+        assert!(read > 0 && read < SENT, "read {read} of {SENT}");
+        // The count rides on frames queued after the drops: one more, now that there is room.
+        tx.send_to(&frame, rx.local_addr().unwrap()).expect("send");
+        let (_, meta) = recv_stamped(rx.as_raw_fd()).expect("the frame after the drops");
+        counter.update(meta.drops.expect("no SO_RXQ_OVFL count after drops"));
+        assert_eq!(
+            read + counter.total,
+            SENT,
+            "read {read}, dropped {}",
+            counter.total
+        );
+    }
 
     #[test]
     fn raw_conversion_round_trips_standard_extended_and_rtr() {

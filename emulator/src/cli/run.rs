@@ -206,6 +206,8 @@ struct Status {
     link_up: AtomicBool,
     sync_lock: AtomicU64,
     sync_phase_error_us: AtomicU64,
+    /// Frames the kernel dropped on the socket's full receive queue.
+    rx_overflows: AtomicU64,
     /// Every node has sent its boot-up (power-on boot delay over).
     booted: AtomicBool,
 }
@@ -235,6 +237,8 @@ impl Status {
             .store(u64::from(rt.stats.sync_lock_state), Ordering::Relaxed);
         self.sync_phase_error_us
             .store(rt.stats.sync_phase_error_us, Ordering::Relaxed);
+        self.rx_overflows
+            .store(rt.stats.rx_overflows, Ordering::Relaxed);
         self.link_up
             .store(rt.bus.inner().link_up(), Ordering::Relaxed);
     }
@@ -282,6 +286,10 @@ impl Status {
                     self.sync_phase_error_us.load(Ordering::Relaxed)
                 );
             }
+        }
+        let lost = self.rx_overflows.load(Ordering::Relaxed);
+        if lost > 0 {
+            out += &format!(" | rx overflow {lost}");
         }
         if !self.link_up.load(Ordering::Relaxed) {
             out += " | LINK DOWN";

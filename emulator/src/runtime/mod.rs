@@ -137,7 +137,10 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
 
     fn recv_frame(&mut self) -> Option<CanFrame> {
         match self.bus.recv() {
-            Ok(Some(f)) => Some(f),
+            Ok(Some(f)) => {
+                self.stats.rx_overflows = self.bus.rx_overflows();
+                Some(f)
+            }
             Ok(None) => None,
             Err(_) => {
                 self.stats.rx_errors += 1;
@@ -220,6 +223,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             sync_phase_error_us: s.sync_phase_error_us.min(u64::from(u32::MAX)) as u32,
             sync_period_us: s.sync_period_us.min(u64::from(u32::MAX)) as u32,
             tx_full_waits: s.tx_full_waits as u32,
+            rx_overflows: s.rx_overflows.min(u64::from(u32::MAX)) as u32,
         };
         for ax in &mut self.axes {
             ax.node.set_runtime_stats(rs);

@@ -19,6 +19,8 @@ pub struct LoopStats {
     pub tx_dropped: u64,
     /// Receive errors (interface down, bad frames from the socket).
     pub rx_errors: u64,
+    /// Frames the kernel dropped because the receive queue was full (cumulative).
+    pub rx_overflows: u64,
     /// Times the transport's transmit queue was full and the loop waited for room.
     pub tx_full_waits: u64,
     /// SYNCs received.
@@ -41,6 +43,7 @@ pub struct StatsSummary {
     pub skipped_ticks: u64,
     pub tx_dropped: u64,
     pub rx_errors: u64,
+    pub rx_overflows: u64,
     pub tx_full_waits: u64,
     pub syncs: u64,
     pub sync_lock_state: u32,
@@ -67,6 +70,7 @@ impl LoopStats {
             skipped_ticks: 0,
             tx_dropped: 0,
             rx_errors: 0,
+            rx_overflows: 0,
             tx_full_waits: 0,
             syncs: 0,
             sync_lock_state: 0,
@@ -103,6 +107,7 @@ impl LoopStats {
             skipped_ticks: self.skipped_ticks,
             tx_dropped: self.tx_dropped,
             rx_errors: self.rx_errors,
+            rx_overflows: self.rx_overflows,
             tx_full_waits: self.tx_full_waits,
             syncs: self.syncs,
             sync_lock_state: self.sync_lock_state,
@@ -131,7 +136,7 @@ impl fmt::Display for StatsSummary {
         write!(
             f,
             "ticks {} at {} us, overruns {}, skipped {}, lateness p50/p99/max {}/{}/{} us, \
-             work p50/p99/max {}/{}/{} us, tx dropped {}, rx errors {}, tx full waits {}, \
+             work p50/p99/max {}/{}/{} us, tx dropped {}, rx errors {}, rx overflow {}, tx full waits {}, \
              SYNCs {}, {}, SYNC phase error {} us, SYNC period {} us",
             self.ticks,
             self.period_us,
@@ -145,6 +150,7 @@ impl fmt::Display for StatsSummary {
             self.work_max_us,
             self.tx_dropped,
             self.rx_errors,
+            self.rx_overflows,
             self.tx_full_waits,
             self.syncs,
             lock_name(self.sync_lock_state),
