@@ -183,7 +183,7 @@ fn at_most(key: &str, v: f64, max: f64, why: &str) -> Result<f64, ConfigError> {
     if v > max {
         Err(ConfigError::new(
             key,
-            format!("must be <= {max:.6}, got {v}: {why}"),
+            format!("must be <= {max:?}, got {v:?}: {why}"),
         ))
     } else {
         Ok(v)
