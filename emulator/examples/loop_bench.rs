@@ -6,11 +6,11 @@
 
 use drive_emu::bus::inproc::InProcBus;
 use drive_emu::bus::{CanBus, CanFrame};
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::AxisDrive;
-use drive_emu::runtime::clock::{Clock, MonotonicClock};
 use drive_emu::runtime::realtime::{self, RealtimeRequest};
 use drive_emu::runtime::{AxisSlot, Runtime};
+use drive_emu::time::{Clock, MonotonicClock};
 use drive_protocol::{Drive, Node};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;

@@ -4,12 +4,12 @@
 //! at constant speed with backlash, answers SDO requests and consumes the master's heartbeat.
 
 use drive_emu::bus::CanFrame;
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::AxisDrive;
-use drive_emu::runtime::offline::OfflineRun;
 use drive_emu::runtime::trace::TraceTap;
 use drive_emu::runtime::{AxisSlot, SimulatedDrive};
+use drive_emu::session::OfflineRun;
 use drive_protocol::{Drive, Node};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -141,9 +141,9 @@ fn the_runtime_tick_does_not_allocate() {
 /// a virtual clock, with the master's SYNC and set-points every millisecond and SDO traffic.
 #[test]
 fn the_realtime_wake_does_not_allocate() {
-    use drive_emu::runtime::clock::{Clock, VirtualClock};
     use drive_emu::runtime::pll::LockState;
     use drive_emu::runtime::RealtimeLoop;
+    use drive_emu::time::{Clock, VirtualClock};
     let cfg = AxisConfig::from_preset("cnc1").unwrap();
     let drive = AxisDrive::from_config(&cfg).unwrap();
     let node = Node::new(5, drive.info()).unwrap();

@@ -8,11 +8,12 @@ use drive_emu::analysis::detector::{analyze, AxisTrace, DetectorConfig, Detector
 use drive_emu::bus::inproc::InProcEndpoint;
 use drive_emu::bus::{CanBus, CanFrame};
 use drive_emu::cli::analyze::{run, AnalyzeArgs};
-use drive_emu::master::{Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
+use drive_emu::drive::axis_drive::AxisDrive;
+use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP, MODE_PP};
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::AxisDrive;
-use drive_emu::runtime::offline::OfflineRun;
 use drive_emu::runtime::AxisSlot;
+use drive_emu::samples::Sample;
+use drive_emu::session::OfflineRun;
 use drive_protocol::{Drive, Node};
 use std::fmt::Write as _;
 use std::path::Path;

@@ -2,8 +2,8 @@
 //! axis unphysical are refused with the CiA 301 abort codes, a runaway faults with the proper
 //! EMCY before any value becomes absurd, and NMT reset node gives back a usable axis.
 
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::AxisDrive;
 use drive_emu::runtime::SimulatedDrive;
 use drive_protocol::{CanFrame, Drive, Node};
 

@@ -9,8 +9,8 @@
 //!   tests/requirements.txt; a missing checker FAILS the test.
 
 use drive_emu::cli::eds::{eds_text, EdsArgs, Real32Arg};
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::presets::{preset_names, AxisConfig};
-use drive_emu::runtime::axis_drive::AxisDrive;
 use drive_protocol::{CanFrame, Drive, Node};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -9,8 +9,8 @@
 #[path = "../../protocol/tests/fuzz/mod.rs"]
 mod fuzz;
 
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::AxisDrive;
 use drive_emu::runtime::SimulatedDrive;
 use fuzz::{case_strategy, Harness};
 use proptest::prelude::*;

@@ -5,11 +5,11 @@
 
 use drive_emu::bus::inproc::InProcBus;
 use drive_emu::bus::{CanBus, CanFrame};
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP, MODE_PP};
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::AxisDrive;
-use drive_emu::runtime::offline::OfflineRun;
 use drive_emu::runtime::{AxisSlot, Runtime};
+use drive_emu::session::OfflineRun;
 use drive_protocol::{Drive, Node};
 use std::sync::atomic::{AtomicBool, Ordering};
 

@@ -6,8 +6,8 @@
 //! time constant. `r` is measured from the motor current the simulation produced (RMS), not
 //! assumed from the load.
 
+use drive_emu::drive::axis_drive::{AxisDrive, ERROR_MOTOR_I2T};
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::{AxisDrive, ERROR_MOTOR_I2T};
 use drive_emu::runtime::SimulatedDrive;
 use drive_protocol::{AxisParam, Drive, DriveCommand, Setpoint};
 

@@ -5,12 +5,12 @@
 use drive_emu::analysis::detector::{analyze, AxisTrace, DetectorConfig, Verdict};
 use drive_emu::analysis::spectrum::fundamental;
 use drive_emu::cli::analyze::trace_from_csv;
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP, MODE_PP};
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::axis_drive::AxisDrive;
-use drive_emu::runtime::offline::OfflineRun;
 use drive_emu::runtime::trace::{node_sample, Recorder, TraceTap};
 use drive_emu::runtime::AxisSlot;
+use drive_emu::session::OfflineRun;
 use drive_protocol::{Drive, Node};
 use std::sync::Arc;
 

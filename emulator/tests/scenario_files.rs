@@ -259,7 +259,7 @@ fn nonsense_preset_overrides_are_rejected_with_key_and_limit() {
 /// `drive-emu scenario` prints as `file:line:column: key `...`: reason`.
 #[test]
 fn multi_line_files_report_line_column_key_and_reason() {
-    let cases: [(&str, &str, (usize, usize), &str, &str); 5] = [
+    let cases = [
         (
             "name = \"a\"\n[machine]\npreset = \"cnc1\"\nbacklash_mm = [\n  0.01,\n  0.02,\n]\n",
             "a.toml",

@@ -6,11 +6,11 @@
 use drive_emu::bus::fault::FaultyBus;
 use drive_emu::bus::inproc::InProcBus;
 use drive_emu::bus::CanBus;
+use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
-use drive_emu::runtime::axis_drive::AxisDrive;
-use drive_emu::runtime::clock::{Clock, MonotonicClock};
 use drive_emu::runtime::{AxisSlot, Lockstep, Runtime};
 use drive_emu::scenario::live::{run_timeline, LiveEnd, LiveLink, LoopInjector};
+use drive_emu::time::{Clock, MonotonicClock};
 use drive_protocol::{AxisParam, Drive, Node};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;

@@ -31,16 +31,22 @@ pub enum Setpoint {
     },
     /// Closed speed loop in the drive, position loop (if any) outside (PV, CSV).
     Velocity {
+        /// Velocity demand, increments/s (0x60FF through the factor group; in PV after the ramp).
         velocity_inc_per_s: f64,
+        /// Torque feed-forward, per mille of rated torque (0x60B2 in CSV).
         torque_ff_permille: f64,
     },
     /// Torque demand straight to the current loop (CST, TQ).
-    Torque { torque_permille: f64 },
+    Torque {
+        /// Torque demand, per mille of rated torque (0x6071 target torque).
+        torque_permille: f64,
+    },
 }
 
 /// A full command for one tick: the set-point plus the limits the node enforces from the OD.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DriveCommand {
+    /// What the control cascade should follow this tick.
     pub setpoint: Setpoint,
     /// 0x6072 max torque, per mille of rated torque.
     pub max_torque_permille: f64,
@@ -69,8 +75,9 @@ pub struct Feedback {
     pub current_permille: f64,
     /// Home switch input (0x60FD bit 2).
     pub home_switch: bool,
-    /// Negative / positive limit switches (0x60FD bits 0 and 1).
+    /// Negative limit switch input (0x60FD bit 0).
     pub negative_limit_switch: bool,
+    /// Positive limit switch input (0x60FD bit 1).
     pub positive_limit_switch: bool,
     /// A fault the drive hardware detected itself (encoder signal lost, over-temperature, ...):
     /// the CiA 402 / EMCY error code to report, e.g. 0x7300 sensor. The node enters FAULT
@@ -86,13 +93,16 @@ pub struct DriveInfo {
     pub encoder_increments_per_rev: u32,
     /// Motor revolutions per driving-shaft revolution (0x6091 sub 1 / sub 2), as a fraction.
     pub gear_motor_revs: u32,
+    /// Driving-shaft revolutions of that fraction (0x6091 sub 2).
     pub gear_shaft_revs: u32,
     /// Feed per driving-shaft revolution in user units (0x6092 sub 1 / sub 2), as a fraction.
     /// Example: a 10 mm screw with user unit 1 um: 10000 / 1.
     pub feed_user_units: u32,
+    /// Driving-shaft revolutions of that fraction (0x6092 sub 2).
     pub feed_shaft_revs: u32,
-    /// Motor rated torque, mNm (0x6076) and rated current, mA (0x6075).
+    /// Motor rated torque, mNm (0x6076).
     pub rated_torque_mnm: u32,
+    /// Motor rated current, mA (0x6075).
     pub rated_current_ma: u32,
     /// Maximum motor speed, rpm (0x6080).
     pub max_motor_speed_rpm: u32,
@@ -140,7 +150,12 @@ pub enum AxisParam {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ParamError {
     /// The value is outside what the drive accepts (SDO abort 0x06090030).
-    OutOfRange { min: f64, max: f64 },
+    OutOfRange {
+        /// Smallest accepted value, SI units.
+        min: f64,
+        /// Largest accepted value, SI units.
+        max: f64,
+    },
     /// The drive does not have this parameter (SDO abort 0x06090011 / 0x06020000).
     Unsupported,
 }

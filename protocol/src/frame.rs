@@ -3,10 +3,15 @@
 /// One classic CAN frame. `len` is the DLC (0..=8); bytes beyond `len` are ignored.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CanFrame {
+    /// Identifier: 11 bits (COB-ID) or 29 bits when `extended`.
     pub id: u32,
+    /// 29-bit (CAN 2.0B) identifier.
     pub extended: bool,
+    /// Remote transmission request (no data; asks for an RTR-capable TPDO).
     pub rtr: bool,
+    /// Data length code, 0..=8.
     pub len: u8,
+    /// Data bytes; those past `len` are zero and ignored.
     pub data: [u8; 8],
 }
 

@@ -1,19 +1,32 @@
 //! Sans-IO CANopen node for a CiA 402 servo drive: frames and a monotonic time go in,
 //! frames come out. No threads, sockets or clocks in here.
 //!
-//! Layout: [`frame`] (the CAN frame), [`od`] (the object table and EDS export), [`cia301`]
-//! (NMT, SDO, PDO, SYNC, heartbeat, EMCY), [`cia402`] (state machine, modes, factor group,
-//! profiles), [`params`] (manufacturer objects), [`node`] (the glue), [`drive`] (the contract
-//! with the drive behind the node).
+//! The surface: [`Node`] (frames in with [`Node::handle`], time in with [`Node::poll`], frames
+//! out with [`Node::pop_tx`], events out with [`Node::poll_event`], next deadline from
+//! [`Node::poll_at`]); the [`Drive`] contract the emulator implements ([`DriveCommand`] in,
+//! [`Feedback`] out); [`CanFrame`]; the states [`NmtState`] and [`Cia402State`]. Three modules
+//! are public: [`wire`] (parse and emit of SDO, NMT, EMCY, heartbeat and SYNC frames, for a
+//! master or a capture decoder), [`od`] (the object table that also generates the EDS) and
+//! [`cia402`] (modes of operation, controlword and statusword bits).
+//!
+//! Inside (private): `cia301` (NMT, SDO server, PDO engine, SYNC, heartbeat, EMCY), the rest
+//! of `cia402` (state machine, one file per mode, factor group, profiles), `params`
+//! (manufacturer objects 0x2000..), `node` (the glue) and `drive`.
 
-pub mod cia301;
+#![warn(missing_docs)]
+
+// The public surface (docs/decisions/0007-protocol-public-surface.md): the node, its drive
+// contract and its events at the crate root; `wire` (the codec a master or capture decoder
+// needs), `od` (the object table behind the EDS) and `cia402` (state, modes, control and status
+// bits) as modules. Everything else is the node's inside.
+mod cia301;
 pub mod cia402;
-pub mod drive;
-pub mod event;
-pub mod frame;
-pub mod node;
+mod drive;
+mod event;
+mod frame;
+mod node;
 pub mod od;
-pub mod params;
+mod params;
 pub mod wire;
 
 pub use cia301::nmt::NmtState;

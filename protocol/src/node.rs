@@ -27,8 +27,6 @@ pub const TX_QUEUE: usize = 64;
 
 /// EMCY code for a lost heartbeat producer (the master).
 pub const EMCY_HEARTBEAT: u16 = 0x8130;
-/// EMCY code for an RPDO of the wrong length.
-pub const EMCY_PDO_LENGTH: u16 = crate::cia301::pdo::rpdo::EMCY_PDO_LENGTH;
 /// EMCY code for an RPDO value the drive refuses (the checks of an SDO write: range, a
 /// supported mode, min <= max): CiA 402 "parameter error" (0x6320). The object keeps its
 /// value, as with the refused SDO write; CiA 301 has no code for it and CANopenNode drops
@@ -49,15 +47,23 @@ const R_STATS: usize = idx(params::STATS_INDEX, 1);
 /// Runtime statistics exposed read-only at 0x2100.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RuntimeStats {
+    /// Loop ticks run (0x2100 sub 1).
     pub ticks: u32,
+    /// Ticks whose work finished after the next tick's deadline (sub 2).
     pub overruns: u32,
+    /// Median wake-up lateness of the loop, microseconds (sub 3).
     pub lateness_p50_us: u32,
+    /// 99th-percentile wake-up lateness, microseconds (sub 4).
     pub lateness_p99_us: u32,
+    /// Largest wake-up lateness, microseconds (sub 5).
     pub lateness_max_us: u32,
+    /// Frames the transport refused (full transmit queue, interface down) (sub 6).
     pub dropped_tx_frames: u32,
     /// 0 free-running, 1 acquiring, 2 locked to SYNC.
     pub sync_lock_state: u32,
+    /// Smoothed magnitude of the SYNC's arrival minus the loop's prediction, microseconds (sub 9).
     pub sync_phase_error_us: u32,
+    /// SYNC period the loop measured, microseconds (sub 10).
     pub sync_period_us: u32,
     /// Times the transport's transmit queue was full and the runtime waited for room.
     pub tx_full_waits: u32,
@@ -72,7 +78,10 @@ pub enum FrameEvent {
     Handled,
     /// A SYNC (counter byte if the SYNC carries one). Reported in every booted NMT state so
     /// a lock-step runtime can advance; PDOs are only processed in Operational.
-    Sync { counter: Option<u8> },
+    Sync {
+        /// The SYNC counter (1..=0x1019), when the producer sends one.
+        counter: Option<u8>,
+    },
 }
 
 /// Why a node could not be built.
@@ -481,13 +490,7 @@ impl Core {
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
         match &self.saved {
-            Some(s) => {
-                for (i, obj) in OBJECTS.iter().enumerate() {
-                    if obj.index >= lo && obj.index <= hi {
-                        self.store.vals[i] = s.vals[i];
-                    }
-                }
-            }
+            Some(s) => self.store.copy_range(s, lo, hi),
             None => self.store.reset_range(lo, hi, self.node_id, &self.info),
         }
     }
@@ -588,6 +591,7 @@ impl Node {
         self.core.boot_delay_us = delay_us;
     }
 
+    /// Delay between power-on and the boot-up message, microseconds.
     pub fn boot_delay_us(&self) -> u64 {
         self.core.boot_delay_us
     }
@@ -970,12 +974,15 @@ impl Node {
     }
 
     // ----- read-only accessors -----
+    /// Node ID, 1..=127.
     pub fn node_id(&self) -> u8 {
         self.core.node_id
     }
+    /// NMT state (what the heartbeat reports).
     pub fn nmt_state(&self) -> NmtState {
         self.core.nmt
     }
+    /// CiA 402 device state (decoded from statusword 0x6041).
     pub fn cia402_state(&self) -> State {
         self.core.cia.state
     }
@@ -983,6 +990,7 @@ impl Node {
     pub fn mode(&self) -> i8 {
         self.core.cia.mode_display
     }
+    /// Statusword 0x6041 as of the last tick.
     pub fn statusword(&self) -> u16 {
         self.core.cia.statusword
     }

@@ -499,6 +499,21 @@ pub fn sdo_download(
     }
 }
 
+/// Wait (bounded by [`PEER_TIMEOUT`], retrying the request) until `node` answers an SDO upload
+/// of 0x1000 sent now. A drive handles its received frames in arrival order, so once it has
+/// answered, every frame sent before the request has been handled too, however far behind a
+/// loaded host made it. Panics with the reason if no answer comes.
+pub fn sdo_barrier(sock: &CanSocket, node: u8) {
+    let deadline = Instant::now() + PEER_TIMEOUT;
+    loop {
+        match sdo_upload(sock, node, 0x1000, 0) {
+            Ok(_) => return,
+            Err(SdoError::Timeout) if Instant::now() < deadline => continue,
+            Err(e) => panic!("node {node} did not answer an SDO upload of 0x1000: {e:?}"),
+        }
+    }
+}
+
 /// Upload of a U32 (or shorter unsigned) object as u32.
 pub fn sdo_u32(sock: &CanSocket, node: u8, index: u16, sub: u8) -> u32 {
     let d = sdo_upload(sock, node, index, sub)

@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 
 use e2e::socketcan::{CanFrame, EmbeddedFrame, ExtendedId, Socket, StandardId};
 use e2e::{
-    frame, id_data, iface, nmt, open_bus, recv_matching, sdo_download, sdo_u32, sdo_upload, send,
-    temp_file, wait_bootup, Emu, Peer, SdoError, PEER_TIMEOUT,
+    frame, id_data, iface, nmt, open_bus, recv_matching, sdo_barrier, sdo_download, sdo_u32,
+    sdo_upload, send, temp_file, wait_bootup, Emu, Peer, SdoError, PEER_TIMEOUT,
 };
 
 const DEVICE_TYPE: u32 = 0x0002_0192;
@@ -579,7 +579,7 @@ fn a_stalled_drive_loses_no_frame() {
     // SAFETY: as above.
     unsafe { libc::kill(emu.pid(), libc::SIGCONT) };
     // An SDO round trip after the burst: every SYNC before it has been read.
-    assert_eq!(sdo_u32(&sock, NODE, 0x1000, 0), DEVICE_TYPE);
+    sdo_barrier(&sock, NODE);
     let exit = emu.stop_clean();
     let ticks = exit.ticks();
     assert_eq!(

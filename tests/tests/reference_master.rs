@@ -126,6 +126,11 @@ fn reference_master_over_vcan_sees_the_backlash_limit_cycle() {
         .map(|r| r["bus"]["syncs_sent"].as_u64().expect("bus statistics"))
         .sum();
 
+    // Lock-step: the drive works through the SYNCs in its receive queue in order. On a loaded
+    // host (UML runs every process on one virtual CPU) it may still be behind when the master
+    // is done, so a stop now would cut its queue. An SDO answer to a request sent after the
+    // last SYNC says every SYNC before it has been handled.
+    sdo_barrier(&sock, NODE);
     let exit = emu.stop_clean();
     // Everything before our end marker is in the file once the marker is.
     wait_for_marker(&sock, &log, 0x7A2);

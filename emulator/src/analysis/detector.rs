@@ -127,7 +127,7 @@ impl AxisTrace {
     }
 
     /// From the reference master's sample log (user units, per mille current).
-    pub fn from_samples(samples: &[crate::master::Sample], rotary: bool) -> Self {
+    pub fn from_samples(samples: &[crate::samples::Sample], rotary: bool) -> Self {
         Self {
             t_s: samples.iter().map(|s| s.t_s).collect(),
             set_velocity: samples.iter().map(|s| s.setpoint_velocity_uu_s).collect(),
@@ -153,7 +153,7 @@ impl AxisTrace {
     /// [`crate::runtime::trace::node_sample`]). A drive has no interpolator velocity to report
     /// (its 0x606B is the position controller's output, which carries the limit cycle), so the
     /// set velocity is derived from the position demand `target_uu` (0x6062).
-    pub fn from_drive_samples(samples: &[crate::master::Sample], rotary: bool) -> Self {
+    pub fn from_drive_samples(samples: &[crate::samples::Sample], rotary: bool) -> Self {
         let mut tr = Self::from_samples(samples, rotary);
         let demand: Vec<f64> = samples.iter().map(|s| s.target_uu).collect();
         tr.set_velocity = super::windows::set_velocity_from_demand(

@@ -9,13 +9,14 @@
 
 use crate::analysis::spectrum::fundamental;
 use crate::bus::socketcan::SocketCanBus;
+use crate::drive::axis_drive::AxisDrive;
 use crate::master::on_bus::{run_on_bus, BusRunStats};
-use crate::master::{Master, MasterConfig, Sample, Step, MODE_CSP, MODE_PP};
+use crate::master::{Master, MasterConfig, Step, MODE_CSP, MODE_PP};
 use crate::presets::AxisConfig;
-use crate::runtime::axis_drive::AxisDrive;
-use crate::runtime::clock::MonotonicClock;
-use crate::runtime::offline::OfflineRun;
 use crate::runtime::AxisSlot;
+use crate::samples::Sample;
+use crate::session::OfflineRun;
+use crate::time::MonotonicClock;
 use anyhow::{bail, Result};
 use clap::Args;
 use drive_protocol::{Cia402State, Drive, Node};

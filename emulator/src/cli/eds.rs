@@ -1,7 +1,7 @@
 //! `drive-emu eds` and `drive-emu presets`: what a master needs to know about the drive.
 
+use crate::drive::axis_drive::AxisDrive;
 use crate::presets::{preset_names, AxisConfig};
-use crate::runtime::axis_drive::AxisDrive;
 use anyhow::Result;
 use clap::Args;
 use drive_protocol::od::eds::{EdsMeta, Real32Notation};

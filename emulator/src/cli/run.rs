@@ -2,15 +2,15 @@
 
 use crate::bus::fault::FaultyBus;
 use crate::bus::socketcan::SocketCanBus;
+use crate::drive::axis_drive::AxisDrive;
+use crate::drive::machine::{self, AxisEntry, MachineFile};
 use crate::presets::AxisConfig;
-use crate::runtime::axis_drive::AxisDrive;
-use crate::runtime::clock::MonotonicClock;
-use crate::runtime::machine::{self, AxisEntry, MachineFile};
 use crate::runtime::realtime::{self, RealtimeRequest};
 use crate::runtime::trace::{trace_paths, Recorder, TraceTap};
 use crate::runtime::{AxisSlot, Lockstep, Runtime};
 use crate::scenario::live::{run_timeline, LiveEnd, LiveLink, LiveOutcome, LoopInjector};
 use crate::scenario::Scenario;
+use crate::time::MonotonicClock;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use drive_protocol::{Drive, Node};

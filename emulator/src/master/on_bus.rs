@@ -5,7 +5,7 @@
 
 use super::Master;
 use crate::bus::CanBus;
-use crate::runtime::clock::Clock;
+use crate::time::Clock;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// What the bus did to the master during a run.
@@ -90,7 +90,7 @@ mod tests {
     use super::*;
     use crate::bus::inproc::InProcBus;
     use crate::master::{MasterConfig, Step};
-    use crate::runtime::clock::VirtualClock;
+    use crate::time::VirtualClock;
 
     #[test]
     fn an_unanswered_master_fails_on_time_and_the_loop_ends() {

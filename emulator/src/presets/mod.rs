@@ -114,7 +114,7 @@ pub struct AxisConfig {
     pub max_speed_rpm: f64,
     /// Thermal time constant of the motor's I2t model, s: the winding's heating time
     /// constant that the drive's motor overload monitor uses (continuous current above
-    /// `rated_current_a` trips it; see `runtime::axis_drive::ERROR_MOTOR_I2T`).
+    /// `rated_current_a` trips it; see `drive::axis_drive::ERROR_MOTOR_I2T`).
     #[serde(default = "default_motor_thermal_time_constant_s")]
     pub motor_thermal_time_constant_s: f64,
     pub current_bandwidth_hz: f64,

@@ -14,17 +14,13 @@
 //!   results do not depend on how busy the host is;
 //! - [`Runtime::tick`] called by an offline driver with a virtual clock (demo, scenarios).
 
-pub mod axis_drive;
-pub mod clock;
-pub mod machine;
-pub mod offline;
 pub mod pll;
 pub mod realtime;
 pub mod stats;
 pub mod trace;
 
 use crate::bus::{CanBus, CanFrame, SendError};
-use clock::Clock;
+use crate::time::Clock;
 use drive_protocol::{Drive, FrameEvent, Node, RuntimeStats};
 use pll::SyncPll;
 use stats::LoopStats;

@@ -2,7 +2,8 @@
 
 use super::file::{ProgramOutcome, Verdict};
 use crate::analysis::detector::DetectorReport;
-use crate::master::{state_name, Sample};
+use crate::master::state_name;
+use crate::samples::Sample;
 use drive_protocol::Cia402State;
 use std::collections::HashMap;
 

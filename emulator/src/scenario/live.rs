@@ -13,45 +13,23 @@
 //! not used live.
 
 use super::expect::{check_all, ExpectResult, RunRecord};
-use super::runner::{detector_config, rule, sensor};
-use super::timeline::{Action, CanFault, Drivers, Observation, Timeline};
+use super::inject::{Injection, Injector};
+use super::runner::detector_config;
+use super::timeline::{Action, Drivers, Observation, Timeline};
 use super::units::ParamKey;
 use super::Scenario;
 use crate::analysis::detector::{analyze, AxisTrace, DetectorReport};
-use crate::bus::fault::{FaultyBus, RuleId};
+use crate::bus::fault::FaultyBus;
 use crate::bus::CanBus;
-use crate::master::Sample;
+use crate::drive::axis_drive::AxisDrive;
 use crate::presets::{AxisConfig, AxisKind};
-use crate::runtime::axis_drive::AxisDrive;
 use crate::runtime::trace::node_sample;
 use crate::runtime::Runtime;
+use crate::samples::Sample;
 use crossbeam::queue::ArrayQueue;
-use drive_protocol::{AxisParam, Cia402State, Drive, NodeEvent};
+use drive_protocol::{Cia402State, Drive, NodeEvent};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
-
-/// One change the scenario thread asks the loop to make. `Copy`: queued without allocation.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Injection {
-    Param {
-        param: AxisParam,
-        value_si: f64,
-    },
-    Sensor {
-        kind: super::file::SensorKind,
-        counts: i64,
-    },
-    Can {
-        fault: CanFault,
-        until_us: Option<u64>,
-    },
-    CanRestore,
-    /// The injections of event `event` (index in the timeline) are in: the loop answers with
-    /// the simulated time it applied them, so the reported event time is the bus's.
-    Mark {
-        event: u16,
-    },
-}
 
 /// The queues between the loop and the scenario thread, sized once.
 pub struct LiveLink {
@@ -87,18 +65,17 @@ impl Default for LiveLink {
     }
 }
 
-/// The loop thread's half: owns the CAN rules in force; drains axis 0's node events.
+/// The loop thread's half: applies queued injections (owning the CAN rules in force, at most
+/// 16) and drains axis 0's node events.
 pub struct LoopInjector {
-    master_id: u8,
-    rules: heapless::Vec<(RuleId, Option<u64>), 16>,
+    injector: Injector<16>,
 }
 
 impl LoopInjector {
     /// `master_id`: the node ID whose heartbeat a heartbeat-loss fault drops.
     pub fn new(master_id: u8) -> Self {
         Self {
-            master_id,
-            rules: heapless::Vec::new(),
+            injector: Injector::new(master_id),
         }
     }
 
@@ -111,38 +88,14 @@ impl LoopInjector {
         let now = rt.sim_time_us;
         link.now_us.store(now, Ordering::Relaxed);
         while let Some(inj) = link.injections.pop() {
-            let drive = &mut rt.axes[0].drive;
-            match inj {
-                // An out-of-range value is refused by the drive and changes nothing; the
-                // scenario file's own validation keeps values in range.
-                Injection::Param { param, value_si } => {
-                    let _ = drive.set_param(param, value_si);
-                }
-                Injection::Sensor { kind, counts } => sensor(drive, kind, counts),
-                Injection::Can { fault, until_us } => {
-                    let id = rt.bus.add_rule(rule(fault, self.master_id));
-                    if self.rules.push((id, until_us)).is_err() {
-                        rt.bus.remove_rule(id);
-                    }
-                }
-                Injection::CanRestore => {
-                    rt.bus.clear_rules();
-                    self.rules.clear();
-                }
-                Injection::Mark { event } => {
-                    let _ = link.applied.push((event, now));
-                }
+            if let Injection::Mark { event } = inj {
+                let _ = link.applied.push((event, now));
             }
+            // An out-of-range value is refused by the drive and changes nothing; the scenario
+            // file's own validation keeps values in range.
+            let _ = self.injector.apply(inj, &mut rt.axes[0].drive, &mut rt.bus);
         }
-        let mut k = 0;
-        while k < self.rules.len() {
-            if self.rules[k].1.is_some_and(|end| now >= end) {
-                rt.bus.remove_rule(self.rules[k].0);
-                self.rules.swap_remove(k);
-            } else {
-                k += 1;
-            }
-        }
+        self.injector.expire(now, &mut rt.bus);
         let node = &mut rt.axes[0].node;
         let sample = node_sample(node, now);
         if link.samples.push(sample).is_err() {
@@ -349,10 +302,6 @@ pub fn run_timeline(
                 Action::Set { key, value } => {
                     drivers.stop(key);
                     set_current(&mut current, key, value);
-                    inject(Injection::Param {
-                        param: key.param,
-                        value_si: value * key.scale,
-                    });
                 }
                 Action::Ramp { key, .. } | Action::Profile { key, .. } => {
                     let from = current
@@ -361,12 +310,10 @@ pub fn run_timeline(
                         .map_or(0.0, |(_, v)| *v);
                     drivers.start(&ev.action, now, from);
                 }
-                Action::Sensor { kind, counts } => inject(Injection::Sensor { kind, counts }),
-                Action::Can { fault, over_us } => inject(Injection::Can {
-                    fault,
-                    until_us: over_us.map(|o| now + o),
-                }),
-                Action::CanRestore => inject(Injection::CanRestore),
+                Action::Sensor { .. } | Action::Can { .. } | Action::CanRestore => {}
+            }
+            if let Some(inj) = Injection::of_action(&ev.action, now) {
+                inject(inj);
             }
             inject(Injection::Mark { event: i as u16 });
         }

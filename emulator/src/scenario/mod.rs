@@ -9,6 +9,7 @@
 
 pub mod expect;
 pub mod file;
+pub mod inject;
 pub mod live;
 pub mod runner;
 pub mod timeline;

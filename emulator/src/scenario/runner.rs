@@ -1,5 +1,5 @@
 //! Offline scenario execution: the reference master and the simulated drive on an in-process
-//! bus in lock-step with a virtual clock (the loop of `runtime::offline::OfflineRun`, with the
+//! bus in lock-step with a virtual clock (the loop of `session::OfflineRun`, with the
 //! drive's endpoint wrapped in a [`FaultyBus`] for CAN faults), the timeline applied every
 //! tick, the detector run on the master's sample log, expectations checked, report written.
 //!
@@ -13,17 +13,19 @@
 //! scenarios that need those set `fast_forward_idle = false`.
 
 use super::expect::{check_all, ExpectResult, RunRecord};
-use super::file::SensorKind;
-use super::timeline::{Action, CanFault, Drivers, Observation, Timeline};
+use super::inject::{Injection, Injector};
+use super::timeline::{Action, Drivers, Observation, Timeline};
+use super::units::ParamKey;
 use super::{Scenario, ScenarioError};
 use crate::analysis::detector::{analyze, AxisTrace, DetectorConfig, DetectorReport};
-use crate::bus::fault::{FaultRule, FaultStats, FaultyBus, RuleId};
-use crate::bus::inproc::{InProcBus, InProcEndpoint};
-use crate::bus::CanBus;
-use crate::master::{Master, Sample};
+use crate::bus::fault::{FaultStats, FaultyBus};
+use crate::bus::inproc::InProcEndpoint;
+use crate::drive::axis_drive::AxisDrive;
+use crate::master::Master;
 use crate::presets::{AxisConfig, AxisKind};
-use crate::runtime::axis_drive::{AxisDrive, Encoder};
-use crate::runtime::{AxisSlot, Runtime};
+use crate::runtime::AxisSlot;
+use crate::samples::Sample;
+use crate::session::OfflineRun;
 use drive_protocol::Cia402State;
 use drive_protocol::{Drive, Node};
 use std::io::IsTerminal;
@@ -165,40 +167,6 @@ fn param_error_text(e: drive_protocol::ParamError, scale: f64) -> String {
     }
 }
 
-/// Apply an encoder fault event to a drive.
-pub(crate) fn sensor(drive: &mut AxisDrive, kind: SensorKind, counts: i64) {
-    match kind {
-        SensorKind::MotorEncoderLoss => drive.set_signal_lost(Encoder::Motor, true),
-        SensorKind::DirectEncoderLoss => drive.set_signal_lost(Encoder::Direct, true),
-        SensorKind::MotorEncoderGlitch => drive.inject_glitch(Encoder::Motor, counts),
-        SensorKind::DirectEncoderGlitch => drive.inject_glitch(Encoder::Direct, counts),
-        SensorKind::Restore => {
-            drive.set_signal_lost(Encoder::Motor, false);
-            drive.set_signal_lost(Encoder::Direct, false);
-        }
-    }
-}
-
-/// The bus rule that injects a CAN fault.
-pub(crate) fn rule(fault: CanFault, master_id: u8) -> FaultRule {
-    match fault {
-        CanFault::Drop { share, cob_id } => {
-            let r = FaultRule::drop_share(share);
-            cob_id.map_or(r, |c| r.only(c))
-        }
-        CanFault::Delay {
-            share,
-            ticks,
-            cob_id,
-        } => {
-            let r = FaultRule::delay_share(share, ticks);
-            cob_id.map_or(r, |c| r.only(c))
-        }
-        CanFault::SyncLoss => FaultRule::sync_loss(),
-        CanFault::HeartbeatLoss => FaultRule::heartbeat_loss(master_id),
-    }
-}
-
 /// The detector settings of a scenario for one machine.
 pub(crate) fn detector_config(s: &Scenario, cfg: &AxisConfig) -> DetectorConfig {
     let d = &s.detector;
@@ -221,74 +189,107 @@ pub(crate) fn detector_config(s: &Scenario, cfg: &AxisConfig) -> DetectorConfig 
     dc
 }
 
-/// Run one preset of a scenario.
-pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::Result<PresetRun> {
-    let wall = Instant::now();
-    let rotary = cfg.kind == AxisKind::Rotary;
-    let mcfg = s.run.master.clone();
-    let tick = s.run.tick_us;
-    let drive = AxisDrive::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", cfg.name))?;
-    let node = Node::new(mcfg.node_id, drive.info()).map_err(|e| anyhow::anyhow!("node: {e}"))?;
-    let mut eps = InProcBus::endpoints(2, 4096);
-    let mut master_ep: InProcEndpoint = eps.pop().expect("two endpoints");
-    let bus = FaultyBus::new(eps.pop().expect("two endpoints"), s.run.seed);
-    let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], tick);
-    rt.boot();
-    let (steps, skip) = s.master_program(opts.idle_dwell_s);
-    let mut master = Master::new(mcfg.clone(), steps);
-    let mut timeline = Timeline::new(s.events.clone());
-    let mut drivers = Drivers::default();
-    let mut values = Vec::new();
-    let mut can_rules: Vec<(RuleId, Option<u64>)> = Vec::new();
-    let mut offset_us = 0u64;
-    // (physical us, offset us) from which an offset applies: maps sample times.
-    let mut breaks: Vec<(u64, u64)> = vec![(0, 0)];
-    let mut last_step = usize::MAX;
-    let mut seen_emcy = 0usize;
-    let mut emcys: Vec<(u64, u16)> = Vec::new();
-    let mut fired: Vec<(u64, String)> = Vec::new();
-    let mut new_codes: Vec<u16> = Vec::new();
-    let ramp_key = s.events.iter().find_map(|e| match &e.action {
-        Action::Ramp { key, .. } => Some(*key),
-        _ => None,
-    });
-    let mut ramp_series = Vec::new();
-    let limit_scenario_us = s.run.duration_us;
-    let physical_limit_us = s.program_duration_us().min(24 * 3600 * 1_000_000) + 120_000_000;
-    check_size(s, opts)?;
-    let progress = opts.progress && std::io::stderr().is_terminal();
-    let total_us = limit_scenario_us
-        .unwrap_or_else(|| s.program_duration_us())
-        .max(1);
-    let mut last_draw = Instant::now();
-    let mut finished_at: Option<u64> = None;
-    let mut ticks = 0u64;
-    loop {
-        let phys = rt.sim_time_us;
-        // Fast-forward: entering an idle dwell adds the rest of the idle to scenario time.
-        let cur = master.current_step();
-        if cur != last_step {
-            if !master.finished() && cur < skip.len() && skip[cur] > 0 {
-                offset_us += skip[cur];
-                breaks.push((phys, offset_us));
-            }
-            last_step = cur;
+/// CAN fault rules an offline run keeps in force at once (the live loop keeps 16).
+const OFFLINE_MAX_CAN_RULES: usize = 64;
+
+/// The drive-side bus of an offline scenario run: the in-process endpoint behind a fault
+/// injector.
+type ScenarioBus = FaultyBus<InProcEndpoint>;
+
+/// Scenario time over physical time: an idle step entered adds the rest of its duration to the
+/// offset at once (see the module doc).
+struct FastForward {
+    skip_us: Vec<u64>,
+    offset_us: u64,
+    /// (physical us, offset us) from which an offset applies: maps sample times.
+    breaks: Vec<(u64, u64)>,
+    last_step: usize,
+}
+
+impl FastForward {
+    fn new(skip_us: Vec<u64>) -> Self {
+        Self {
+            skip_us,
+            offset_us: 0,
+            breaks: vec![(0, 0)],
+            last_step: usize::MAX,
         }
-        let now = phys + offset_us;
-        // Timeline.
-        let state = Cia402State::from_statusword(master.latest().statusword);
-        let obs = Observation {
-            state,
-            new_emcy: &new_codes,
-        };
-        let due: Vec<_> = timeline.due(now, &obs).cloned().collect();
+    }
+
+    /// Before a tick at physical time `phys_us`: entering an idle dwell adds the rest of the
+    /// idle to scenario time.
+    fn on_step(&mut self, master: &Master, phys_us: u64) {
+        let cur = master.current_step();
+        if cur != self.last_step {
+            if !master.finished() && cur < self.skip_us.len() && self.skip_us[cur] > 0 {
+                self.offset_us += self.skip_us[cur];
+                self.breaks.push((phys_us, self.offset_us));
+            }
+            self.last_step = cur;
+        }
+    }
+
+    /// The master's samples with their times moved from physical to scenario time.
+    fn to_scenario_time(&self, physical: &[Sample]) -> Vec<Sample> {
+        let mut samples = physical.to_vec();
+        let mut b = 0;
+        for smp in &mut samples {
+            let t_us = (smp.t_s * 1e6).round() as u64;
+            while b + 1 < self.breaks.len() && self.breaks[b + 1].0 <= t_us {
+                b += 1;
+            }
+            smp.t_s = (t_us + self.breaks[b].1) as f64 * 1e-6;
+        }
+        samples
+    }
+}
+
+/// The timeline side of an offline run: events, their drivers (ramps, profiles), the CAN rules
+/// in force, and what fired.
+struct TimelineState {
+    timeline: Timeline,
+    drivers: Drivers,
+    values: Vec<(&'static ParamKey, f64)>,
+    injector: Injector<OFFLINE_MAX_CAN_RULES>,
+    fired: Vec<(u64, String)>,
+    /// The parameter the first ramp drives, and its value over scenario time.
+    ramp_key: Option<&'static ParamKey>,
+    ramp_series: Vec<(f64, f64)>,
+}
+
+impl TimelineState {
+    fn new(s: &Scenario) -> Self {
+        Self {
+            timeline: Timeline::new(s.events.clone()),
+            drivers: Drivers::default(),
+            values: Vec::new(),
+            injector: Injector::new(s.run.master.master_id),
+            fired: Vec::new(),
+            ramp_key: s.events.iter().find_map(|e| match &e.action {
+                Action::Ramp { key, .. } => Some(*key),
+                _ => None,
+            }),
+            ramp_series: Vec::new(),
+        }
+    }
+
+    /// Fire the events due at scenario time `now` (the drive's state and the EMCYs new since
+    /// the last tick decide the triggered ones), then end the CAN rules whose time is over.
+    fn fire_due(
+        &mut self,
+        now: u64,
+        obs: &Observation,
+        drive: &mut AxisDrive,
+        bus: &mut ScenarioBus,
+    ) -> anyhow::Result<()> {
+        let due: Vec<_> = self.timeline.due(now, obs).cloned().collect();
         for ev in due {
-            fired.push((now, ev.describe()));
-            let drive = &mut rt.axes[0].drive;
+            self.fired.push((now, ev.describe()));
             match &ev.action {
                 Action::Set { key, value } => {
-                    drivers.stop(key);
-                    drive.set_param(key.param, value * key.scale).map_err(|e| {
+                    self.drivers.stop(key);
+                    let inj = Injection::of_action(&ev.action, now).expect("a set injects");
+                    self.injector.apply(inj, drive, bus).map_err(|e| {
                         anyhow::anyhow!(
                             "line {}: {} = {value}: {}",
                             ev.line,
@@ -306,62 +307,160 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
                             param_error_text(e, key.scale)
                         )
                     })? / key.scale;
-                    drivers.start(&ev.action, now, cur);
+                    self.drivers.start(&ev.action, now, cur);
                 }
-                Action::Sensor { kind, counts } => sensor(drive, *kind, *counts),
-                Action::Can { fault, over_us } => {
-                    let id = rt.bus.add_rule(rule(*fault, mcfg.master_id));
-                    can_rules.push((id, over_us.map(|o| now + o)));
-                }
-                Action::CanRestore => {
-                    rt.bus.clear_rules();
-                    can_rules.clear();
+                Action::Sensor { .. } | Action::Can { .. } | Action::CanRestore => {
+                    let inj = Injection::of_action(&ev.action, now).expect("injects");
+                    // Only a `Param` injection can be refused.
+                    let _ = self.injector.apply(inj, drive, bus);
                 }
             }
         }
-        can_rules.retain(|(id, end)| {
-            if end.is_some_and(|e| now >= e) {
-                rt.bus.remove_rule(*id);
-                false
-            } else {
-                true
-            }
-        });
-        if !drivers.is_empty()
-            && (drivers.has_profile() || ticks.is_multiple_of(opts.ramp_every_ticks.max(1)))
+        self.injector.expire(now, bus);
+        Ok(())
+    }
+
+    /// Apply the ramps and profiles running at `now` (profiles every tick, ramps every
+    /// `ramp_every_ticks`), sampling the first ramp's value every 100 ticks.
+    fn drive_params(
+        &mut self,
+        now: u64,
+        ticks: u64,
+        ramp_every_ticks: u64,
+        drive: &mut AxisDrive,
+        bus: &mut ScenarioBus,
+    ) -> anyhow::Result<()> {
+        if self.drivers.is_empty()
+            || !(self.drivers.has_profile() || ticks.is_multiple_of(ramp_every_ticks.max(1)))
         {
-            drivers.values(now, &mut values);
-            for (key, v) in &values {
-                rt.axes[0]
-                    .drive
-                    .set_param(key.param, v * key.scale)
-                    .map_err(|e| {
-                        anyhow::anyhow!("{} = {v}: {}", key.key, param_error_text(e, key.scale))
-                    })?;
-                if Some(*key) == ramp_key && ticks.is_multiple_of(100) {
-                    ramp_series.push((now as f64 * 1e-6, *v));
-                }
+            return Ok(());
+        }
+        self.drivers.values(now, &mut self.values);
+        for &(key, v) in &self.values {
+            let inj = Injection::Param {
+                param: key.param,
+                value_si: v * key.scale,
+            };
+            self.injector.apply(inj, drive, bus).map_err(|e| {
+                anyhow::anyhow!("{} = {v}: {}", key.key, param_error_text(e, key.scale))
+            })?;
+            if Some(key) == self.ramp_key && ticks.is_multiple_of(100) {
+                self.ramp_series.push((now as f64 * 1e-6, v));
             }
         }
-        // One lock-step tick (as OfflineRun::step); the runtime advances the fault injector's clock.
-        master.poll(phys);
-        while let Some(f) = master.pop_tx() {
-            let _ = master_ep.send(&f);
+        Ok(())
+    }
+
+    /// (event id, scenario time us it fired) of every event with an id that fired.
+    fn fired_ids(&self) -> std::collections::HashMap<String, u64> {
+        let mut events = std::collections::HashMap::new();
+        for (i, e) in self.timeline.events().iter().enumerate() {
+            if let (Some(id), Some(t)) = (&e.id, self.timeline.fired_at(i)) {
+                events.insert(id.clone(), t);
+            }
         }
-        rt.tick();
-        while let Ok(Some(f)) = master_ep.recv() {
-            master.handle(&f, rt.sim_time_us);
+        events
+    }
+}
+
+/// The progress line on stderr, at most every 200 ms of wall time.
+struct Progress {
+    on: bool,
+    last_draw: Instant,
+    total_us: u64,
+}
+
+impl Progress {
+    fn draw(&mut self, s: &Scenario, cfg: &AxisConfig, now: u64, physical_us: u64) {
+        if !self.on || self.last_draw.elapsed().as_millis() < 200 {
+            return;
         }
+        self.last_draw = Instant::now();
+        eprint!(
+            "\r{} [{}] scenario {:>8.1} s / {:.1} s ({:>3.0} %), physical {:.1} s   ",
+            s.name,
+            cfg.name,
+            now as f64 * 1e-6,
+            self.total_us as f64 * 1e-6,
+            100.0 * (now as f64 / self.total_us as f64).min(1.0),
+            physical_us as f64 * 1e-6
+        );
+    }
+}
+
+/// The reference master and the preset's drive on a fault-injecting in-process bus, booted;
+/// and the idle time each program step fast-forwards.
+fn start_run(
+    s: &Scenario,
+    cfg: &AxisConfig,
+    opts: &RunOptions,
+) -> anyhow::Result<(OfflineRun<AxisDrive, ScenarioBus>, Vec<u64>)> {
+    let mcfg = s.run.master.clone();
+    let drive = AxisDrive::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", cfg.name))?;
+    let node = Node::new(mcfg.node_id, drive.info()).map_err(|e| anyhow::anyhow!("node: {e}"))?;
+    let (steps, skip) = s.master_program(opts.idle_dwell_s);
+    let master = Master::new(mcfg, steps);
+    let seed = s.run.seed;
+    let run = OfflineRun::with_drive_bus(
+        vec![AxisSlot { node, drive }],
+        s.run.tick_us,
+        master,
+        |ep| FaultyBus::new(ep, seed),
+    );
+    Ok((run, skip))
+}
+
+/// Run one preset of a scenario: lock-step ticks with the timeline applied before each, until
+/// the scenario's duration (or the program's end and a short tail) or the physical limit.
+pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::Result<PresetRun> {
+    let wall = Instant::now();
+    let (mut run, skip) = start_run(s, cfg, opts)?;
+    let mut ff = FastForward::new(skip);
+    let mut tl = TimelineState::new(s);
+    let mut seen_emcy = 0usize;
+    let mut emcys: Vec<(u64, u16)> = Vec::new();
+    let mut new_codes: Vec<u16> = Vec::new();
+    let limit_scenario_us = s.run.duration_us;
+    let physical_limit_us = s.program_duration_us().min(24 * 3600 * 1_000_000) + 120_000_000;
+    check_size(s, opts)?;
+    let mut progress = Progress {
+        on: opts.progress && std::io::stderr().is_terminal(),
+        last_draw: Instant::now(),
+        total_us: limit_scenario_us
+            .unwrap_or_else(|| s.program_duration_us())
+            .max(1),
+    };
+    let mut finished_at: Option<u64> = None;
+    let mut ticks = 0u64;
+    loop {
+        let phys = run.now_us();
+        ff.on_step(&run.master, phys);
+        let now = phys + ff.offset_us;
+        let obs = Observation {
+            state: Cia402State::from_statusword(run.master.latest().statusword),
+            new_emcy: &new_codes,
+        };
+        let rt = &mut run.runtime;
+        tl.fire_due(now, &obs, &mut rt.axes[0].drive, &mut rt.bus)?;
+        tl.drive_params(
+            now,
+            ticks,
+            opts.ramp_every_ticks,
+            &mut rt.axes[0].drive,
+            &mut rt.bus,
+        )?;
+        // One lock-step tick; the runtime advances the fault injector's clock.
+        run.step();
         ticks += 1;
         new_codes.clear();
-        for e in &master.emcys()[seen_emcy..] {
-            emcys.push((e.t_us + offset_us, e.code));
+        for e in &run.master.emcys()[seen_emcy..] {
+            emcys.push((e.t_us + ff.offset_us, e.code));
             new_codes.push(e.code);
         }
-        seen_emcy = master.emcys().len();
+        seen_emcy = run.master.emcys().len();
         // Stop?
-        let now = rt.sim_time_us + offset_us;
-        if master.finished() && finished_at.is_none() {
+        let now = run.now_us() + ff.offset_us;
+        if run.master.finished() && finished_at.is_none() {
             finished_at = Some(now);
         }
         let done = match limit_scenario_us {
@@ -369,73 +468,62 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
             // A short tail after the program for late EMCYs and state changes.
             None => finished_at.is_some_and(|f| now >= f + 200_000),
         };
-        if done || rt.sim_time_us >= physical_limit_us {
+        if done || run.now_us() >= physical_limit_us {
             break;
         }
-        if progress && last_draw.elapsed().as_millis() >= 200 {
-            last_draw = Instant::now();
-            eprint!(
-                "\r{} [{}] scenario {:>8.1} s / {:.1} s ({:>3.0} %), physical {:.1} s   ",
-                s.name,
-                cfg.name,
-                now as f64 * 1e-6,
-                total_us as f64 * 1e-6,
-                100.0 * (now as f64 / total_us as f64).min(1.0),
-                rt.sim_time_us as f64 * 1e-6
-            );
-        }
+        progress.draw(s, cfg, now, run.now_us());
     }
-    if progress {
+    if progress.on {
         eprintln!();
     }
-    // Samples in scenario time.
-    let mut samples: Vec<Sample> = master.samples().to_vec();
-    let mut b = 0;
-    for smp in &mut samples {
-        let t_us = (smp.t_s * 1e6).round() as u64;
-        while b + 1 < breaks.len() && breaks[b + 1].0 <= t_us {
-            b += 1;
-        }
-        smp.t_s = (t_us + breaks[b].1) as f64 * 1e-6;
-    }
-    let end_us = rt.sim_time_us + offset_us;
+    Ok(conclude(s, cfg, &run, &ff, tl, emcys, wall))
+}
+
+/// After the run: the samples in scenario time, the detector, the expectations, the record.
+fn conclude(
+    s: &Scenario,
+    cfg: &AxisConfig,
+    run: &OfflineRun<AxisDrive, ScenarioBus>,
+    ff: &FastForward,
+    tl: TimelineState,
+    emcys: Vec<(u64, u16)>,
+    wall: Instant,
+) -> PresetRun {
+    let rotary = cfg.kind == AxisKind::Rotary;
+    let master = &run.master;
+    let samples = ff.to_scenario_time(master.samples());
+    let end_us = run.now_us() + ff.offset_us;
     let (detector, trace) = if s.detector.enabled {
         let tr = AxisTrace::from_samples(&samples, rotary);
         (Some(analyze(&tr, &detector_config(s, cfg))), Some(tr))
     } else {
         (None, None)
     };
-    let mut events = std::collections::HashMap::new();
-    for (i, e) in timeline.events().iter().enumerate() {
-        if let (Some(id), Some(t)) = (&e.id, timeline.fired_at(i)) {
-            events.insert(id.clone(), t);
-        }
-    }
     let rec = RunRecord {
         samples: samples.clone(),
         emcys: emcys.clone(),
-        events,
+        events: tl.fired_ids(),
         detector: detector.clone(),
         program_finished: master.finished(),
         program_error: master.error().map(str::to_string),
         end_us,
     };
     let expectations = check_all(&s.expectations, &rec);
-    let physical_s = rt.sim_time_us as f64 * 1e-6;
+    let physical_s = run.now_us() as f64 * 1e-6;
     let program_failure = program_failure(
         rec.program_error.as_deref(),
         rec.program_finished,
-        limit_scenario_us.is_some(),
+        s.run.duration_us.is_some(),
         physical_s,
     );
-    Ok(PresetRun {
+    PresetRun {
         program_failure,
         preset: cfg.name.clone(),
         rotary,
         kv_per_s: cfg.kv_per_s,
-        physical_s: rt.sim_time_us as f64 * 1e-6,
+        physical_s,
         scenario_s: end_us as f64 * 1e-6,
-        fast_forwarded_s: offset_us as f64 * 1e-6,
+        fast_forwarded_s: ff.offset_us as f64 * 1e-6,
         wall_s: wall.elapsed().as_secs_f64(),
         program_finished: rec.program_finished,
         program_error: rec.program_error,
@@ -443,18 +531,19 @@ pub fn run_preset(s: &Scenario, cfg: &AxisConfig, opts: &RunOptions) -> anyhow::
             .iter()
             .map(|(t, c)| (*t as f64 * 1e-6, format!("{c:#06X}")))
             .collect(),
-        events: fired
+        events: tl
+            .fired
             .into_iter()
             .map(|(t, d)| (t as f64 * 1e-6, d))
             .collect(),
-        fault_stats: rt.bus.stats(),
+        fault_stats: run.runtime.bus.stats(),
         detector,
         expectations,
-        ramp_param: ramp_key.map(|k| k.key.to_string()),
-        ramp_series,
+        ramp_param: tl.ramp_key.map(|k| k.key.to_string()),
+        ramp_series: tl.ramp_series,
         samples,
         trace,
-    })
+    }
 }
 
 /// Run every preset of a scenario.

@@ -111,11 +111,6 @@ impl Emcy {
         self.active.iter().any(|a| a.code == code)
     }
 
-    /// Number of active errors.
-    pub fn active_count(&self) -> usize {
-        self.active.len()
-    }
-
     /// Raise an error held by `cause`: update 0x1001 and 0x1003, queue the EMCY frame.
     /// Returns false when the error was already active (only the cause is added).
     pub fn raise(&mut self, store: &mut Store, code: u16, info: [u8; 5], cause: Cause) -> bool {
@@ -233,10 +228,5 @@ impl Emcy {
         }
         self.last_tx_us = Some(now_us);
         self.queue.pop_front()
-    }
-
-    /// Drop queued frames (EMCY not allowed in this NMT state).
-    pub fn discard_queue(&mut self) {
-        self.queue.clear();
     }
 }

@@ -8,9 +8,13 @@ use crate::wire::nmt::NmtFrame;
 /// NMT state; the discriminant is the heartbeat state byte.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NmtState {
+    /// Initialising: after power-on or reset, until the boot-up message (heartbeat state 0x00).
     Initialising = 0x00,
+    /// Stopped: only NMT and heartbeat are served (heartbeat state 0x04).
     Stopped = 0x04,
+    /// Operational: SDO, PDO, SYNC and EMCY all active (heartbeat state 0x05).
     Operational = 0x05,
+    /// Pre-operational: SDO, SYNC and EMCY, no PDOs (heartbeat state 0x7F).
     PreOperational = 0x7F,
 }
 

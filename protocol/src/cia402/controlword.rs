@@ -19,11 +19,17 @@ pub enum Command {
     None,
 }
 
+/// Bit 4 in profile position mode: new set-point (rising edge takes 0x607A).
 pub const BIT_NEW_SETPOINT: u16 = 1 << 4;
+/// Bit 4 in homing mode: homing operation start (rising edge).
 pub const BIT_HOMING_START: u16 = 1 << 4;
+/// Bit 5 in profile position mode: change set immediately (else queue behind the running one).
 pub const BIT_CHANGE_IMMEDIATELY: u16 = 1 << 5;
+/// Bit 6 in profile position mode: the target is relative (else absolute).
 pub const BIT_RELATIVE: u16 = 1 << 6;
+/// Bit 7: fault reset (rising edge, transition 15).
 pub const BIT_FAULT_RESET: u16 = 1 << 7;
+/// Bit 8: halt (PP, PV, HM decelerate and hold; 0x605D says how).
 pub const BIT_HALT: u16 = 1 << 8;
 
 /// Decode `cw`; `prev` is the previous controlword (for the fault-reset edge).

@@ -56,13 +56,13 @@ impl Factor {
 
     /// User units (position, velocity or acceleration) to increments.
     #[inline]
-    pub fn to_inc(&self, uu: f64) -> f64 {
+    pub fn to_inc(self, uu: f64) -> f64 {
         uu * self.inc_per_uu
     }
 
     /// Increments to user units.
     #[inline]
-    pub fn to_uu(&self, inc: f64) -> f64 {
+    pub fn to_uu(self, inc: f64) -> f64 {
         inc / self.inc_per_uu
     }
 }

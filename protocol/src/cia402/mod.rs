@@ -1,18 +1,21 @@
 //! CiA 402 drive profile: device control (state machine, controlword, statusword), the modes
 //! of operation (one file each), the factor group and the motion generators, and following
-//! error monitoring. Everything runs once per tick in [`Cia402::step`] on the object store.
+//! error monitoring. Everything runs once per tick in `Cia402::step` on the object store.
+//!
+//! Public: [`mode`] (0x6060 values), [`State`] (also `drive_protocol::Cia402State`),
+//! [`controlword`] and [`statusword`] bits; the rest is the node's inside.
 
 pub mod controlword;
-pub mod csp;
-pub mod cst;
-pub mod csv;
-pub mod factor;
-pub mod hm;
-pub mod objects;
-pub mod pp;
-pub mod profile;
-pub mod pv;
-pub mod state_machine;
+mod csp;
+mod cst;
+mod csv;
+pub(crate) mod factor;
+mod hm;
+pub(crate) mod objects;
+mod pp;
+pub(crate) mod profile;
+mod pv;
+pub(crate) mod state_machine;
 pub mod statusword;
 
 use crate::drive::{Drive, DriveCommand, Feedback, Setpoint};
@@ -26,12 +29,19 @@ use statusword as sw;
 
 /// Modes of operation (0x6060 values).
 pub mod mode {
+    /// No mode selected.
     pub const NONE: i8 = 0;
+    /// Profile position mode.
     pub const PP: i8 = 1;
+    /// Profile velocity mode.
     pub const PV: i8 = 3;
+    /// Homing mode.
     pub const HM: i8 = 6;
+    /// Cyclic synchronous position mode.
     pub const CSP: i8 = 8;
+    /// Cyclic synchronous velocity mode.
     pub const CSV: i8 = 9;
+    /// Cyclic synchronous torque mode.
     pub const CST: i8 = 10;
     /// Whether the drive supports `m`.
     pub fn supported(m: i8) -> bool {
@@ -40,14 +50,14 @@ pub mod mode {
 }
 
 /// EMCY / 0x603F code for a following error.
-pub const EMCY_FOLLOWING_ERROR: u16 = 0x8611;
+pub(crate) const EMCY_FOLLOWING_ERROR: u16 = 0x8611;
 
 /// Large finite acceleration used for "0 = no limit".
 const NO_LIMIT_ACC: f64 = 1e15;
 
 /// A condition that must hold for a time before it counts (window times).
 #[derive(Clone, Copy, Debug, Default)]
-pub struct TimedWindow {
+pub(crate) struct TimedWindow {
     since: Option<u64>,
 }
 
@@ -64,7 +74,7 @@ impl TimedWindow {
 
 /// What a mode produced this tick.
 #[derive(Clone, Copy, Debug)]
-pub struct ModeOut {
+pub(crate) struct ModeOut {
     pub setpoint: Setpoint,
     pub target_reached: bool,
     pub oms12: bool,
@@ -88,7 +98,7 @@ impl Default for ModeOut {
 }
 
 /// Everything a mode needs for one tick.
-pub struct Ctx<'a> {
+pub(crate) struct Ctx<'a> {
     pub store: &'a mut Store,
     pub fb: &'a Feedback,
     pub f: Factor,
@@ -156,7 +166,7 @@ fn max_motor_inc_per_s(store: &Store) -> f64 {
 
 /// Results of one tick the node reacts to.
 #[derive(Clone, Copy, Debug)]
-pub struct StepOut {
+pub(crate) struct StepOut {
     pub command: DriveCommand,
     /// A fault was entered this tick with this code (send EMCY).
     pub new_fault: Option<u16>,
@@ -166,7 +176,7 @@ pub struct StepOut {
 
 /// The CiA 402 layer of one node.
 #[derive(Clone, Debug)]
-pub struct Cia402 {
+pub(crate) struct Cia402 {
     pub state: State,
     prev_cw: u16,
     pub mode_display: i8,

@@ -2,13 +2,21 @@
 
 use super::state_machine::State;
 
+/// Bit 4: voltage enabled (high voltage applied to the drive).
 pub const BIT_VOLTAGE_ENABLED: u16 = 1 << 4;
+/// Bit 5: quick stop (active low: 0 while QUICK STOP ACTIVE).
 pub const BIT_QUICK_STOP: u16 = 1 << 5;
+/// Bit 7: warning.
 pub const BIT_WARNING: u16 = 1 << 7;
+/// Bit 9: remote (the controlword is processed).
 pub const BIT_REMOTE: u16 = 1 << 9;
+/// Bit 10: target reached (mode-specific; also set when a quick stop or halt has stopped the axis).
 pub const BIT_TARGET_REACHED: u16 = 1 << 10;
+/// Bit 11: internal limit active (software position limit 0x607D, velocity or torque clamp).
 pub const BIT_INTERNAL_LIMIT: u16 = 1 << 11;
+/// Bit 12: operation-mode specific (PP set-point acknowledge, PV speed zero, HM homing attained, CSx target value ignored = 0).
 pub const BIT_OMS12: u16 = 1 << 12;
+/// Bit 13: operation-mode specific (PP/CSP following error, HM homing error).
 pub const BIT_OMS13: u16 = 1 << 13;
 
 /// Bits 0-6 of the statusword for a state (mask 0x6F / 0x4F values of CiA 402).

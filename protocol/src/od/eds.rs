@@ -47,12 +47,17 @@ pub enum Real32Notation {
 /// `MM-DD-YYYY`).
 #[derive(Clone, Debug)]
 pub struct EdsMeta<'a> {
+    /// `[FileInfo]` FileName.
     pub file_name: &'a str,
+    /// `[FileInfo]` Description.
     pub description: &'a str,
+    /// `[FileInfo]` CreatedBy.
     pub created_by: &'a str,
+    /// `[FileInfo]` CreationTime, `hh:mmAM`.
     pub time: &'a str,
+    /// `[FileInfo]` CreationDate, `MM-DD-YYYY`.
     pub date: &'a str,
-    /// Node ID written to [DeviceComissioning] (`None`: a generic EDS, no such section);
+    /// Node ID written to `[DeviceComissioning]` (`None`: a generic EDS, no such section);
     /// LSS_SerialNumber there is the identity's serial number (0x1018:4 = $NODEID).
     pub node_id: Option<u8>,
     /// Manufacturer parameters (0x2000..): the value the drive has, engineering units, as an
@@ -120,12 +125,12 @@ fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo, meta: &Ed
     s.push('\n');
 }
 
-/// The EDS text for a node, with the table's defaults and a generic [FileInfo].
+/// The EDS text for a node, with the table's defaults and a generic `[FileInfo]`.
 pub fn export(node_id: u8, info: &DriveInfo) -> String {
     export_with(node_id, info, &EdsMeta::default())
 }
 
-/// The EDS text for a node: complete [FileInfo] from `meta`, [DeviceComissioning] when
+/// The EDS text for a node: complete `[FileInfo]` from `meta`, `[DeviceComissioning]` when
 /// `meta.node_id` is set, manufacturer parameter defaults from `meta.params`.
 pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
     let mut s = String::with_capacity(64 * 1024);

@@ -1,9 +1,9 @@
 //! The object dictionary: one static table of object definitions ([`OBJECTS`], in
-//! `table.rs`) and the per-node value store ([`Store`]). The SDO server, the PDOs, the CiA 402
+//! `table.rs`) and the per-node value store (`Store`, private to the crate). The SDO server, the PDOs, the CiA 402
 //! layer and the EDS export (`eds.rs`) all read the same table.
 
 pub mod eds;
-pub mod table;
+mod table;
 
 use crate::drive::DriveInfo;
 pub use table::OBJECTS;
@@ -11,13 +11,21 @@ pub use table::OBJECTS;
 /// CANopen basic data types used by this device (CiA 301 numbering).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DataType {
+    /// INTEGER8 (0x0002).
     I8 = 2,
+    /// INTEGER16 (0x0003).
     I16 = 3,
+    /// INTEGER32 (0x0004).
     I32 = 4,
+    /// UNSIGNED8 (0x0005).
     U8 = 5,
+    /// UNSIGNED16 (0x0006).
     U16 = 6,
+    /// UNSIGNED32 (0x0007).
     U32 = 7,
+    /// REAL32, IEEE 754 single (0x0008).
     Real32 = 8,
+    /// VISIBLE_STRING (0x0009).
     VisibleString = 9,
 }
 
@@ -31,6 +39,7 @@ impl DataType {
             DataType::VisibleString => 0,
         }
     }
+    /// A two's-complement integer type (stored sign-extended to 32 bits).
     pub const fn signed(self) -> bool {
         matches!(self, DataType::I8 | DataType::I16 | DataType::I32)
     }
@@ -39,23 +48,30 @@ impl DataType {
 /// Access type as written in the EDS.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Access {
+    /// Read only (`ro`).
     Ro,
+    /// Write only (`wo`).
     Wo,
+    /// Read/write (`rw`).
     Rw,
     /// Read/write, mappable into a TPDO.
     Rwr,
     /// Read/write, mappable into an RPDO.
     Rww,
+    /// Read only and never changes (`const`).
     Const,
 }
 
 impl Access {
+    /// An SDO upload may read it.
     pub const fn readable(self) -> bool {
         !matches!(self, Access::Wo)
     }
+    /// An SDO download may write it.
     pub const fn writable(self) -> bool {
         matches!(self, Access::Wo | Access::Rw | Access::Rwr | Access::Rww)
     }
+    /// The AccessType string of the EDS (CiA 306).
     pub const fn eds(self) -> &'static str {
         match self {
             Access::Ro => "ro",
@@ -71,8 +87,11 @@ impl Access {
 /// The kind of object a row belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ObjType {
+    /// VAR (object code 0x7): a single value at sub-index 0.
     Var,
+    /// ARRAY (object code 0x8): sub 0 holds the count, subs 1.. one data type.
     Array,
+    /// RECORD (object code 0x9): sub 0 holds the highest sub-index, subs of mixed types.
     Record,
 }
 
@@ -92,17 +111,27 @@ pub enum Def {
 /// One row of the object table: one (index, sub-index).
 #[derive(Clone, Copy, Debug)]
 pub struct Obj {
+    /// Object index (e.g. 0x6040).
     pub index: u16,
+    /// Sub-index.
     pub sub: u8,
+    /// Whether the object is a VAR, ARRAY or RECORD.
     pub otype: ObjType,
     /// Name of the whole array/record (same on every row of it); the VAR's name for a VAR.
     pub parent: &'static str,
+    /// Name of this row (the EDS ParameterName of the sub-index).
     pub name: &'static str,
+    /// Data type of the value.
     pub dtype: DataType,
+    /// SDO access.
     pub access: Access,
+    /// May be mapped into a PDO (EDS PDOMapping=1).
     pub pdo: bool,
+    /// Value after reset (0x1011 restore, NMT reset node / communication).
     pub default: Def,
+    /// Lowest value an SDO or RPDO write may set (EDS LowLimit).
     pub low: Option<i64>,
+    /// Highest value an SDO or RPDO write may set (EDS HighLimit).
     pub high: Option<i64>,
 }
 
@@ -142,10 +171,10 @@ impl Obj {
 }
 
 /// Number of rows in the table.
-pub const N_OBJ: usize = OBJECTS.len();
+pub(crate) const N_OBJ: usize = OBJECTS.len();
 
 /// The row of (index, sub), at compile time. Fails to compile if the object is missing.
-pub const fn idx(index: u16, sub: u8) -> usize {
+pub(crate) const fn idx(index: u16, sub: u8) -> usize {
     let mut i = 0;
     while i < OBJECTS.len() {
         if OBJECTS[i].index == index && OBJECTS[i].sub == sub {
@@ -159,8 +188,11 @@ pub const fn idx(index: u16, sub: u8) -> usize {
 /// Lookup result for an (index, sub) that came off the bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Lookup {
+    /// The object exists: its row in [`OBJECTS`].
     Found(usize),
+    /// No object at this index (SDO abort 0x06020000).
     NoObject,
+    /// The object exists but not this sub-index (SDO abort 0x06090011).
     NoSub,
 }
 
@@ -181,7 +213,7 @@ pub fn find(index: u16, sub: u8) -> Lookup {
 }
 
 /// Default value of a row in stored form.
-pub fn default_value(o: &Obj, node_id: u8, info: &DriveInfo) -> u32 {
+pub(crate) fn default_value(o: &Obj, node_id: u8, info: &DriveInfo) -> u32 {
     match o.default {
         Def::V(v) => v,
         Def::NodeId(b) => b + node_id as u32,
@@ -193,8 +225,8 @@ pub fn default_value(o: &Obj, node_id: u8, info: &DriveInfo) -> u32 {
 /// The values of one node's objects. Every row has a 32-bit slot (raw bits, signed types
 /// sign-extended); strings are constant and read from the table.
 #[derive(Clone, Debug)]
-pub struct Store {
-    pub vals: [u32; N_OBJ],
+pub(crate) struct Store {
+    vals: [u32; N_OBJ],
 }
 
 impl Store {
@@ -209,6 +241,15 @@ impl Store {
         for (i, o) in OBJECTS.iter().enumerate() {
             if o.index >= lo && o.index <= hi {
                 self.vals[i] = default_value(o, node_id, info);
+            }
+        }
+    }
+
+    /// Copy the rows with index in `lo..=hi` from `from` (restore of saved parameters, 0x1011).
+    pub fn copy_range(&mut self, from: &Store, lo: u16, hi: u16) {
+        for (i, o) in OBJECTS.iter().enumerate() {
+            if o.index >= lo && o.index <= hi {
+                self.vals[i] = from.vals[i];
             }
         }
     }

@@ -55,18 +55,6 @@ impl TransmissionType {
         }
     }
 
-    /// The object value.
-    pub fn as_u8(self) -> u8 {
-        match self {
-            TransmissionType::SyncAcyclic => 0,
-            TransmissionType::SyncCyclic(n) | TransmissionType::Reserved(n) => n,
-            TransmissionType::RtrSync => 252,
-            TransmissionType::RtrEvent => 253,
-            TransmissionType::EventManufacturer => 254,
-            TransmissionType::EventProfile => 255,
-        }
-    }
-
     /// Synchronous (0..=240): an RPDO of this type is applied at the next SYNC.
     pub fn is_sync(self) -> bool {
         matches!(

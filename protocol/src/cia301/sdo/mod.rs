@@ -16,35 +16,7 @@ pub const BUF: usize = 64;
 /// Default timeout of a stalled segmented / block transfer.
 pub const DEFAULT_TIMEOUT_US: u64 = 1_000_000;
 
-/// SDO abort codes (CiA 301 7.2.4.3.17).
-pub mod abort {
-    pub const TOGGLE: u32 = 0x0503_0000;
-    pub const TIMEOUT: u32 = 0x0504_0000;
-    pub const COMMAND: u32 = 0x0504_0001;
-    pub const BLOCK_SIZE: u32 = 0x0504_0002;
-    pub const SEQUENCE: u32 = 0x0504_0003;
-    pub const CRC: u32 = 0x0504_0004;
-    pub const OUT_OF_MEMORY: u32 = 0x0504_0005;
-    pub const UNSUPPORTED_ACCESS: u32 = 0x0601_0000;
-    pub const WRITE_ONLY: u32 = 0x0601_0001;
-    pub const READ_ONLY: u32 = 0x0601_0002;
-    pub const NO_OBJECT: u32 = 0x0602_0000;
-    pub const NOT_MAPPABLE: u32 = 0x0604_0041;
-    pub const PDO_LENGTH: u32 = 0x0604_0042;
-    pub const PARAM_INCOMPATIBLE: u32 = 0x0604_0043;
-    pub const HARDWARE: u32 = 0x0606_0000;
-    pub const LENGTH_MISMATCH: u32 = 0x0607_0010;
-    pub const TOO_LONG: u32 = 0x0607_0012;
-    pub const TOO_SHORT: u32 = 0x0607_0013;
-    pub const NO_SUB: u32 = 0x0609_0011;
-    pub const VALUE_RANGE: u32 = 0x0609_0030;
-    pub const VALUE_HIGH: u32 = 0x0609_0031;
-    pub const VALUE_LOW: u32 = 0x0609_0032;
-    pub const MAX_LT_MIN: u32 = 0x0609_0036;
-    pub const GENERAL: u32 = 0x0800_0000;
-    pub const CANNOT_STORE: u32 = 0x0800_0020;
-    pub const DEVICE_STATE: u32 = 0x0800_0022;
-}
+pub use crate::wire::sdo::abort;
 
 /// What the server needs from the object dictionary. Errors are abort codes.
 pub trait ObjectAccess {

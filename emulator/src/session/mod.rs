@@ -2,17 +2,23 @@
 //! clock in lock-step. Every frame still goes through the real protocol stack on both sides;
 //! only the wire and the wall clock are replaced. Same input, same output, as fast as the CPU
 //! allows.
+//!
+//! [`OfflineRun`] is the one lock-step loop: the demo, the offline scenario runner (its drive
+//! endpoint wrapped in a fault injector, [`OfflineRun::with_drive_bus`]) and the tests all step
+//! it; none re-implements the tick.
 
-use super::{AxisSlot, Runtime, SimulatedDrive};
 use crate::bus::inproc::{InProcBus, InProcEndpoint};
 use crate::bus::CanBus;
 use crate::master::Master;
+use crate::runtime::{AxisSlot, Runtime, SimulatedDrive};
 
 /// Receive-queue depth of each in-process endpoint, frames.
 const QUEUE_FRAMES: usize = 4096;
 
-pub struct OfflineRun<D> {
-    pub runtime: Runtime<InProcEndpoint, D>,
+/// The master and the drives in lock-step. `B`: the drives' side of the bus (the in-process
+/// endpoint itself, or a wrapper such as the fault injector).
+pub struct OfflineRun<D, B = InProcEndpoint> {
+    pub runtime: Runtime<B, D>,
     pub master: Master,
     master_bus: InProcEndpoint,
     /// Extra endpoint an observer (or a fault injector) may read, like candump on a wire.
@@ -20,11 +26,39 @@ pub struct OfflineRun<D> {
 }
 
 impl<D: SimulatedDrive> OfflineRun<D> {
+    /// Master and drives on an in-process bus, with a monitor endpoint ([`Self::take_monitor`]).
     pub fn new(axes: Vec<AxisSlot<D>>, period_us: u64, master: Master) -> Self {
         let mut eps = InProcBus::endpoints(3, QUEUE_FRAMES);
         let monitor = eps.pop();
         let master_bus = eps.pop().expect("three endpoints");
         let drive_bus = eps.pop().expect("three endpoints");
+        Self::assemble(drive_bus, master_bus, monitor, axes, period_us, master)
+    }
+}
+
+impl<D: SimulatedDrive, B: CanBus> OfflineRun<D, B> {
+    /// Master and drives on an in-process bus whose drive side is `wrap`ped (a fault injector),
+    /// without a monitor endpoint.
+    pub fn with_drive_bus(
+        axes: Vec<AxisSlot<D>>,
+        period_us: u64,
+        master: Master,
+        wrap: impl FnOnce(InProcEndpoint) -> B,
+    ) -> Self {
+        let mut eps = InProcBus::endpoints(2, QUEUE_FRAMES);
+        let master_bus = eps.pop().expect("two endpoints");
+        let drive_bus = wrap(eps.pop().expect("two endpoints"));
+        Self::assemble(drive_bus, master_bus, None, axes, period_us, master)
+    }
+
+    fn assemble(
+        drive_bus: B,
+        master_bus: InProcEndpoint,
+        monitor: Option<InProcEndpoint>,
+        axes: Vec<AxisSlot<D>>,
+        period_us: u64,
+        master: Master,
+    ) -> Self {
         let mut runtime = Runtime::new(drive_bus, axes, period_us);
         runtime.boot();
         Self {

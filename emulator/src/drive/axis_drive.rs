@@ -11,7 +11,7 @@ use crate::control::cascade::{Command, Servo, Setpoint as ServoSetpoint};
 use crate::presets::{AxisConfig, AxisKind, ConfigError, Transmission};
 use drive_protocol::{AxisParam, Drive, DriveCommand, DriveInfo, Feedback, ParamError, Setpoint};
 
-use super::SimulatedDrive;
+use crate::runtime::SimulatedDrive;
 
 /// CiA 402 error code for an encoder (sensor) fault.
 pub const ERROR_SENSOR: u16 = 0x7300;

@@ -1,0 +1,148 @@
+//! The one place a scenario's action reaches a running drive and its bus.
+//!
+//! An event's action becomes an [`Injection`] ([`Injection::of_action`]; ramps and load
+//! profiles become `Param` injections tick by tick through their drivers), and an
+//! [`Injector`] applies it to the drive and the fault-injecting bus and keeps the CAN fault
+//! rules in force until they run out. The offline runner applies injections directly, the
+//! live loop ([`super::live::LoopInjector`]) applies the ones the scenario thread queued. No
+//! allocation: the rules in force live in a fixed-size list.
+
+use super::file::SensorKind;
+use super::timeline::{Action, CanFault};
+use crate::bus::fault::{FaultRule, FaultyBus, RuleId};
+use crate::bus::CanBus;
+use crate::drive::axis_drive::{AxisDrive, Encoder};
+use drive_protocol::{AxisParam, Drive, ParamError};
+
+/// One change a scenario makes to the drive or the bus. `Copy`: queued without allocation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Injection {
+    Param {
+        param: AxisParam,
+        value_si: f64,
+    },
+    Sensor {
+        kind: SensorKind,
+        counts: i64,
+    },
+    Can {
+        fault: CanFault,
+        until_us: Option<u64>,
+    },
+    CanRestore,
+    /// The injections of event `event` (index in the timeline) are in: the loop answers with
+    /// the simulated time it applied them, so the reported event time is the bus's.
+    Mark {
+        event: u16,
+    },
+}
+
+impl Injection {
+    /// What an event's `action` injects when it fires at `now_us`; `None` for a ramp or a load
+    /// profile, whose driver injects `Param` values from then on.
+    pub fn of_action(action: &Action, now_us: u64) -> Option<Self> {
+        match *action {
+            Action::Set { key, value } => Some(Self::Param {
+                param: key.param,
+                value_si: value * key.scale,
+            }),
+            Action::Ramp { .. } | Action::Profile { .. } => None,
+            Action::Sensor { kind, counts } => Some(Self::Sensor { kind, counts }),
+            Action::Can { fault, over_us } => Some(Self::Can {
+                fault,
+                until_us: over_us.map(|o| now_us + o),
+            }),
+            Action::CanRestore => Some(Self::CanRestore),
+        }
+    }
+}
+
+/// Applies injections to axis 0's drive and the bus, and owns the CAN rules in force (at most
+/// `N`: one more is removed again at once, so the bus never holds a rule nobody will end).
+pub struct Injector<const N: usize> {
+    master_id: u8,
+    rules: heapless::Vec<(RuleId, Option<u64>), N>,
+}
+
+impl<const N: usize> Injector<N> {
+    /// `master_id`: the node ID whose heartbeat a heartbeat-loss fault drops.
+    pub fn new(master_id: u8) -> Self {
+        Self {
+            master_id,
+            rules: heapless::Vec::new(),
+        }
+    }
+
+    /// Apply one injection. A value the drive refuses changes nothing and is returned as the
+    /// error; `Mark` is the caller's business and does nothing here.
+    pub fn apply<B: CanBus>(
+        &mut self,
+        inj: Injection,
+        drive: &mut AxisDrive,
+        bus: &mut FaultyBus<B>,
+    ) -> Result<(), ParamError> {
+        match inj {
+            Injection::Param { param, value_si } => drive.set_param(param, value_si)?,
+            Injection::Sensor { kind, counts } => sensor(drive, kind, counts),
+            Injection::Can { fault, until_us } => {
+                let id = bus.add_rule(rule(fault, self.master_id));
+                if self.rules.push((id, until_us)).is_err() {
+                    bus.remove_rule(id);
+                }
+            }
+            Injection::CanRestore => {
+                bus.clear_rules();
+                self.rules.clear();
+            }
+            Injection::Mark { .. } => {}
+        }
+        Ok(())
+    }
+
+    /// Remove the rules whose time is over at `now_us`.
+    pub fn expire<B: CanBus>(&mut self, now_us: u64, bus: &mut FaultyBus<B>) {
+        let mut k = 0;
+        while k < self.rules.len() {
+            if self.rules[k].1.is_some_and(|end| now_us >= end) {
+                bus.remove_rule(self.rules[k].0);
+                self.rules.swap_remove(k);
+            } else {
+                k += 1;
+            }
+        }
+    }
+}
+
+/// Apply an encoder fault event to a drive.
+fn sensor(drive: &mut AxisDrive, kind: SensorKind, counts: i64) {
+    match kind {
+        SensorKind::MotorEncoderLoss => drive.set_signal_lost(Encoder::Motor, true),
+        SensorKind::DirectEncoderLoss => drive.set_signal_lost(Encoder::Direct, true),
+        SensorKind::MotorEncoderGlitch => drive.inject_glitch(Encoder::Motor, counts),
+        SensorKind::DirectEncoderGlitch => drive.inject_glitch(Encoder::Direct, counts),
+        SensorKind::Restore => {
+            drive.set_signal_lost(Encoder::Motor, false);
+            drive.set_signal_lost(Encoder::Direct, false);
+        }
+    }
+}
+
+/// The bus rule that injects a CAN fault.
+fn rule(fault: CanFault, master_id: u8) -> FaultRule {
+    match fault {
+        CanFault::Drop { share, cob_id } => {
+            let r = FaultRule::drop_share(share);
+            cob_id.map_or(r, |c| r.only(c))
+        }
+        CanFault::Delay {
+            share,
+            ticks,
+            cob_id,
+        } => {
+            let r = FaultRule::delay_share(share, ticks);
+            cob_id.map_or(r, |c| r.only(c))
+        }
+        CanFault::SyncLoss => FaultRule::sync_loss(),
+        CanFault::HeartbeatLoss => FaultRule::heartbeat_loss(master_id),
+    }
+}

@@ -1,0 +1,247 @@
+//! The emulator's module layering (docs/decisions/0006-emulator-layers.md): every top-level
+//! module of `emulator/src` has a place in [`LAYERS`], bottom first, and imports only modules
+//! below it. Imports are read from the source text: `crate::X` anywhere (code, tests, doc
+//! links), `crate::{X, ...}` groups, and `super::` chains that climb to the crate root. A module
+//! that imports one above it (or itself from below: a cycle) fails this test, and so does a new
+//! top-level module that is not placed in the order.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// The layer order, bottom first. A module may import only modules before it in this list.
+/// Written once here and in docs/decisions/0006-emulator-layers.md.
+const LAYERS: &[&str] = &[
+    "time",     // clocks: monotonic wall clock, virtual clock
+    "samples",  // trace sample types and trace-file reading
+    "bus",      // CAN bus abstraction: SocketCAN, in-process, fault injector
+    "axis",     // physics: two-mass axis with backlash, friction, encoders
+    "control",  // servo cascade on the axis
+    "presets",  // axis configurations (preset files, overrides)
+    "runtime",  // the fixed-rate loop wiring bus, nodes and simulated drives
+    "drive",    // the Drive adapter on the simulated axis, machine file
+    "master",   // reference CiA 402 master (sans-IO) and its bus loop
+    "analysis", // backlash detector, capture decoding, experiments
+    "report",   // report files and plots
+    "session",  // runtime + master on one bus: offline runs
+    "scenario", // scenario files, timelines, expectations, runner
+    "study",    // parameter studies and figures
+    "cli",      // the command line
+];
+
+/// Files directly in `src/` that are not modules of the layering (crate root, binary).
+const ROOT_FILES: &[&str] = &["lib.rs", "main.rs"];
+
+fn rs_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            rs_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+fn is_ident_char(c: char) -> bool {
+    c.is_ascii_alphanumeric() || c == '_'
+}
+
+/// The identifier at the start of `s`.
+fn ident(s: &str) -> &str {
+    let end = s.find(|c| !is_ident_char(c)).unwrap_or(s.len());
+    &s[..end]
+}
+
+/// The top-level modules that `text` refers to: `crate::X`, each first name in a
+/// `crate::{X, Y::Z, ...}` group, and `super::` chains of `root_depth` steps (`super::` from
+/// `src/X.rs` or `src/X/mod.rs` reaches the crate root, one more per folder level).
+fn referenced_modules(text: &str, root_depth: usize) -> BTreeSet<String> {
+    let mut found = BTreeSet::new();
+    let climb = "super::".repeat(root_depth);
+    for (pat, grouped_ok) in [("crate::", true), (climb.as_str(), true)] {
+        let mut rest = text;
+        while let Some(i) = rest.find(pat) {
+            let before = rest[..i].chars().next_back();
+            let after = &rest[i + pat.len()..];
+            rest = after;
+            // `foo_crate::x` or `super::super::x` seen from its second `super::` is not ours.
+            if before.is_some_and(|c| is_ident_char(c) || c == ':') {
+                continue;
+            }
+            if grouped_ok && after.starts_with('{') {
+                let mut depth = 0usize;
+                let mut start = true;
+                for (k, c) in after.char_indices() {
+                    match c {
+                        '{' => {
+                            depth += 1;
+                            start = depth == 1;
+                        }
+                        '}' => {
+                            depth -= 1;
+                            if depth == 0 {
+                                break;
+                            }
+                        }
+                        ',' if depth == 1 => start = true,
+                        c if c.is_whitespace() => {}
+                        _ => {
+                            if start && depth == 1 {
+                                let name = ident(&after[k..]);
+                                if !name.is_empty() {
+                                    found.insert(name.to_string());
+                                }
+                            }
+                            start = false;
+                        }
+                    }
+                }
+            } else {
+                let name = ident(after);
+                if !name.is_empty() {
+                    found.insert(name.to_string());
+                }
+            }
+        }
+    }
+    found
+}
+
+/// `super::` steps from `file` (inside `src/`) up to the crate root.
+fn root_depth(src: &Path, file: &Path) -> usize {
+    let rel = file.strip_prefix(src).unwrap();
+    let folders = rel.components().count() - 1;
+    let is_mod = rel
+        .file_name()
+        .is_some_and(|n| n == "mod.rs" || n == "lib.rs" || n == "main.rs");
+    if is_mod {
+        folders.max(1)
+    } else {
+        folders + 1
+    }
+}
+
+/// Every import that goes up (or sideways into a module not below), as messages.
+fn violations(src: &Path) -> Vec<String> {
+    let layer = |m: &str| LAYERS.iter().position(|l| *l == m);
+    let mut out = Vec::new();
+    let mut files = Vec::new();
+    rs_files(src, &mut files);
+    files.sort();
+    for f in files {
+        let rel = f.strip_prefix(src).unwrap();
+        let first = rel
+            .components()
+            .next()
+            .unwrap()
+            .as_os_str()
+            .to_string_lossy();
+        if rel.components().count() == 1 && ROOT_FILES.contains(&first.as_ref()) {
+            continue;
+        }
+        let module = first.trim_end_matches(".rs").to_string();
+        let Some(own) = layer(&module) else {
+            out.push(format!(
+                "{}: module `{module}` has no place in LAYERS (tests/layering.rs and \
+                 docs/decisions/0006-emulator-layers.md)",
+                rel.display()
+            ));
+            continue;
+        };
+        let text = std::fs::read_to_string(&f).unwrap();
+        for m in referenced_modules(&text, root_depth(src, &f)) {
+            if m == module {
+                continue;
+            }
+            match layer(&m) {
+                Some(l) if l < own => {}
+                Some(_) => out.push(format!(
+                    "{}: `{module}` imports `{m}`, which is not below it in LAYERS",
+                    rel.display()
+                )),
+                // Not a top-level module (an item of lib.rs, a macro): no layer to break.
+                None => {}
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn every_emulator_module_imports_only_modules_below_it() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let bad = violations(&src);
+    assert!(bad.is_empty(), "layering broken:\n{}", bad.join("\n"));
+}
+
+#[test]
+fn every_module_of_lib_rs_has_a_layer_and_every_layer_is_a_module() {
+    let lib =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("src/lib.rs")).unwrap();
+    let declared: BTreeSet<&str> = lib
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("pub mod "))
+        .chain(lib.lines().filter_map(|l| l.trim().strip_prefix("mod ")))
+        .map(|l| l.trim_end_matches(';'))
+        .collect();
+    let layers: BTreeSet<&str> = LAYERS.iter().copied().collect();
+    assert_eq!(declared, layers);
+}
+
+/// A scratch `src/` tree with the given files.
+fn scratch(name: &str, files: &[(&str, &str)]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("layering-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    for (p, text) in files {
+        let p = dir.join(p);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, text).unwrap();
+    }
+    dir
+}
+
+#[test]
+fn the_check_catches_an_upward_import_a_cycle_and_an_unplaced_module() {
+    // runtime -> master is upward (master -> runtime would be fine): a cycle as soon as master
+    // uses the runtime too.
+    let dir = scratch(
+        "up",
+        &[
+            ("lib.rs", "pub mod runtime;\npub mod master;\n"),
+            ("runtime/mod.rs", "use crate::bus::CanBus;\n"),
+            ("runtime/offline.rs", "use crate::master::Master;\n"),
+            ("master/mod.rs", "use crate::runtime::Runtime;\n"),
+        ],
+    );
+    let bad = violations(&dir);
+    assert_eq!(bad.len(), 1, "{bad:?}");
+    assert!(bad[0].contains("runtime/offline.rs") && bad[0].contains("`master`"));
+    std::fs::remove_dir_all(&dir).ok();
+
+    // The same, written as a group, and as a `super::` climb to the root.
+    let dir = scratch(
+        "forms",
+        &[
+            (
+                "runtime/trace.rs",
+                "use crate::{bus::CanBus, cli::analyze};\n",
+            ),
+            ("runtime/mod.rs", "use super::scenario::Scenario;\n"),
+            (
+                "runtime/pll.rs",
+                "use super::Runtime; use super::super::report;\n",
+            ),
+            ("time.rs", "//! [`crate::bus::CanBus`] is above the clock\n"),
+            ("widgets/mod.rs", "\n"),
+        ],
+    );
+    let bad = violations(&dir);
+    let has = |file: &str, what: &str| bad.iter().any(|b| b.contains(file) && b.contains(what));
+    assert!(has("runtime/trace.rs", "`cli`"), "{bad:?}");
+    assert!(has("runtime/mod.rs", "`scenario`"), "{bad:?}");
+    assert!(has("runtime/pll.rs", "`report`"), "{bad:?}");
+    assert!(has("time.rs", "`bus`"), "{bad:?}");
+    assert!(has("widgets/mod.rs", "no place in LAYERS"), "{bad:?}");
+    assert_eq!(bad.len(), 5, "{bad:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}
