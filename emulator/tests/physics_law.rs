@@ -3,25 +3,23 @@
 //! time only), the limit-cycle frequency follows the position gain k_v and not the gap.
 //!
 //! - f / k_v within 0.6 +- 0.1 and k_v/4 < f < k_v (eq. 11-13) from half to twice each preset's
-//!   own k_v, and for CNC1 over 10..80 1/s; the one known exception (no limit cycle below
-//!   about 15 1/s at the presets' own gap, docs/physics.md) is asserted to stay down there;
+//!   own k_v, and for CNC1 over 10..80 1/s, wherever the drag number `D / (m k_v^2 b)` is
+//!   below the boundary the next test measures (docs/physics.md);
+//! - the limit cycle's boundary: it lives below drag number 1.2 and dies above 2.5, whatever
+//!   k_v, the gap or the drag (a sweep across the boundary on CNC1);
 //! - f(2 k_v) / f(k_v) close to 2;
 //! - f independent of the gap (spread <= 5 %) over 0.02-0.07 mm / 0.01-0.04 deg, amplitude
 //!   growing with it;
 //! - no sustained oscillation without backlash;
-//! - the closed speed loop, measured by exciting the drive, is ~1 (|H| < 3 dB, phase lag
-//!   < 20 deg) up to 50 Hz, its -3 dB bandwidth at least 150 Hz.
+//! - the closed speed loop, measured by exciting the drive: -3 dB bandwidth in the paper's
+//!   150-250 Hz, ~1 (|H| < 3 dB, phase lag < 20 deg) up to 40 Hz.
 
 use drive_emu::presets::{preset_names, AxisConfig};
 use drive_emu::study::response::{log_frequencies, speed_loop_response};
 use drive_emu::study::{
     backlash_key, default_velocity, own_backlash, run_cases, Case, CaseRow,
-    LIMIT_CYCLE_MIN_RELATIVE_AMPLITUDE,
+    DRAG_NUMBER_CYCLE_BELOW, DRAG_NUMBER_NO_CYCLE_ABOVE, LIMIT_CYCLE_MIN_RELATIVE_AMPLITUDE,
 };
-
-/// Below this k_v the presets' own gap may give no limit cycle (docs/physics.md, "Limits":
-/// measured cnc1 at 10, cnc3 at 8.4 and 12.5, cnc4 at 10 1/s).
-const KV_NO_CYCLE_BELOW: f64 = 15.0;
 const DURATION_S: f64 = 6.0;
 
 fn preset(name: &str) -> AxisConfig {
@@ -50,7 +48,7 @@ fn run(cases: &[(AxisConfig, Case)]) -> Vec<CaseRow> {
 
 fn show(r: &CaseRow) -> String {
     format!(
-        "{} k_v {:.1} backlash {} {}: f {:?} Hz, f/k_v {:?}, amplitude {:.4} {}/s, cycle {}",
+        "{} k_v {:.1} backlash {} {}: f {:?} Hz, f/k_v {:?}, amplitude {:.4} {}/s, cycle {}, drag number {:.2}",
         r.preset,
         r.kv_per_s,
         r.backlash,
@@ -59,7 +57,8 @@ fn show(r: &CaseRow) -> String {
         r.f_over_kv.map(|x| (x * 1000.0).round() / 1000.0),
         r.load_velocity_amplitude,
         r.unit,
-        r.limit_cycle
+        r.limit_cycle,
+        r.drag_number
     )
 }
 
@@ -86,8 +85,11 @@ fn law_from_half_to_twice_kv_on_every_preset() {
     for r in &rows {
         println!("{}", show(r));
         if !r.limit_cycle {
-            if r.kv_per_s >= KV_NO_CYCLE_BELOW {
-                failures.push(format!("no limit cycle: {}", show(r)));
+            if r.drag_number <= DRAG_NUMBER_CYCLE_BELOW {
+                failures.push(format!(
+                    "no limit cycle below the drag boundary: {}",
+                    show(r)
+                ));
             }
             continue;
         }
@@ -105,6 +107,46 @@ fn law_from_half_to_twice_kv_on_every_preset() {
         .filter(|r| r.kv_per_s >= preset(&r.preset).kv_per_s && !r.limit_cycle)
         .count();
     assert_eq!(own_missing, 0, "no limit cycle at or above the own k_v");
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn limit_cycle_lives_below_the_drag_boundary() {
+    // CNC1 with Coulomb drag only (viscous 0), set so that the drag number D / (m k_v^2 b)
+    // takes values on both sides of the boundary, at three k_v and two gaps: the boundary is a
+    // number, not a k_v or a gap.
+    let base = preset("cnc1")
+        .with_override("load_viscous_friction_n_per_m_per_s", "0")
+        .unwrap();
+    let mut cases = Vec::new();
+    let mut expect = Vec::new();
+    for kv in [10.0, 20.0, 40.0] {
+        for gap_mm in [0.03, 0.06] {
+            for pi in [0.5, 1.0, 3.0, 4.0] {
+                let drag_n = pi * base.carriage_mass_kg.unwrap() * kv * kv * gap_mm * 1e-3;
+                let cfg = base
+                    .with_override("load_coulomb_friction_n", &format!("{drag_n}"))
+                    .unwrap();
+                cases.push(case(&cfg, kv, gap_mm));
+                expect.push(pi);
+            }
+        }
+    }
+    let rows = run(&cases);
+    let mut failures = Vec::new();
+    for (r, pi) in rows.iter().zip(expect) {
+        println!("{}", show(r));
+        assert!((r.drag_number - pi).abs() < 1e-6 * pi, "{}", show(r));
+        if pi <= DRAG_NUMBER_CYCLE_BELOW && !r.limit_cycle {
+            failures.push(format!("no cycle below the boundary: {}", show(r)));
+        }
+        if pi >= DRAG_NUMBER_NO_CYCLE_ABOVE && r.limit_cycle {
+            failures.push(format!("a cycle above the boundary: {}", show(r)));
+        }
+        if r.limit_cycle && (r.f_over_kv.unwrap() - 0.6).abs() > 0.1 {
+            failures.push(format!("f/k_v outside 0.6 +- 0.1: {}", show(r)));
+        }
+    }
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
@@ -212,12 +254,12 @@ fn no_sustained_oscillation_without_backlash() {
 }
 
 #[test]
-fn speed_loop_is_fast_against_the_vibration() {
-    // The paper's premise (section III): the closed speed loop is ~1 (within 3 dB, "nearly
-    // 0 dB") at the vibration frequencies (< 50 Hz), its bandwidth far above them. Measured by
-    // exciting the drive. The presets' -3 dB point lies above the paper's 180 Hz (cnc1: about
-    // 480 Hz with a 3.8 dB peak near 300 Hz; docs/physics.md), so only the lower bound of the
-    // paper's 150-250 Hz is asserted.
+fn speed_loop_bandwidth_in_the_papers_band() {
+    // The paper (section III, Fig. 3): closed speed loop -3 dB at about 180 Hz (the issue: 150 to
+    // 250 Hz), and ~1 at the vibration frequencies ("less than 3 dB"; most vibrations below
+    // 30 Hz). Measured by exciting the drive; the presets derive k_sp and T_si by the symmetric
+    // optimum on the drive's small time constants (docs/physics.md), which peaks by about
+    // 3.8 dB near 55 Hz: the magnitude is asserted within 3 dB up to 40 Hz, the peak below 4 dB.
     for name in preset_names() {
         let cfg = preset(name);
         let cfg = cfg.with_override(backlash_key(&cfg), "0").unwrap();
@@ -225,8 +267,9 @@ fn speed_loop_is_fast_against_the_vibration() {
         let bw = r.bandwidth_3db_hz.expect("a -3 dB point below 1 kHz");
         let peak = r.points.iter().fold(f64::MIN, |m, p| m.max(p.magnitude_db));
         println!("{name}: closed speed loop -3 dB at {bw:.0} Hz, peak {peak:.2} dB");
-        assert!(bw >= 150.0, "{name}: {bw} Hz");
-        for p in r.points.iter().filter(|p| p.frequency_hz <= 50.0) {
+        assert!((150.0..=250.0).contains(&bw), "{name}: -3 dB at {bw} Hz");
+        assert!(peak < 4.0, "{name}: peak {peak} dB");
+        for p in r.points.iter().filter(|p| p.frequency_hz <= 40.0) {
             assert!(
                 p.magnitude_db.abs() < 3.0 && p.phase_deg > -20.0,
                 "{name}: not ~1 at {:.1} Hz: {:.2} dB, {:.1} deg",

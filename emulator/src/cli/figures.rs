@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::study::figures::{fig10, fig11, fig3};
+use crate::study::figures::{fig10, fig11, fig3, fig_drag};
 
 /// Arguments of `drive-emu figures`.
 #[derive(clap::Args, Debug, Clone)]
@@ -12,8 +12,9 @@ pub struct FiguresArgs {
     /// Output directory (the README's figures live in docs/img).
     #[arg(long, default_value = "out/figures")]
     pub out: PathBuf,
-    /// Which figures: comma-separated from 3, 10, 11.
-    #[arg(long, default_value = "3,10,11")]
+    /// Which figures: comma-separated from 3, 10, 11 and drag (the limit cycle's drag
+    /// boundary over k_v and the gap, docs/physics.md).
+    #[arg(long, default_value = "3,10,11,drag")]
     pub only: String,
     /// Preset whose speed loop Fig. 3 measures.
     #[arg(long, default_value = "cnc1")]
@@ -30,8 +31,8 @@ pub fn run(args: &FiguresArgs) -> anyhow::Result<()> {
     let mut which = Vec::new();
     for w in args.only.split(',') {
         match w.trim() {
-            "3" | "10" | "11" => which.push(w.trim().to_string()),
-            other => anyhow::bail!("--only: unknown figure `{other}` (3, 10, 11)"),
+            "3" | "10" | "11" | "drag" => which.push(w.trim().to_string()),
+            other => anyhow::bail!("--only: unknown figure `{other}` (3, 10, 11, drag)"),
         }
     }
     std::fs::create_dir_all(&args.out)
@@ -63,6 +64,15 @@ pub fn run(args: &FiguresArgs) -> anyhow::Result<()> {
                     })
                     .collect();
                 println!("Fig. 10 {}: {}", p.display(), s.join("; "));
+            }
+            "drag" => {
+                let (p, d) = fig_drag(&args.out, args.threads)?;
+                println!(
+                    "Drag boundary {}: {} runs, {} with a limit cycle in k_v/4..k_v",
+                    p.display(),
+                    d.rows.len(),
+                    d.rows.iter().filter(|r| r.limit_cycle && r.in_band).count()
+                );
             }
             _ => {
                 let (p, d) = fig11(&args.out, args.threads)?;

@@ -27,8 +27,8 @@ pub struct SimArgs {
     /// Start-ramp acceleration, axis units/s^2 (default: reach the velocity in 0.1 s).
     #[arg(long, default_value_t = 0.0)]
     pub accel: f64,
-    /// Start disturbance: load velocity change (axis units/s) from a 5 ms force pulse after the
-    /// start ramp (default 0.6 x velocity; 0 = none). The backlash limit cycle is a hard
+    /// Start disturbance: load velocity change (axis units/s) from a 5 ms force pulse once the
+    /// position loop has settled, 5/k_v after the start ramp (default 0.6 x velocity; 0 = none). The backlash limit cycle is a hard
     /// excitation: it needs a disturbance to start.
     #[arg(long, allow_negative_numbers = true)]
     pub kick: Option<f64>,

@@ -346,3 +346,107 @@ pub fn fig11(dir: &Path, threads: usize) -> anyhow::Result<(PathBuf, Fig11)> {
     draw().map_err(plot_err)?;
     Ok((png, d))
 }
+
+/// The limit cycle's drag boundary (docs/physics.md, "Limits"): CNC1 at its own drag over a
+/// k_v x gap grid, every point a run, with the lines of constant drag number
+/// `D / (m k_v^2 b)` between which the cycle dies.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct DragMap {
+    pub rows: Vec<CaseRow>,
+    /// The preset's drag at the cruise velocity, N.
+    pub drag_n: f64,
+    pub load_mass_kg: f64,
+    /// Drag numbers drawn as lines.
+    pub drag_numbers: Vec<f64>,
+}
+
+/// The drag-boundary map as PNG + JSON in `dir`.
+pub fn fig_drag(dir: &Path, threads: usize) -> anyhow::Result<(PathBuf, DragMap)> {
+    let cfg = AxisConfig::from_preset("cnc1").map_err(cfg_err)?;
+    let velocity = default_velocity(&cfg);
+    let mut cases = Vec::new();
+    for i in 0..15 {
+        for j in 0..13 {
+            cases.push((
+                cfg.clone(),
+                Case {
+                    preset: cfg.name.clone(),
+                    kv_per_s: 5.0 + 2.5 * i as f64,
+                    backlash: 0.01 + 0.005 * j as f64,
+                    velocity,
+                    duration_s: DEFAULT_DURATION_S,
+                },
+            ));
+        }
+    }
+    let rows = run_cases(&cases, threads)
+        .into_iter()
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(cfg_err)?;
+    // The drag number is D / (m k_v^2 b); at k_v = 1, b = 1 m it is D / m.
+    let d_over_m = super::drag_number(&cfg, 1.0, 1e3, velocity);
+    let load_mass_kg = cfg.carriage_mass_kg.unwrap_or(f64::NAN);
+    let d = DragMap {
+        rows,
+        drag_n: d_over_m * load_mass_kg,
+        load_mass_kg,
+        drag_numbers: vec![1.25, 1.67],
+    };
+    let png = dir.join("fig-drag-boundary.png");
+    write_json(&dir.join("fig-drag-boundary.json"), &d)?;
+    font_ready();
+    let draw = || -> Result<(), DynErr> {
+        let root = BitMapBackend::new(&png, (W, H)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let mut c = ChartBuilder::on(&root)
+            .caption(
+                "CNC1: limit cycle or none over k_v and the gap (drag 4 N, 800 kg)",
+                ("sans-serif", 22),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..42.5, 0.0..0.08)?;
+        c.configure_mesh()
+            .x_desc("k_v, 1/s")
+            .y_desc("gap, mm")
+            .draw()?;
+        for (pi, col) in d.drag_numbers.iter().zip([RGBColor(0, 130, 0), BLACK]) {
+            // b [mm] = 1e3 D / (pi m k_v^2)
+            let pts: Vec<(f64, f64)> = (0..=200)
+                .map(|i| 3.0 + 0.2 * i as f64)
+                .map(|kv| (kv, 1e3 * d_over_m / (pi * kv * kv)))
+                .filter(|p| p.1 <= 0.08)
+                .collect();
+            c.draw_series(LineSeries::new(pts, col.stroke_width(2)))?
+                .label(format!("drag number {pi}"))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+        }
+        let in_band = |r: &&CaseRow| r.limit_cycle && r.in_band;
+        c.draw_series(
+            d.rows
+                .iter()
+                .filter(in_band)
+                .map(|r| Circle::new((r.kv_per_s, r.backlash), 5, BLUE.filled())),
+        )?
+        .label("limit cycle, k_v/4 < f < k_v")
+        .legend(|(x, y)| Circle::new((x + 10, y), 5, BLUE.filled()));
+        c.draw_series(
+            d.rows
+                .iter()
+                .filter(|r| !in_band(r))
+                .map(|r| Cross::new((r.kv_per_s, r.backlash), 5, RED.stroke_width(2))),
+        )?
+        .label("none (or only the encoder-quantisation line)")
+        .legend(|(x, y)| Cross::new((x + 10, y), 5, RED.stroke_width(2)));
+        c.configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(plot_err)?;
+    Ok((png, d))
+}

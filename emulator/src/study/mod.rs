@@ -24,6 +24,31 @@ pub const DEFAULT_DURATION_S: f64 = 8.0;
 /// encoder-quantisation lines of about 2 % of that scale, cycles 30 % and more.
 pub const LIMIT_CYCLE_MIN_RELATIVE_AMPLITUDE: f64 = 0.1;
 
+/// Below this drag number ([`drag_number`]) every preset keeps its limit cycle; measured on
+/// CNC1 over k_v 10-30 1/s and two gaps, the cycle dies between 1.25 and 2.2 (docs/physics.md).
+pub const DRAG_NUMBER_CYCLE_BELOW: f64 = 1.2;
+/// Above this drag number the limit cycle dies (docs/physics.md).
+pub const DRAG_NUMBER_NO_CYCLE_ABOVE: f64 = 2.5;
+
+/// The drag number `D / (m k_v^2 b)` of a run: the load's drag at the cruise velocity (Coulomb
+/// plus viscous friction, N or N m) against the force scale of the limit cycle (the load mass
+/// or inertia `m`, accelerated by about `k_v^2 b`, `b` the gap in m or rad). The drag pulls the
+/// load back onto the driving flank between impacts; when it decelerates the load by more than
+/// the cycle's velocity swing within half a period, the load never crosses the gap and the
+/// cycle dies. Independent of the gap only when it is small: the paper's law (f set by k_v, not
+/// by the gap) holds below [`DRAG_NUMBER_CYCLE_BELOW`]. Infinite without backlash.
+pub fn drag_number(cfg: &AxisConfig, kv_per_s: f64, backlash: f64, velocity: f64) -> f64 {
+    let Ok(built) = cfg.build() else {
+        return f64::NAN;
+    };
+    let unit = built.display_unit;
+    let mech = &built.axis.mech;
+    let v = (velocity * unit).abs();
+    let drag = mech.load_friction.coulomb_at(v) + mech.load_friction.viscous * v;
+    let b = backlash * unit;
+    drag / (mech.load_mass * kv_per_s * kv_per_s * b)
+}
+
 /// Default cruise velocity for a preset: 20 mm/s on linear axes, 0.026 r/s on tables.
 pub fn default_velocity(cfg: &AxisConfig) -> f64 {
     match cfg.kind {
@@ -72,6 +97,8 @@ pub struct CaseRow {
     pub limit_cycle: bool,
     /// k_v/4 < f < k_v (eq. 11-12), with a limit cycle.
     pub in_band: bool,
+    /// [`drag_number`] of the case: the cycle lives below about 1.5.
+    pub drag_number: f64,
     pub motor_velocity_amplitude_rpm: f64,
     /// Fundamental of the motor speed as load velocity, axis unit per second.
     pub load_velocity_amplitude: f64,
@@ -109,6 +136,7 @@ pub fn run_case(base: &AxisConfig, case: &Case) -> Result<CaseRow, ConfigError> 
         f_over_kv: s.f_over_kv,
         limit_cycle,
         in_band,
+        drag_number: drag_number(&cfg, case.kv_per_s, case.backlash, case.velocity),
         motor_velocity_amplitude_rpm: s.motor_velocity_amplitude_rpm,
         load_velocity_amplitude: load_amp,
         following_error_half_p2p: s.following_error_half_p2p,
@@ -232,13 +260,13 @@ impl ValueSpec {
 pub fn rows_csv(rows: &[CaseRow]) -> String {
     let mut s = String::from(
         "preset,unit,kv_per_s,backlash,velocity_per_s,fundamental_hz,f_over_kv,limit_cycle,\
-         in_band,motor_velocity_amplitude_rpm,load_velocity_amplitude_per_s,\
+         in_band,drag_number,motor_velocity_amplitude_rpm,load_velocity_amplitude_per_s,\
          following_error_half_p2p,current_amplitude_a,window_start_s,window_end_s\n",
     );
     let o = |x: Option<f64>| x.map(|v| format!("{v:.4}")).unwrap_or_default();
     for r in rows {
         s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{:.5},{:.6},{:.6},{:.5},{:.3},{:.3}\n",
+            "{},{},{},{},{},{},{},{},{},{:.4},{:.5},{:.6},{:.6},{:.5},{:.3},{:.3}\n",
             r.preset,
             r.unit,
             r.kv_per_s,
@@ -248,6 +276,7 @@ pub fn rows_csv(rows: &[CaseRow]) -> String {
             o(r.f_over_kv),
             r.limit_cycle,
             r.in_band,
+            r.drag_number,
             r.motor_velocity_amplitude_rpm,
             r.load_velocity_amplitude,
             r.following_error_half_p2p,
