@@ -2,19 +2,36 @@
 //!
 //! Data path (one tick): bus -> protocol node -> control cascade -> axis physics -> encoders ->
 //! node -> bus. `axis` and `control` know nothing of CANopen; `runtime` holds no domain logic.
+//!
+//! Modules, bottom layer first: a module imports only modules before it in this list
+//! (`tests/layering.rs`, docs/decisions/0006-emulator-layers.md).
+
+pub mod time;
+
+pub mod samples;
+
+pub mod bus;
+
+pub mod axis;
+
+pub mod control;
+
+pub mod presets;
+
+pub mod runtime;
+
+pub mod drive;
+
+pub mod master;
 
 pub mod analysis;
-pub mod axis;
-pub mod bus;
-pub mod cli;
-pub mod control;
-pub mod drive;
-pub mod master;
-pub mod presets;
+
 pub mod report;
-pub mod runtime;
-pub mod samples;
-pub mod scenario;
+
 pub mod session;
+
+pub mod scenario;
+
 pub mod study;
-pub mod time;
+
+pub mod cli;

@@ -211,6 +211,34 @@ struct Status {
 }
 
 impl Status {
+    /// After every tick (loop thread): what the status line and the ready line show.
+    /// Relaxed atomics only: no allocation, lock or I/O.
+    fn publish(&self, rt: &Runtime<LiveBus, AxisDrive>) {
+        for (a, st) in rt.axes.iter().zip(&self.axes) {
+            let n = &a.node;
+            st.node_id.store(u64::from(n.node_id()), Ordering::Relaxed);
+            st.nmt.store(n.nmt_state() as u64, Ordering::Relaxed);
+            st.statusword
+                .store(u64::from(n.statusword()), Ordering::Relaxed);
+            st.mode.store(i64::from(n.mode()), Ordering::Relaxed);
+            st.position_uu
+                .store(i64::from(n.position_actual()), Ordering::Relaxed);
+            st.following_error_uu
+                .store(n.following_error().round() as i64, Ordering::Relaxed);
+        }
+        self.overruns.store(rt.stats.overruns, Ordering::Relaxed);
+        self.ticks.store(rt.stats.ticks, Ordering::Relaxed);
+        self.sim_time_us.store(rt.sim_time_us, Ordering::Relaxed);
+        self.lockstep_period_us
+            .store(rt.lockstep_period_us, Ordering::Relaxed);
+        self.sync_lock
+            .store(u64::from(rt.stats.sync_lock_state), Ordering::Relaxed);
+        self.sync_phase_error_us
+            .store(rt.stats.sync_phase_error_us, Ordering::Relaxed);
+        self.link_up
+            .store(rt.bus.inner().link_up(), Ordering::Relaxed);
+    }
+
     fn new(n_axes: usize) -> Self {
         Self {
             axes: (0..n_axes).map(|_| AxisStatus::default()).collect(),
@@ -391,10 +419,119 @@ pub fn print_outcome(o: &LiveOutcome) {
     }
 }
 
+/// The live bus: the interface behind the scenario's fault injector.
+type LiveBus = FaultyBus<SocketCanBus>;
+
 /// Run the drive(s) on the bus; with a scenario, inject its timeline into axis 0 and return
-/// what it found.
+/// what it found. The steps: the machine and its axes, the stop flag, the trace files, the
+/// scenario thread, the loop thread, the status line until the run stops, the summary.
 pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> {
     validate_args(args)?;
+    let (machine, axes) = live_axes(args, scenario)?;
+    let seed = scenario.map_or(1, |s| s.run.seed);
+    let bus = FaultyBus::new(SocketCanBus::open(&args.iface)?, seed);
+    let period_us = 1_000_000 / u64::from(machine.tick_hz);
+    let n_axes = axes.len();
+    let rt = Runtime::new(bus, axes, period_us);
+
+    let stop = stop_flag(args, scenario)?;
+    let status = Arc::new(Status::new(n_axes));
+    let request = RealtimeRequest {
+        fifo_priority: (args.rt_priority > 0).then_some(args.rt_priority),
+        cpu: args.cpu,
+        lock_memory: !args.no_mlock,
+    };
+    let lockstep = args.lockstep.then_some(Lockstep {
+        sync_period_us: args.sync_period_us,
+        // A live scenario must end: a SYNC missing for a second hands the clock to the wall.
+        free_run_after_us: scenario.map(|_| {
+            args.sync_period_us
+                .map_or(1_000_000, |p| (10 * p).max(1_000_000))
+        }),
+    });
+    // The trace files are created before the loop starts: a bad path loses nothing.
+    let node_ids: Vec<u8> = rt.axes.iter().map(|a| a.node.node_id()).collect();
+    let tap = args.trace.as_ref().map(|_| Arc::new(TraceTap::new(n_axes)));
+    let recorder = match (&args.trace, &tap) {
+        (Some(path), Some(tap)) => Some(Recorder::start(
+            Arc::clone(tap),
+            trace_paths(path, &node_ids),
+        )?),
+        _ => None,
+    };
+    announce(args, &machine, lockstep.as_ref(), scenario);
+
+    // The scenario thread follows the loop's time and feeds it injections.
+    let link = Arc::new(LiveLink::new());
+    let injector = scenario.map(|s| LoopInjector::new(s.run.master.master_id));
+    let scenario_thread = match scenario {
+        Some(s) => Some(spawn_scenario(args, s, &link, &stop)?),
+        None => None,
+    };
+    let loop_thread = spawn_loop(LoopParts {
+        rt,
+        request,
+        lockstep,
+        stop: Arc::clone(&stop),
+        status: Arc::clone(&status),
+        link: Arc::clone(&link),
+        injector,
+        tap: tap.clone(),
+    })?;
+
+    watch(
+        args,
+        &machine,
+        lockstep.as_ref(),
+        &status,
+        &stop,
+        &loop_thread,
+    )?;
+    stop.store(true, Ordering::Relaxed);
+    let joined = loop_thread.join();
+    if std::io::stderr().is_terminal() {
+        eprintln!();
+    }
+    // The trace is flushed whatever happened to the loop.
+    if let (Some(rec), Some(tap)) = (recorder, &tap) {
+        finish_trace(rec, tap)?;
+    }
+    let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
+    let summary = rt.stats.summary();
+    eprintln!("drive-emu: stopped. {summary}");
+    let lockstep_period_us =
+        (lockstep.is_some() && rt.lockstep_period_us > 0).then_some(rt.lockstep_period_us);
+    if let Some(p) = lockstep_period_us {
+        eprintln!("drive-emu: lock-step: {p} us of simulated time per SYNC");
+    }
+    if rt.lockstep_free_ticks > 0 {
+        eprintln!(
+            "drive-emu: SYNC stopped: the drive's own clock ran {} ticks without it",
+            rt.lockstep_free_ticks
+        );
+    }
+    let scenario = match scenario_thread {
+        Some(t) => Some(
+            t.join()
+                .map_err(|_| anyhow::anyhow!("the scenario thread panicked"))?,
+        ),
+        None => None,
+    };
+    Ok(LiveRun {
+        stats: summary,
+        lockstep_period_us,
+        free_run_ticks: rt.lockstep_free_ticks,
+        scenario,
+    })
+}
+
+/// The machine a live run serves and its axes, validated, with the boot delay set: the
+/// scenario's machine (its first preset, the file's overrides applied) on `--node`, or the
+/// machine file / flags.
+fn live_axes(
+    args: &RunArgs,
+    scenario: Option<&Scenario>,
+) -> Result<(MachineFile, Vec<AxisSlot<AxisDrive>>)> {
     let machine = match scenario {
         // The scenario's machine: its first preset with the file's overrides applied.
         Some(s) => {
@@ -427,12 +564,12 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     for ax in &mut axes {
         ax.node.set_boot_delay_us(args.boot_delay_ms * 1000);
     }
-    let seed = scenario.map_or(1, |s| s.run.seed);
-    let bus = FaultyBus::new(SocketCanBus::open(&args.iface)?, seed);
-    let period_us = 1_000_000 / u64::from(machine.tick_hz);
-    let n_axes = axes.len();
-    let mut rt = Runtime::new(bus, axes, period_us);
+    Ok((machine, axes))
+}
 
+/// Set on Ctrl-C / SIGTERM, and (without a scenario) after `--duration` of wall time; with a
+/// scenario, `--duration` is the scenario's end and its thread sets the flag.
+fn stop_flag(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Arc<AtomicBool>> {
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = Arc::clone(&stop);
@@ -447,36 +584,22 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
             stop.store(true, Ordering::Relaxed);
         });
     }
-    let status = Arc::new(Status::new(n_axes));
-    let request = RealtimeRequest {
-        fifo_priority: (args.rt_priority > 0).then_some(args.rt_priority),
-        cpu: args.cpu,
-        lock_memory: !args.no_mlock,
-    };
-    let lockstep = args.lockstep.then_some(Lockstep {
-        sync_period_us: args.sync_period_us,
-        // A live scenario must end: a SYNC missing for a second hands the clock to the wall.
-        free_run_after_us: scenario.map(|_| {
-            args.sync_period_us
-                .map_or(1_000_000, |p| (10 * p).max(1_000_000))
-        }),
-    });
-    // The trace files are created before the loop starts: a bad path loses nothing.
-    let node_ids: Vec<u8> = rt.axes.iter().map(|a| a.node.node_id()).collect();
-    let tap = args.trace.as_ref().map(|_| Arc::new(TraceTap::new(n_axes)));
-    let recorder = match (&args.trace, &tap) {
-        (Some(path), Some(tap)) => Some(Recorder::start(
-            Arc::clone(tap),
-            trace_paths(path, &node_ids),
-        )?),
-        _ => None,
-    };
+    Ok(stop)
+}
+
+/// What runs where, on stderr: axes, interface, rate, lock-step, scenario; the user unit.
+fn announce(
+    args: &RunArgs,
+    machine: &MachineFile,
+    lockstep: Option<&Lockstep>,
+    scenario: Option<&Scenario>,
+) {
     eprintln!(
         "drive-emu: {} axis(es) on {} at {} Hz{}: {}{}",
-        n_axes,
+        machine.axes.len(),
         args.iface,
         machine.tick_hz,
-        match (&lockstep, args.sync_period_us) {
+        match (lockstep, args.sync_period_us) {
             (None, _) => String::new(),
             (Some(_), Some(p)) => format!(" (lock-step: {p} us per SYNC)"),
             (Some(_), None) => {
@@ -509,90 +632,98 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
             .collect::<Vec<_>>()
             .join(", ")
     );
+}
 
-    // The scenario thread follows the loop's time and feeds it injections.
-    let link = Arc::new(LiveLink::new());
-    let mut injector = scenario.map(|s| LoopInjector::new(s.run.master.master_id));
-    let scenario_thread = match scenario {
-        Some(s) => {
-            let end = LiveEnd::for_scenario(s, args.duration.map(|d| (d * 1e6) as u64));
-            eprintln!("drive-emu: scenario {} ends {}", s.name, end.describe(s));
-            let (s, snapshot) = (s.clone(), AxisDrive::from_config(&s.machine.configs[0])?);
-            let (link, stop) = (Arc::clone(&link), Arc::clone(&stop));
-            Some(std::thread::spawn(move || {
-                let cfg = s.machine.configs[0].clone();
-                let outcome = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
-                stop.store(true, Ordering::Relaxed);
-                outcome
-            }))
-        }
-        None => None,
-    };
+/// Start the scenario thread: it follows the loop's time through `link`, and sets `stop` when
+/// the scenario ends.
+fn spawn_scenario(
+    args: &RunArgs,
+    s: &Scenario,
+    link: &Arc<LiveLink>,
+    stop: &Arc<AtomicBool>,
+) -> Result<std::thread::JoinHandle<LiveOutcome>> {
+    let end = LiveEnd::for_scenario(s, args.duration.map(|d| (d * 1e6) as u64));
+    eprintln!("drive-emu: scenario {} ends {}", s.name, end.describe(s));
+    let (s, snapshot) = (s.clone(), AxisDrive::from_config(&s.machine.configs[0])?);
+    let (link, stop) = (Arc::clone(link), Arc::clone(stop));
+    Ok(std::thread::spawn(move || {
+        let cfg = s.machine.configs[0].clone();
+        let outcome = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
+        stop.store(true, Ordering::Relaxed);
+        outcome
+    }))
+}
 
-    let loop_thread = {
-        let (stop, status, link) = (Arc::clone(&stop), Arc::clone(&status), Arc::clone(&link));
-        let tap = tap.clone();
-        std::thread::Builder::new()
-            .name("drive-emu-loop".into())
-            .spawn(move || {
-                let report = realtime::apply(&request);
-                for w in &report.warnings {
-                    eprintln!("drive-emu: warning: {w}");
-                }
-                eprintln!("drive-emu: loop thread: {report}");
-                // Power-on: the boot delay passes on the wall clock before the loop starts
-                // (frames meanwhile wait in the socket; a booting node ignores them anyway).
-                rt.boot();
-                let delay_us = rt.axes.iter().map(|a| a.node.boot_delay_us()).max();
-                if let Some(d) = delay_us.filter(|d| *d > 0) {
-                    std::thread::sleep(std::time::Duration::from_micros(d));
-                    rt.finish_boots();
-                }
-                status.booted.store(true, Ordering::Release);
-                let hook = |rt: &mut Runtime<FaultyBus<SocketCanBus>, AxisDrive>| {
-                    if let Some(inj) = injector.as_mut() {
-                        inj.on_tick(&link, rt);
-                    }
-                    if let Some(tap) = &tap {
-                        tap.on_tick(rt);
-                    }
-                    for (a, st) in rt.axes.iter().zip(&status.axes) {
-                        let n = &a.node;
-                        st.node_id.store(u64::from(n.node_id()), Ordering::Relaxed);
-                        st.nmt.store(n.nmt_state() as u64, Ordering::Relaxed);
-                        st.statusword
-                            .store(u64::from(n.statusword()), Ordering::Relaxed);
-                        st.mode.store(i64::from(n.mode()), Ordering::Relaxed);
-                        st.position_uu
-                            .store(i64::from(n.position_actual()), Ordering::Relaxed);
-                        st.following_error_uu
-                            .store(n.following_error().round() as i64, Ordering::Relaxed);
-                    }
-                    status.overruns.store(rt.stats.overruns, Ordering::Relaxed);
-                    status.ticks.store(rt.stats.ticks, Ordering::Relaxed);
-                    status.sim_time_us.store(rt.sim_time_us, Ordering::Relaxed);
-                    status
-                        .lockstep_period_us
-                        .store(rt.lockstep_period_us, Ordering::Relaxed);
-                    status
-                        .sync_lock
-                        .store(u64::from(rt.stats.sync_lock_state), Ordering::Relaxed);
-                    status
-                        .sync_phase_error_us
-                        .store(rt.stats.sync_phase_error_us, Ordering::Relaxed);
-                    status
-                        .link_up
-                        .store(rt.bus.inner().link_up(), Ordering::Relaxed);
-                };
-                match lockstep {
-                    Some(cfg) => rt.run_lockstep_with(cfg, &stop, hook),
-                    None => rt.run_realtime(&mut MonotonicClock::new(), &stop, hook),
-                }
-                rt
-            })?
-    };
+/// What the loop thread owns.
+struct LoopParts {
+    rt: Runtime<LiveBus, AxisDrive>,
+    request: RealtimeRequest,
+    lockstep: Option<Lockstep>,
+    stop: Arc<AtomicBool>,
+    status: Arc<Status>,
+    link: Arc<LiveLink>,
+    injector: Option<LoopInjector>,
+    tap: Option<Arc<TraceTap>>,
+}
 
-    // The status line goes to stderr, so stdout stays clean (--json, pipes).
+/// Start the loop thread: real-time setup, boot (the delay on the wall clock), then the loop
+/// (lock-step or real-time) with the per-tick hook (scenario injections, trace, status) until
+/// `stop`. It hands the runtime back for the summary.
+fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBus, AxisDrive>>> {
+    let LoopParts {
+        mut rt,
+        request,
+        lockstep,
+        stop,
+        status,
+        link,
+        mut injector,
+        tap,
+    } = parts;
+    Ok(std::thread::Builder::new()
+        .name("drive-emu-loop".into())
+        .spawn(move || {
+            let report = realtime::apply(&request);
+            for w in &report.warnings {
+                eprintln!("drive-emu: warning: {w}");
+            }
+            eprintln!("drive-emu: loop thread: {report}");
+            // Power-on: the boot delay passes on the wall clock before the loop starts
+            // (frames meanwhile wait in the socket; a booting node ignores them anyway).
+            rt.boot();
+            let delay_us = rt.axes.iter().map(|a| a.node.boot_delay_us()).max();
+            if let Some(d) = delay_us.filter(|d| *d > 0) {
+                std::thread::sleep(std::time::Duration::from_micros(d));
+                rt.finish_boots();
+            }
+            status.booted.store(true, Ordering::Release);
+            let hook = |rt: &mut Runtime<LiveBus, AxisDrive>| {
+                if let Some(inj) = injector.as_mut() {
+                    inj.on_tick(&link, rt);
+                }
+                if let Some(tap) = &tap {
+                    tap.on_tick(rt);
+                }
+                status.publish(rt);
+            };
+            match lockstep {
+                Some(cfg) => rt.run_lockstep_with(cfg, &stop, hook),
+                None => rt.run_realtime(&mut MonotonicClock::new(), &stop, hook),
+            }
+            rt
+        })?)
+}
+
+/// Until the run stops: the ready line on stdout once booted (`--ready`), the status line on
+/// stderr (a terminal only, so stdout stays clean for --json and pipes).
+fn watch(
+    args: &RunArgs,
+    machine: &MachineFile,
+    lockstep: Option<&Lockstep>,
+    status: &Status,
+    stop: &AtomicBool,
+    loop_thread: &std::thread::JoinHandle<Runtime<LiveBus, AxisDrive>>,
+) -> Result<()> {
     let tty = std::io::stderr().is_terminal();
     let mut ready_sent = !args.ready;
     while !stop.load(Ordering::Relaxed) && !loop_thread.is_finished() {
@@ -624,54 +755,25 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
             let _ = std::io::stderr().flush();
         }
     }
-    stop.store(true, Ordering::Relaxed);
-    let joined = loop_thread.join();
-    if tty {
-        eprintln!();
-    }
-    // The trace is flushed whatever happened to the loop.
-    if let (Some(rec), Some(tap)) = (recorder, &tap) {
-        let t = rec.finish(tap).context("writing the trace")?;
-        eprintln!(
-            "drive-emu: trace: {} samples in {}{}",
-            t.samples,
-            t.paths
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
-            if t.lost > 0 {
-                format!(" ({} lost: the disk was too slow)", t.lost)
-            } else {
-                String::new()
-            }
-        );
-    }
-    let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
-    let summary = rt.stats.summary();
-    eprintln!("drive-emu: stopped. {summary}");
-    let lockstep_period_us =
-        (lockstep.is_some() && rt.lockstep_period_us > 0).then_some(rt.lockstep_period_us);
-    if let Some(p) = lockstep_period_us {
-        eprintln!("drive-emu: lock-step: {p} us of simulated time per SYNC");
-    }
-    if rt.lockstep_free_ticks > 0 {
-        eprintln!(
-            "drive-emu: SYNC stopped: the drive's own clock ran {} ticks without it",
-            rt.lockstep_free_ticks
-        );
-    }
-    let scenario = match scenario_thread {
-        Some(t) => Some(
-            t.join()
-                .map_err(|_| anyhow::anyhow!("the scenario thread panicked"))?,
-        ),
-        None => None,
-    };
-    Ok(LiveRun {
-        stats: summary,
-        lockstep_period_us,
-        free_run_ticks: rt.lockstep_free_ticks,
-        scenario,
-    })
+    Ok(())
+}
+
+/// Drain and close the trace files, and say what they hold.
+fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
+    let t = rec.finish(tap).context("writing the trace")?;
+    eprintln!(
+        "drive-emu: trace: {} samples in {}{}",
+        t.samples,
+        t.paths
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        if t.lost > 0 {
+            format!(" ({} lost: the disk was too slow)", t.lost)
+        } else {
+            String::new()
+        }
+    );
+    Ok(())
 }

@@ -567,6 +567,10 @@ impl Master {
         now_us - self.step.started_us > self.cfg.step_timeout_us
     }
 
+    /// Advance program step `i`. Long (about 160 lines) on purpose: one `match` arm per
+    /// [`Step`] kind, each arm that step's own short stage sequence, read top to bottom as
+    /// the master does it; splitting by arm would only move each arm into a function called
+    /// once.
     fn run_step(&mut self, now_us: u64, i: usize, step: &Step) {
         let sw = self.latest.statusword;
         match *step {

@@ -163,7 +163,8 @@ impl Expectation {
         }
     }
 
-    /// Evaluate against a run record.
+    /// Evaluate against a run record. Long (about 180 lines) on purpose: one `match` arm per
+    /// expectation kind, each the complete check and message for that kind.
     pub fn check(&self, rec: &RunRecord) -> (bool, String) {
         match self {
             Expectation::Emcy {

@@ -239,6 +239,134 @@ fn event_length_us(a: &Action) -> u64 {
     }
 }
 
+/// What the scenario thread keeps while it follows the loop.
+struct LiveTimeline {
+    /// Current value (file units) of every parameter the scenario drives.
+    current: Vec<(&'static ParamKey, f64)>,
+    timeline: Timeline,
+    drivers: Drivers,
+    values: Vec<(&'static ParamKey, f64)>,
+    samples: Vec<Sample>,
+    emcys: Vec<(u64, u16)>,
+    /// EMCY codes received since the last pass (triggers).
+    new_codes: Vec<u16>,
+    /// Per event: when the scenario thread fired it, and when the loop applied it.
+    fired_us: Vec<Option<u64>>,
+    applied_us: Vec<Option<u64>>,
+    /// The end of what the fired events started.
+    busy_until_us: u64,
+    last_ramp_us: u64,
+}
+
+impl LiveTimeline {
+    /// Take what the loop published: samples, applied events, EMCYs.
+    fn drain(&mut self, link: &LiveLink) {
+        while let Some(smp) = link.samples.pop() {
+            self.samples.push(smp);
+        }
+        self.drain_applied(link);
+        self.new_codes.clear();
+        while let Some((t, code)) = link.emcys.pop() {
+            self.emcys.push((t, code));
+            self.new_codes.push(code);
+        }
+    }
+
+    fn drain_applied(&mut self, link: &LiveLink) {
+        while let Some((i, t)) = link.applied.pop() {
+            if let Some(slot) = self.applied_us.get_mut(usize::from(i)) {
+                *slot = Some(t);
+            }
+        }
+    }
+
+    /// Fire the events due at `now` (the last sample's state and the new EMCYs decide the
+    /// triggered ones): start their drivers, queue their injections and a mark.
+    fn fire_due(&mut self, now: u64, inject: &impl Fn(Injection)) {
+        let state = self
+            .samples
+            .last()
+            .and_then(|x| Cia402State::from_statusword(x.statusword));
+        let obs = Observation {
+            state,
+            new_emcy: &self.new_codes,
+        };
+        let due = self.timeline.due_indices(now, &obs).to_vec();
+        for i in due {
+            let ev = &self.timeline.events()[i];
+            self.fired_us[i] = Some(now);
+            self.busy_until_us = self.busy_until_us.max(now + event_length_us(&ev.action));
+            match ev.action {
+                Action::Set { key, value } => {
+                    self.drivers.stop(key);
+                    set_current(&mut self.current, key, value);
+                }
+                Action::Ramp { key, .. } | Action::Profile { key, .. } => {
+                    let from = self
+                        .current
+                        .iter()
+                        .find(|(k, _)| k.key == key.key)
+                        .map_or(0.0, |(_, v)| *v);
+                    self.drivers.start(&ev.action, now, from);
+                }
+                Action::Sensor { .. } | Action::Can { .. } | Action::CanRestore => {}
+            }
+            if let Some(inj) = Injection::of_action(&ev.action, now) {
+                inject(inj);
+            }
+            inject(Injection::Mark { event: i as u16 });
+        }
+    }
+
+    /// Ramps every 10 ms of simulated time, profiles every millisecond.
+    fn drive_params(&mut self, now: u64, inject: &impl Fn(Injection)) {
+        if self.drivers.is_empty()
+            || !(self.drivers.has_profile() || now >= self.last_ramp_us + 10_000)
+        {
+            return;
+        }
+        self.last_ramp_us = now;
+        self.drivers.values(now, &mut self.values);
+        for &(key, v) in &self.values {
+            set_current(&mut self.current, key, v);
+            inject(Injection::Param {
+                param: key.param,
+                value_si: v * key.scale,
+            });
+        }
+    }
+
+    /// Why the run ends now, if it does.
+    fn end_reason(
+        &self,
+        now: u64,
+        end: LiveEnd,
+        stop: &AtomicBool,
+        s: &Scenario,
+    ) -> Option<String> {
+        if stop.load(Ordering::Relaxed) {
+            return Some("stopped (Ctrl-C, SIGTERM or --duration of the run)".to_string());
+        }
+        match end {
+            LiveEnd::At(t) if now >= t => Some(format!(
+                "reached its end at {}",
+                super::expect::seconds_text(t)
+            )),
+            LiveEnd::EventsDone if self.timeline.all_fired() => {
+                let (settle, horizon) = settle_us(s);
+                let t = (self.busy_until_us + settle).max(horizon);
+                (now >= t).then(|| {
+                    format!(
+                        "every event fired and ran its course; ended at {}",
+                        super::expect::seconds_text(now)
+                    )
+                })
+            }
+            _ => None,
+        }
+    }
+}
+
 /// The scenario thread: follow the loop's time until `end` (or `stop`), inject the timeline,
 /// record, and check the expectations.
 pub fn run_timeline(
@@ -249,21 +377,20 @@ pub fn run_timeline(
     stop: &AtomicBool,
     end: LiveEnd,
 ) -> LiveOutcome {
-    let mut current = initial_values(cfg, drive_before_start);
-    let mut timeline = Timeline::new(s.events.clone());
-    let mut drivers = Drivers::default();
-    let mut values = Vec::new();
-    let mut samples: Vec<Sample> = Vec::new();
-    let mut emcys: Vec<(u64, u16)> = Vec::new();
-    let mut new_codes: Vec<u16> = Vec::new();
-    // Per event: when the scenario thread fired it, and when the loop applied it.
     let n_events = s.events.len();
-    let mut fired_us: Vec<Option<u64>> = vec![None; n_events];
-    let mut applied_us: Vec<Option<u64>> = vec![None; n_events];
-    // The end of what the fired events started.
-    let mut busy_until_us = 0u64;
-    let (settle, horizon) = settle_us(s);
-    let mut last_ramp_us = 0u64;
+    let mut lt = LiveTimeline {
+        current: initial_values(cfg, drive_before_start),
+        timeline: Timeline::new(s.events.clone()),
+        drivers: Drivers::default(),
+        values: Vec::new(),
+        samples: Vec::new(),
+        emcys: Vec::new(),
+        new_codes: Vec::new(),
+        fired_us: vec![None; n_events],
+        applied_us: vec![None; n_events],
+        busy_until_us: 0,
+        last_ramp_us: 0,
+    };
     let inject = |i: Injection| {
         // The loop drains the queue every tick; a full queue means the loop is stalled.
         while link.injections.push(i).is_err() && !stop.load(Ordering::Relaxed) {
@@ -273,88 +400,36 @@ pub fn run_timeline(
     let end_reason = loop {
         std::thread::sleep(Duration::from_millis(1));
         let now = link.now_us.load(Ordering::Relaxed);
-        while let Some(smp) = link.samples.pop() {
-            samples.push(smp);
-        }
-        while let Some((i, t)) = link.applied.pop() {
-            if let Some(slot) = applied_us.get_mut(usize::from(i)) {
-                *slot = Some(t);
-            }
-        }
-        new_codes.clear();
-        while let Some((t, code)) = link.emcys.pop() {
-            emcys.push((t, code));
-            new_codes.push(code);
-        }
-        let state = samples
-            .last()
-            .and_then(|x| Cia402State::from_statusword(x.statusword));
-        let obs = Observation {
-            state,
-            new_emcy: &new_codes,
-        };
-        let due = timeline.due_indices(now, &obs).to_vec();
-        for i in due {
-            let ev = &timeline.events()[i];
-            fired_us[i] = Some(now);
-            busy_until_us = busy_until_us.max(now + event_length_us(&ev.action));
-            match ev.action {
-                Action::Set { key, value } => {
-                    drivers.stop(key);
-                    set_current(&mut current, key, value);
-                }
-                Action::Ramp { key, .. } | Action::Profile { key, .. } => {
-                    let from = current
-                        .iter()
-                        .find(|(k, _)| k.key == key.key)
-                        .map_or(0.0, |(_, v)| *v);
-                    drivers.start(&ev.action, now, from);
-                }
-                Action::Sensor { .. } | Action::Can { .. } | Action::CanRestore => {}
-            }
-            if let Some(inj) = Injection::of_action(&ev.action, now) {
-                inject(inj);
-            }
-            inject(Injection::Mark { event: i as u16 });
-        }
-        // Ramps every 10 ms of simulated time, profiles every millisecond.
-        if !drivers.is_empty() && (drivers.has_profile() || now >= last_ramp_us + 10_000) {
-            last_ramp_us = now;
-            drivers.values(now, &mut values);
-            for &(key, v) in &values {
-                set_current(&mut current, key, v);
-                inject(Injection::Param {
-                    param: key.param,
-                    value_si: v * key.scale,
-                });
-            }
-        }
-        if stop.load(Ordering::Relaxed) {
-            break "stopped (Ctrl-C, SIGTERM or --duration of the run)".to_string();
-        }
-        match end {
-            LiveEnd::At(t) if now >= t => {
-                break format!("reached its end at {}", super::expect::seconds_text(t));
-            }
-            LiveEnd::EventsDone if timeline.all_fired() => {
-                let t = (busy_until_us + settle).max(horizon);
-                if now >= t {
-                    break format!(
-                        "every event fired and ran its course; ended at {}",
-                        super::expect::seconds_text(now)
-                    );
-                }
-            }
-            _ => {}
+        lt.drain(link);
+        lt.fire_due(now, &inject);
+        lt.drive_params(now, &inject);
+        if let Some(why) = lt.end_reason(now, end, stop, s) {
+            break why;
         }
     };
     // What the loop applied in the last moments (it keeps ticking until told to stop).
     std::thread::sleep(Duration::from_millis(5));
-    while let Some((i, t)) = link.applied.pop() {
-        if let Some(slot) = applied_us.get_mut(usize::from(i)) {
-            *slot = Some(t);
-        }
-    }
+    lt.drain_applied(link);
+    conclude(s, cfg, link, lt, end_reason)
+}
+
+/// After the run: the detector on the drive's samples, the event times (the loop's), the
+/// record and the expectations.
+fn conclude(
+    s: &Scenario,
+    cfg: &AxisConfig,
+    link: &LiveLink,
+    lt: LiveTimeline,
+    end_reason: String,
+) -> LiveOutcome {
+    let LiveTimeline {
+        timeline,
+        samples,
+        emcys,
+        fired_us,
+        applied_us,
+        ..
+    } = lt;
     let rotary = cfg.kind == AxisKind::Rotary;
     let detector = s.detector.enabled.then(|| {
         analyze(
