@@ -243,3 +243,66 @@ fn supervision_trip_fault_reset_and_reset_node_do_not_allocate() {
     );
     assert_eq!(allocs, 0, "{allocs} allocations on the supervision paths");
 }
+
+#[test]
+fn i2t_heating_trip_and_cooling_do_not_allocate() {
+    // The axis enabled in PP holds its position against a load that needs twice its rated
+    // current: the I2t monitor heats every position cycle and trips (EMCY 0x2310), then the
+    // motor cools while the drive is in FAULT. A short thermal time constant (2 s) keeps it
+    // short; the path is the same.
+    let cfg = AxisConfig::from_preset("cnc1")
+        .unwrap()
+        .with_override("motor_thermal_time_constant_s", "2")
+        .unwrap();
+    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let force = drive.peak_load_force() * 2.0 * cfg.rated_current_a / cfg.max_current_a;
+    let mut slot = AxisSlot {
+        node: Node::new(5, drive.info()).unwrap(),
+        drive,
+    };
+    slot.node.boot(0);
+    let start = CanFrame::new(0x000, &[0x01, 5]);
+    let mode_pp = CanFrame::new(0x605, &[0x2F, 0x60, 0x60, 0, 1, 0, 0, 0]);
+    let cw = |v: u8| CanFrame::new(0x605, &[0x2B, 0x40, 0x60, 0, v, 0, 0, 0]);
+    let (shutdown, switch_on, enable) = (cw(0x06), cw(0x07), cw(0x0F));
+    let mut load = CanFrame::new(0x605, &[0x23, 0x06, 0x20, 0, 0, 0, 0, 0]);
+    load.data[4..8].copy_from_slice(&(force as f32).to_le_bytes());
+    let mut now = 0u64;
+    let mut emcy = Vec::with_capacity(64);
+    let mut peak_heat = 0.0f64;
+    ALLOCS.with(|a| a.set(0));
+    for k in 0..4000u32 {
+        counted(|| {
+            let f = match k {
+                300 => Some(&start),
+                301 => Some(&mode_pp),
+                302 => Some(&shutdown),
+                303 => Some(&switch_on),
+                304 => Some(&enable),
+                310 => Some(&load),
+                _ => None,
+            };
+            if let Some(f) = f {
+                slot.node.handle(f, now, &mut slot.drive);
+            }
+            slot.node.poll(now, &mut slot.drive);
+            slot.drive.advance(1000);
+            now += 1000;
+        });
+        peak_heat = peak_heat.max(slot.drive.motor_thermal_load());
+        while let Some(f) = slot.node.pop_tx() {
+            if f.id == 0x85 {
+                emcy.push(u16::from_le_bytes([f.data[0], f.data[1]]));
+            }
+        }
+    }
+    let allocs = ALLOCS.with(Cell::get);
+    assert_eq!(emcy.first(), Some(&0x2310), "I2t EMCY: {emcy:x?}");
+    assert_eq!(slot.node.statusword() & 0x4F, 0x08, "FAULT");
+    assert!(
+        slot.drive.motor_thermal_load() < peak_heat * 0.9,
+        "cooling in FAULT: {} after a peak of {peak_heat}",
+        slot.drive.motor_thermal_load()
+    );
+    assert_eq!(allocs, 0, "{allocs} allocations on the I2t paths");
+}

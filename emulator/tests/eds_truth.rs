@@ -8,7 +8,7 @@
 //!   ros2_canopen bus configuration shown in the README). The checkers are pinned in
 //!   tests/requirements.txt; a missing checker FAILS the test.
 
-use drive_emu::cli::eds::{eds_text, EdsArgs};
+use drive_emu::cli::eds::{eds_text, EdsArgs, Real32Arg};
 use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::presets::{preset_names, AxisConfig};
 use drive_protocol::{CanFrame, Drive, Node};
@@ -39,6 +39,7 @@ fn args(preset: &str, node: Option<u8>, set: &[&str]) -> EdsArgs {
         preset: preset.into(),
         node,
         set: set.iter().map(|s| s.to_string()).collect(),
+        real32: Real32Arg::Bits,
     }
 }
 
@@ -283,5 +284,157 @@ fn eds_validate_dcfchk_and_dcfgen_accept_the_eds() {
     );
     let out = run_tool("dcfchk", &["master.dcf"], &dir);
     assert!(!out.contains("Warning"), "dcfchk master.dcf:\n{out}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Run a python snippet with `argv[1..]`; its stdout parsed as JSON.
+fn python_json(script: &str, args: &[&str]) -> serde_json::Value {
+    let out = Command::new("python3")
+        .arg("-c")
+        .arg(script)
+        .args(args)
+        .output()
+        .expect("python3");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "python failed ({}): {}{}",
+        out.status,
+        stdout,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("{e}: {stdout}"))
+}
+
+/// python canopen (pinned 2.4.1) reads REAL32 defaults only as decimals (`float(value)`; a
+/// hex default becomes None): `eds --real32 decimal` gives it every manufacturer REAL32
+/// default as the drive has it, the same numbers as the bit patterns Lely reads, for every
+/// preset with and without --set; eds-validate accepts that form too.
+#[test]
+fn python_canopen_reads_the_real32_defaults_of_the_decimal_eds() {
+    let dir = std::env::temp_dir().join(format!("drive-emu-eds-py-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    const SCRIPT: &str = r#"
+import canopen, json, sys
+od = canopen.import_od(sys.argv[1], int(sys.argv[2]))
+out = {}
+for obj in od.values():
+    if isinstance(obj, canopen.objectdictionary.ODVariable) and obj.data_type == 0x8:
+        out[f"{obj.index:04X}"] = obj.default
+print(json.dumps(out))
+"#;
+    for preset in preset_names() {
+        for set in [vec![], vec!["kv_per_s=25", "speed_ti_ms=4"]] {
+            let bits = eds_text(&args(preset, Some(5), &set)).unwrap();
+            let mut a = args(preset, Some(5), &set);
+            a.real32 = Real32Arg::Decimal;
+            let decimal = eds_text(&a).unwrap();
+            let file = dir.join(format!("{preset}-{}.eds", set.len()));
+            std::fs::write(&file, &decimal).unwrap();
+            let py = python_json(SCRIPT, &[file.to_str().unwrap(), "5"]);
+            let ini = parse_ini(&bits);
+            let mut n = 0;
+            for (section, keys) in &ini {
+                if keys.get("DataType").map(String::as_str) != Some("0x0008") {
+                    continue;
+                }
+                let hex = keys["DefaultValue"].trim_start_matches("0x");
+                let want = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
+                let got = py[section.as_str()].as_f64().unwrap_or_else(|| {
+                    panic!(
+                        "{preset} {set:?}: [{section}] read as {}",
+                        py[section.as_str()]
+                    )
+                });
+                assert_eq!(got as f32, want, "{preset} {set:?}: [{section}]");
+                n += 1;
+            }
+            assert!(n >= 10, "{preset}: {n} REAL32 objects");
+            let kv = py["2007"].as_f64().unwrap();
+            let want_kv = if set.is_empty() {
+                AxisConfig::from_preset(preset).unwrap().kv_per_s
+            } else {
+                25.0
+            };
+            assert_eq!(
+                kv as f32, want_kv as f32,
+                "{preset} {set:?}: 0x2007 kv_per_s"
+            );
+            let name = file.file_name().unwrap().to_str().unwrap();
+            let out = run_tool("eds-validate", &[name], &dir);
+            assert!(out.trim().is_empty(), "eds-validate {name}:\n{out}");
+        }
+    }
+    // cnc1 as the issue names it: 0x2007 = 30.0
+    let mut a = args("cnc1", Some(5), &[]);
+    a.real32 = Real32Arg::Decimal;
+    assert!(eds_text(&a).unwrap().contains("[2007]\nParameterName=kv_per_s\nObjectType=0x7\nDataType=0x0008\nAccessType=rw\nDefaultValue=30.0\n"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// canopen-monitor (pinned 4.1.0), as it loads an EDS (`canopen_monitor.parse.eds`): every
+/// object of ours parsed with its name and data type, [FileInfo]'s date read, and with the EDS
+/// attached to the node, our TPDO1 decoded through its PDO parser. (It cannot attach an EDS
+/// to a node by itself: it reads the node ID from a section it spells `DeviceCommissioning`
+/// with a key `node_id`, where CiA 306 writes `[DeviceComissioning] NodeID`, and otherwise from
+/// object 0x2101's default, OreSat's own convention; see the README.)
+#[test]
+fn canopen_monitor_parses_the_eds_and_decodes_its_tpdo() {
+    let dir = std::env::temp_dir().join(format!("drive-emu-eds-cm-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    const SCRIPT: &str = r#"
+import json, sys
+from canopen_monitor.parse import eds as E, pdo as P
+od = E.load_eds_file(sys.argv[1])
+objs = {}
+for key, idx in od.indices.items():
+    objs[f"{int(key, 16):04X}"] = [idx.parameter_name, str(idx.data_type) if hasattr(idx, "data_type") else None]
+    for sub, s in (idx.sub_indices or {}).items():
+        objs[f"{int(key, 16):04X}sub{sub:X}"] = [s.parameter_name, str(s.data_type) if hasattr(s, "data_type") else None]
+print(json.dumps({
+    "objects": objs,
+    "date": str(od.file_info.creation_date),
+    "tpdo1": P.parse(0x180 + 5, bytes([0x37, 0x02, 0x01]), od),
+}))
+"#;
+    for preset in preset_names() {
+        let eds = eds_text(&args(preset, Some(5), &[])).unwrap();
+        let file = dir.join(format!("{preset}.eds"));
+        std::fs::write(&file, &eds).unwrap();
+        let cm = python_json(SCRIPT, &[file.to_str().unwrap()]);
+        let ini = parse_ini(&eds);
+        let mut n = 0;
+        for (section, keys) in &ini {
+            let Some(name) = keys.get("ParameterName") else {
+                continue;
+            };
+            let got = &cm["objects"][section.as_str()];
+            // canopen-monitor turns any value of hex digits alone into a number: 0x6092:1's
+            // CiA 402 name "Feed" comes back as 0xFEED.
+            match u64::from_str_radix(name, 16) {
+                Ok(v) => assert_eq!(got[0].as_u64(), Some(v), "{preset} [{section}]: {got}"),
+                Err(_) => assert_eq!(
+                    got[0].as_str(),
+                    Some(name.as_str()),
+                    "{preset} [{section}]: {got}"
+                ),
+            }
+            if let Some(dt) = keys.get("DataType") {
+                // canopen-monitor keeps 0x-prefixed values as text
+                assert_eq!(got[1].as_str(), Some(dt.as_str()), "{preset} [{section}]");
+            }
+            n += 1;
+        }
+        assert!(n > 100, "{preset}: {n} objects");
+        let date = &ini["FileInfo"]["CreationDate"]; // MM-DD-YYYY
+        let (m, rest) = date.split_at(2);
+        let iso = format!("{}-{m}-{}", &rest[4..], &rest[1..3]);
+        assert_eq!(cm["date"].as_str(), Some(iso.as_str()), "{preset}");
+        assert_eq!(
+            cm["tpdo1"].as_str(),
+            Some("Statusword - 567 Modes of operation display - 1"),
+            "{preset}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -253,3 +253,57 @@ fn nonsense_preset_overrides_are_rejected_with_key_and_limit() {
         assert!(e.reason.contains(reason), "{key}={value}: {}", e.reason);
     }
 }
+
+/// Errors in files that use multi-line values (arrays, multi-line strings, nested tables)
+/// point at the line and column of the offending value, name its key, and say why: what
+/// `drive-emu scenario` prints as `file:line:column: key `...`: reason`.
+#[test]
+fn multi_line_files_report_line_column_key_and_reason() {
+    let cases = [
+        (
+            "name = \"a\"\n[machine]\npreset = \"cnc1\"\nbacklash_mm = [\n  0.01,\n  0.02,\n]\n",
+            "a.toml",
+            (4, 15),
+            "machine.backlash_mm",
+            "invalid type: sequence",
+        ),
+        (
+            "name = \"b\"\n[machine]\npreset = \"cnc1\"\n[[event]]\nat = \"1 s\"\nset = \"backlash_mm\"\nvalue = \"\"\"\n0.03\n\"\"\"\n",
+            "b.toml",
+            (7, 9),
+            "event[0].value",
+            "expected f64",
+        ),
+        (
+            "name = \"f\"\ndescription = \"\"\"\nline one\nline two\n\"\"\"\n[machine]\npreset = \"cnc1\"\nkv_per_s = 1e308\n",
+            "f.toml",
+            (8, 12),
+            "machine.kv_per_s",
+            "must be <=",
+        ),
+        (
+            "name = \"g\"\n[machine]\npreset = \"cnc1\"\n[[motion]]\nstep = \"repeat\"\ntimes = 2\nbody = [\n  { step = \"cruise\", velocity_mm_s = 10, duration = \"1 s\" },\n  { step = \"cruise\", velocity_mm_s = 10, duration = \"1 lightyear\" },\n]\n",
+            "g.toml",
+            (9, 53),
+            "duration",
+            "unknown unit `lightyear`",
+        ),
+        (
+            "name = \"h\"\n[machine]\npresets = [\n  \"cnc1\",\n  \"cnc9\",\n]\n",
+            "h.toml",
+            (5, 3),
+            "machine.presets",
+            "unknown preset `cnc9`",
+        ),
+    ];
+    for (src, file, (line, column), key, why) in cases {
+        let e = scenario::parse(src, Path::new(file)).expect_err(file);
+        let text = e.to_string();
+        assert_eq!((e.line, e.column), (line, column), "{text}");
+        assert!(
+            text.starts_with(&format!("{file}:{line}:{column}: key `")),
+            "{text}"
+        );
+        assert!(e.key.contains(key) && e.reason.contains(why), "{text}");
+    }
+}

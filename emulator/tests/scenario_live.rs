@@ -233,3 +233,74 @@ fn a_lockstep_live_scenario_whose_sync_stops_ends_by_itself_with_the_sync_loss_r
         outcome.record.end_us
     );
 }
+
+/// A live run that ends (here at `--duration`'s 1 s) before every event of the timeline has
+/// fired did not run the scenario: it fails and says which events had not fired, even when
+/// every expectation it could check held (as `drive-emu scenario` fails a program that does
+/// not finish).
+#[test]
+fn a_live_run_that_ends_before_its_timeline_finishes_fails_and_says_so() {
+    let text = r#"
+name = "unfinished"
+[machine]
+preset = "cnc1"
+[[motion]]
+step = "enable"
+mode = "csp"
+[[event]]
+at = "0.2 s"
+set = "backlash_mm"
+value = 0.03
+[[event]]
+at = "5 s"
+sensor = "direct_encoder_loss"
+[[expect]]
+no_emcy = true
+"#;
+    let s = drive_emu::scenario::parse(text, std::path::Path::new("unfinished.toml"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let cfg = s.machine.configs[0].clone();
+    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let snapshot = AxisDrive::from_config(&cfg).unwrap();
+    let node = Node::new(5, drive.info()).unwrap();
+    let mut eps = InProcBus::endpoints(2, 4096);
+    let _master_bus = eps.pop().unwrap();
+    let bus = FaultyBus::new(eps.pop().unwrap(), 1);
+    let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
+    rt.boot();
+    let link = Arc::new(LiveLink::new());
+    let stop = Arc::new(AtomicBool::new(false));
+    let scenario_thread = {
+        let (s, cfg, link, stop) = (s.clone(), cfg.clone(), link.clone(), stop.clone());
+        std::thread::spawn(move || {
+            // --duration 1
+            let end = LiveEnd::for_scenario(&s, Some(1_000_000));
+            let o = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
+            stop.store(true, Ordering::Relaxed);
+            o
+        })
+    };
+    let mut injector = LoopInjector::new(0x7F);
+    let mut clock = MonotonicClock::new();
+    let mut deadline = clock.now_us();
+    while !stop.load(Ordering::Relaxed) && rt.sim_time_us < 600_000_000 {
+        clock.sleep_until(deadline);
+        deadline += 1000;
+        rt.tick();
+        injector.on_tick(&link, &mut rt);
+    }
+    let o = scenario_thread.join().unwrap();
+    assert!(
+        o.expectations.iter().all(|e| e.passed),
+        "{:?}",
+        o.expectations
+    );
+    assert_eq!(o.fired.len(), 1, "{:?}", o.fired);
+    assert_eq!(o.not_fired.len(), 1, "{:?}", o.not_fired);
+    assert!(!o.passed(), "an unfinished timeline passed");
+    let why = o.unfinished().expect("says why");
+    assert!(
+        why.contains("did not finish") && why.contains("line 12") && why.contains("1 event(s)"),
+        "{why}"
+    );
+}

@@ -3,7 +3,7 @@ mod common;
 use common::*;
 use drive_protocol::Cia402State as S;
 
-/// Statusword mask/value per state, as CiA 402 (DOMAIN.md section 4) defines them.
+/// Statusword mask/value per state, as CiA 402 defines them.
 fn expected_sw(s: S) -> (u16, u16) {
     match s {
         S::NotReadyToSwitchOn => (0x4F, 0x00),

@@ -94,7 +94,9 @@ class DriveEmu:
     def write_eds(self):
         """Generate the EDS for this drive (`drive-emu eds`); returns its path."""
         path = self.workdir / f"drive-emu-{self.preset}-node{self.node_id}.eds"
-        cmd = [self.binary, "eds", "--preset", self.preset, "--node", str(self.node_id)]
+        # REAL32 defaults as decimals: python canopen reads no other form
+        cmd = [self.binary, "eds", "--preset", self.preset, "--node", str(self.node_id),
+               "--real32", "decimal"]
         done = subprocess.run(cmd + self._set_args(), capture_output=True, text=True,
                               timeout=120)
         if done.returncode != 0:

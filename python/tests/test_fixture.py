@@ -25,14 +25,6 @@ def wait_for(pred, what, timeout=TIMEOUT):
         time.sleep(0.02)
 
 
-def eds_real32(path, index):
-    cfg = configparser.ConfigParser()
-    cfg.optionxform = str
-    cfg.read(path)
-    bits = int(cfg[f"{index:04X}"]["DefaultValue"], 0)
-    return struct.unpack("<f", struct.pack("<I", bits))[0]
-
-
 @pytest.mark.drive_emu(node_id=21, preset="cnc1", set=["kv_per_s=20", "backlash_mm=0.04"])
 def test_ready_line_eds_and_live_statistics(drive_emu):
     ready = drive_emu.ready
@@ -52,7 +44,10 @@ def test_ready_line_eds_and_live_statistics(drive_emu):
         for index, want in ((0x2007, 20.0), (0x2000, 0.04)):
             got = struct.unpack("<f", node.sdo.upload(index, 0))[0]
             assert got == pytest.approx(want, rel=1e-6)
-            assert eds_real32(drive_emu.eds_path, index) == pytest.approx(got, rel=1e-6)
+            # and python canopen reads that default from the EDS (REAL32 as a decimal)
+            default = node.object_dictionary[index].default
+            assert default is not None, f"0x{index:04X}: python canopen read no default"
+            assert default == pytest.approx(got, rel=1e-6)
         first = drive_emu.statistics(node)
         assert set(first) >= {"ticks", "overruns", "lateness_p99_us"}
         wait_for(lambda: drive_emu.statistics(node)["ticks"] > first["ticks"],

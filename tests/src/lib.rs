@@ -74,7 +74,7 @@ pub fn frame(id: u16, data: &[u8]) -> CanFrame {
 
 /// Wait up to `timeout` for a frame matching `pred`, discarding others.
 /// Uses a short socket read timeout in a loop (socketcan's `read_frame_timeout`
-/// rounds down to whole milliseconds, see DOMAIN.md section 6).
+/// rounds down to whole milliseconds).
 pub fn recv_matching(
     sock: &CanSocket,
     timeout: Duration,

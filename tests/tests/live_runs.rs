@@ -1,7 +1,7 @@
 //! Live runs on vcan: `drive-emu run --trace` flushing its trace on SIGTERM, and
 //! `drive-emu scenario FILE --iface` injecting a scenario's timeline into a drive that an
 //! external controller (this test, a minimal CANopen master) runs in lock-step.
-//! Node IDs: 32 (trace), 33 (scenario), 34 (SYNC loss in lock-step).
+//! Node IDs: 32 (trace), 33 (scenario), 34 (SYNC loss in lock-step), 36 (unfinished scenario).
 
 use e2e::*;
 use std::process::{Command, Stdio};
@@ -304,5 +304,96 @@ fn sync_loss_in_lockstep_ends_the_live_run_and_json_reports_it() {
     assert!(
         !exps.is_empty() && exps.iter().all(|e| e["passed"] == true),
         "{stdout}"
+    );
+}
+
+/// `run --scenario FILE --duration 1` where the file's second event comes at 100 s: the run
+/// ends at 1 s with that event not fired. The scenario did not finish, so the run fails (exit
+/// status not 0) and says so, in its JSON and on stderr, though its one expectation held.
+#[test]
+fn run_scenario_that_does_not_finish_exits_non_zero_and_says_so() {
+    const NODE: u8 = 36;
+    let ifname = iface(0);
+    let sock = open_bus(&ifname);
+    let file = temp_file(
+        "unfinished.toml",
+        r#"
+name = "unfinished"
+[machine]
+preset = "cnc1"
+[[motion]]
+step = "enable"
+mode = "csp"
+[[event]]
+at = "0.2 s"
+set = "backlash_mm"
+value = 0.03
+[[event]]
+at = "100 s"
+sensor = "direct_encoder_loss"
+[[expect]]
+no_emcy = true
+"#,
+    );
+    let mut child = Command::new(drive_emu_bin())
+        .args([
+            "run",
+            "--rt-priority",
+            "0",
+            "--no-mlock",
+            "--iface",
+            &ifname,
+        ])
+        .args(["--node", "36", "--lockstep", "--json", "--duration", "1"])
+        .arg("--scenario")
+        .arg(&file)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start drive-emu run --scenario");
+    assert!(wait_bootup(&sock, NODE, PEER_TIMEOUT), "no boot-up");
+    nmt(&sock, 0x01, NODE);
+    let deadline = Instant::now() + Duration::from_secs(300);
+    let mut i = 0usize;
+    let status = loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            break st;
+        }
+        assert!(Instant::now() < deadline, "the run never ended");
+        send(&sock, 0x080, &[]);
+        let _ = recv_matching(&sock, Duration::from_secs(2), |f| {
+            id_data(f).0 == 0x480 + u32::from(NODE)
+        });
+        i += 1;
+    };
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !status.success(),
+        "an unfinished scenario exited 0 after {i} SYNCs\nstdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&stdout)
+        .unwrap_or_else(|e| panic!("stdout is not one JSON document ({e}):\n{stdout}"));
+    let sc = &v["scenario"];
+    assert_eq!(sc["passed"], false, "{stdout}");
+    assert_eq!(sc["finished"], false, "{stdout}");
+    assert!(
+        sc["failure"]
+            .as_str()
+            .is_some_and(|f| f.contains("did not finish") && f.contains("line 12")),
+        "{stdout}"
+    );
+    assert_eq!(sc["events_not_fired"].as_array().map(Vec::len), Some(1));
+    assert!(
+        sc["expectations"]
+            .as_array()
+            .is_some_and(|e| e.iter().all(|x| x["passed"] == true)),
+        "{stdout}"
+    );
+    assert!(
+        stderr.contains("error: the scenario did not finish"),
+        "{stderr}"
     );
 }

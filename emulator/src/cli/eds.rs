@@ -4,7 +4,7 @@ use crate::drive::axis_drive::AxisDrive;
 use crate::presets::{preset_names, AxisConfig};
 use anyhow::Result;
 use clap::Args;
-use drive_protocol::od::eds::EdsMeta;
+use drive_protocol::od::eds::{EdsMeta, Real32Notation};
 use drive_protocol::{Drive, Node};
 
 #[derive(Args, Debug, Clone)]
@@ -20,6 +20,22 @@ pub struct EdsArgs {
     /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
+    /// How REAL32 defaults (0x2000-0x200C) are written: `bits`, the IEEE 754 bit pattern in
+    /// hex (kv_per_s 30.0 = 0x41F00000), as Lely's dcfchk/dcfgen and ros2_canopen read them;
+    /// or `decimal` (30.0), as python canopen reads them (it leaves a hex REAL32 default
+    /// None; Lely rejects a decimal one). eds-validate accepts both.
+    #[arg(long, value_enum, default_value_t = Real32Arg::Bits)]
+    pub real32: Real32Arg,
+}
+
+/// `--real32`: notation of REAL32 defaults in the EDS.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Real32Arg {
+    /// IEEE 754 bits in hex (Lely dcf-tools, ros2_canopen).
+    #[default]
+    Bits,
+    /// Decimal (python canopen).
+    Decimal,
 }
 
 /// The EDS (CiA 306) of a drive built from a preset, generated from the node's object table:
@@ -63,6 +79,10 @@ pub fn eds_text(args: &EdsArgs) -> Result<String> {
         date: &date,
         node_id: args.node,
         params: &[],
+        real32: match args.real32 {
+            Real32Arg::Bits => Real32Notation::Bits,
+            Real32Arg::Decimal => Real32Notation::Decimal,
+        },
     };
     Ok(node.export_eds_of(&drive, &meta))
 }

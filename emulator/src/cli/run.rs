@@ -328,6 +328,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
                 if o.passed() { "passed" } else { "FAILED" }
             );
         }
+        if let Some(why) = o.unfinished() {
+            bail!("{why}");
+        }
         if !o.passed() {
             bail!("scenario expectations failed");
         }
@@ -365,6 +368,8 @@ pub fn outcome_json(run: &LiveRun, s: &Scenario) -> serde_json::Value {
         v["scenario"] = serde_json::json!({
             "name": s.name,
             "passed": o.passed(),
+            "finished": o.unfinished().is_none(),
+            "failure": o.unfinished(),
             "end_s": o.record.end_us as f64 * 1e-6,
             "end_reason": o.end_reason,
             "events": o.fired.iter().map(|(t, what)| serde_json::json!({
@@ -410,6 +415,9 @@ pub fn print_outcome(o: &LiveOutcome) {
     }
     for e in &o.expectations {
         println!("  {e}");
+    }
+    if let Some(why) = o.unfinished() {
+        println!("  FAIL {why}");
     }
     if o.samples_lost > 0 {
         println!(

@@ -18,6 +18,12 @@ pub const ERROR_SENSOR: u16 = 0x7300;
 /// Overcurrent (CiA 402 0x2310, continuous overcurrent): the motor current left the power
 /// stage's range.
 pub const ERROR_OVERCURRENT: u16 = 0x2310;
+/// Motor overload (CiA 402 0x2310, continuous overcurrent), from the I2t thermal model: the
+/// current's heating, `(i / rated_current)^2` through a first-order lag with the motor's
+/// thermal time constant, reached the level continuous rated current settles at. From cold,
+/// a constant current `r` times rated trips after `tau ln(r^2 / (r^2 - 1))`; below rated it
+/// never trips, and the model cools with the same time constant.
+pub const ERROR_MOTOR_I2T: u16 = 0x2310;
 /// Overspeed (CiA 402 0x8400, velocity speed controller): motor speed, or the load's speed
 /// seen at the motor, beyond the motor's maximum speed times [`OVERSPEED_MARGIN`].
 pub const ERROR_OVERSPEED: u16 = 0x8400;
@@ -47,6 +53,10 @@ pub struct Supervision {
     pub overcurrent_a: f64,
     /// |load position| that trips [`ERROR_POSITION_RANGE`], m or rad.
     pub position_range: f64,
+    /// Current the I2t model is normalised to (the motor's rated current), A.
+    pub i2t_rated_current_a: f64,
+    /// Thermal time constant of the I2t model, s.
+    pub i2t_time_constant_s: f64,
 }
 
 /// User unit of the factor-group default: 1 um on a linear axis, 0.001 deg on a rotary one.
@@ -80,6 +90,11 @@ pub struct AxisDrive {
     /// Supervision fault latched (axis held at rest until a fault reset or reset node).
     trip: Option<u16>,
     supervision: Supervision,
+    /// I2t thermal load of the motor: 1.0 is the trip level, where continuous rated current
+    /// settles. Belongs to the motor: kept across fault reset and reset node.
+    thermal_load: f64,
+    /// I2t lag per position cycle: 1 - exp(-cycle / tau).
+    thermal_alpha: f64,
     /// The servo as built from the preset, at rest: what reset node restores.
     initial: Servo,
 }
@@ -138,13 +153,18 @@ impl AxisDrive {
             overspeed_rad_per_s: built.axis.motor.max_speed * OVERSPEED_MARGIN,
             overcurrent_a: built.axis.motor.max_current * OVERCURRENT_MARGIN,
             position_range: f64::from(i32::MAX) * user_unit,
+            i2t_rated_current_a: cfg.rated_current_a,
+            i2t_time_constant_s: cfg.motor_thermal_time_constant_s,
         };
+        let position_cycle_s = built.control.position_cycle;
         Ok(Self {
             position_cycle_us: built.control.position_cycle * 1e6,
             initial: servo.clone(),
             servo,
             trip: None,
             supervision,
+            thermal_load: 0.0,
+            thermal_alpha: 1.0 - (-position_cycle_s / cfg.motor_thermal_time_constant_s).exp(),
             info,
             inc_per_motor_rad,
             inc_per_load: inc_per_motor_rad * ratio,
@@ -195,6 +215,23 @@ impl AxisDrive {
         self.trip
     }
 
+    /// The motor's I2t thermal load: 0 cold, 1.0 the trip level (where continuous rated
+    /// current settles).
+    pub fn motor_thermal_load(&self) -> f64 {
+        self.thermal_load
+    }
+
+    /// One position cycle of the I2t model at motor current `current_a` (exact for a current
+    /// constant over the cycle). A non-finite current leaves it as it is (the physics check
+    /// faults on it).
+    #[inline]
+    fn heat(&mut self, current_a: f64) {
+        let r = current_a / self.supervision.i2t_rated_current_a;
+        if r.is_finite() {
+            self.thermal_load += (r * r - self.thermal_load) * self.thermal_alpha;
+        }
+    }
+
     /// Highest force (N) or torque (N m) the motor can exert at the load.
     pub fn peak_load_force(&self) -> f64 {
         self.servo.axis.motor.torque_limit() * self.servo.axis.ratio()
@@ -216,6 +253,9 @@ impl AxisDrive {
         let lim = &self.supervision;
         if ax.motor.current().abs() > lim.overcurrent_a {
             return Some(ERROR_OVERCURRENT);
+        }
+        if self.thermal_load >= 1.0 {
+            return Some(ERROR_MOTOR_I2T);
         }
         let measured = self.servo.motor_velocity();
         if !measured.is_finite()
@@ -463,10 +503,13 @@ impl SimulatedDrive for AxisDrive {
         while self.pending_us + 0.5 >= self.position_cycle_us {
             self.pending_us -= self.position_cycle_us;
             if self.trip.is_some() {
-                // Held at rest (power stage off, holding brake closed) until reset.
+                // Held at rest (power stage off, holding brake closed) until reset; the
+                // motor cools.
+                self.heat(0.0);
                 continue;
             }
             self.servo.step();
+            self.heat(self.servo.axis.motor.current());
             if let Some(code) = self.supervise() {
                 self.trip = Some(code);
                 let x = self.rest_position();

@@ -112,6 +112,11 @@ pub struct AxisConfig {
     pub rated_current_a: f64,
     pub max_current_a: f64,
     pub max_speed_rpm: f64,
+    /// Thermal time constant of the motor's I2t model, s: the winding's heating time
+    /// constant that the drive's motor overload monitor uses (continuous current above
+    /// `rated_current_a` trips it; see `drive::axis_drive::ERROR_MOTOR_I2T`).
+    #[serde(default = "default_motor_thermal_time_constant_s")]
+    pub motor_thermal_time_constant_s: f64,
     pub current_bandwidth_hz: f64,
     pub motor_coulomb_friction_nm: f64,
     pub motor_viscous_friction_nm_per_rad_per_s: f64,
@@ -178,7 +183,7 @@ fn at_most(key: &str, v: f64, max: f64, why: &str) -> Result<f64, ConfigError> {
     if v > max {
         Err(ConfigError::new(
             key,
-            format!("must be <= {max:.6}, got {v}: {why}"),
+            format!("must be <= {max:?}, got {v:?}: {why}"),
         ))
     } else {
         Ok(v)
@@ -491,6 +496,16 @@ impl AxisConfig {
         }
         let max_speed =
             positive("max_speed_rpm", self.max_speed_rpm)? * std::f64::consts::PI / 30.0;
+        let tau_th = positive(
+            "motor_thermal_time_constant_s",
+            self.motor_thermal_time_constant_s,
+        )?;
+        if !(1.0..=36_000.0).contains(&tau_th) {
+            return Err(ConfigError::new(
+                "motor_thermal_time_constant_s",
+                format!("must be within 1..=36000 s (a motor winding heats in seconds to hours), got {tau_th}"),
+            ));
+        }
         let fc_hz = positive("current_bandwidth_hz", self.current_bandwidth_hz)?;
         let motor_fc = non_negative("motor_coulomb_friction_nm", self.motor_coulomb_friction_nm)?;
         let motor_fv = non_negative(
@@ -737,6 +752,14 @@ fn finite(key: &str, v: f64) -> Result<f64, ConfigError> {
 }
 
 /// Turn a serde/toml error into a key + reason.
+/// The motor's I2t thermal time constant when a machine file does not give one, s: a
+/// mid-size servo motor's winding (estimate; the presets give their own).
+pub const DEFAULT_MOTOR_THERMAL_TIME_CONSTANT_S: f64 = 180.0;
+
+fn default_motor_thermal_time_constant_s() -> f64 {
+    DEFAULT_MOTOR_THERMAL_TIME_CONSTANT_S
+}
+
 fn parse_error(e: toml::de::Error) -> ConfigError {
     let msg = e.message().to_string();
     // "unknown field `foo`, expected one of ..." / "missing field `bar`"

@@ -127,8 +127,29 @@ pub struct LiveOutcome {
 }
 
 impl LiveOutcome {
+    /// Every expectation held and the scenario finished (every event fired).
     pub fn passed(&self) -> bool {
-        self.expectations.iter().all(|e| e.passed)
+        self.expectations.iter().all(|e| e.passed) && self.unfinished().is_none()
+    }
+
+    /// Why the scenario did not finish, for people: the events that had not fired when the
+    /// run ended (`--duration` or the file's `duration` too short, Ctrl-C, a condition never
+    /// met). `None` when every event fired.
+    pub fn unfinished(&self) -> Option<String> {
+        if self.not_fired.is_empty() {
+            return None;
+        }
+        let which: Vec<String> = self
+            .not_fired
+            .iter()
+            .map(|(line, what)| format!("line {line}: {what}"))
+            .collect();
+        Some(format!(
+            "the scenario did not finish: {} event(s) had not fired when the run ended at {} ({})",
+            self.not_fired.len(),
+            super::expect::seconds_text(self.record.end_us),
+            which.join("; ")
+        ))
     }
 }
 

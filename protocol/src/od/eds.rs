@@ -29,6 +29,19 @@ fn name_of(o: &Obj, info: &DriveInfo) -> &'static str {
     o.name
 }
 
+/// How REAL32 DefaultValues are written. EDS readers disagree: Lely's dcf-tools (dcfchk,
+/// dcfgen; what ros2_canopen runs on) read a REAL32 value as the integer of its IEEE 754 bits
+/// and reject a decimal; python canopen (2.4.1, `float(value)`) reads only a decimal and
+/// leaves a hex default as None. No text is read as the same number by both.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Real32Notation {
+    /// The IEEE 754 bit pattern in hex, e.g. kv_per_s 30.0 = `0x41F00000` (Lely's reading).
+    #[default]
+    Bits,
+    /// A decimal with a point or an exponent, e.g. `30.0` (python canopen's reading).
+    Decimal,
+}
+
 /// What a generated EDS says about itself and the device it describes. The protocol crate has
 /// no clock: the caller gives the creation time and date (CiA 306 forms `hh:mmAM`,
 /// `MM-DD-YYYY`).
@@ -50,6 +63,8 @@ pub struct EdsMeta<'a> {
     /// Manufacturer parameters (0x2000..): the value the drive has, engineering units, as an
     /// SDO read returns it. Objects not listed keep the table's default.
     pub params: &'a [(u16, f32)],
+    /// Notation of REAL32 DefaultValues.
+    pub real32: Real32Notation,
 }
 
 impl Default for EdsMeta<'_> {
@@ -62,11 +77,13 @@ impl Default for EdsMeta<'_> {
             date: "01-01-2025",
             node_id: None,
             params: &[],
+            real32: Real32Notation::Bits,
         }
     }
 }
 
-fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo, params: &[(u16, f32)]) {
+fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo, meta: &EdsMeta) {
+    let params = meta.params;
     let _ = writeln!(s, "ParameterName={}", name_of(o, info));
     let _ = writeln!(s, "ObjectType=0x7");
     let _ = writeln!(s, "DataType=0x{:04X}", o.dtype as u8);
@@ -78,14 +95,17 @@ fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo, params: &
         Def::NodeId(b) => {
             let _ = writeln!(s, "DefaultValue=$NODEID+0x{b:X}");
         }
-        // REAL32: the IEEE 754 bit pattern in hex (CiA 306 integer notation, as Lely's
-        // dcf-tools read it), e.g. kv_per_s 30.0 = 0x41F00000
+        // REAL32 in the notation asked for (see Real32Notation)
         _ if o.dtype == DataType::Real32 => {
             let v = params
                 .iter()
                 .find(|(i, _)| *i == o.index && o.otype == ObjType::Var)
                 .map_or(default_value(o, node_id, info), |p| p.1.to_bits());
-            let _ = writeln!(s, "DefaultValue=0x{v:08X}");
+            let _ = match meta.real32 {
+                Real32Notation::Bits => writeln!(s, "DefaultValue=0x{v:08X}"),
+                // Debug: shortest round-trip text, always with a point or an exponent
+                Real32Notation::Decimal => writeln!(s, "DefaultValue={:?}", f32::from_bits(v)),
+            };
         }
         _ => {
             let _ = writeln!(
@@ -177,7 +197,7 @@ pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
         let first = rows[0];
         if first.otype == ObjType::Var {
             let _ = writeln!(s, "[{index:04X}]");
-            write_entry(&mut s, first, node_id, info, meta.params);
+            write_entry(&mut s, first, node_id, info, meta);
         } else {
             let _ = writeln!(s, "[{index:04X}]");
             let _ = writeln!(s, "ParameterName={}", first.parent);
@@ -190,7 +210,7 @@ pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
             s.push('\n');
             for o in rows {
                 let _ = writeln!(s, "[{index:04X}sub{:X}]", o.sub);
-                write_entry(&mut s, o, node_id, info, meta.params);
+                write_entry(&mut s, o, node_id, info, meta);
             }
         }
     }
