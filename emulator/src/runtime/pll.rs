@@ -21,7 +21,11 @@ const LOCK_COUNT: u32 = 16;
 const LOCK_WINDOW: f64 = 0.25;
 /// Errors beyond this fraction of the period, several in a row, restart the acquisition.
 const SLIP_WINDOW: f64 = 0.45;
-const SLIPS_TO_REACQUIRE: u32 = 4;
+/// Consecutive slips that restart the acquisition (a loaded master's bunched SYNCs give a
+/// few in a row without a change of period).
+const SLIPS_TO_REACQUIRE: u32 = 8;
+/// Consecutive SYNCs whole periods late (a changed master period) that restart it.
+const BRIDGES_TO_REACQUIRE: u32 = 4;
 /// How many smoothed phase errors the control tick keeps before the predicted SYNC.
 const JITTER_MARGIN: f64 = 3.0;
 /// SYNC intervals averaged for the first period estimate.
@@ -68,8 +72,9 @@ pub struct SyncPll {
     tick_period_us: f64,
     lead_us: f64,
     last_sync_us: Option<f64>,
-    /// Acquisition: the first intervals seen (their median is the first period estimate).
-    intervals_us: [f64; ACQUIRE_SYNCS as usize],
+    /// Acquisition: the SYNC it started at (the mean interval since is the first period
+    /// estimate).
+    acquire_start_us: f64,
     acquired: u32,
     /// Predicted time of the next SYNC; valid once `period_us` is.
     predicted_us: f64,
@@ -94,7 +99,7 @@ impl SyncPll {
             tick_period_us: tick_period_us as f64,
             lead_us: lead_us as f64,
             last_sync_us: None,
-            intervals_us: [0.0; ACQUIRE_SYNCS as usize],
+            acquire_start_us: 0.0,
             acquired: 0,
             predicted_us: 0.0,
             period_us: 0.0,
@@ -129,6 +134,7 @@ impl SyncPll {
 
     fn restart(&mut self, t: f64) {
         self.last_sync_us = Some(t);
+        self.acquire_start_us = t;
         self.acquired = 0;
         self.period_us = 0.0;
         self.good = 0;
@@ -150,11 +156,10 @@ impl SyncPll {
         if self.period_us == 0.0 {
             // Acquisition: the mean of ACQUIRE_SYNCS intervals, so a jittered master does not
             // start the loop far off its period.
-            self.intervals_us[self.acquired as usize] = t - last;
             self.acquired += 1;
             self.last_sync_us = Some(t);
             if self.acquired >= ACQUIRE_SYNCS {
-                let dt = self.intervals_us.iter().sum::<f64>() / f64::from(self.acquired);
+                let dt = (t - self.acquire_start_us) / f64::from(self.acquired);
                 if (PERIOD_MIN_US..=PERIOD_MAX_US).contains(&dt) {
                     self.period_us = dt;
                     self.predicted_us = t + dt;
@@ -179,7 +184,7 @@ impl SyncPll {
         }
         if n >= 1.0 {
             self.bridged += 1;
-            if self.bridged >= SLIPS_TO_REACQUIRE {
+            if self.bridged >= BRIDGES_TO_REACQUIRE {
                 self.restart(t);
                 return;
             }
@@ -190,7 +195,7 @@ impl SyncPll {
         if e.abs() > SLIP_WINDOW * self.period_us {
             self.slips += 1;
             self.good = 0;
-            if self.slips >= SLIPS_TO_REACQUIRE * 2 {
+            if self.slips >= SLIPS_TO_REACQUIRE {
                 self.restart(t);
                 return;
             }
