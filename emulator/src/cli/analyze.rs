@@ -154,6 +154,7 @@ fn trace_from_csv_text(
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
             set_velocity_source: "column target_uu (position demand)".into(),
+            set_position: need(&["target_uu"])?.clone(),
         }
     } else {
         let rot = find(&["position_setpoint_deg"]).is_some();
