@@ -8,6 +8,7 @@
 
 use crate::axis::{Axis, AxisParams, StepTooCoarse};
 
+pub use super::params::CascadeParams;
 use super::position::PositionController;
 use super::speed::{SpeedController, SpeedEstimator};
 
@@ -73,25 +74,6 @@ impl Command {
             speed_limit: f64::INFINITY,
         }
     }
-}
-
-/// Controller gains and cycle times (SI).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CascadeParams {
-    /// Position gain k_v, 1/s.
-    pub kv: f64,
-    /// Speed-loop proportional gain k_sp, N m s/rad.
-    pub speed_kp: f64,
-    /// Speed-loop integral time T_si, s.
-    pub speed_ti: f64,
-    /// Speed-measurement filter time constant, s.
-    pub speed_filter: f64,
-    /// True: the direct encoder closes the position loop; false: the motor encoder does.
-    pub position_from_direct: bool,
-    /// Speed (and torque demand) cycle, s; an integer multiple of the physics step.
-    pub speed_cycle: f64,
-    /// Position cycle, s; an integer multiple of the speed cycle.
-    pub position_cycle: f64,
 }
 
 /// What the cascade computed in its last cycles.

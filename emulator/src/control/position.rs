@@ -2,7 +2,7 @@
 //! feed-forward. Output is a load-side velocity set-point (m/s or rad/s).
 //!
 //! The controller holds its state only; the gain comes from the cascade's
-//! [`CascadeParams`](super::cascade::CascadeParams), its one copy.
+//! [`CascadeParams`](super::params::CascadeParams), its one copy.
 
 /// The position loop's state: the last following error.
 #[derive(Clone, Debug, Default)]

@@ -1,7 +1,7 @@
 //! Speed loop: speed measured from motor-encoder differences with a short first-order filter
 //! (as a drive does), and a PI controller (k_sp, T_si) producing the torque demand.
 
-use super::cascade::CascadeParams;
+use super::params::CascadeParams;
 
 /// Speed from encoder count differences, filtered.
 #[derive(Clone, Debug)]
