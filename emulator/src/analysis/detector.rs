@@ -21,6 +21,7 @@
 
 use super::spectrum::SpectrumAnalyzer;
 use super::windows::{median_dt, scan_windows, Window, WindowOptions};
+use crate::samples::{Sample, SampleSource};
 use std::collections::HashMap;
 
 /// A trace as the detector needs it. Positions in one unit `u` (um for a linear axis, mdeg for a
@@ -141,11 +142,32 @@ impl AxisTrace {
         }
     }
 
-    /// From the reference master's sample log (user units, per mille current).
-    pub fn from_samples(samples: &[crate::samples::Sample], rotary: bool) -> Self {
+    /// From a sample log (user units, per mille current), read by who wrote it: the set
+    /// velocity is the master's interpolator velocity ([`SampleSource::Master`]); a drive has
+    /// none to report (its 0x606B is the position controller's output, which carries the
+    /// limit cycle), so for [`SampleSource::Drive`] (`run --trace`, live scenarios:
+    /// [`crate::runtime::trace::node_sample`]) it is derived from the position demand
+    /// `target_uu` (0x6062).
+    pub fn from_sample_log(samples: &[Sample], source: SampleSource, rotary: bool) -> Self {
+        let t_s: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+        let set_position: Vec<f64> = samples.iter().map(|s| s.target_uu).collect();
+        let (set_velocity, set_velocity_source) = match source {
+            SampleSource::Master => (
+                samples.iter().map(|s| s.setpoint_velocity_uu_s).collect(),
+                "the master's interpolator velocity",
+            ),
+            SampleSource::Drive => (
+                super::windows::set_velocity_from_demand(
+                    &t_s,
+                    &set_position,
+                    super::windows::DEMAND_SPAN_S,
+                ),
+                "position demand 0x6062",
+            ),
+        };
         Self {
-            t_s: samples.iter().map(|s| s.t_s).collect(),
-            set_velocity: samples.iter().map(|s| s.setpoint_velocity_uu_s).collect(),
+            t_s,
+            set_velocity,
             motor_velocity: samples.iter().map(|s| f64::from(s.velocity_uu_s)).collect(),
             current: samples
                 .iter()
@@ -158,27 +180,9 @@ impl AxisTrace {
                 .collect(),
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
-            set_velocity_source: "the master's interpolator velocity".into(),
-            set_position: samples.iter().map(|s| s.target_uu).collect(),
+            set_velocity_source: set_velocity_source.into(),
+            set_position,
         }
-    }
-}
-
-impl AxisTrace {
-    /// From samples of what the drive itself reports (`run --trace`, live scenarios:
-    /// [`crate::runtime::trace::node_sample`]). A drive has no interpolator velocity to report
-    /// (its 0x606B is the position controller's output, which carries the limit cycle), so the
-    /// set velocity is derived from the position demand `target_uu` (0x6062).
-    pub fn from_drive_samples(samples: &[crate::samples::Sample], rotary: bool) -> Self {
-        let mut tr = Self::from_samples(samples, rotary);
-        let demand: Vec<f64> = samples.iter().map(|s| s.target_uu).collect();
-        tr.set_velocity = super::windows::set_velocity_from_demand(
-            &tr.t_s,
-            &demand,
-            super::windows::DEMAND_SPAN_S,
-        );
-        tr.set_velocity_source = "position demand 0x6062".into();
-        tr
     }
 }
 
