@@ -14,7 +14,7 @@
 //!
 //! [`Mechanics`] keeps three things apart: the parameters ([`MechParams`], replaced as a whole
 //! through [`Mechanics::set_params`]), the constants derived from them and from the step
-//! ([`Derived`], [`StepConstants`], private and always in sync), and the state
+//! (`Derived`, `StepConstants`, private and always in sync), and the state
 //! ([`MechState`], the two masses by name). The two masses are two scalars each, not a
 //! vector: the integrator never mixes their coordinates (no matrix, no norm), so named fields
 //! say more than `pos[0]` / `pos[1]` and nalgebra is not needed.
