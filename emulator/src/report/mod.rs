@@ -253,8 +253,8 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
         for (k, area) in halves.iter().enumerate() {
             let pts = &spectra[k];
             let (_, hi) = range(pts.iter().map(|p| p.1));
-            // Headroom for the peak's label and the legend.
-            let hi = hi.max(1e-9) * 1.3;
+            // Headroom for the peak's label below the legend (four rows, the upper third).
+            let hi = hi.max(1e-9) * 1.7;
             let mut c = ChartBuilder::on(area)
                 .caption(
                     if k == 0 {
