@@ -51,9 +51,14 @@ fn main() -> ExitCode {
         Ok(code) => code,
         // A user error: the message and its causes, no backtrace (even with RUST_BACKTRACE).
         Err(e) => {
-            eprintln!("error: {e}");
-            for cause in e.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
+            let mut shown = e.to_string();
+            eprintln!("error: {shown}");
+            // A cause the message already quotes is not repeated.
+            for cause in e.chain().skip(1).map(|c| c.to_string()) {
+                if !shown.contains(&cause) {
+                    eprintln!("  caused by: {cause}");
+                    shown += &cause;
+                }
             }
             ExitCode::FAILURE
         }

@@ -398,7 +398,7 @@ pub fn analyze_window(
         .collect();
     let mean = diff.iter().sum::<f64>() / n.max(1) as f64;
     let half_pp = super::spectrum::half_peak_to_peak(&diff);
-    let unit = &trace.position_unit;
+    let unit = unit_text(&trace.position_unit);
     // A line, not noise: prominent over the band's median. A clear limit cycle (at or above
     // the alarm amplitude) needs half the prominence, so that a small change of the capture
     // (a few samples more, a little more noise) cannot flip a clear case to ok.
@@ -492,7 +492,10 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     let o = &cfg.windows;
     let need = format!(
         "a window needs {:.1} s of settling plus {:.1} s at constant set speed (|v| >= {} {}/s)",
-        o.settle_s, o.min_len_s, o.min_speed, trace.position_unit
+        o.settle_s,
+        o.min_len_s,
+        o.min_speed,
+        unit_text(&trace.position_unit)
     );
     if rep.windows.is_empty() {
         let any_finite = trace.motor_velocity.iter().any(|v| v.is_finite());
@@ -615,7 +618,7 @@ fn summarize(
             r.t_start_s,
             r.t_end_s,
             r.set_velocity,
-            trace.position_unit,
+            unit_text(&trace.position_unit),
             r.level.as_str(),
             r.reason
         ));
@@ -688,6 +691,15 @@ fn summarize(
         lost_motion,
         position_unit: trace.position_unit.clone(),
         windows: results,
+    }
+}
+
+/// A position unit for people: "µm" for the machine-readable "um" (the JSON keeps "um").
+fn unit_text(unit: &str) -> &str {
+    if unit == "um" {
+        "µm"
+    } else {
+        unit
     }
 }
 

@@ -252,7 +252,7 @@ impl Status {
 
     /// The status block: the loop (time, ticks, overruns, SYNC lock, drops, link), then one
     /// line per axis with its node ID, NMT state, CiA 402 state, mode name, position and
-    /// following error (in user units, uu). A single axis shares the loop's line.
+    /// following error (in user units, uu).
     fn lines(&self, iface: &str, lockstep: bool) -> Vec<String> {
         let mut head = format!(
             "{iface} t={:.1} s | ticks {} overruns {}",
@@ -283,7 +283,7 @@ impl Status {
         let axes = self.axes.iter().map(|a| {
             let nmt = a.nmt.load(Ordering::Relaxed) as u8;
             format!(
-                "node {:<3} {:<15}  {:<21}  {:<7}  pos {} uu  ferr {} uu",
+                "node {:<3} {:<15} {:<21} {:<7} pos {} ferr {} uu",
                 a.node_id.load(Ordering::Relaxed),
                 // The heartbeat's 0x00 is the boot-up; the state before it is initialising.
                 if nmt == 0 {
@@ -297,24 +297,25 @@ impl Status {
                 a.following_error_uu.load(Ordering::Relaxed),
             )
         });
-        if self.axes.len() == 1 {
-            vec![format!("{head} | {}", axes.collect::<String>())]
-        } else {
-            std::iter::once(head)
-                .chain(axes.map(|l| format!("  {l}")))
-                .collect()
-        }
+        std::iter::once(head).chain(axes).collect()
     }
 }
 
 /// Draw the status block on a terminal over the one drawn before (`drawn` lines): up to its
-/// first line, then each line cleared and rewritten. Returns the lines now drawn.
-fn redraw(out: &mut impl Write, drawn: usize, lines: &[String]) -> std::io::Result<usize> {
+/// first line, then each line cleared and rewritten, cut to `width` characters (a wrapped
+/// line would break the redraw). Returns the lines now drawn.
+fn redraw(
+    out: &mut impl Write,
+    drawn: usize,
+    lines: &[String],
+    width: usize,
+) -> std::io::Result<usize> {
     if drawn > 1 {
         write!(out, "\x1b[{}A", drawn - 1)?;
     }
     for (i, l) in lines.iter().enumerate() {
-        write!(out, "{}\r\x1b[2K{l}", if i > 0 { "\n" } else { "" })?;
+        let cut: String = l.chars().take(width.saturating_sub(1)).collect();
+        write!(out, "{}\r\x1b[2K{cut}", if i > 0 { "\n" } else { "" })?;
     }
     out.flush()?;
     Ok(lines.len())
@@ -625,8 +626,13 @@ fn announce(
     scenario: Option<&Scenario>,
 ) {
     eprintln!(
-        "drive-emu: {} axis(es) on {} at {} Hz{}: {}{}",
+        "drive-emu: {} {} on {} at {} Hz{}: {}{}",
         machine.axes.len(),
+        if machine.axes.len() == 1 {
+            "axis"
+        } else {
+            "axes"
+        },
         args.iface,
         machine.tick_hz,
         match (lockstep, args.sync_period_us) {
@@ -784,10 +790,33 @@ fn watch(
         // Nothing to show before the loop's first tick has published the axes.
         if tty && status.ticks.load(Ordering::Relaxed) > 0 {
             let lines = status.lines(&args.iface, lockstep.is_some());
-            drawn = redraw(&mut std::io::stderr().lock(), drawn, &lines).unwrap_or(drawn);
+            drawn = redraw(
+                &mut std::io::stderr().lock(),
+                drawn,
+                &lines,
+                terminal_width(),
+            )
+            .unwrap_or(drawn);
         }
     }
     Ok(())
+}
+
+/// Columns of the terminal on stderr (TIOCGWINSZ), 80 when it does not say.
+fn terminal_width() -> usize {
+    let mut ws = libc::winsize {
+        ws_row: 0,
+        ws_col: 0,
+        ws_xpixel: 0,
+        ws_ypixel: 0,
+    };
+    // SAFETY: TIOCGWINSZ writes a winsize into the struct we pass; fd 2 is ours.
+    let ok = unsafe { libc::ioctl(libc::STDERR_FILENO, libc::TIOCGWINSZ, &mut ws) } == 0;
+    if ok && ws.ws_col > 0 {
+        usize::from(ws.ws_col)
+    } else {
+        80
+    }
 }
 
 /// Drain and close the trace files, and say what they hold.
@@ -844,7 +873,7 @@ mod tests {
             for w in want {
                 assert!(l.contains(w), "{w:?} missing in {l:?}");
             }
-            assert!(l.contains("pos -1234 uu"), "{l:?}");
+            assert!(l.contains("pos -1234 ferr 0 uu"), "{l:?}");
         }
         // Mode names, not numbers; no Debug text.
         for l in &lines {
@@ -866,36 +895,41 @@ mod tests {
     }
 
     #[test]
-    fn status_of_one_axis_is_one_line() {
+    fn status_of_one_axis_is_the_loop_line_and_the_axis_line() {
         let s = Status::new(1);
         s.link_up.store(false, Ordering::Relaxed);
         axis(&s.axes[0], 5, 0x00, 0x0000, 3);
+        s.axes[0].position_uu.store(-123_456, Ordering::Relaxed);
+        s.axes[0].following_error_uu.store(-789, Ordering::Relaxed);
         let lines = s.lines("can0", false);
-        assert_eq!(lines.len(), 1, "{lines:#?}");
-        for w in [
-            "can0 t=",
-            "node 5 ",
-            "INITIALISING",
-            "NOT READY TO SWITCH ON",
-            "PV",
-            "LINK DOWN",
-        ] {
-            assert!(lines[0].contains(w), "{w:?} missing in {:?}", lines[0]);
+        assert_eq!(lines.len(), 2, "{lines:#?}");
+        assert!(lines[0].starts_with("can0 t=") && lines[0].contains("LINK DOWN"));
+        for w in ["node 5 ", "INITIALISING", "NOT READY TO SWITCH ON", "PV"] {
+            assert!(lines[1].contains(w), "{w:?} missing in {:?}", lines[1]);
         }
+        // Each line fits an 80-column terminal with a six-digit position.
+        assert!(lines.iter().all(|l| l.chars().count() <= 80), "{lines:#?}");
         let s = Status::new(1);
         axis(&s.axes[0], 5, 0x05, 0x0637, -2);
-        assert!(s.lines("can0", true)[0].contains("manufacturer-specific mode -2"));
+        assert!(s.lines("can0", true)[1].contains("manufacturer-specific mode -2"));
     }
 
     #[test]
     fn redraw_goes_back_over_the_block_it_drew() {
         let lines: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
         let mut out = Vec::new();
-        let drawn = redraw(&mut out, 0, &lines).unwrap();
+        let drawn = redraw(&mut out, 0, &lines, 80).unwrap();
         assert_eq!(drawn, 3);
         assert_eq!(out, b"\r\x1b[2Ka\n\r\x1b[2Kb\n\r\x1b[2Kc");
         out.clear();
-        redraw(&mut out, drawn, &lines).unwrap();
+        redraw(&mut out, drawn, &lines, 80).unwrap();
         assert!(out.starts_with(b"\x1b[2A\r\x1b[2Ka"), "{out:?}");
+        // A line wider than the terminal is cut, so it cannot wrap.
+        out.clear();
+        redraw(&mut out, 0, &["µ".repeat(100)], 40).unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            format!("\r\x1b[2K{}", "µ".repeat(39))
+        );
     }
 }

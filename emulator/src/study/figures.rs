@@ -357,22 +357,14 @@ pub fn fig11(dir: &Path, threads: usize) -> anyhow::Result<(PathBuf, Fig11)> {
                     .map(|r| Cross::new((r.kv_per_s, 0.5), 5, col.stroke_width(2))),
             )?;
         }
-        // What the ring and the cross mean, in the legend too (drawn off the frame).
+        // What the ring and the cross mean, in the legend only (empty series).
         let grey = RGBColor(90, 90, 90);
-        c.draw_series(std::iter::once(Circle::new(
-            (-10.0, -10.0),
-            9,
-            grey.stroke_width(2),
-        )))?
-        .label("ring: the preset's own k_v")
-        .legend(move |(x, y)| Circle::new((x + 10, y), 7, grey.stroke_width(2)));
-        c.draw_series(std::iter::once(Cross::new(
-            (-10.0, -10.0),
-            5,
-            grey.stroke_width(2),
-        )))?
-        .label("cross on the axis: no limit cycle")
-        .legend(move |(x, y)| Cross::new((x + 10, y), 5, grey.stroke_width(2)));
+        c.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label("ring: the preset's own k_v")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 7, grey.stroke_width(2)));
+        c.draw_series(std::iter::empty::<Cross<(f64, f64), i32>>())?
+            .label("cross on the axis: no limit cycle")
+            .legend(move |(x, y)| Cross::new((x + 10, y), 5, grey.stroke_width(2)));
         c.configure_series_labels()
             .border_style(BLACK)
             .background_style(WHITE)
