@@ -427,7 +427,9 @@ pub fn print_outcome(o: &LiveOutcome) {
             crate::master::emcy_name(*code)
         );
     }
-    if let Some(d) = &o.detector {
+    if let Some(d) = o.detector.as_ref().filter(|d| d.inconclusive.is_some()) {
+        println!("  detector: {}", inconclusive_text(d));
+    } else if let Some(d) = &o.detector {
         println!(
             "  detector: {} | amplitude {:.2} {} | frequency {}",
             d.verdict.as_str(),
@@ -802,6 +804,18 @@ fn watch(
     Ok(())
 }
 
+/// An inconclusive detector result for people: the verdict, its kind and the first reason
+/// (no amplitude or frequency: nothing was measured).
+pub(crate) fn inconclusive_text(d: &crate::analysis::detector::DetectorReport) -> String {
+    format!(
+        "inconclusive ({}){}",
+        d.inconclusive.map_or("", |i| i.as_str()),
+        d.reasons
+            .first()
+            .map_or(String::new(), |r| format!(": {r}"))
+    )
+}
+
 /// Columns of the terminal on stderr (TIOCGWINSZ), 80 when it does not say.
 fn terminal_width() -> usize {
     let mut ws = libc::winsize {
@@ -912,6 +926,23 @@ mod tests {
         let s = Status::new(1);
         axis(&s.axes[0], 5, 0x05, 0x0637, -2);
         assert!(s.lines("can0", true)[1].contains("manufacturer-specific mode -2"));
+    }
+
+    #[test]
+    fn an_inconclusive_detector_is_said_without_an_amplitude() {
+        use crate::analysis::detector::{DetectorConfig, DetectorReport, Inconclusive};
+        let d = DetectorReport::inconclusive(
+            &DetectorConfig::new(30.0),
+            Inconclusive::NoConstantSpeed,
+            "no window of constant set speed".into(),
+            "um",
+        );
+        let t = inconclusive_text(&d);
+        assert!(
+            t.starts_with("inconclusive (no_constant_speed): ") && t.contains("constant"),
+            "{t}"
+        );
+        assert!(!t.contains("amplitude") && !t.contains("0.00"), "{t}");
     }
 
     #[test]
