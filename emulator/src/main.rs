@@ -16,7 +16,7 @@ enum Command {
     /// Master and drive in one process, no CAN hardware: enable, move, and the backlash
     /// vibration seen from the wire.
     Demo(cli::demo::DemoArgs),
-    /// Answer on a CAN bus as CiA 402 drive(s) with simulated axes behind them.
+    /// Answer on a CAN bus as one or several CiA 402 drives, a simulated axis behind each.
     Run(cli::run::RunArgs),
     /// Run a preset axis offline at constant velocity and analyse its vibration.
     Sim(cli::sim::SimArgs),

@@ -13,8 +13,8 @@ pub struct EdsArgs {
     #[arg(long, default_value = "cnc1")]
     pub preset: String,
     /// Node ID of the drive: written to [DeviceComissioning] NodeID, from which masters
-    /// (python canopen, Lely, canopen-monitor) resolve the $NODEID defaults. Without it, a
-    /// generic EDS.
+    /// (python canopen, Lely) resolve the $NODEID defaults (canopen-monitor: see
+    /// --canopen-monitor). Without it, a generic EDS.
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=127))]
     pub node: Option<u8>,
     /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
