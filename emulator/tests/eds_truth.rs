@@ -7,6 +7,8 @@
 //!   node IDs, and Lely's `dcfgen` makes a master DCF from `tests/ros2/bus.yml` (the
 //!   ros2_canopen bus configuration shown in the README). The checkers are pinned in
 //!   tests/requirements.txt; a missing checker FAILS the test.
+//! - python canopen reads the REAL32 defaults of `--real32 decimal`; canopen-monitor parses
+//!   the EDS, and attaches the one written with `--canopen-monitor` to its node.
 
 use drive_emu::cli::eds::{eds_text, EdsArgs, Real32Arg};
 use drive_emu::drive::axis_drive::AxisDrive;
