@@ -531,7 +531,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     }
     let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
     let summary = rt.stats.summary();
-    eprintln!("drive-emu: stopped. {summary}");
+    eprintln!("drive-emu: stopped. {}", summary.text(lockstep.is_some()));
     let lockstep_period_us =
         (lockstep.is_some() && rt.lockstep_period_us > 0).then_some(rt.lockstep_period_us);
     if let Some(p) = lockstep_period_us {
