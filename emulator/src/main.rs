@@ -16,7 +16,7 @@ enum Command {
     /// Master and drive in one process, no CAN hardware: enable, move, and the backlash
     /// vibration seen from the wire.
     Demo(cli::demo::DemoArgs),
-    /// Answer on a CAN bus as CiA 402 drive(s) with simulated axes behind them.
+    /// Answer on a CAN bus as one or several CiA 402 drives, a simulated axis behind each.
     Run(cli::run::RunArgs),
     /// Run a preset axis offline at constant velocity and analyse its vibration.
     Sim(cli::sim::SimArgs),
@@ -51,9 +51,14 @@ fn main() -> ExitCode {
         Ok(code) => code,
         // A user error: the message and its causes, no backtrace (even with RUST_BACKTRACE).
         Err(e) => {
-            eprintln!("error: {e}");
-            for cause in e.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
+            let mut shown = e.to_string();
+            eprintln!("error: {shown}");
+            // A cause the message already quotes is not repeated.
+            for cause in e.chain().skip(1).map(|c| c.to_string()) {
+                if !shown.contains(&cause) {
+                    eprintln!("  caused by: {cause}");
+                    shown += &cause;
+                }
             }
             ExitCode::FAILURE
         }

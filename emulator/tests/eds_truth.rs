@@ -7,6 +7,8 @@
 //!   node IDs, and Lely's `dcfgen` makes a master DCF from `tests/ros2/bus.yml` (the
 //!   ros2_canopen bus configuration shown in the README). The checkers are pinned in
 //!   tests/requirements.txt; a missing checker FAILS the test.
+//! - python canopen reads the REAL32 defaults of `--real32 decimal`; canopen-monitor parses
+//!   the EDS, and attaches the one written with `--canopen-monitor` to its node.
 
 use drive_emu::cli::eds::{eds_text, EdsArgs, Real32Arg};
 use drive_emu::drive::axis_drive::AxisDrive;
@@ -40,6 +42,7 @@ fn args(preset: &str, node: Option<u8>, set: &[&str]) -> EdsArgs {
         node,
         set: set.iter().map(|s| s.to_string()).collect(),
         real32: Real32Arg::Bits,
+        canopen_monitor: false,
     }
 }
 
@@ -374,10 +377,11 @@ print(json.dumps(out))
 
 /// canopen-monitor (pinned 4.1.0), as it loads an EDS (`canopen_monitor.parse.eds`): every
 /// object of ours parsed with its name and data type, [FileInfo]'s date read, and with the EDS
-/// attached to the node, our TPDO1 decoded through its PDO parser. (It cannot attach an EDS
-/// to a node by itself: it reads the node ID from a section it spells `DeviceCommissioning`
-/// with a key `node_id`, where CiA 306 writes `[DeviceComissioning] NodeID`, and otherwise from
-/// object 0x2101's default, OreSat's own convention; see the README.)
+/// attached to the node, our TPDO1 decoded through its PDO parser. (It cannot attach a CiA 306
+/// EDS to a node by itself: it reads the node ID from a section it spells
+/// `DeviceCommissioning` with a key `NodeId`, where CiA 306 writes `[DeviceComissioning]
+/// NodeID`, and otherwise from object 0x2101's default, OreSat's own convention; `eds
+/// --canopen-monitor` adds its section, see the next test and the README.)
 #[test]
 fn canopen_monitor_parses_the_eds_and_decodes_its_tpdo() {
     let dir = std::env::temp_dir().join(format!("drive-emu-eds-cm-{}", std::process::id()));
@@ -437,4 +441,78 @@ print(json.dumps({
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `eds --node 5 --canopen-monitor`: canopen-monitor 4.1.0, loading its EDS directory as the
+/// application does (`load_eds_files`, keyed by the node ID it reads), attaches the file to
+/// node 5 and names the node; the same EDS without the flag it attaches to no node ID (the
+/// text `0x0` of object 0x2101). python canopen still reads the CiA 306 `[DeviceComissioning]
+/// NodeID` of the flagged file; eds-validate rejects its extra section, as the help says.
+#[test]
+fn canopen_monitor_attaches_the_eds_written_for_it_to_its_node() {
+    const SCRIPT: &str = r#"
+import json, sys
+from canopen_monitor.parse import eds as E, CANOpenParser
+configs = E.load_eds_files(sys.argv[1])
+names = {}
+for node_id in configs:
+    if isinstance(node_id, int):
+        class M: pass
+        m = M(); m.node_id = node_id
+        names[str(node_id)] = CANOpenParser(configs).get_name(m)
+print(json.dumps({"node_ids": [str(k) for k in configs], "names": names}))
+"#;
+    for (flag, node) in [(false, 5u8), (true, 5), (true, 42)] {
+        let dir = std::env::temp_dir().join(format!(
+            "drive-emu-eds-cm-attach-{}-{flag}-{node}",
+            std::process::id()
+        ));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut a = args("cnc1", Some(node), &[]);
+        a.canopen_monitor = flag;
+        let eds = eds_text(&a).unwrap();
+        let file = dir.join("drive.eds");
+        std::fs::write(&file, &eds).unwrap();
+        let cm = python_json(SCRIPT, &[dir.to_str().unwrap()]);
+        let ids: Vec<&str> = cm["node_ids"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_str().unwrap())
+            .collect();
+        if flag {
+            assert_eq!(ids, [node.to_string()], "--canopen-monitor --node {node}");
+            assert_eq!(
+                cm["names"][node.to_string()].as_str(),
+                Some(format!("drive-emu node {node}").as_str()),
+                "{cm}"
+            );
+            // The CiA 306 section is still there and still what python canopen reads.
+            let py = python_json(
+                "import canopen, json, sys; print(json.dumps(canopen.import_od(sys.argv[1]).node_id))",
+                &[file.to_str().unwrap()],
+            );
+            assert_eq!(py.as_u64(), Some(u64::from(node)));
+            assert!(eds.contains(&format!("[DeviceComissioning]\nNodeID={node}\n")));
+            let out = Command::new(tool("eds-validate"))
+                .arg(&file)
+                .output()
+                .expect("eds-validate");
+            let text = format!(
+                "{}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            assert!(
+                !out.status.success() && text.contains("Unknown header: [DeviceCommissioning]"),
+                "eds-validate on the extra section: {out:?}"
+            );
+        } else {
+            assert!(
+                !ids.contains(&node.to_string().as_str()),
+                "canopen-monitor attached a CiA 306 EDS by itself: {ids:?} (drop the flag?)"
+            );
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

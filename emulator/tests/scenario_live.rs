@@ -300,7 +300,9 @@ no_emcy = true
     assert!(!o.passed(), "an unfinished timeline passed");
     let why = o.unfinished().expect("says why");
     assert!(
-        why.contains("did not finish") && why.contains("line 12") && why.contains("1 event(s)"),
+        why.contains("did not finish")
+            && why.contains("line 12")
+            && why.contains("1 event had not fired"),
         "{why}"
     );
 }

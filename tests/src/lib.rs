@@ -180,6 +180,11 @@ impl Peer {
         }
     }
 
+    /// The process ID.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// All lines seen so far (for failure messages).
     pub fn output(&self) -> String {
         self.seen.join("\n")

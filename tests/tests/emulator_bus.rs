@@ -1,19 +1,20 @@
 //! The emulator (`drive-emu run`) as a process on a virtual CAN bus: what it puts on the
 //! wire (candump), robustness against malformed traffic and against the interface going
-//! down, and a two-axis machine file.
+//! down, a two-axis machine file and its status block on a terminal.
 //!
 //! Needs vcan: `./vcan-setup.sh --ifaces 2 -- cargo nextest run -p e2e --test emulator_bus`
 //! (or ./test-all.sh). Node ids: 12 (candump), 13 (flood, vcan1), 14 (link down, vcan1),
-//! 20/21 (machine file). No timing assertions: in lock-step mode the emulator's time only
-//! advances with the SYNCs we send, so heartbeat counts are exact functions of them.
+//! 20/21 (machine file), 22/23 (status block). No timing assertions: in lock-step mode the
+//! emulator's time only advances with the SYNCs we send, so heartbeat counts are exact
+//! functions of them.
 
 use std::process::Command;
 use std::time::{Duration, Instant};
 
 use e2e::socketcan::{CanFrame, EmbeddedFrame, ExtendedId, Socket, StandardId};
 use e2e::{
-    frame, id_data, iface, nmt, open_bus, recv_matching, sdo_barrier, sdo_download, sdo_u32,
-    sdo_upload, send, temp_file, wait_bootup, Emu, Peer, SdoError, PEER_TIMEOUT,
+    drive_emu_bin, frame, id_data, iface, nmt, open_bus, recv_matching, sdo_barrier, sdo_download,
+    sdo_u32, sdo_upload, send, temp_file, wait_bootup, Emu, Peer, SdoError, PEER_TIMEOUT,
 };
 
 const DEVICE_TYPE: u32 = 0x0002_0192;
@@ -548,6 +549,106 @@ fn machine_file_with_two_axes() {
         "both axes report the same feed constant: one preset for both?"
     );
     emu.stop_clean();
+}
+
+/// On a terminal, `run` draws a status block with one line per axis: its node ID, NMT state,
+/// CiA 402 state and mode by name. The drive runs under `script` (a pseudo-terminal, as a
+/// user's shell gives it); node 22 is started and put in CSP over SDO, node 23 is left alone,
+/// so each line must show its own axis.
+#[test]
+fn status_block_names_every_axis_on_a_terminal() {
+    let ifname = iface(0);
+    let sock = open_bus(&ifname);
+    let cfg = temp_file(
+        "status-two-axes.toml",
+        "tick_hz = 1000\n\n[[axis]]\nnode_id = 22\npreset = \"cnc1\"\n\n[[axis]]\nnode_id = 23\npreset = \"cnc3\"\n",
+    );
+    let cmdline = format!(
+        "exec {} run --rt-priority 0 --no-mlock --iface {ifname} --config {}",
+        drive_emu_bin().display(),
+        cfg.display()
+    );
+    let mut cmd = Command::new("script");
+    // -q quiet, -f flush, -e the command's exit status, -c the command; no typescript file.
+    cmd.args(["-qfec", &cmdline, "/dev/null"]);
+    let mut term = Peer::spawn("script drive-emu run", cmd);
+    assert!(
+        wait_bootup(&sock, 23, PEER_TIMEOUT),
+        "no boot-up from node 23; terminal:\n{}",
+        term.output()
+    );
+    nmt(&sock, 0x01, 22);
+    sdo_download(&sock, 22, 0x6060, 0, &[8]).expect("0x6060 = 8 (CSP) on node 22");
+    // Node 22's line once it shows CSP, then node 23's line of the same block.
+    let l22 = term
+        .wait_line("CSP", PEER_TIMEOUT)
+        .unwrap_or_else(|| panic!("no status line with CSP; terminal:\n{}", term.output()));
+    let l23 = term
+        .wait_line("node 23", PEER_TIMEOUT)
+        .unwrap_or_else(|| panic!("no status line for node 23; terminal:\n{}", term.output()));
+    for (line, want) in [
+        (
+            &l22,
+            ["node 22 ", " OPERATIONAL ", "SWITCH ON DISABLED", "CSP"],
+        ),
+        (
+            &l23,
+            [
+                "node 23 ",
+                "PRE-OPERATIONAL",
+                "SWITCH ON DISABLED",
+                "no mode",
+            ],
+        ),
+    ] {
+        for w in want {
+            assert!(
+                line.contains(w),
+                "{w:?} missing in the status line {line:?}"
+            );
+        }
+        assert!(
+            !line.contains("mode 8") && !line.contains('{'),
+            "a number or Debug text in {line:?}"
+        );
+    }
+    // One axis a line: the other node's ID is not on it.
+    assert!(!l22.contains("node 23") && !l23.contains("node 22"));
+    eprintln!("status block lines:\n{l22:?}\n{l23:?}");
+    // SIGTERM to the drive (`script` would kill it 2 s after passing a SIGTERM on, and stop
+    // relaying its output first): it stops cleanly and prints its statistics.
+    let drive = child_of(term.pid()).expect("the drive as the child of script");
+    // SAFETY: kill(2) on the drive we started (through script).
+    unsafe { libc::kill(drive, libc::SIGTERM) };
+    let stopped = term.wait_line("drive-emu: stopped.", PEER_TIMEOUT);
+    let out = term.output();
+    let status = term.finish(PEER_TIMEOUT);
+    assert!(
+        stopped.is_some() && status.success(),
+        "drive-emu under script: exit {status} after SIGTERM; terminal:\n{out}"
+    );
+}
+
+/// The process whose parent is `parent` (from /proc/PID/stat), waited for up to PEER_TIMEOUT.
+fn child_of(parent: u32) -> Option<libc::pid_t> {
+    let deadline = Instant::now() + PEER_TIMEOUT;
+    while Instant::now() < deadline {
+        for e in std::fs::read_dir("/proc").ok()?.flatten() {
+            let Ok(stat) = std::fs::read_to_string(e.path().join("stat")) else {
+                continue;
+            };
+            // pid (comm) state ppid ...: comm may hold spaces, so read after its ')'.
+            let ppid = stat
+                .rsplit_once(')')
+                .and_then(|(_, rest)| rest.split_whitespace().nth(1))
+                .and_then(|p| p.parse::<u32>().ok());
+            if ppid == Some(parent) {
+                return e.file_name().to_str()?.parse().ok();
+            }
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    None
 }
 
 /// A drive that stalls (here: SIGSTOP, as a loaded or virtualised host does to it for a

@@ -422,7 +422,7 @@ pub fn analyze_window(
         _ => false,
     };
     let (mean, half_pp) = encoder_difference(trace, w);
-    let unit = &trace.position_unit;
+    let unit = unit_text(&trace.position_unit);
     // The speed shows a line of the size we look for, and the set-point shakes the axis in the
     // band by the suspect level and half that line or more: the line is not the axis's own.
     // (A quiet speed under a moving set-point is no vibration of the axis: ok stays ok.)
@@ -667,13 +667,20 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     for r in &forced {
         rep.reasons.push(format!(
             "window {:.2}..{:.2} s at {:.1} {}/s: {}",
-            r.t_start_s, r.t_end_s, r.set_velocity, trace.position_unit, r.reason
+            r.t_start_s,
+            r.t_end_s,
+            r.set_velocity,
+            unit_text(&trace.position_unit),
+            r.reason
         ));
     }
     let o = &cfg.windows;
     let need = format!(
         "a window needs {:.1} s of settling plus {:.1} s at constant set speed (|v| >= {} {}/s)",
-        o.settle_s, o.min_len_s, o.min_speed, trace.position_unit
+        o.settle_s,
+        o.min_len_s,
+        o.min_speed,
+        unit_text(&trace.position_unit)
     );
     if rep.windows.is_empty() {
         let any_finite = trace.motor_velocity.iter().any(|v| v.is_finite());
@@ -910,7 +917,7 @@ fn verdict_reasons(
             r.t_start_s,
             r.t_end_s,
             r.set_velocity,
-            trace.position_unit,
+            unit_text(&trace.position_unit),
             r.level.as_str(),
             r.reason
         ));
@@ -947,6 +954,15 @@ fn lost_motion(trace: &AxisTrace, results: &[WindowResult]) -> Option<f64> {
     match (independent, mean_dir(true), mean_dir(false)) {
         (true, Some(p), Some(n)) => Some(p - n),
         _ => None,
+    }
+}
+
+/// A position unit for people: "µm" for the machine-readable "um" (the JSON keeps "um").
+fn unit_text(unit: &str) -> &str {
+    if unit == "um" {
+        "µm"
+    } else {
+        unit
     }
 }
 

@@ -44,8 +44,8 @@ or when the axis does not follow the set speed (a drive in fault).
 
 Verdicts and reasons:
   ok                  windows were measured; no in-band line above the suspect threshold
-  backlash_suspected  line in k_v/4..k_v, prominent, amplitude >= --suspect (default 1 um)
-  backlash            ... amplitude >= --alarm (default 3 um); a level holds when the last
+  backlash_suspected  line in k_v/4..k_v, prominent, amplitude >= --suspect (default 1 µm or mdeg)
+  backlash            ... amplitude >= --alarm (default 3 µm or mdeg); a level holds when the last
                       2 windows, or windows of 2 s in all, agree (the lowest of them)
   inconclusive        nothing measured: no_constant_speed, too_short (settle 0.4 s + 1 s
                       needed), missing_objects (no motor speed 0x606C, no set-point or

@@ -13,8 +13,8 @@ pub struct EdsArgs {
     #[arg(long, default_value = "cnc1")]
     pub preset: String,
     /// Node ID of the drive: written to [DeviceComissioning] NodeID, from which masters
-    /// (python canopen, Lely, canopen-monitor) resolve the $NODEID defaults. Without it, a
-    /// generic EDS.
+    /// (python canopen, Lely) resolve the $NODEID defaults (canopen-monitor: see
+    /// --canopen-monitor). Without it, a generic EDS.
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=127))]
     pub node: Option<u8>,
     /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
@@ -26,6 +26,12 @@ pub struct EdsArgs {
     /// None; Lely rejects a decimal one). eds-validate accepts both.
     #[arg(long, value_enum, default_value_t = Real32Arg::Bits)]
     pub real32: Real32Arg,
+    /// For canopen-monitor 4.1.0 only: also write the section it takes the node ID from,
+    /// `[DeviceCommissioning]` with `NodeId` and `NodeName` (its spelling; CiA 306 writes
+    /// `[DeviceComissioning] NodeID`, which it cannot read). eds-validate and dcfchk reject
+    /// the extra section: give this file to canopen-monitor alone.
+    #[arg(long, requires = "node")]
+    pub canopen_monitor: bool,
 }
 
 /// `--real32`: notation of REAL32 defaults in the EDS.
@@ -84,7 +90,26 @@ pub fn eds_text(args: &EdsArgs) -> Result<String> {
             Real32Arg::Decimal => Real32Notation::Decimal,
         },
     };
-    Ok(node.export_eds_of(&drive, &meta))
+    let eds = node.export_eds_of(&drive, &meta);
+    Ok(match args.node.filter(|_| args.canopen_monitor) {
+        Some(n) => with_canopen_monitor_section(&eds, n),
+        None => eds,
+    })
+}
+
+/// The EDS with canopen-monitor's own commissioning section before the CiA 306 one (no
+/// comment in it: eds-utils' reader fails on a comment line inside a section). Its
+/// parser (`canopen_monitor.parse.eds`) turns section and key names into snake case and reads
+/// `device_commissioning.node_id` (the node the file is attached to) and `.node_name` (shown
+/// for the node); the standard `DeviceComissioning` / `NodeID` become `device_comissioning` /
+/// `node_n_id`, so it attaches a CiA 306 file to no node.
+fn with_canopen_monitor_section(eds: &str, node: u8) -> String {
+    let section =
+        format!("[DeviceCommissioning]\nNodeId={node}\nNodeName=drive-emu node {node}\n\n");
+    match eds.find("[DeviceComissioning]") {
+        Some(at) => format!("{}{section}{}", &eds[..at], &eds[at..]),
+        None => format!("{eds}\n{section}"),
+    }
 }
 
 /// CiA 306 time and date of a Unix time (UTC): `hh:mmAM`, `MM-DD-YYYY`.

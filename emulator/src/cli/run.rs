@@ -250,38 +250,24 @@ impl Status {
         }
     }
 
-    /// One line: per axis node ID, NMT state, CiA 402 state, mode, position and following
-    /// error (in user units, uu), then the loop's ticks and overruns.
-    fn line(&self, iface: &str, lockstep: bool) -> String {
-        let mut out = format!(
-            "{iface} t={:.1} s",
-            self.sim_time_us.load(Ordering::Relaxed) as f64 * 1e-6
-        );
-        for a in &self.axes {
-            let sw = a.statusword.load(Ordering::Relaxed) as u16;
-            out += &format!(
-                " | node {} {} {} {} pos {} uu ferr {} uu",
-                a.node_id.load(Ordering::Relaxed),
-                crate::master::nmt_name(a.nmt.load(Ordering::Relaxed) as u8),
-                crate::master::state_name(sw),
-                crate::master::mode_short(a.mode.load(Ordering::Relaxed) as i8),
-                a.position_uu.load(Ordering::Relaxed),
-                a.following_error_uu.load(Ordering::Relaxed),
-            );
-        }
-        out += &format!(
-            " | ticks {} overruns {}",
+    /// The status block: the loop (time, ticks, overruns, SYNC lock, drops, link), then one
+    /// line per axis with its node ID, NMT state, CiA 402 state, mode name, position and
+    /// following error (in user units, uu).
+    fn lines(&self, iface: &str, lockstep: bool) -> Vec<String> {
+        let mut head = format!(
+            "{iface} t={:.1} s | ticks {} overruns {}",
+            self.sim_time_us.load(Ordering::Relaxed) as f64 * 1e-6,
             self.ticks.load(Ordering::Relaxed),
             self.overruns.load(Ordering::Relaxed)
         );
         if lockstep {
-            out += " | lock-step";
+            head += " | lock-step";
         } else {
             let lock = self.sync_lock.load(Ordering::Relaxed);
-            out += " | ";
-            out += crate::runtime::stats::lock_name(lock as u32);
+            head += " | ";
+            head += crate::runtime::stats::lock_name(lock as u32);
             if lock == 2 {
-                out += &format!(
+                head += &format!(
                     " (phase error {} us)",
                     self.sync_phase_error_us.load(Ordering::Relaxed)
                 );
@@ -289,13 +275,50 @@ impl Status {
         }
         let lost = self.rx_overflows.load(Ordering::Relaxed);
         if lost > 0 {
-            out += &format!(" | rx overflow {lost}");
+            head += &format!(" | rx overflow {lost}");
         }
         if !self.link_up.load(Ordering::Relaxed) {
-            out += " | LINK DOWN";
+            head += " | LINK DOWN";
         }
-        out
+        let axes = self.axes.iter().map(|a| {
+            let nmt = a.nmt.load(Ordering::Relaxed) as u8;
+            format!(
+                "node {:<3} {:<15} {:<21} {:<7} pos {} ferr {} uu",
+                a.node_id.load(Ordering::Relaxed),
+                // The heartbeat's 0x00 is the boot-up; the state before it is initialising.
+                if nmt == 0 {
+                    "INITIALISING"
+                } else {
+                    crate::master::nmt_name(nmt)
+                },
+                crate::master::state_name(a.statusword.load(Ordering::Relaxed) as u16),
+                crate::master::mode_short(a.mode.load(Ordering::Relaxed) as i8),
+                a.position_uu.load(Ordering::Relaxed),
+                a.following_error_uu.load(Ordering::Relaxed),
+            )
+        });
+        std::iter::once(head).chain(axes).collect()
     }
+}
+
+/// Draw the status block on a terminal over the one drawn before (`drawn` lines): up to its
+/// first line, then each line cleared and rewritten, cut to `width` characters (a wrapped
+/// line would break the redraw). Returns the lines now drawn.
+fn redraw(
+    out: &mut impl Write,
+    drawn: usize,
+    lines: &[String],
+    width: usize,
+) -> std::io::Result<usize> {
+    if drawn > 1 {
+        write!(out, "\x1b[{}A", drawn - 1)?;
+    }
+    for (i, l) in lines.iter().enumerate() {
+        let cut: String = l.chars().take(width.saturating_sub(1)).collect();
+        write!(out, "{}\r\x1b[2K{cut}", if i > 0 { "\n" } else { "" })?;
+    }
+    out.flush()?;
+    Ok(lines.len())
 }
 
 /// `--duration`: a positive number of seconds.
@@ -404,7 +427,9 @@ pub fn print_outcome(o: &LiveOutcome) {
             crate::master::emcy_name(*code)
         );
     }
-    if let Some(d) = &o.detector {
+    if let Some(d) = o.detector.as_ref().filter(|d| d.inconclusive.is_some()) {
+        println!("  detector: {}", inconclusive_text(d));
+    } else if let Some(d) = &o.detector {
         println!(
             "  detector: {} | amplitude {:.2} {} | frequency {}",
             d.verdict.as_str(),
@@ -506,7 +531,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     }
     let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
     let summary = rt.stats.summary();
-    eprintln!("drive-emu: stopped. {summary}");
+    eprintln!("drive-emu: stopped. {}", summary.text(lockstep.is_some()));
     let lockstep_period_us =
         (lockstep.is_some() && rt.lockstep_period_us > 0).then_some(rt.lockstep_period_us);
     if let Some(p) = lockstep_period_us {
@@ -603,8 +628,13 @@ fn announce(
     scenario: Option<&Scenario>,
 ) {
     eprintln!(
-        "drive-emu: {} axis(es) on {} at {} Hz{}: {}{}",
+        "drive-emu: {} {} on {} at {} Hz{}: {}{}",
         machine.axes.len(),
+        if machine.axes.len() == 1 {
+            "axis"
+        } else {
+            "axes"
+        },
         args.iface,
         machine.tick_hz,
         match (lockstep, args.sync_period_us) {
@@ -734,6 +764,7 @@ fn watch(
 ) -> Result<()> {
     let tty = std::io::stderr().is_terminal();
     let mut ready_sent = !args.ready;
+    let mut drawn = 0;
     while !stop.load(Ordering::Relaxed) && !loop_thread.is_finished() {
         if !ready_sent && status.booted.load(Ordering::Acquire) {
             ready_sent = true;
@@ -758,12 +789,48 @@ fn watch(
         } else {
             5
         }));
-        if tty {
-            eprint!("\r{}   ", status.line(&args.iface, lockstep.is_some()));
-            let _ = std::io::stderr().flush();
+        // Nothing to show before the loop's first tick has published the axes.
+        if tty && status.ticks.load(Ordering::Relaxed) > 0 {
+            let lines = status.lines(&args.iface, lockstep.is_some());
+            drawn = redraw(
+                &mut std::io::stderr().lock(),
+                drawn,
+                &lines,
+                terminal_width(),
+            )
+            .unwrap_or(drawn);
         }
     }
     Ok(())
+}
+
+/// An inconclusive detector result for people: the verdict, its kind and the first reason
+/// (no amplitude or frequency: nothing was measured).
+pub(crate) fn inconclusive_text(d: &crate::analysis::detector::DetectorReport) -> String {
+    format!(
+        "inconclusive ({}){}",
+        d.inconclusive.map_or("", |i| i.as_str()),
+        d.reasons
+            .first()
+            .map_or(String::new(), |r| format!(": {r}"))
+    )
+}
+
+/// Columns of the terminal on stderr (TIOCGWINSZ), 80 when it does not say.
+fn terminal_width() -> usize {
+    let mut ws = libc::winsize {
+        ws_row: 0,
+        ws_col: 0,
+        ws_xpixel: 0,
+        ws_ypixel: 0,
+    };
+    // SAFETY: TIOCGWINSZ writes a winsize into the struct we pass; fd 2 is ours.
+    let ok = unsafe { libc::ioctl(libc::STDERR_FILENO, libc::TIOCGWINSZ, &mut ws) } == 0;
+    if ok && ws.ws_col > 0 {
+        usize::from(ws.ws_col)
+    } else {
+        80
+    }
 }
 
 /// Drain and close the trace files, and say what they hold.
@@ -784,4 +851,116 @@ fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
         }
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn axis(st: &AxisStatus, node: u8, nmt: u8, statusword: u16, mode: i8) {
+        st.node_id.store(u64::from(node), Ordering::Relaxed);
+        st.nmt.store(u64::from(nmt), Ordering::Relaxed);
+        st.statusword
+            .store(u64::from(statusword), Ordering::Relaxed);
+        st.mode.store(i64::from(mode), Ordering::Relaxed);
+        st.position_uu.store(-1234, Ordering::Relaxed);
+    }
+
+    #[test]
+    fn status_block_has_one_named_line_per_axis() {
+        let s = Status::new(2);
+        s.link_up.store(true, Ordering::Relaxed);
+        axis(&s.axes[0], 20, 0x05, 0x0637, 8);
+        axis(&s.axes[1], 21, 0x7F, 0x0250, 0);
+        let lines = s.lines("vcan0", true);
+        assert_eq!(lines.len(), 3, "{lines:#?}");
+        assert!(lines[0].starts_with("vcan0 t=") && lines[0].contains("lock-step"));
+        for (l, want) in lines[1..].iter().zip([
+            ["node 20 ", "OPERATIONAL", "OPERATION ENABLED", "CSP"],
+            [
+                "node 21 ",
+                "PRE-OPERATIONAL",
+                "SWITCH ON DISABLED",
+                "no mode",
+            ],
+        ]) {
+            for w in want {
+                assert!(l.contains(w), "{w:?} missing in {l:?}");
+            }
+            assert!(l.contains("pos -1234 ferr 0 uu"), "{l:?}");
+        }
+        // Mode names, not numbers; no Debug text.
+        for l in &lines {
+            assert!(!l.contains("mode 8") && !l.contains("mode 0"), "{l:?}");
+            assert!(!l.contains('{') && !l.contains("::"), "{l:?}");
+        }
+        // The columns line up: the NMT, CiA 402 state and mode columns start at the same
+        // place on every axis line.
+        let col = |l: &str, w: &str| l.find(w).unwrap();
+        assert_eq!(
+            col(&lines[1], "OPERATIONAL"),
+            col(&lines[2], "PRE-OPERATIONAL")
+        );
+        assert_eq!(
+            col(&lines[1], "OPERATION ENABLED"),
+            col(&lines[2], "SWITCH ON DISABLED")
+        );
+        assert_eq!(col(&lines[1], "CSP"), col(&lines[2], "no mode"));
+    }
+
+    #[test]
+    fn status_of_one_axis_is_the_loop_line_and_the_axis_line() {
+        let s = Status::new(1);
+        s.link_up.store(false, Ordering::Relaxed);
+        axis(&s.axes[0], 5, 0x00, 0x0000, 3);
+        s.axes[0].position_uu.store(-123_456, Ordering::Relaxed);
+        s.axes[0].following_error_uu.store(-789, Ordering::Relaxed);
+        let lines = s.lines("can0", false);
+        assert_eq!(lines.len(), 2, "{lines:#?}");
+        assert!(lines[0].starts_with("can0 t=") && lines[0].contains("LINK DOWN"));
+        for w in ["node 5 ", "INITIALISING", "NOT READY TO SWITCH ON", "PV"] {
+            assert!(lines[1].contains(w), "{w:?} missing in {:?}", lines[1]);
+        }
+        // Each line fits an 80-column terminal with a six-digit position.
+        assert!(lines.iter().all(|l| l.chars().count() <= 80), "{lines:#?}");
+        let s = Status::new(1);
+        axis(&s.axes[0], 5, 0x05, 0x0637, -2);
+        assert!(s.lines("can0", true)[1].contains("manufacturer-specific mode -2"));
+    }
+
+    #[test]
+    fn an_inconclusive_detector_is_said_without_an_amplitude() {
+        use crate::analysis::detector::{DetectorConfig, DetectorReport, Inconclusive};
+        let d = DetectorReport::inconclusive(
+            &DetectorConfig::new(30.0),
+            Inconclusive::NoConstantSpeed,
+            "no window of constant set speed".into(),
+            "um",
+        );
+        let t = inconclusive_text(&d);
+        assert!(
+            t.starts_with("inconclusive (no_constant_speed): ") && t.contains("constant"),
+            "{t}"
+        );
+        assert!(!t.contains("amplitude") && !t.contains("0.00"), "{t}");
+    }
+
+    #[test]
+    fn redraw_goes_back_over_the_block_it_drew() {
+        let lines: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
+        let mut out = Vec::new();
+        let drawn = redraw(&mut out, 0, &lines, 80).unwrap();
+        assert_eq!(drawn, 3);
+        assert_eq!(out, b"\r\x1b[2Ka\n\r\x1b[2Kb\n\r\x1b[2Kc");
+        out.clear();
+        redraw(&mut out, drawn, &lines, 80).unwrap();
+        assert!(out.starts_with(b"\x1b[2A\r\x1b[2Ka"), "{out:?}");
+        // A line wider than the terminal is cut, so it cannot wrap.
+        out.clear();
+        redraw(&mut out, 0, &["µ".repeat(100)], 40).unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            format!("\r\x1b[2K{}", "µ".repeat(39))
+        );
+    }
 }

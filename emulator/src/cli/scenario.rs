@@ -103,7 +103,9 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
             "[{}] scenario {:.1} s (physical {:.1} s, fast-forwarded {:.1} s) in {:.2} s wall",
             r.preset, r.scenario_s, r.physical_s, r.fast_forwarded_s, r.wall_s
         );
-        if let Some(d) = &r.detector {
+        if let Some(d) = r.detector.as_ref().filter(|d| d.inconclusive.is_some()) {
+            println!("  detector: {}", super::run::inconclusive_text(d));
+        } else if let Some(d) = &r.detector {
             println!(
                 "  detector: {} | amplitude {:.2} {} | severity {:.2} | frequency {} | first flagged: {}",
                 d.verdict.as_str(),

@@ -225,12 +225,14 @@ pub fn mode_name(mode: i8) -> &'static str {
     }
 }
 
-/// The short name of a mode: "CSP", "PP", ... (the number when it has none).
+/// The short name of a mode: "CSP", "PP", "no mode"; a mode without a name is said with its
+/// kind and number, e.g. "reserved mode 5", "manufacturer-specific mode -1".
 pub fn mode_short(mode: i8) -> String {
     let n = mode_name(mode);
-    match n.split_once(' ') {
-        Some((short, _)) if n.contains('(') => short.to_string(),
-        _ => format!("mode {mode}"),
+    match n.split_once(" (") {
+        Some((short, _)) => short.to_string(),
+        None if mode == 0 => n.to_string(),
+        None => format!("{n} {mode}"),
     }
 }
 

@@ -253,8 +253,8 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
         for (k, area) in halves.iter().enumerate() {
             let pts = &spectra[k];
             let (_, hi) = range(pts.iter().map(|p| p.1));
-            // Headroom for the peak's label and the legend.
-            let hi = hi.max(1e-9) * 1.3;
+            // Headroom for the peak's label below the legend (four rows, the upper third).
+            let hi = hi.max(1e-9) * 1.7;
             let mut c = ChartBuilder::on(area)
                 .caption(
                     if k == 0 {
@@ -299,9 +299,16 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
                 } else {
                     w.current_amplitude
                 };
-                c.draw_series(std::iter::once(Circle::new((f, a), 5, RED.filled())))?
-                    .label("fundamental found")
-                    .legend(|(x, y)| Circle::new((x + 10, y), 5, RED.filled()));
+                // A line outside the band is no limit cycle of the paper's kind (often a
+                // harmonic of it in the current): said so, in another colour.
+                let (label, col) = if f > kv / 4.0 && f < kv {
+                    ("fundamental found", RED)
+                } else {
+                    ("strongest line, outside the band", RGBColor(230, 120, 0))
+                };
+                c.draw_series(std::iter::once(Circle::new((f, a), 5, col.filled())))?
+                    .label(label)
+                    .legend(move |(x, y)| Circle::new((x + 10, y), 5, col.filled()));
                 // Right of the peak, inside the frame (left of it near the right edge).
                 let right = f < 0.8 * fmax;
                 let pos = plotters::style::text_anchor::Pos::new(

@@ -131,6 +131,22 @@ impl LoopStats {
     }
 }
 
+impl StatsSummary {
+    /// The summary for people; a lock-step loop (its time is the SYNCs themselves) has no SYNC
+    /// phase lock, so it says "lock-step" there instead of "free-running, SYNC phase error 0".
+    pub fn text(&self, lockstep: bool) -> String {
+        let full = self.to_string();
+        if !lockstep {
+            return full;
+        }
+        let lock = format!(", {}, SYNC phase error", lock_name(self.sync_lock_state));
+        match full.find(&lock) {
+            Some(at) => format!("{}, lock-step", &full[..at]),
+            None => full,
+        }
+    }
+}
+
 impl fmt::Display for StatsSummary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
@@ -172,6 +188,24 @@ pub fn lock_name(code: u32) -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lock_step_summary_names_no_phase_lock() {
+        let mut st = LoopStats::new(1000);
+        st.syncs = 603;
+        let s = st.summary();
+        let free = s.text(false);
+        assert!(free.contains("free-running, SYNC phase error"), "{free}");
+        let ls = s.text(true);
+        assert!(
+            ls.starts_with("ticks ") && ls.ends_with("SYNCs 603, lock-step"),
+            "{ls}"
+        );
+        assert!(
+            !ls.contains("free-running") && !ls.contains("phase error"),
+            "{ls}"
+        );
+    }
 
     #[test]
     fn overrun_when_lateness_plus_work_exceeds_period() {

@@ -145,8 +145,8 @@ impl LiveOutcome {
             .map(|(line, what)| format!("line {line}: {what}"))
             .collect();
         Some(format!(
-            "the scenario did not finish: {} event(s) had not fired when the run ended at {} ({})",
-            self.not_fired.len(),
+            "the scenario did not finish: {} had not fired when the run ended at {} ({})",
+            events_text(self.not_fired.len()),
             super::expect::seconds_text(self.record.end_us),
             which.join("; ")
         ))
@@ -165,6 +165,11 @@ fn initial_values(cfg: &AxisConfig, drive: &AxisDrive) -> Vec<(&'static ParamKey
         .filter(|k| k.axis == kind || k.axis == KeyKind::Any)
         .filter_map(|k| drive.param(k.param).ok().map(|v| (k, v / k.scale)))
         .collect()
+}
+
+/// "1 event", "2 events".
+fn events_text(n: usize) -> String {
+    format!("{n} event{}", if n == 1 { "" } else { "s" })
 }
 
 /// When a live run ends.
@@ -191,8 +196,12 @@ impl LiveEnd {
         match self {
             LiveEnd::At(t) => format!("at {}", super::expect::seconds_text(*t)),
             LiveEnd::EventsDone => format!(
-                "once its {} event(s) have fired and run their course, {} after (Ctrl-C ends it earlier)",
-                s.events.len(),
+                "once {} fired and run {} course, {} after (Ctrl-C ends it earlier)",
+                match s.events.len() {
+                    1 => "its event has".to_string(),
+                    n => format!("its {n} events have"),
+                },
+                if s.events.len() == 1 { "its" } else { "their" },
                 super::expect::seconds_text(settle_us(s).0)
             ),
         }

@@ -61,6 +61,7 @@ pub fn fig3(
                 ("sans-serif", 22),
             )
             .margin(8)
+            .margin_right(30)
             .x_label_area_size(30)
             .y_label_area_size(60)
             .build_cartesian_2d((f0..f1).log_scale(), -25.0..6.0)?;
@@ -71,7 +72,9 @@ pub fn fig3(
         c.draw_series(LineSeries::new(
             r.points.iter().map(|p| (p.frequency_hz, p.magnitude_db)),
             BLUE.stroke_width(2),
-        ))?;
+        ))?
+        .label("measured speed / speed set-point")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
         c.draw_series(
             r.points
                 .iter()
@@ -80,15 +83,29 @@ pub fn fig3(
         c.draw_series(LineSeries::new(
             [(f0, -3.0), (f1, -3.0)],
             RED.stroke_width(1),
-        ))?;
+        ))?
+        .label("-3 dB")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
         if let Some(b) = r.bandwidth_3db_hz {
-            c.draw_series(LineSeries::new([(b, -25.0), (b, 6.0)], RED.stroke_width(1)))?;
+            let violet = RGBColor(140, 0, 200);
+            c.draw_series(LineSeries::new(
+                [(b, -25.0), (b, 6.0)],
+                violet.stroke_width(1),
+            ))?
+            .label(format!("bandwidth {b:.0} Hz"))
+            .legend(move |(x, y)| PathElement::new(vec![(x + 10, y - 6), (x + 10, y + 6)], violet));
         }
+        c.configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .position(SeriesLabelPosition::LowerLeft)
+            .draw()?;
         let (plo, phi) = r.points.iter().fold((0.0f64, 0.0f64), |(lo, hi), p| {
             (lo.min(p.phase_deg), hi.max(p.phase_deg))
         });
         let mut c = ChartBuilder::on(&bottom)
             .margin(8)
+            .margin_right(30)
             .x_label_area_size(40)
             .y_label_area_size(60)
             .build_cartesian_2d((f0..f1).log_scale(), (plo - 10.0)..(phi + 10.0))?;
@@ -293,9 +310,14 @@ pub fn fig11(dir: &Path, threads: usize) -> anyhow::Result<(PathBuf, Fig11)> {
             .y_desc("f, Hz")
             .draw()?;
         for (k, label, col) in [
-            (1.0, "f = k_v", BLACK),
+            // The band's edges in two colours of their own (none of the presets' five).
+            (1.0, "f = k_v (band's upper edge)", BLACK),
             (0.6, "f = 0.6 k_v (eq. 13)", RGBColor(0, 130, 0)),
-            (0.25, "f = k_v / 4", BLACK),
+            (
+                0.25,
+                "f = k_v / 4 (band's lower edge)",
+                RGBColor(140, 140, 140),
+            ),
         ] {
             c.draw_series(LineSeries::new(
                 [(0.0, 0.0), (kmax, k * kmax)],
@@ -335,6 +357,14 @@ pub fn fig11(dir: &Path, threads: usize) -> anyhow::Result<(PathBuf, Fig11)> {
                     .map(|r| Cross::new((r.kv_per_s, 0.5), 5, col.stroke_width(2))),
             )?;
         }
+        // What the ring and the cross mean, in the legend only (empty series).
+        let grey = RGBColor(90, 90, 90);
+        c.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label("ring: the preset's own k_v")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 7, grey.stroke_width(2)));
+        c.draw_series(std::iter::empty::<Cross<(f64, f64), i32>>())?
+            .label("cross on the axis: no limit cycle")
+            .legend(move |(x, y)| Cross::new((x + 10, y), 5, grey.stroke_width(2)));
         c.configure_series_labels()
             .border_style(BLACK)
             .background_style(WHITE)

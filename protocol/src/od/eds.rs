@@ -248,7 +248,7 @@ pub fn objects_markdown(node_id: u8, info: &DriveInfo) -> String {
     let mut s = String::from(
         "# Object dictionary\n\nGenerated from `protocol/src/od/table.rs` (do not edit; run \
          `UPDATE_OBJECTS_MD=1 cargo test -p drive-protocol --test eds`). Defaults shown for the \
-         test drive of `protocol/tests/common` (65536 inc/rev, 10 mm screw, user unit 1 um) and \
+         test drive of `protocol/tests/common` (65536 inc/rev, 10 mm screw, user unit 1 µm) and \
          node ID 5.\n\n| Index | Sub | Name | Type | Access | PDO | Default | Limits |\n\
          |---|---|---|---|---|---|---|---|\n",
     );
