@@ -807,13 +807,16 @@ fn watch(
 /// An inconclusive detector result for people: the verdict, its kind and the first reason
 /// (no amplitude or frequency: nothing was measured).
 pub(crate) fn inconclusive_text(d: &crate::analysis::detector::DetectorReport) -> String {
-    format!(
-        "inconclusive ({}){}",
-        d.inconclusive.map_or("", |i| i.as_str()),
-        d.reasons
-            .first()
-            .map_or(String::new(), |r| format!(": {r}"))
-    )
+    let head = format!(
+        "inconclusive ({})",
+        d.inconclusive.map_or("", |i| i.as_str())
+    );
+    match d.reasons.first() {
+        // The first reason already starts with the verdict and its kind.
+        Some(r) if r.starts_with(&head) => r.clone(),
+        Some(r) => format!("{head}: {r}"),
+        None => head,
+    }
 }
 
 /// Columns of the terminal on stderr (TIOCGWINSZ), 80 when it does not say.
@@ -943,6 +946,8 @@ mod tests {
             "{t}"
         );
         assert!(!t.contains("amplitude") && !t.contains("0.00"), "{t}");
+        // Said once, not "inconclusive (x): inconclusive (x): ...".
+        assert_eq!(t.matches("inconclusive (").count(), 1, "{t}");
     }
 
     #[test]
