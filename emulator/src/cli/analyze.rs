@@ -81,7 +81,7 @@ pub struct AnalyzeArgs {
     /// amplitude over this threshold (default 3).
     #[arg(long, value_name = "AMPLITUDE")]
     pub alarm: Option<f64>,
-    /// Output directory (default out/analyze-<trace stem>/).
+    /// Output directory (default out/analyze-TRACE_STEM/).
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Exit with status 1 when backlash is found (verdict backlash or backlash_suspected).

@@ -12,7 +12,7 @@ pub struct EdsArgs {
     /// Preset of the axis: cnc1 ... cnc5.
     #[arg(long, default_value = "cnc1")]
     pub preset: String,
-    /// Node ID of the drive: written to [DeviceComissioning] NodeID, from which masters
+    /// Node ID of the drive: written to the DeviceComissioning section, key NodeID, from which masters
     /// (python canopen, Lely) resolve the $NODEID defaults (canopen-monitor: see
     /// --canopen-monitor). Without it, a generic EDS.
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=127))]
@@ -46,7 +46,7 @@ pub enum Real32Arg {
 
 /// The EDS (CiA 306) of a drive built from a preset, generated from the node's object table:
 /// every default is the value the drive has (manufacturer parameters from the preset and
-/// --set), [FileInfo] complete (time from SOURCE_DATE_EPOCH if set, else now, UTC).
+/// --set), the FileInfo section complete (time from SOURCE_DATE_EPOCH if set, else now, UTC).
 pub fn eds_text(args: &EdsArgs) -> Result<String> {
     let cfg = AxisConfig::from_preset(&args.preset)?
         .with_overrides(args.set.iter().map(String::as_str))?;

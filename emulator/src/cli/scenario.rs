@@ -10,7 +10,7 @@ use std::process::ExitCode;
 pub struct ScenarioArgs {
     /// Scenario file (scenarios/*.toml).
     pub file: PathBuf,
-    /// Output directory (default out/<scenario name>/).
+    /// Output directory (default out/SCENARIO_NAME/).
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Skip the PNG plots.

@@ -1,5 +1,5 @@
 //! The scenario file as written: serde structures with spans, unknown keys rejected. The
-//! semantic checks (which keys go together, which are required) live in [`super::validate`].
+//! semantic checks (which keys go together, which are required) live in `validate.rs`.
 
 use super::units::{CobId, EmcyCode, MachineKey, ParamName, Share, StateName, Time};
 use serde::de::{Deserializer, MapAccess, Visitor};
