@@ -15,6 +15,16 @@ pub trait Clock {
         let _ = fd;
         self.sleep_until(deadline_us)
     }
+    /// This clock's time (us) of a CLOCK_REALTIME instant (a kernel receive timestamp), from
+    /// an offset measured by [`Clock::sync_realtime`]: no system call, so the loop can place a
+    /// frame's arrival without reading a clock per frame. `None`: this clock cannot tell.
+    fn realtime_to_us(&self, realtime_ns: i128) -> Option<u64> {
+        let _ = realtime_ns;
+        None
+    }
+    /// Re-measure the offset [`Clock::realtime_to_us`] uses (two clock reads; the wall
+    /// clock may be slewed or stepped): call it now and then, off the path that answers.
+    fn sync_realtime(&mut self) {}
 }
 
 /// `CLOCK_MONOTONIC` with `clock_nanosleep(TIMER_ABSTIME)`: deadlines do not drift with the
@@ -22,22 +32,34 @@ pub trait Clock {
 #[derive(Debug)]
 pub struct MonotonicClock {
     origin_ns: i128,
+    /// CLOCK_REALTIME minus CLOCK_MONOTONIC, ns, as last measured.
+    realtime_minus_monotonic_ns: i128,
 }
 
 fn monotonic_ns() -> i128 {
+    clock_ns(libc::CLOCK_MONOTONIC)
+}
+
+fn realtime_ns() -> i128 {
+    clock_ns(libc::CLOCK_REALTIME)
+}
+
+fn clock_ns(id: libc::clockid_t) -> i128 {
     let mut ts = libc::timespec {
         tv_sec: 0,
         tv_nsec: 0,
     };
-    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC always exists on Linux.
-    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    // SAFETY: `ts` is a valid, writable timespec; both clocks used here exist on Linux.
+    unsafe { libc::clock_gettime(id, &mut ts) };
     ts.tv_sec as i128 * 1_000_000_000 + ts.tv_nsec as i128
 }
 
 impl MonotonicClock {
     pub fn new() -> Self {
+        let origin_ns = monotonic_ns();
         Self {
-            origin_ns: monotonic_ns(),
+            origin_ns,
+            realtime_minus_monotonic_ns: realtime_ns() - origin_ns,
         }
     }
 }
@@ -51,6 +73,19 @@ impl Default for MonotonicClock {
 impl Clock for MonotonicClock {
     fn now_us(&self) -> u64 {
         ((monotonic_ns() - self.origin_ns).max(0) / 1000) as u64
+    }
+
+    fn realtime_to_us(&self, realtime_ns: i128) -> Option<u64> {
+        let mono = realtime_ns - self.realtime_minus_monotonic_ns;
+        Some(((mono - self.origin_ns).max(0) / 1000) as u64)
+    }
+
+    fn sync_realtime(&mut self) {
+        // Between two monotonic reads, so the offset is off by at most half their spacing.
+        let a = monotonic_ns();
+        let r = realtime_ns();
+        let b = monotonic_ns();
+        self.realtime_minus_monotonic_ns = r - (a + b) / 2;
     }
 
     fn sleep_until(&mut self, deadline_us: u64) -> u64 {
