@@ -15,6 +15,11 @@ pub trait Clock {
         let _ = fd;
         self.sleep_until(deadline_us)
     }
+    /// As [`Clock::wait_until_or_readable`] without reading the clock on waking (a system
+    /// call the real-time loop makes only when it needs the time).
+    fn wait_for(&mut self, deadline_us: u64, fd: Option<RawFd>) {
+        self.wait_until_or_readable(deadline_us, fd);
+    }
     /// This clock's time (us) of a CLOCK_REALTIME instant (a kernel receive timestamp), from
     /// an offset measured by [`Clock::sync_realtime`]: no system call, so the loop can place a
     /// frame's arrival without reading a clock per frame. `None`: this clock cannot tell.
@@ -115,8 +120,14 @@ impl Clock for MonotonicClock {
     }
 
     fn wait_until_or_readable(&mut self, deadline_us: u64, fd: Option<RawFd>) -> u64 {
+        self.wait_for(deadline_us, fd);
+        self.now_us()
+    }
+
+    fn wait_for(&mut self, deadline_us: u64, fd: Option<RawFd>) {
         let Some(fd) = fd else {
-            return self.sleep_until(deadline_us);
+            self.sleep_until(deadline_us);
+            return;
         };
         let abs_ns = self.origin_ns + deadline_us as i128 * 1000;
         let left_ns = (abs_ns - monotonic_ns()).max(0);
@@ -133,7 +144,6 @@ impl Clock for MonotonicClock {
         // returns early: the loop checks its stop flag and waits again.
         // SAFETY: one valid pollfd, a valid timespec, no signal mask change.
         unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
-        self.now_us()
     }
 }
 

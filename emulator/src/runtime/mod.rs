@@ -280,22 +280,31 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         hook: &mut impl FnMut(&mut Self),
     ) {
         let fd = self.bus.rx_fd();
-        // The one clock read before an answer: when the loop woke. A frame's arrival comes
-        // from its kernel timestamp, converted without a system call.
-        let woke = clock.wait_until_or_readable(l.deadline_us, fd);
+        clock.wait_for(l.deadline_us, fd);
+        // No clock read between the wake-up and the answer unless needed (each is a system
+        // call, expensive under user-mode Linux or a hypervisor): a frame's arrival comes from
+        // its kernel timestamp, converted without one; the time of the wake-up is read only
+        // when the arrival is unknown or a synchronous window (0x1007) needs how late a frame
+        // is handled.
+        let mut woke = None;
         let mut drained = false;
         for _ in 0..MAX_RX_PER_TICK {
             let Some(frame) = self.recv_frame() else {
                 drained = true;
                 break;
             };
-            let arrived = self
+            let stamp = self
                 .bus
                 .last_rx_stamp_ns()
-                .and_then(|t| clock.realtime_to_us(t))
-                .unwrap_or(woke);
+                .and_then(|t| clock.realtime_to_us(t));
+            let now = match stamp {
+                Some(_) if !l.sync_window => None,
+                _ => Some(*woke.get_or_insert_with(|| clock.now_us())),
+            };
+            let arrived = stamp.or(now).unwrap_or_default();
             self.run_due_ticks(l, clock, arrived, hook);
-            if self.handle_frame(&frame, woke.saturating_sub(arrived)) {
+            let late_us = now.map_or(0, |n| n.saturating_sub(arrived));
+            if self.handle_frame(&frame, late_us) {
                 l.pll.on_sync(arrived);
                 self.stats.sync_lock_state = l.pll.state().code();
                 self.stats.sync_phase_error_us = l.pll.phase_error_avg_us().round() as u64;
@@ -343,6 +352,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                 clock.sync_realtime();
             }
             hook(self);
+            l.sync_window = self.axes.iter().any(|a| a.node.sync_window_us() > 0);
             l.deadline_us = l.pll.next_deadline(l.deadline_us);
         }
     }
@@ -487,6 +497,9 @@ pub struct RealtimeLoop {
     /// Next control tick, microseconds on the loop's clock.
     pub deadline_us: u64,
     pub pll: SyncPll,
+    /// Some node has a synchronous window (0x1007): frames need the time they are handled
+    /// at (refreshed every control tick).
+    pub sync_window: bool,
 }
 
 impl RealtimeLoop {
@@ -494,6 +507,7 @@ impl RealtimeLoop {
         Self {
             deadline_us: start_us,
             pll: SyncPll::new(period_us, SYNC_LEAD_US),
+            sync_window: false,
         }
     }
 }
