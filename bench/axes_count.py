@@ -56,4 +56,5 @@ print(
     f"{['free-running', 'acquiring SYNC', 'SYNC-locked'][s['sync_lock_state']]}"
 )
 if drops_seen:
-    print(f"{label}: the capture itself dropped frames: {drops_seen[:3]}")
+    total = max(int(d.split("total drops")[1].strip(" )")) for d in drops_seen)
+    print(f"{label}: the capture itself dropped {total} frames (candump fell behind): the count above is not the drive's")
