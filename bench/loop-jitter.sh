@@ -3,13 +3,14 @@
 # wake-up minus its deadline, on the monotonic clock, in a histogram allocated up front; the
 # exit statistics of `--json`) beside cyclictest (rt-tests), one after the other in ONE
 # user-mode-Linux boot with vcan0, SCHED_FIFO 80, at 1 kHz: cyclictest, drive-emu free-running
-# (no SYNC), drive-emu SYNC-locked (cangen sends a SYNC every 1 ms). Then, on the host, how
-# much work one loop does per tick for 32/64/127 axes (examples/loop_bench, in-process bus).
+# (no SYNC), drive-emu SYNC-locked (bench/sync_master.py, SCHED_FIFO 90, a SYNC every 1 ms on an
+# absolute schedule). Then, on the host, how much work one loop does per tick for 32/64/127
+# axes (examples/loop_bench, in-process bus).
 #   bench/loop-jitter.sh [SECONDS]        (needs: apt-get install rt-tests can-utils)
 set -euo pipefail
 cd "$(dirname "$(readlink -f "$0")")/.."
 secs=${1:-10}
-for c in cyclictest cangen; do
+for c in cyclictest cansend chrt; do
     command -v $c >/dev/null || { echo "$c missing: apt-get install rt-tests can-utils" >&2; exit 1; }
 done
 cargo build --release -q -p drive-emu --bin drive-emu --example loop_bench
@@ -27,7 +28,7 @@ awk -v n=$loops '
 $dir/drive-emu run --iface vcan0 --node 5 --rt-priority 80 --duration $secs --json 2>/dev/null > $work/free
 printf '1 kHz  drive-emu free-running : '; python3 bench/fmt_stats.py lateness < $work/free
 $dir/drive-emu run --iface vcan0 --node 5 --rt-priority 80 --duration $((secs + 60)) --json 2>/dev/null > $work/sync & emu=\$!
-sleep 0.5; cansend vcan0 000#0105; cangen vcan0 -g 1 -I 080 -L 0 -n $loops; kill -TERM \$emu; wait \$emu
+sleep 0.5; cansend vcan0 000#0105; chrt -f 90 python3 bench/sync_master.py vcan0 $loops 0.001; kill -TERM \$emu; wait \$emu
 printf '1 kHz  drive-emu SYNC-locked  : '; python3 bench/fmt_stats.py lateness < $work/sync
 "
 for axes in 32 64 127; do   # 127: every node ID a CANopen bus has

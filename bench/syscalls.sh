@@ -14,7 +14,7 @@ n=${1:-1000}
 for mode in '' '--lockstep'; do
   $bin run --iface vcan0 --node 5 --rt-priority 80 --duration 120 \$mode 2>/dev/null & pid=\$!
   sleep 0.5
-  strace -c -f -qq \$(for t in /proc/\$pid/task/*; do printf -- '-p %s ' \${t##*/}; done) -o /tmp/strace.\$\$ & st=\$!
+  strace -c -f -qq -p \$pid -o /tmp/strace.\$\$ & st=\$!
   sleep 0.5
   python3 bench/sync_latency.py vcan0 5 $n 0.001 \"run \$mode (under strace)\"
   kill -INT \$st; wait \$st 2>/dev/null
