@@ -10,7 +10,8 @@ Run inside the bus (user-mode Linux where the kernel has no CAN):
 
 Each case (CASES below) gives: the drive's backlash and mode of time keeping (real-time loop
 or --lockstep), the master's SYNC period, the operating mode and how set-points reach the
-drive (CSP/CSV targets in an RPDO every SYNC, with the python timer's jitter; PV with 0x60FF
+drive (CSP/CSV targets in an RPDO every SYNC, with the python timer's jitter, or set-points
+that jitter by half a period, get lost, or come from a task not synchronous with SYNC; PV with 0x60FF
 written over SDO; a PP move with 0x607A / 0x6081 over SDO), whether the master remaps the
 PDOs itself, and the motion (a cruise at constant speed, or a sine with no constant-speed
 window). Writes tests/corpus/NAME.log.gz and NAME.json (truth.py's output plus the case), and for the
@@ -63,6 +64,16 @@ CASES = {
                                       remap=True, trace=True),
     "sine-4ms-lock-worn05": dict(gap=0.05, lockstep=True, sync_ms=4, mode="csp", remap=True,
                                 motion="sine"),
+    # set-points that jitter by up to half a period, and 5 % of them lost (no exactly
+    # constant stretch: constant on average)
+    "csp-4ms-lock-worn05-jitter": dict(gap=0.05, lockstep=True, sync_ms=4, mode="csp",
+                                      remap=False, jitter=0.5, lost=0.05),
+    "csp-4ms-lock-healthy-jitter": dict(gap=0.0, lockstep=True, sync_ms=4, mode="csp",
+                                       remap=False, jitter=0.5, lost=0.05),
+    # a set-point task not synchronous with SYNC: 8 set-points per 15 SYNCs (7.5 ms against
+    # 4 ms), whose holds and double steps beat at 16.7 Hz, in the k_v band
+    "csp-4ms-lock-worn05-beat": dict(gap=0.05, lockstep=True, sync_ms=4, mode="csp",
+                                    remap=False, setpoint_every=15 / 8),
 }
 SPEED_UU_S = 10_000.0  # 10 mm/s
 ACCEL_UU_S2 = 50_000.0
@@ -87,6 +98,7 @@ class Master:
         self.setpoint = None  # function of master time -> (cob_id, bytes) or None
         self.running = False
         self.syncs = 0
+        self.next_setpoint = 0.0  # in SYNCs: the set-point task's own clock
         self.cruise = None  # (t_start, t_end) master time of the constant-speed part
         self.t0 = None
         self.cw = 0x06
@@ -117,7 +129,12 @@ class Master:
                 time.sleep(nxt - now)
             else:
                 nxt = now  # late: do not catch up in a burst
-            if self.setpoint is not None:
+            every = self.case.get("setpoint_every", 1.0)
+            due = self.syncs + 1e-9 >= self.next_setpoint
+            if due:
+                self.next_setpoint += every
+            lost = self.rng.random() < self.case.get("lost", 0.0)
+            if self.setpoint is not None and due and not lost:
                 sp = self.setpoint(self.now(jitter=True))
                 if sp is not None:
                     self.net.send_message(sp[0], sp[1])
@@ -130,11 +147,12 @@ class Master:
     def now(self, jitter=False):
         """The master's interpolator time: the wall clock with a real-time drive; with a
         lock-step drive (whose clock is the SYNC count) the SYNC count, sampled with up to
-        +-0.05 periods of jitter, as a PLC task that runs late or early (the frames
+        +-0.05 periods of jitter (the case's `jitter`), as a PLC task that runs late or early (the frames
         themselves carry python's timing jitter of milliseconds)."""
         if not self.case["lockstep"]:
             return time.monotonic() - self.t0
-        j = self.rng.uniform(-0.05, 0.05) if jitter else 0.0
+        half = self.case.get("jitter", 0.05)
+        j = self.rng.uniform(-half, half) if jitter else 0.0
         return (self.syncs + j) * self.period
 
     def start_sync(self):

@@ -12,6 +12,19 @@ the limit cycle's frequency and its amplitude (zero-to-peak, um/s) and the displ
 equivalent A / (2 pi f) (um); `limit_cycle` is true when that line stands 8x above the
 spectrum's median and is at least 1 um (the user unit): a worn axis in a position loop. A
 worn axis in CSV/PV (speed loop only, no k_v) shows none: physically healthy-looking.
+
+The master's own set-point (CSP target 0x607A, or the integral of the CSV target 0x60FF, from
+the RPDO the master sent: RPDO1 bytes 2-5 when it remapped, else the default RPDO2 / RPDO3
+bytes 2-5), held from SYNC to SYNC, is measured the same way over the same part: its strongest
+line between 3 Hz and the search limit (`set_point_um`). Where the set-point
+itself moves by 1 um or more and by half the speed's line or more (set-points that jitter by a
+good part of a period, a set-point task that beats with SYNC), the axis is forced: `forced` is
+true, and no limit cycle of its own can be measured (the case is inconclusive). Where 80 % of
+the set-point's increments or more lie within half the median (or 2 um) of it, a master that
+sends on time, an increment off it is a glitch of the capture (SYNCs or set-points it lost,
+whose time base counts SYNCs) and takes the median increment; otherwise (a pattern, jitter)
+all stay. The set position, its linear trend (the cruise) removed, is then analysed as a
+displacement.
 """
 import gzip
 import json
@@ -35,20 +48,45 @@ def read_frames(path):
         os.remove(name)
 
 
+def set_point_um(sp, dt, band):
+    """Strongest line of the set position's own motion in `band` (Hz), um."""
+    d = np.diff(sp)
+    if len(d) < 16 or not np.all(np.isfinite(d)):
+        return None
+    med = np.median(d)
+    near = np.abs(d - med) <= max(0.5 * abs(med), 2.0)
+    if np.mean(near) >= 0.8:
+        d = np.where(near, d, med)
+    x = np.append(0.0, np.cumsum(d))
+    i = np.arange(len(x))
+    x = x - np.polyval(np.polyfit(i, x, 1), i)  # the cruise itself
+    w = np.hanning(len(x))
+    spec = np.abs(np.fft.rfft(x * w)) * 2.0 / np.sum(w)
+    f = np.fft.rfftfreq(len(x), dt)
+    sel = (f >= band[0]) & (f <= band[1]) & (f > 0)
+    return float(np.max(spec[sel])) if np.any(sel) else None
+
+
 def measure(path, node, mode, remapped):
     frames = read_frames(path)
     tpdo3 = 0x380 + node
     off = 0 if remapped else 2
-    vel, t_sync, last = [], [], 0
+    # the set-point's RPDO (see the docstring); PV and PP set-points go over SDO: constant
+    rpdo = (0x200 if remapped else (0x300 if mode == "csp" else 0x400)) + node
+    vel, t_sync, last, sp_last, sps = [], [], 0, None, []
     for msg in frames:
         if msg.is_error_frame or msg.is_remote_frame:
             continue
         if msg.arbitration_id == tpdo3 and len(msg.data) >= off + 4:
             last = int.from_bytes(msg.data[off:off + 4], "little", signed=True)
+        elif mode in ("csp", "csv") and msg.arbitration_id == rpdo and len(msg.data) >= 6:
+            sp_last = int.from_bytes(msg.data[2:6], "little", signed=True)
         elif msg.arbitration_id == 0x80:
             vel.append(last)
+            sps.append(np.nan if sp_last is None else sp_last)
             t_sync.append(msg.timestamp)
     vel = np.array(vel, dtype=float)
+    sps = np.array(sps, dtype=float)
     dt = float(np.median(np.diff(t_sync))) if len(t_sync) > 1 else 0.0
     out = {"syncs": len(vel), "limit_cycle": False, "sync_period_s_measured": round(dt, 6),
            "frequency_hz": None, "speed_amplitude_uu_s": None, "displacement_um": None,
@@ -101,6 +139,16 @@ def measure(path, node, mode, remapped):
     out["peak_over_median"] = round(amp / med, 1) if med > 0 else None
     # a limit cycle: a line 8x above the spectrum's median, of at least 1 um (the user unit)
     out["limit_cycle"] = bool(out["displacement_um"] >= 1.0 and med > 0 and amp / med >= 8)
+    # the set-point's own motion in the band: the axis forced by the master
+    sp_seg = sps[a:b]
+    if mode == "csv":
+        sp_seg = np.cumsum(np.nan_to_num(sp_seg)) * dt
+    band = (3.0, min(60.0, 0.4 / dt))
+    spu = set_point_um(sp_seg, dt, band) if mode in ("csp", "csv") else 0.0
+    out["set_point_um"] = None if spu is None else round(spu, 3)
+    out["forced"] = bool(spu is not None and spu >= max(1.0, 0.5 * out["displacement_um"]))
+    if out["forced"]:
+        out["limit_cycle"] = False
     return out
 
 

@@ -11,7 +11,8 @@
 //!    mdeg: the trace's position unit), and the peak's prominence over the band's median;
 //! 3. the window is flagged `backlash_suspected` when the peak is inside k_v/4 .. k_v, prominent,
 //!    and `x >= suspect_um`; `backlash` when also `x >= alarm_um`;
-//! 4. the verdict is the lowest level among the last `confirm_windows` windows (so one noisy
+//! 4. the verdict is the lowest level among the last `confirm_windows` windows, or fewer
+//!    that span as long in all (`confirm_windows` x the shortest window) (so one noisy
 //!    window neither raises nor clears an alarm); severity = x / alarm_um of those windows.
 //!
 //! Alongside: the amplitude trend over time (least squares, per hour), the first time each
@@ -39,6 +40,12 @@ pub struct AxisTrace {
     /// Where `set_velocity` came from, for the report (e.g. "0x607A target position (CSP,
     /// RPDO)"); empty: "set velocity column".
     pub set_velocity_source: String,
+    /// The position set-point per sample as the master sent it (CSP targets, the integral of
+    /// CSV/PV target velocities, a demand column), position unit, with its jitter, gaps and
+    /// duplicates; NaN where none is in force; empty when the trace has none. Used to find
+    /// constant speed on average where the set-points jitter, and to tell a line the
+    /// set-point forces from the axis's own.
+    pub set_position: Vec<f64>,
 }
 
 impl AxisTrace {
@@ -64,6 +71,12 @@ impl AxisTrace {
                     c.len()
                 ));
             }
+        }
+        if !self.set_position.is_empty() && self.set_position.len() != n {
+            return Err(format!(
+                "column set_position has {} samples, time has {n}",
+                self.set_position.len()
+            ));
         }
         Ok(())
     }
@@ -100,7 +113,8 @@ impl AxisTrace {
             d
         };
         let motor_position = uu(motor_position);
-        let set_velocity: Vec<f64> = deriv(&uu(setpoint))
+        let set_position = uu(setpoint);
+        let set_velocity: Vec<f64> = deriv(&set_position)
             .into_iter()
             // The set-point is stored with finite precision: round the noise away so constant
             // segments are exactly constant.
@@ -123,6 +137,7 @@ impl AxisTrace {
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "A".into(),
             set_velocity_source: "derivative of the position set-point".into(),
+            set_position,
         }
     }
 
@@ -144,6 +159,7 @@ impl AxisTrace {
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
             set_velocity_source: "the master's interpolator velocity".into(),
+            set_position: samples.iter().map(|s| s.target_uu).collect(),
         }
     }
 }
@@ -258,6 +274,18 @@ pub struct WindowResult {
     /// Why the window got its level: frequency against the band, prominence, amplitude
     /// against the thresholds.
     pub reason: String,
+    /// The set-point's own strongest line in the search band, as a displacement (NaN: the
+    /// trace has no set position), position unit.
+    pub set_point_amplitude: f64,
+    /// The set-point itself moves in the search band by the suspect level or more, and by
+    /// half the speed's line or more (set-points that jitter by a good part of a period, or a
+    /// set-point task that beats with SYNC): the axis is forced, its own line cannot be told
+    /// apart. Such a window measures nothing.
+    pub forced: bool,
+    /// The axis did not follow the set speed: the mean motor speed in the window is off the
+    /// set speed by more than half (a drive in fault, disabled, or in another mode). Such a
+    /// window measures nothing either.
+    pub not_following: bool,
 }
 
 /// Why a trace gave no usable window.
@@ -272,6 +300,11 @@ pub enum Inconclusive {
     MissingObjects,
     /// The motor speed has no finite sample in any window (NaN, infinite).
     NoFiniteSamples,
+    /// Every window's line is the set-point's own motion (the master's set-point timing
+    /// beats with its SYNC): the axis was forced, its own vibration not measurable.
+    SetPointNotConstant,
+    /// In every window the axis did not follow the set speed.
+    AxisNotFollowing,
 }
 
 impl Inconclusive {
@@ -281,6 +314,8 @@ impl Inconclusive {
             Inconclusive::TooShort => "too_short",
             Inconclusive::MissingObjects => "missing_objects",
             Inconclusive::NoFiniteSamples => "no_finite_samples",
+            Inconclusive::SetPointNotConstant => "set_point_not_constant",
+            Inconclusive::AxisNotFollowing => "axis_not_following",
         }
     }
 }
@@ -319,6 +354,9 @@ pub struct DetectorReport {
     pub lost_motion: Option<f64>,
     pub position_unit: String,
     pub windows: Vec<WindowResult>,
+    /// Windows not measured: their line is the set-point's own motion
+    /// ([`WindowResult::forced`]), or the axis did not follow ([`WindowResult::not_following`]).
+    pub forced_windows: Vec<WindowResult>,
 }
 
 fn median(v: &mut [f64]) -> Option<f64> {
@@ -380,6 +418,7 @@ pub fn analyze_window(
     let current = an.fundamental(&trace.current[w.start..w.end], fs, band);
     let (speed_hz, speed_amplitude) =
         speed.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
+    let set_point_amplitude = set_point_line(trace, w, an, fs, band);
     let (current_hz, current_amplitude) =
         current.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
     let displacement_amplitude = match speed_hz {
@@ -407,7 +446,29 @@ pub fn analyze_window(
     } else {
         cfg.min_prominence
     };
+    // The set-point shakes the axis in the band by as much as we look for: whatever line the
+    // speed shows (or hides), it is not the axis's own.
+    let forced = set_point_amplitude >= cfg.suspect_um.max(0.5 * displacement_amplitude);
+    let mean_speed = trace.motor_velocity[w.start..w.end].iter().sum::<f64>() / n.max(1) as f64;
+    let not_following = (mean_speed - w.velocity).abs() > 0.5 * w.velocity.abs();
     let (level, reason) = match speed_hz {
+        _ if not_following => (
+            Verdict::Ok,
+            format!(
+                "not measured: the axis did not follow the set speed (mean motor speed \
+                 {mean_speed:.1} {unit}/s against {:.1} {unit}/s set)",
+                w.velocity
+            ),
+        ),
+        _ if forced => (
+            Verdict::Ok,
+            format!(
+                "not measured: the set-point itself moves by {set_point_amplitude:.2} {unit} in \
+                 the search band {:.2}..{:.2} Hz (the master's set-point timing; the speed's \
+                 line, {displacement_amplitude:.2} {unit}, is not the axis's own)",
+                band.0, band.1
+            ),
+        ),
         None => (
             Verdict::Ok,
             "no spectral line in the search band".to_string(),
@@ -469,12 +530,80 @@ pub fn analyze_window(
         encoder_difference_half_pp: half_pp,
         level,
         reason,
+        set_point_amplitude,
+        forced,
+        not_following,
     }
+}
+
+/// The set-point's own motion in window `w`: the strongest line of the set position (its
+/// cruise, the linear trend, removed) in `band` (Hz), position unit; NaN without a set
+/// position.
+fn set_point_line(
+    trace: &AxisTrace,
+    w: &Window,
+    an: &mut SpectrumAnalyzer,
+    fs: f64,
+    band: (f64, f64),
+) -> f64 {
+    let Some(sp) = trace.set_position.get(w.start..w.end) else {
+        return f64::NAN;
+    };
+    if sp.iter().any(|x| !x.is_finite()) {
+        return f64::NAN;
+    }
+    // The set position again from its increments. A master that sends on time gives the same
+    // increment almost every sample (within half of it, or 2 units): there, an increment off
+    // it is a glitch of the capture (SYNCs or set-points it lost: its time base counts SYNCs),
+    // not a motion of the set-point, and takes the median. Where fewer than 80 % are near
+    // the median (holds and double steps that beat with SYNC, jitter), all stay.
+    let mut d: Vec<f64> = sp.windows(2).map(|p| p[1] - p[0]).collect();
+    if d.is_empty() {
+        return f64::NAN;
+    }
+    let mut sorted = d.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let near = (0.5 * median.abs()).max(2.0);
+    let regular = d.iter().filter(|x| (*x - median).abs() <= near).count();
+    if regular as f64 >= 0.8 * d.len() as f64 {
+        for x in d.iter_mut() {
+            if (*x - median).abs() > near {
+                *x = median;
+            }
+        }
+    }
+    let mut x = 0.0;
+    let pos: Vec<f64> = std::iter::once(0.0)
+        .chain(d.iter().map(|s| {
+            x += s;
+            x
+        }))
+        .collect();
+    // Its spectrum (trend removed: the cruise itself) is a displacement already.
+    if an.fundamental(&pos, fs, band).is_none() {
+        return 0.0;
+    }
+    let df = fs / sp.len() as f64;
+    let m = an.amplitudes();
+    let lo = ((band.0 / df).ceil() as usize).max(1);
+    let hi = ((band.1 / df).floor() as usize).min(m.len() - 1);
+    m[lo..=hi.max(lo)].iter().copied().fold(0.0, f64::max)
 }
 
 /// Run the detector on a trace.
 pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
-    let scan = scan_windows(&trace.t_s, &trace.set_velocity, &cfg.windows);
+    let mut scan = scan_windows(&trace.t_s, &trace.set_velocity, &cfg.windows);
+    // No stretch of exactly constant set speed, but set-points that jitter around one:
+    // constant on average.
+    let mut on_average = false;
+    if scan.windows.is_empty() && !trace.set_position.is_empty() {
+        let v = super::windows::set_velocity_on_average(&trace.t_s, &trace.set_position);
+        let avg = scan_windows(&trace.t_s, &v, &cfg.windows);
+        if !avg.windows.is_empty() {
+            (scan, on_average) = (avg, true);
+        }
+    }
     let finite = |w: &Window| {
         trace.motor_velocity[w.start..w.end]
             .iter()
@@ -483,12 +612,26 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     let usable: Vec<&Window> = scan.windows.iter().filter(|w| w.len() >= 16).collect();
     let non_finite = usable.iter().filter(|w| !finite(w)).count();
     let mut analyzers = HashMap::new();
-    let results: Vec<WindowResult> = usable
+    let (forced, results): (Vec<WindowResult>, Vec<WindowResult>) = usable
         .iter()
         .filter(|w| finite(w))
         .map(|w| analyze_window(trace, w, cfg, &mut analyzers))
-        .collect();
+        .partition(|r| r.forced || r.not_following);
     let mut rep = summarize(results, trace, cfg);
+    if on_average {
+        rep.window_source.push_str(&format!(
+            "; constant on average over {} s (the set-points jitter: no stretch of exactly \
+             constant set speed)",
+            super::windows::AVERAGE_SPAN_S
+        ));
+    }
+    rep.forced_windows.clone_from(&forced);
+    for r in &forced {
+        rep.reasons.push(format!(
+            "window {:.2}..{:.2} s at {:.1} {}/s: {}",
+            r.t_start_s, r.t_end_s, r.set_velocity, trace.position_unit, r.reason
+        ));
+    }
     let o = &cfg.windows;
     let need = format!(
         "a window needs {:.1} s of settling plus {:.1} s at constant set speed (|v| >= {} {}/s)",
@@ -496,7 +639,26 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     );
     if rep.windows.is_empty() {
         let any_finite = trace.motor_velocity.iter().any(|v| v.is_finite());
-        let (why, text) = if !any_finite || non_finite > 0 {
+        let (why, text) = if !forced.is_empty() && forced.iter().all(|r| !r.forced) {
+            (
+                Inconclusive::AxisNotFollowing,
+                format!(
+                    "in all {} constant-speed windows the axis did not follow the set speed \
+                     (a drive in fault, disabled or in another mode)",
+                    forced.len()
+                ),
+            )
+        } else if !forced.is_empty() {
+            (
+                Inconclusive::SetPointNotConstant,
+                format!(
+                    "in all {} constant-speed windows the set-point itself moves in the search \
+                     band by the suspect level or more: the axis was forced by the master's \
+                     set-point timing, its own vibration cannot be told apart",
+                    forced.len()
+                ),
+            )
+        } else if !any_finite || non_finite > 0 {
             (
                 Inconclusive::NoFiniteSamples,
                 if any_finite {
@@ -562,21 +724,43 @@ impl DetectorReport {
     }
 }
 
+/// Measuring time that confirms a level by itself, s: `confirm_windows` windows of the
+/// shortest length. A limit cycle lasts as long as the constant speed; what confirms it is
+/// time spent measuring it, so one long window counts as much as two short ones.
+fn confirm_s(cfg: &DetectorConfig) -> f64 {
+    cfg.confirm_windows as f64 * cfg.windows.min_len_s
+}
+
+/// The first of the windows in a row ending at `end` that confirm a level: the last
+/// `confirm_windows` windows, or fewer that together span [`confirm_s`]. None: too few yet.
+fn confirming(results: &[WindowResult], end: usize, cfg: &DetectorConfig) -> Option<usize> {
+    let need = cfg.confirm_windows.max(1);
+    let mut spanned = 0.0;
+    for from in (0..=end).rev() {
+        let r = &results[from];
+        spanned += r.t_end_s - r.t_start_s;
+        if end + 1 - from >= need || spanned >= 0.99 * confirm_s(cfg) {
+            return Some(from);
+        }
+    }
+    None
+}
+
 fn summarize(
     results: Vec<WindowResult>,
     trace: &AxisTrace,
     cfg: &DetectorConfig,
 ) -> DetectorReport {
-    // A trace with fewer windows than `confirm_windows` is judged on all it has.
-    let k = cfg.confirm_windows.min(results.len()).max(1);
-    // Confirmed level after each window: the lowest of the last k levels.
+    // Confirmed level after each window: the lowest of the windows that confirm it.
     let mut first_suspected_s = None;
     let mut first_backlash_s = None;
     for i in 0..results.len() {
-        if i + 1 < k {
+        // (A trace with fewer windows than `confirm_windows` is judged on all it has.)
+        let short = results.len() < cfg.confirm_windows;
+        let Some(from) = confirming(&results, i, cfg).or(short.then_some(0)) else {
             continue;
-        }
-        let lvl = results[i + 1 - k..=i]
+        };
+        let lvl = results[from..=i]
             .iter()
             .map(|r| r.level)
             .min()
@@ -588,7 +772,13 @@ fn summarize(
             first_backlash_s = Some(results[i].t_end_s);
         }
     }
-    let last = &results[results.len().saturating_sub(k)..];
+    // The verdict: the last windows that confirm a level; a trace with fewer is judged on
+    // all it has.
+    let from = match results.len() {
+        0 => 0,
+        n => confirming(&results, n - 1, cfg).unwrap_or(0),
+    };
+    let last = &results[from..];
     let verdict = if !results.is_empty() {
         last.iter().map(|r| r.level).min().unwrap_or(Verdict::Ok)
     } else {
@@ -599,13 +789,14 @@ fn summarize(
         let lowest = last.iter().map(|r| r.level).min().unwrap_or(Verdict::Ok);
         reasons.push(format!(
             "verdict {}: the lowest level of the last {} of {} windows ({:.2}..{:.2} s); a level \
-             needs {} windows in a row",
+             needs {} windows in a row, or windows in a row of {:.1} s in all",
             verdict.as_str(),
             last.len(),
             results.len(),
             first.t_start_s,
             end.t_end_s,
-            cfg.confirm_windows.min(results.len()).max(1),
+            cfg.confirm_windows,
+            confirm_s(cfg),
         ));
         debug_assert_eq!(lowest, verdict);
     }
@@ -688,6 +879,7 @@ fn summarize(
         lost_motion,
         position_unit: trace.position_unit.clone(),
         windows: results,
+        forced_windows: Vec::new(),
     }
 }
 
@@ -734,5 +926,135 @@ mod tests {
         let r = analyze(&synth(10.0, 45.0, 10.0), &cfg);
         assert!(r.windows.iter().all(|w| !w.in_band));
         assert_eq!(r.verdict, Verdict::Ok);
+    }
+
+    /// A 4 ms capture at 10 mm/s after a 0.2 s ramp: the set position per SYNC from
+    /// `set_position(k)`, the motor speed from `motor(k, raw set velocity)`.
+    fn captured(
+        secs: f64,
+        set_position: impl Fn(usize) -> f64,
+        motor: impl Fn(usize, f64) -> f64,
+    ) -> AxisTrace {
+        let dt = 4e-3;
+        let n = (secs / dt) as usize;
+        let mut tr = AxisTrace::default();
+        for k in 0..n {
+            let t = k as f64 * dt;
+            let p = set_position(k);
+            let v_raw = if k > 0 {
+                (p - set_position(k - 1)) / dt
+            } else {
+                0.0
+            };
+            tr.t_s.push(t);
+            tr.set_position.push(p);
+            tr.motor_velocity.push(motor(k, v_raw));
+            tr.current.push(0.0);
+            tr.motor_position.push(p);
+            tr.direct_position.push(p);
+        }
+        tr.position_unit = "um".into();
+        tr.set_velocity = super::super::windows::set_velocity_from_demand(
+            &tr.t_s,
+            &tr.set_position,
+            super::super::windows::DEMAND_SPAN_S,
+        );
+        tr
+    }
+
+    /// Deterministic uniform numbers in -1..1 (splitmix64 of k: no pattern over k).
+    fn uniform(k: usize) -> f64 {
+        let mut z = (k as u64)
+            .wrapping_add(1)
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        ((z >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+
+    /// The position of a 10 mm/s cruise after a 0.2 s ramp at master time `t`, um.
+    fn cruise_um(t: f64) -> f64 {
+        let (v, t_ramp) = (10_000.0, 0.2);
+        if t < t_ramp {
+            0.5 * v / t_ramp * t * t
+        } else {
+            0.5 * v * t_ramp + v * (t - t_ramp)
+        }
+    }
+
+    /// Half the spread of the master's clock sampling, in periods.
+    const JITTER: f64 = 0.5;
+
+    #[test]
+    fn set_points_that_jitter_give_windows_constant_on_average_and_the_limit_cycle() {
+        // A master that samples its own clock up to half a period late or early and loses
+        // 5 % of its set-points (held, then caught up): no stretch of exactly constant set
+        // speed.
+        let dt = 4e-3;
+        let late = |k: usize| if uniform(k + 7_000) > 0.9 { k - 1 } else { k };
+        let sp = |k: usize| cruise_um((late(k) as f64 + JITTER * uniform(late(k))) * dt).round();
+        let w = 2.0 * std::f64::consts::PI * 18.0;
+        let tr = captured(8.0, sp, |k, _| {
+            let t = k as f64 * dt;
+            if t < 0.2 {
+                50_000.0 * t
+            } else {
+                10_000.0 + 8.0 * w * (w * t).cos()
+            }
+        });
+        let cfg = DetectorConfig::new(30.0);
+        assert!(
+            scan_windows(&tr.t_s, &tr.set_velocity, &cfg.windows)
+                .windows
+                .is_empty(),
+            "the exact scan must find nothing here, or the test tests nothing"
+        );
+        let r = analyze(&tr, &cfg);
+        assert_eq!(r.verdict, Verdict::Backlash, "{:#?}", r.reasons);
+        assert!(
+            r.window_source.contains("constant on average"),
+            "{}",
+            r.window_source
+        );
+        let f = r.frequency_hz.unwrap();
+        assert!((f - 18.0).abs() < 0.5, "{f}");
+        assert!(r.forced_windows.is_empty(), "{:#?}", r.forced_windows);
+    }
+
+    #[test]
+    fn a_set_point_task_beating_with_sync_forces_the_axis_and_is_inconclusive() {
+        // 8 set-points per 15 SYNCs (a 7.5 ms task against a 4 ms SYNC): holds and double
+        // steps that repeat every 60 ms, a 16.7 Hz line in the band; the axis follows them
+        // (feed-forward), it has no limit cycle of its own.
+        let dt = 4e-3;
+        let sp = |k: usize| {
+            let sent = ((k * 8) / 15) as f64 * 15.0 / 8.0;
+            cruise_um(sent * dt).round()
+        };
+        let tr = captured(8.0, sp, |_, v_raw| v_raw);
+        let r = analyze(&tr, &DetectorConfig::new(30.0));
+        assert_eq!(r.verdict, Verdict::Inconclusive, "{:#?}", r.reasons);
+        assert_eq!(r.inconclusive, Some(Inconclusive::SetPointNotConstant));
+        assert!(!r.forced_windows.is_empty());
+        assert!(r
+            .forced_windows
+            .iter()
+            .all(|w| w.set_point_amplitude >= 1.0));
+        // The same axis with set-points on time: ok, nothing forced.
+        let on_time = captured(8.0, |k| cruise_um(k as f64 * dt).round(), |_, v| v);
+        let r = analyze(&on_time, &DetectorConfig::new(30.0));
+        assert_eq!(r.verdict, Verdict::Ok, "{:#?}", r.reasons);
+        assert!(r.forced_windows.is_empty());
+    }
+
+    #[test]
+    fn an_axis_that_does_not_follow_its_set_speed_is_inconclusive_not_ok() {
+        // A drive in fault while the master keeps streaming: the motor stands still.
+        let dt = 4e-3;
+        let tr = captured(8.0, |k| cruise_um(k as f64 * dt).round(), |_, _| 0.0);
+        let r = analyze(&tr, &DetectorConfig::new(30.0));
+        assert_eq!(r.verdict, Verdict::Inconclusive, "{:#?}", r.reasons);
+        assert_eq!(r.inconclusive, Some(Inconclusive::AxisNotFollowing));
     }
 }

@@ -170,6 +170,19 @@ pub fn set_velocity_from_actual(t: &[f64], position: &[f64]) -> Vec<f64> {
     piecewise_constant_velocity(t, &despike(position), ACTUAL_SPAN_S, 0.02, 20.0)
 }
 
+/// Span of [`set_velocity_on_average`], s: over half a second a set-point that comes a
+/// period late or early, or twice, moves the average by a few per cent at most.
+pub const AVERAGE_SPAN_S: f64 = 0.5;
+
+/// Where a master's set-points jitter, come late, twice or not at all (a PLC task that is
+/// not synchronous with its SYNC, a python loop), no stretch of exactly constant set speed
+/// exists although the master commands one. Constant on average: the derivative of the
+/// set position over [`AVERAGE_SPAN_S`], piecewise constant within 5 % (or 20 units per
+/// span). NaN where the set position is not known.
+pub fn set_velocity_on_average(t: &[f64], set_position: &[f64]) -> Vec<f64> {
+    piecewise_constant_velocity(t, set_position, AVERAGE_SPAN_S, 0.05, 20.0)
+}
+
 /// A measured position with single-sample spikes taken out: a sample missed or late in the
 /// capture holds the previous value (increments 0 then 2 steps), half a step off the line
 /// through its neighbours. A sample more than 0.35 of the local step (median of 9

@@ -36,16 +36,22 @@ lines at most 64 KiB):
 
 Constant-speed windows: from the set-point in force (CSP 0x607A targets, CSV/PV 0x60FF, in an
 RPDO or written over SDO); where there is none (a PP move, an unknown mode) from the actual
-position (constant speed over 0.5 s); the report says which source was used.
+position (constant speed over 0.5 s); where set-points jitter so that no stretch is exactly
+constant, constant on average over 0.5 s. The report says which source was used. A window
+is not measured when the set-point itself moves in the search band by the suspect level and
+half the speed's line (jitter, a set-point task that beats with SYNC: the axis is forced),
+or when the axis does not follow the set speed (a drive in fault).
 
 Verdicts and reasons:
   ok                  windows were measured; no in-band line above the suspect threshold
   backlash_suspected  line in k_v/4..k_v, prominent, amplitude >= --suspect (default 1 um)
   backlash            ... amplitude >= --alarm (default 3 um); a level holds when the last
-                      2 windows agree (the lowest of them)
+                      2 windows, or windows of 2 s in all, agree (the lowest of them)
   inconclusive        nothing measured: no_constant_speed, too_short (settle 0.4 s + 1 s
                       needed), missing_objects (no motor speed 0x606C, no set-point or
-                      position), no_finite_samples (NaN)
+                      position), no_finite_samples (NaN), set_point_not_constant (every
+                      window forced by the set-point), axis_not_following (in every
+                      window the axis did not follow the set speed)
 Every verdict is printed with its reasons: the windows, frequency against the band, prominence,
 amplitude against the threshold.
 
@@ -154,6 +160,7 @@ fn trace_from_csv_text(
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
             set_velocity_source: "column target_uu (position demand)".into(),
+            set_position: need(&["target_uu"])?.clone(),
         }
     } else {
         let rot = find(&["position_setpoint_deg"]).is_some();

@@ -175,6 +175,28 @@ impl BusLog {
         Ok((out, parts.join("; ")))
     }
 
+    /// The position set-point per sample as the master sent it, uu: the CSP target in force,
+    /// or the integral of the CSV/PV target velocity; NaN where neither is in force (PP, an
+    /// unknown mode).
+    pub fn set_position_uu(&self) -> Vec<f64> {
+        use crate::master::{MODE_CSP, MODE_CSV, MODE_PV};
+        let dt = f64::from(self.period_us) * 1e-6;
+        let mut x = f64::NAN;
+        self.samples
+            .iter()
+            .map(|s| {
+                x = match (s.mode, s.target_position_uu, s.target_velocity_uu_s) {
+                    (Some(MODE_CSP), Some(p), _) => f64::from(p),
+                    (Some(MODE_CSV | MODE_PV), _, Some(v)) => {
+                        (if x.is_finite() { x } else { 0.0 }) + f64::from(v) * dt
+                    }
+                    _ => f64::NAN,
+                };
+                x
+            })
+            .collect()
+    }
+
     /// The detector's trace (user units: um or mdeg, velocities in uu/s, current in per mille).
     /// Err([`MissingObjects`]) when the log lacks what the detector needs.
     pub fn to_axis_trace(&self, rotary: bool) -> Result<AxisTrace> {
@@ -203,6 +225,7 @@ impl BusLog {
             .into());
         }
         let (set_velocity, source) = self.set_velocity_uu_s()?;
+        let set_position = self.set_position_uu();
         let col = |f: fn(&BusSample) -> f64| self.samples.iter().map(f).collect::<Vec<f64>>();
         let position = col(|s| f64::from(s.position_uu));
         let direct = col(|s| f64::from(s.direct_position_uu));
@@ -224,6 +247,7 @@ impl BusLog {
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
             set_velocity_source: source,
+            set_position,
         };
         tr.check()
             .map_err(|e| anyhow::anyhow!("{}: {e}", self.source))?;
