@@ -302,7 +302,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                 _ => Some(*woke.get_or_insert_with(|| clock.now_us())),
             };
             let arrived = stamp.or(now).unwrap_or_default();
-            self.run_due_ticks(l, clock, arrived, hook);
+            self.run_due_ticks(l, clock, arrived, None, hook);
             let late_us = now.map_or(0, |n| n.saturating_sub(arrived));
             if self.handle_frame(&frame, late_us) {
                 l.pll.on_sync(arrived);
@@ -318,29 +318,34 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             let now = clock.now_us();
             l.pll.check_lost(now);
             self.stats.sync_lock_state = l.pll.state().code();
-            self.run_due_ticks(l, clock, now, hook);
+            self.run_due_ticks(l, clock, now, Some(now), hook);
         }
     }
 
-    /// Run the control ticks whose deadline is at or before `until_us`.
+    /// Run the control ticks whose deadline is at or before `until_us`. `now_us`: the time,
+    /// if the caller just read it (it starts the first tick; each later one starts when the
+    /// one before finished: one clock read per tick, not two).
     fn run_due_ticks<C: Clock>(
         &mut self,
         l: &mut RealtimeLoop,
         clock: &mut C,
         until_us: u64,
+        now_us: Option<u64>,
         hook: &mut impl FnMut(&mut Self),
     ) {
+        let mut now_us = now_us;
         let behind = until_us.saturating_sub(l.deadline_us) / self.period_us;
         if behind > MAX_CATCH_UP_TICKS {
             self.stats.skipped_ticks += behind;
             l.deadline_us += behind * self.period_us;
         }
         while l.deadline_us <= until_us {
-            let start = clock.now_us();
+            let start = now_us.unwrap_or_else(|| clock.now_us());
             self.step();
             self.flush_tx();
             self.bus.end_tick();
             let done = clock.now_us();
+            now_us = Some(done);
             self.stats.record_tick(
                 start.saturating_sub(l.deadline_us),
                 done.saturating_sub(start),
