@@ -12,7 +12,7 @@ use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP, MODE_PP};
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::AxisSlot;
-use drive_emu::samples::Sample;
+use drive_emu::samples::{Sample, SampleSource};
 use drive_emu::session::OfflineRun;
 use drive_protocol::{Drive, Node};
 use std::fmt::Write as _;
@@ -195,7 +195,10 @@ fn the_decoded_log_is_what_the_master_received_and_gives_the_same_verdict() {
     }
 
     let from_log = detect(&tr, l.kv_per_s);
-    let from_samples = detect(&AxisTrace::from_samples(&l.samples, false), l.kv_per_s);
+    let from_samples = detect(
+        &AxisTrace::from_sample_log(&l.samples, SampleSource::Master, false),
+        l.kv_per_s,
+    );
     let (fl, fs) = (
         frequency(&from_log).unwrap(),
         frequency(&from_samples).unwrap(),
@@ -241,7 +244,10 @@ fn a_healthy_axis_is_ok_from_the_log_too() {
         candump::trace_from_candump(Path::new("healthy.log"), &l.log, NODE, "cnc1", None, false)
             .unwrap();
     let from_log = detect(&tr, l.kv_per_s);
-    let from_samples = detect(&AxisTrace::from_samples(&l.samples, false), l.kv_per_s);
+    let from_samples = detect(
+        &AxisTrace::from_sample_log(&l.samples, SampleSource::Master, false),
+        l.kv_per_s,
+    );
     eprintln!(
         "healthy: candump {} {:.3} um, samples {} {:.3} um",
         from_log.verdict.as_str(),
@@ -278,7 +284,10 @@ fn the_cli_reads_a_candump_log_by_content_and_writes_the_report() {
     );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("detector.json")).unwrap()).unwrap();
-    let from_samples = detect(&AxisTrace::from_samples(&l.samples, false), l.kv_per_s);
+    let from_samples = detect(
+        &AxisTrace::from_sample_log(&l.samples, SampleSource::Master, false),
+        l.kv_per_s,
+    );
     assert_eq!(json["verdict"], from_samples.verdict.as_str());
     assert_eq!(json["position_unit"], "um");
     let _ = std::fs::remove_dir_all(&dir);
@@ -431,7 +440,10 @@ fn without_a_confirmed_remap_the_default_mapping_is_used() {
             bus.notes
         );
         let from_log = detect(&bus.to_axis_trace(false).unwrap(), l.kv_per_s);
-        let from_samples = detect(&AxisTrace::from_samples(&l.samples, false), l.kv_per_s);
+        let from_samples = detect(
+            &AxisTrace::from_sample_log(&l.samples, SampleSource::Master, false),
+            l.kv_per_s,
+        );
         assert_eq!(from_log.verdict, from_samples.verdict);
         let (fl, fs) = (
             frequency(&from_log).unwrap(),

@@ -25,12 +25,12 @@ fn free_axis(damping_ratio: &str, backlash_mm: &str) -> Axis {
     let mut axis = Axis::new(p).unwrap();
     // Motor disabled (zero torque), the drive train wound up by 20 um at rest.
     axis.motor.disable();
-    axis.mech.state.pos[1] = -20e-6 - 0.5 * p.mech.contact.backlash;
+    axis.mech.state.load.pos = -20e-6 - 0.5 * p.mech.contact.backlash;
     axis
 }
 
 fn period_steps(axis: &Axis) -> usize {
-    let w = axis.mech.params.contact_omega();
+    let w = axis.mech.params().contact_omega();
     (2.0 * std::f64::consts::PI / w / axis.step_size()).round() as usize
 }
 

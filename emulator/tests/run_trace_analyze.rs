@@ -10,6 +10,7 @@ use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP, MODE_PP};
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::trace::{node_sample, Recorder, TraceTap};
 use drive_emu::runtime::AxisSlot;
+use drive_emu::samples::SampleSource;
 use drive_emu::session::OfflineRun;
 use drive_protocol::{Drive, Node};
 use std::sync::Arc;
@@ -114,7 +115,7 @@ fn a_live_scenario_detector_sees_the_drive_side_samples_right() {
         ))
     });
     let rep = analyze(
-        &AxisTrace::from_drive_samples(&samples, false),
+        &AxisTrace::from_sample_log(&samples, SampleSource::Drive, false),
         &DetectorConfig::new(30.0),
     );
     assert_ne!(rep.verdict, Verdict::Ok, "{rep:?}");

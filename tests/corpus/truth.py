@@ -16,14 +16,13 @@ worn axis in CSV/PV (speed loop only, no k_v) shows none: physically healthy-loo
 The master's own set-point (CSP target 0x607A, or the integral of the CSV target 0x60FF, from
 the RPDO the master sent: RPDO1 bytes 2-5 when it remapped, else the default RPDO2 / RPDO3
 bytes 2-5), held from SYNC to SYNC, is measured the same way over the same part: its strongest
-line between 3 Hz and the search limit (`set_point_um`). Where the set-point
-itself moves by 1 um or more and by half the speed's line or more (set-points that jitter by a
+line between 3 Hz and the search limit (`set_point_um`). Where the speed's line is 1 um or
+more and the set-point itself moves by 1 um or more and by half that line or more (set-points that jitter by a
 good part of a period, a set-point task that beats with SYNC), the axis is forced: `forced` is
-true, and no limit cycle of its own can be measured (the case is inconclusive). Where 80 % of
-the set-point's increments or more lie within half the median (or 2 um) of it, a master that
-sends on time, an increment off it is a glitch of the capture (SYNCs or set-points it lost,
-whose time base counts SYNCs) and takes the median increment; otherwise (a pattern, jitter)
-all stay. The set position, its linear trend (the cruise) removed, is then analysed as a
+true, and no limit cycle of its own can be measured (the case is inconclusive). An increment
+above the median by half of it (or 2 um) is a catch-up; where such are a fifth of the
+increments or fewer, they are SYNCs the capture lost (its time base counts SYNCs) and take the
+median increment. Holds (the master sent nothing new) and patterns that beat with SYNC stay. The set position, its linear trend (the cruise) removed, is then analysed as a
 displacement.
 """
 import gzip
@@ -54,9 +53,9 @@ def set_point_um(sp, dt, band):
     if len(d) < 16 or not np.all(np.isfinite(d)):
         return None
     med = np.median(d)
-    near = np.abs(d - med) <= max(0.5 * abs(med), 2.0)
-    if np.mean(near) >= 0.8:
-        d = np.where(near, d, med)
+    catch_up = (d - med) * np.sign(med) > max(0.5 * abs(med), 2.0)
+    if np.mean(catch_up) <= 0.2:
+        d = np.where(catch_up, med, d)
     x = np.append(0.0, np.cumsum(d))
     i = np.arange(len(x))
     x = x - np.polyval(np.polyfit(i, x, 1), i)  # the cruise itself
@@ -146,7 +145,8 @@ def measure(path, node, mode, remapped):
     band = (3.0, min(60.0, 0.4 / dt))
     spu = set_point_um(sp_seg, dt, band) if mode in ("csp", "csv") else 0.0
     out["set_point_um"] = None if spu is None else round(spu, 3)
-    out["forced"] = bool(spu is not None and spu >= max(1.0, 0.5 * out["displacement_um"]))
+    disp = out["displacement_um"]
+    out["forced"] = bool(spu is not None and disp >= 1.0 and spu >= max(1.0, 0.5 * disp))
     if out["forced"]:
         out["limit_cycle"] = False
     return out

@@ -199,4 +199,12 @@ fn reference_master_over_vcan_sees_the_backlash_limit_cycle() {
     assert!(levels.len() >= 2, "{levels:?}\n{text}");
     assert_eq!(levels[0], "ok", "the healthy run: {levels:?}");
     assert_ne!(levels[levels.len() - 1], "ok", "the worn run: {levels:?}");
+    // And the capture's verdict is the machine's state at its end: worn (it once said "ok"
+    // because the worn run's one long window could not confirm itself).
+    let verdict = det["verdict"].as_str().unwrap();
+    assert!(
+        verdict == "backlash" || verdict == "backlash_suspected",
+        "verdict {verdict}: {}",
+        det["reasons"]
+    );
 }

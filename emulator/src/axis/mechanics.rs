@@ -1,7 +1,7 @@
 //! Two-mass drive train: motor rotor and load, coupled through a transmission with backlash.
 //!
-//! Coordinates (SI): `pos[0]` motor angle (rad), `pos[1]` load position (m for a linear axis,
-//! rad for a rotary axis), `vel` their rates. The transmission maps motor angle to a load-side
+//! Coordinates (SI): `state.motor.pos` motor angle (rad), `state.load.pos` load position (m
+//! for a linear axis, rad for a rotary axis), `vel` their rates. The transmission maps motor angle to a load-side
 //! position `x_1 = phi_m / ratio` (ratio = motor rad per load unit: `2 pi / pitch` times the gear
 //! stage for a screw, `gear / r_pinion` for rack and pinion, the total gear ratio for a table).
 //! The compliance and backlash of the whole train are lumped at the load ([`Contact`]).
@@ -11,8 +11,13 @@
 //! ([`Friction::step_velocity`]), then positions advance the second half. It costs one force
 //! evaluation per step, is second-order and symplectic for the conservative part (energy of a
 //! free oscillation stays bounded), and stays exact at zero speed with Coulomb friction.
-
-use nalgebra::Vector2;
+//!
+//! [`Mechanics`] keeps three things apart: the parameters ([`MechParams`], replaced as a whole
+//! through [`Mechanics::set_params`]), the constants derived from them and from the step
+//! (`Derived`, `StepConstants`, private and always in sync), and the state
+//! ([`MechState`], the two masses by name). The two masses are two scalars each, not a
+//! vector: the integrator never mixes their coordinates (no matrix, no norm), so named fields
+//! say more than `pos[0]` / `pos[1]` and nalgebra is not needed.
 
 use super::backlash::Contact;
 use super::friction::Friction;
@@ -74,22 +79,30 @@ impl MechParams {
     }
 }
 
-/// State of the two masses.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MechState {
-    /// Motor angle (rad), load position (m or rad).
-    pub pos: Vector2<f64>,
-    /// Motor speed (rad/s), load velocity (m/s or rad/s).
-    pub vel: Vector2<f64>,
+/// Position and velocity of one of the two masses.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MassState {
+    /// Motor angle (rad), or load position (m or rad).
+    pub pos: f64,
+    /// Motor speed (rad/s), or load velocity (m/s or rad/s).
+    pub vel: f64,
 }
 
-impl Default for MechState {
-    fn default() -> Self {
-        MechState {
-            pos: Vector2::zeros(),
-            vel: Vector2::zeros(),
-        }
+impl MassState {
+    /// The position `dt` seconds on at the present velocity.
+    #[inline(always)]
+    fn drifted(&self, dt: f64) -> f64 {
+        self.pos + self.vel * dt
     }
+}
+
+/// State of the two masses.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MechState {
+    /// The motor rotor.
+    pub motor: MassState,
+    /// The load (carriage or table).
+    pub load: MassState,
 }
 
 /// Forces acting at one instant (for reporting and the derivative form).
@@ -103,121 +116,186 @@ pub struct MechForces {
     pub motor: f64,
 }
 
-/// The two-mass mechanics with its state.
-#[derive(Clone, Debug)]
-pub struct Mechanics {
-    pub params: MechParams,
-    pub state: MechState,
+/// Constants derived from the parameters alone.
+#[derive(Clone, Copy, Debug)]
+struct Derived {
+    /// `1 / ratio`: load units per motor rad.
     inv_ratio: f64,
+    /// `1 / J_m`.
     inv_jm: f64,
+    /// `1 / m_load`.
     inv_m: f64,
+    /// Gravity plus counterbalance on the load, N.
     static_load_force: f64,
-    last_contact: f64,
-    // Step constants, recomputed when the step or the parameters change.
+}
+
+impl Derived {
+    fn of(p: &MechParams) -> Self {
+        Derived {
+            inv_ratio: 1.0 / p.ratio,
+            inv_jm: 1.0 / p.motor_inertia,
+            inv_m: 1.0 / p.load_mass,
+            static_load_force: p.gravity_force + p.counterbalance_force,
+        }
+    }
+}
+
+/// Constants of one step size `h`, recomputed when the step or the parameters change.
+#[derive(Clone, Copy, Debug)]
+struct StepConstants {
     h: f64,
     h_inv_jm: f64,
     h_inv_m: f64,
-    visc_m: f64,
-    visc_l: f64,
+    /// Implicit viscous factors of motor and load friction for this step.
+    visc_motor: f64,
+    visc_load: f64,
+}
+
+impl StepConstants {
+    /// Not computed for any step yet (NaN never equals a step).
+    const NONE: StepConstants = StepConstants {
+        h: f64::NAN,
+        h_inv_jm: 0.0,
+        h_inv_m: 0.0,
+        visc_motor: 1.0,
+        visc_load: 1.0,
+    };
+
+    fn of(h: f64, p: &MechParams, d: &Derived) -> Self {
+        let h_inv_jm = h * d.inv_jm;
+        let h_inv_m = h * d.inv_m;
+        StepConstants {
+            h,
+            h_inv_jm,
+            h_inv_m,
+            visc_motor: p.motor_friction.viscous_factor(h_inv_jm),
+            visc_load: p.load_friction.viscous_factor(h_inv_m),
+        }
+    }
+}
+
+/// The two-mass mechanics: parameters, their derived constants, and the state.
+#[derive(Clone, Debug)]
+pub struct Mechanics {
+    params: MechParams,
+    derived: Derived,
+    step_constants: StepConstants,
+    /// Motor and load positions and velocities.
+    pub state: MechState,
+    /// Contact force of the last step, N or N m (an output, not integrated).
+    last_contact: f64,
 }
 
 impl Mechanics {
     pub fn new(params: MechParams) -> Self {
-        let mut m = Mechanics {
+        Mechanics {
             params,
+            derived: Derived::of(&params),
+            step_constants: StepConstants::NONE,
             state: MechState::default(),
-            inv_ratio: 0.0,
-            inv_jm: 0.0,
-            inv_m: 0.0,
-            static_load_force: 0.0,
             last_contact: 0.0,
-            h: 0.0,
-            h_inv_jm: 0.0,
-            h_inv_m: 0.0,
-            visc_m: 1.0,
-            visc_l: 1.0,
-        };
-        m.set_params(params);
-        m
+        }
+    }
+
+    /// The parameters in force.
+    pub fn params(&self) -> &MechParams {
+        &self.params
     }
 
     /// Replace the parameters, keeping the state.
     pub fn set_params(&mut self, params: MechParams) {
         self.params = params;
-        self.inv_ratio = 1.0 / params.ratio;
-        self.inv_jm = 1.0 / params.motor_inertia;
-        self.inv_m = 1.0 / params.load_mass;
-        self.static_load_force = params.gravity_force + params.counterbalance_force;
-        let h = self.h;
-        self.h = f64::NAN;
-        self.prepare(h);
+        self.derived = Derived::of(&params);
+        let h = self.step_constants.h;
+        if !h.is_nan() {
+            self.step_constants = StepConstants::of(h, &self.params, &self.derived);
+        }
     }
 
     #[inline(always)]
     fn prepare(&mut self, h: f64) {
-        if h != self.h {
-            self.h = h;
-            self.h_inv_jm = h * self.inv_jm;
-            self.h_inv_m = h * self.inv_m;
-            self.visc_m = self.params.motor_friction.viscous_factor(self.h_inv_jm);
-            self.visc_l = self.params.load_friction.viscous_factor(self.h_inv_m);
+        if h != self.step_constants.h {
+            self.step_constants = StepConstants::of(h, &self.params, &self.derived);
         }
     }
 
     /// Deflection of the drive train at the load: `phi_m / ratio - x_load`.
     #[inline(always)]
     pub fn deflection(&self) -> f64 {
-        self.state.pos[0] * self.inv_ratio - self.state.pos[1]
+        self.state.motor.pos * self.derived.inv_ratio - self.state.load.pos
     }
 
     /// Non-friction forces at a given state (the derivative form of the model; friction is
     /// handled implicitly by the integrator).
     #[inline(always)]
     pub fn forces(&self, state: &MechState, motor_torque: f64, external: f64) -> MechForces {
-        let defl = state.pos[0] * self.inv_ratio - state.pos[1];
-        let rate = state.vel[0] * self.inv_ratio - state.vel[1];
+        let inv_ratio = self.derived.inv_ratio;
+        let defl = state.motor.pos * inv_ratio - state.load.pos;
+        let rate = state.motor.vel * inv_ratio - state.load.vel;
         let f = self.params.contact.force(defl, rate);
         MechForces {
             contact: f,
-            load: f + self.static_load_force + external,
-            motor: motor_torque - f * self.inv_ratio,
+            load: f + self.derived.static_load_force + external,
+            motor: motor_torque - f * inv_ratio,
         }
     }
 
     /// Time derivative of the state with friction evaluated explicitly (Coulomb as a sign
-    /// function): `(d pos, d vel)`. For analysis and tests; stepping uses [`Mechanics::step`].
-    pub fn derivatives(
-        &self,
-        state: &MechState,
-        motor_torque: f64,
-        external: f64,
-    ) -> (Vector2<f64>, Vector2<f64>) {
+    /// function), in the state's shape: each mass's `pos` holds its velocity, its `vel` its
+    /// acceleration. For analysis and tests; stepping uses [`Mechanics::step`].
+    pub fn derivatives(&self, state: &MechState, motor_torque: f64, external: f64) -> MechState {
         let f = self.forces(state, motor_torque, external);
         let p = &self.params;
-        let am = (f.motor + p.motor_friction.force_at(state.vel[0])) * self.inv_jm;
-        let al = (f.load + p.load_friction.force_at(state.vel[1])) * self.inv_m;
-        (state.vel, Vector2::new(am, al))
+        let am = (f.motor + p.motor_friction.force_at(state.motor.vel)) * self.derived.inv_jm;
+        let al = (f.load + p.load_friction.force_at(state.load.vel)) * self.derived.inv_m;
+        MechState {
+            motor: MassState {
+                pos: state.motor.vel,
+                vel: am,
+            },
+            load: MassState {
+                pos: state.load.vel,
+                vel: al,
+            },
+        }
     }
 
     /// Advance by `h` with the motor air-gap torque and the external load force held constant.
     #[inline(always)]
     pub fn step(&mut self, motor_torque: f64, external: f64, h: f64) {
         let half = 0.5 * h;
+        // Drift half a step.
+        let s = self.state;
         let mid = MechState {
-            pos: self.state.pos + self.state.vel * half,
-            vel: self.state.vel,
+            motor: MassState {
+                pos: s.motor.drifted(half),
+                vel: s.motor.vel,
+            },
+            load: MassState {
+                pos: s.load.drifted(half),
+                vel: s.load.vel,
+            },
         };
+        // Kick the velocities, friction implicit.
         self.prepare(h);
         let f = self.forces(&mid, motor_torque, external);
         let p = &self.params;
+        let k = &self.step_constants;
         let wm =
             p.motor_friction
-                .step_velocity_pre(mid.vel[0], f.motor, self.h_inv_jm, self.visc_m);
+                .step_velocity_pre(mid.motor.vel, f.motor, k.h_inv_jm, k.visc_motor);
         let vl = p
             .load_friction
-            .step_velocity_pre(mid.vel[1], f.load, self.h_inv_m, self.visc_l);
-        self.state.vel = Vector2::new(wm, vl);
-        self.state.pos = mid.pos + self.state.vel * half;
+            .step_velocity_pre(mid.load.vel, f.load, k.h_inv_m, k.visc_load);
+        // Drift the second half at the new velocities.
+        self.state.motor = MassState {
+            pos: mid.motor.pos + wm * half,
+            vel: wm,
+        };
+        self.state.load = MassState {
+            pos: mid.load.pos + vl * half,
+            vel: vl,
+        };
         self.last_contact = f.contact;
     }
 
@@ -230,8 +308,8 @@ impl Mechanics {
     pub fn energy(&self) -> f64 {
         let p = &self.params;
         let s = &self.state;
-        0.5 * p.motor_inertia * s.vel[0] * s.vel[0]
-            + 0.5 * p.load_mass * s.vel[1] * s.vel[1]
+        0.5 * p.motor_inertia * s.motor.vel * s.motor.vel
+            + 0.5 * p.load_mass * s.load.vel * s.load.vel
             + p.contact.elastic_energy(self.deflection())
     }
 }

@@ -15,7 +15,7 @@ pub mod motor;
 pub use backlash::Contact;
 pub use encoder::{Encoder, EncoderParams, XorShift64};
 pub use friction::Friction;
-pub use mechanics::{MechParams, MechState, Mechanics, GRAVITY};
+pub use mechanics::{MassState, MechParams, MechState, Mechanics, GRAVITY};
 pub use motor::{Motor, MotorParams};
 
 /// Everything needed to build an [`Axis`] (SI).
@@ -113,45 +113,46 @@ impl Axis {
 
     /// Kinematic ratio: motor rad per load unit (rad/m for linear, rad/rad for rotary axes).
     pub fn ratio(&self) -> f64 {
-        self.mech.params.ratio
+        self.mech.params().ratio
     }
 
     /// Sample the motor encoder (counts).
     #[inline(always)]
     pub fn read_motor_encoder(&mut self) -> i64 {
-        self.motor_encoder.read(self.mech.state.pos[0])
+        self.motor_encoder.read(self.mech.state.motor.pos)
     }
 
     /// Sample the direct encoder (counts).
     #[inline(always)]
     pub fn read_direct_encoder(&mut self) -> i64 {
-        self.direct_encoder.read(self.mech.state.pos[1])
+        self.direct_encoder.read(self.mech.state.load.pos)
     }
 
     // ---- true state (for traces and tests only; controllers use the encoders) ----
 
     /// True motor angle, rad.
     pub fn motor_angle(&self) -> f64 {
-        self.mech.state.pos[0]
+        self.mech.state.motor.pos
     }
     /// True motor speed, rad/s.
     pub fn motor_speed(&self) -> f64 {
-        self.mech.state.vel[0]
+        self.mech.state.motor.vel
     }
     /// True load position, m or rad.
     pub fn load_position(&self) -> f64 {
-        self.mech.state.pos[1]
+        self.mech.state.load.pos
     }
     /// True load velocity, m/s or rad/s.
     pub fn load_velocity(&self) -> f64 {
-        self.mech.state.vel[1]
+        self.mech.state.load.vel
     }
 
     /// Put both masses at `load_position` (m or rad), at rest, the gap centred.
     pub fn set_position(&mut self, load_position: f64) {
-        self.mech.state.pos[1] = load_position;
-        self.mech.state.pos[0] = load_position * self.mech.params.ratio;
-        self.mech.state.vel = nalgebra::Vector2::zeros();
+        self.mech.state.load.pos = load_position;
+        self.mech.state.motor.pos = load_position * self.mech.params().ratio;
+        self.mech.state.motor.vel = 0.0;
+        self.mech.state.load.vel = 0.0;
     }
 
     // ---- parameter setters (take effect at the next step) ----
@@ -164,28 +165,28 @@ impl Axis {
         self.external_load = f;
     }
     pub fn set_backlash(&mut self, backlash: f64) {
-        let mut p = self.mech.params;
+        let mut p = *self.mech.params();
         p.contact.backlash = backlash;
         self.mech.set_params(p);
     }
     /// Stiffness at the load; rejected (returns the limit) if the step would become too coarse.
     pub fn set_stiffness(&mut self, stiffness: f64) -> Result<(), StepTooCoarse> {
-        let mut p = self.mech.params;
+        let mut p = *self.mech.params();
         p.contact.stiffness = stiffness;
         self.try_set_mech(p)
     }
     pub fn set_damping(&mut self, damping: f64) -> Result<(), StepTooCoarse> {
-        let mut p = self.mech.params;
+        let mut p = *self.mech.params();
         p.contact.damping = damping;
         self.try_set_mech(p)
     }
     pub fn set_load_friction(&mut self, friction: Friction) {
-        let mut p = self.mech.params;
+        let mut p = *self.mech.params();
         p.load_friction = friction;
         self.mech.set_params(p);
     }
     pub fn set_motor_friction(&mut self, friction: Friction) {
-        let mut p = self.mech.params;
+        let mut p = *self.mech.params();
         p.motor_friction = friction;
         self.mech.set_params(p);
     }

@@ -120,6 +120,8 @@ const CRUISE_ACCEL_PER_S: f64 = 100.0;
 /// Axis unit (mm or deg) in the drive's user units.
 const UU_PER_AXIS_UNIT: f64 = 1000.0;
 
+/// One run with `backlash` (mm or deg): the master's program against the drive, in process
+/// or on `--iface`, and the analysis of the constant-speed window it received.
 pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
     let base = AxisConfig::from_preset(&args.preset)?;
     let key = if base.backlash_deg.is_some() {
@@ -129,7 +131,48 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
     };
     let cfg = base.with_override(key, &backlash.to_string())?;
     let v_uu = args.velocity * UU_PER_AXIS_UNIT;
-    let mut program = vec![
+    let program = demo_program(v_uu, args.cruise_s);
+    let mcfg = MasterConfig {
+        node_id: args.node,
+        ..Default::default()
+    };
+    let (master, bus) = match &args.iface {
+        None => (run_in_process(args, &cfg, mcfg, program)?, None),
+        Some(iface) => {
+            let (master, stats) = run_on_iface(args, iface, backlash, mcfg, program)?;
+            (master, Some(stats))
+        }
+    };
+    check_master_outcome(&master, backlash)?;
+    let window = constant_speed_window(master.samples(), v_uu);
+    let kv = cfg.kv_per_s;
+    let band = (kv / 4.0, kv);
+    let vel: Vec<f64> = window.iter().map(|s| f64::from(s.velocity_uu_s)).collect();
+    let cur: Vec<f64> = window
+        .iter()
+        .map(|s| f64::from(s.current_permille))
+        .collect();
+    let fs = 1e6 / f64::from(MasterConfig::default().sync_period_us);
+    // A peak below 0.5 % of the commanded speed is quantisation noise, not a vibration.
+    let pv = fundamental(&vel, fs, band).filter(|p| p.amplitude > 5e-3 * v_uu.abs());
+    let pc = fundamental(&cur, fs, band).filter(|_| pv.is_some());
+    Ok(RunReport {
+        backlash,
+        kv_per_s: kv,
+        fundamental_hz: pv.as_ref().map(|p| p.frequency_hz),
+        velocity_amplitude: pv.map_or(0.0, |p| p.amplitude) / UU_PER_AXIS_UNIT,
+        current_amplitude_permille: pc.map_or(0.0, |p| p.amplitude),
+        emcy_codes: master.emcys().iter().map(|e| e.code).collect(),
+        bus,
+        window,
+        log: master.log().to_vec(),
+    })
+}
+
+/// The master's program: enable, a profile-position move, then CSP at `v_uu` (uu/s) for
+/// `cruise_s`, a stop, disable.
+fn demo_program(v_uu: f64, cruise_s: f64) -> Vec<Step> {
+    vec![
         Step::Enable { mode: MODE_PP },
         Step::MoveTo {
             target_uu: (20.0 * UU_PER_AXIS_UNIT) as i32,
@@ -140,7 +183,7 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
         Step::Cruise {
             velocity_uu_s: v_uu,
             accel_uu_s2: CRUISE_ACCEL_PER_S * v_uu,
-            duration_s: args.cruise_s,
+            duration_s: cruise_s,
         },
         Step::Cruise {
             velocity_uu_s: 0.0,
@@ -148,62 +191,77 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
             duration_s: 0.5,
         },
         Step::Disable,
-    ];
+    ]
+}
+
+/// The master against an in-process drive built from `cfg`, lock-step on a virtual clock.
+fn run_in_process(
+    args: &DemoArgs,
+    cfg: &AxisConfig,
+    mcfg: MasterConfig,
+    program: Vec<Step>,
+) -> Result<Master> {
+    let drive = AxisDrive::from_config(cfg)?;
+    let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut run = OfflineRun::new(
+        vec![AxisSlot { node, drive }],
+        1000,
+        Master::new(mcfg, program),
+    );
+    run.run_program(60_000_000);
+    Ok(run.master)
+}
+
+/// The master on `iface` against a drive already running there; its backlash is written
+/// over SDO first.
+fn run_on_iface(
+    args: &DemoArgs,
+    iface: &str,
+    backlash: f64,
+    mcfg: MasterConfig,
+    mut program: Vec<Step>,
+) -> Result<(Master, BusRunStats)> {
+    // The drive is already running: its wear comes over SDO, as a PLC or a test
+    // would set it (0x2000, REAL32 in mm or deg).
+    program.insert(
+        0,
+        Step::WriteSdo {
+            index: 0x2000,
+            sub: 0,
+            value: (backlash as f32).to_bits(),
+            len: 4,
+        },
+    );
+    let mut bus = SocketCanBus::open(iface)?;
+    // On a busy host a drive (in lock-step possibly many SYNCs behind the master)
+    // answers late, not never: generous timeouts, counted in the master's SYNC
+    // periods, longer than the whole program, so only a silent drive times out.
     let mcfg = MasterConfig {
-        node_id: args.node,
-        ..Default::default()
+        step_timeout_us: BUS_TIMEOUT_US,
+        sdo_timeout_us: BUS_TIMEOUT_US,
+        ..mcfg
     };
-    let (master, bus) = match &args.iface {
-        None => {
-            let drive = AxisDrive::from_config(&cfg)?;
-            let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
-            let mut run = OfflineRun::new(
-                vec![AxisSlot { node, drive }],
-                1000,
-                Master::new(mcfg, program),
-            );
-            run.run_program(60_000_000);
-            (run.master, None)
-        }
-        Some(iface) => {
-            // The drive is already running: its wear comes over SDO, as a PLC or a test
-            // would set it (0x2000, REAL32 in mm or deg).
-            program.insert(
-                0,
-                Step::WriteSdo {
-                    index: 0x2000,
-                    sub: 0,
-                    value: (backlash as f32).to_bits(),
-                    len: 4,
-                },
-            );
-            let mut bus = SocketCanBus::open(iface)?;
-            // On a busy host a drive (in lock-step possibly many SYNCs behind the master)
-            // answers late, not never: generous timeouts, counted in the master's SYNC
-            // periods, longer than the whole program, so only a silent drive times out.
-            let mcfg = MasterConfig {
-                step_timeout_us: BUS_TIMEOUT_US,
-                sdo_timeout_us: BUS_TIMEOUT_US,
-                ..mcfg
-            };
-            let mut master = Master::new(mcfg, program);
-            let stop = AtomicBool::new(false);
-            let stats = run_on_bus(
-                &mut master,
-                &mut bus,
-                &mut MonotonicClock::new(),
-                BUS_WALL_LIMIT_US,
-                &stop,
-            );
-            if !args.json {
-                eprintln!(
-                    "drive-emu demo: on {iface}: {} cycles, {} frames sent, {} received, {} refused, {} late cycles",
-                    stats.cycles, stats.frames_sent, stats.frames_received, stats.send_refused, stats.late_cycles
-                );
-            }
-            (master, Some(stats))
-        }
-    };
+    let mut master = Master::new(mcfg, program);
+    let stop = AtomicBool::new(false);
+    let stats = run_on_bus(
+        &mut master,
+        &mut bus,
+        &mut MonotonicClock::new(),
+        BUS_WALL_LIMIT_US,
+        &stop,
+    );
+    if !args.json {
+        eprintln!(
+            "drive-emu demo: on {iface}: {} cycles, {} frames sent, {} received, {} refused, {} late cycles",
+            stats.cycles, stats.frames_sent, stats.frames_received, stats.send_refused, stats.late_cycles
+        );
+    }
+    Ok((master, stats))
+}
+
+/// The run failed if the master failed, did not finish, or saw the drive in FAULT (then
+/// with its EMCY codes and a hint for a SYNC loss).
+fn check_master_outcome(master: &Master, backlash: f64) -> Result<()> {
     if let Some(e) = master.error() {
         bail!("the reference master failed: {e}");
     }
@@ -234,41 +292,23 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
             codes.join(", ")
         );
     }
-    // The constant-speed window: set-point velocity at its target, after a 1 s settling time.
-    let samples = master.samples();
+    Ok(())
+}
+
+/// The constant-speed window: set-point velocity at its target `v_uu`, after a 1 s
+/// settling time.
+fn constant_speed_window(samples: &[Sample], v_uu: f64) -> Vec<Sample> {
     let first = samples
         .iter()
         .position(|s| (s.setpoint_velocity_uu_s - v_uu).abs() < 1e-6)
         .unwrap_or(0);
     let t0 = samples.get(first).map_or(0.0, |s| s.t_s) + 1.0;
-    let window: Vec<Sample> = samples[first..]
+    samples[first..]
         .iter()
         .take_while(|s| (s.setpoint_velocity_uu_s - v_uu).abs() < 1e-6)
         .filter(|s| s.t_s >= t0)
         .copied()
-        .collect();
-    let kv = cfg.kv_per_s;
-    let band = (kv / 4.0, kv);
-    let vel: Vec<f64> = window.iter().map(|s| f64::from(s.velocity_uu_s)).collect();
-    let cur: Vec<f64> = window
-        .iter()
-        .map(|s| f64::from(s.current_permille))
-        .collect();
-    let fs = 1e6 / f64::from(MasterConfig::default().sync_period_us);
-    // A peak below 0.5 % of the commanded speed is quantisation noise, not a vibration.
-    let pv = fundamental(&vel, fs, band).filter(|p| p.amplitude > 5e-3 * v_uu.abs());
-    let pc = fundamental(&cur, fs, band).filter(|_| pv.is_some());
-    Ok(RunReport {
-        backlash,
-        kv_per_s: kv,
-        fundamental_hz: pv.as_ref().map(|p| p.frequency_hz),
-        velocity_amplitude: pv.map_or(0.0, |p| p.amplitude) / UU_PER_AXIS_UNIT,
-        current_amplitude_permille: pc.map_or(0.0, |p| p.amplitude),
-        emcy_codes: master.emcys().iter().map(|e| e.code).collect(),
-        bus,
-        window,
-        log: master.log().to_vec(),
-    })
+        .collect()
 }
 
 /// A few lines of text chart: `values` on the scale `lo .. hi` (shared by the charts to be
@@ -295,6 +335,7 @@ fn chart(values: &[f64], lo: f64, hi: f64, rows: usize) -> Vec<String> {
         .collect()
 }
 
+/// `drive-emu demo`: a healthy and a worn run, reported as JSON or narrated.
 pub fn run(args: &DemoArgs) -> Result<()> {
     validate(args)?;
     let unit = if AxisConfig::from_preset(&args.preset)?
@@ -319,6 +360,15 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         );
         return Ok(());
     }
+    print_intro(args, unit, &worn);
+    print_speed_charts(args, unit, &healthy, &worn);
+    print_spectrum_table(unit, &healthy, &worn);
+    print_conclusion(args, unit, &healthy, &worn);
+    Ok(())
+}
+
+/// Who talks to whom, and the master's log of the worn run.
+fn print_intro(args: &DemoArgs, unit: &str, worn: &RunReport) {
     match &args.iface {
         None => {
             println!(
@@ -343,12 +393,16 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         "  (uu: the drive's user unit on the bus, here 1 uu = {})",
         crate::report::user_unit(unit == "deg")
     );
+}
+
+/// 0.3 s of motor speed from both runs, as text charts on one scale.
+fn print_speed_charts(args: &DemoArgs, unit: &str, healthy: &RunReport, worn: &RunReport) {
     println!(
         "\nMotor speed (0x606C, from TPDO) at {} {unit}/s, 0.3 s of the constant-speed window, \
          both runs on the same scale:",
         args.velocity
     );
-    let series: Vec<Vec<f64>> = [&healthy, &worn]
+    let series: Vec<Vec<f64>> = [healthy, worn]
         .iter()
         .map(|r| {
             r.window
@@ -367,7 +421,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         let (l, h) = range(v);
         (a.min(l), b.max(h))
     });
-    for ((label, r), v) in [("no backlash", &healthy), ("worn", &worn)]
+    for ((label, r), v) in [("no backlash", healthy), ("worn", worn)]
         .into_iter()
         .zip(&series)
     {
@@ -387,6 +441,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             println!("  {tick} |{line}|");
         }
     }
+}
+
+/// Fundamental frequency and amplitudes of both runs, and f / k_v.
+fn print_spectrum_table(unit: &str, healthy: &RunReport, worn: &RunReport) {
     println!("\nSpectrum of the constant-speed window (band k_v/4 .. k_v):");
     println!(
         "  {:<12} {:>10} {:>12} {:>16} {:>18} {:>14}",
@@ -397,7 +455,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         "current amp [‰]",
         "f / k_v"
     );
-    for r in [&healthy, &worn] {
+    for r in [healthy, worn] {
         let name = format!("{} {unit}", r.backlash);
         match r.fundamental_hz {
             Some(f) => println!(
@@ -415,6 +473,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             ),
         }
     }
+}
+
+/// Whether the worn run shows the backlash signature, and what to try next.
+fn print_conclusion(args: &DemoArgs, unit: &str, healthy: &RunReport, worn: &RunReport) {
     match (worn.fundamental_hz, healthy.fundamental_hz) {
         (Some(f), None) => println!(
             "\nWith {} {unit} backlash the axis vibrates at {f:.1} Hz (k_v = {} 1/s; the paper: \
@@ -442,5 +504,4 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         b = args.backlash,
         v = args.velocity
     );
-    Ok(())
 }

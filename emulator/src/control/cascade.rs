@@ -8,6 +8,7 @@
 
 use crate::axis::{Axis, AxisParams, StepTooCoarse};
 
+pub use super::params::CascadeParams;
 use super::position::PositionController;
 use super::speed::{SpeedController, SpeedEstimator};
 
@@ -75,25 +76,6 @@ impl Command {
     }
 }
 
-/// Controller gains and cycle times (SI).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CascadeParams {
-    /// Position gain k_v, 1/s.
-    pub kv: f64,
-    /// Speed-loop proportional gain k_sp, N m s/rad.
-    pub speed_kp: f64,
-    /// Speed-loop integral time T_si, s.
-    pub speed_ti: f64,
-    /// Speed-measurement filter time constant, s.
-    pub speed_filter: f64,
-    /// True: the direct encoder closes the position loop; false: the motor encoder does.
-    pub position_from_direct: bool,
-    /// Speed (and torque demand) cycle, s; an integer multiple of the physics step.
-    pub speed_cycle: f64,
-    /// Position cycle, s; an integer multiple of the speed cycle.
-    pub position_cycle: f64,
-}
-
 /// What the cascade computed in its last cycles.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CascadeOutputs {
@@ -114,6 +96,7 @@ pub struct CascadeOutputs {
 /// The control cascade's state.
 #[derive(Clone, Debug)]
 pub struct Cascade {
+    /// Gains and cycles: their one copy (the controllers below hold state only).
     pub params: CascadeParams,
     pub position: PositionController,
     pub speed: SpeedController,
@@ -134,8 +117,8 @@ impl Cascade {
     pub fn new(params: CascadeParams, motor_counts_per_rad: f64) -> Self {
         Cascade {
             params,
-            position: PositionController::new(params.kv),
-            speed: SpeedController::new(params.speed_kp, params.speed_ti, params.speed_cycle),
+            position: PositionController::new(),
+            speed: SpeedController::new(),
             estimator: SpeedEstimator::new(
                 motor_counts_per_rad,
                 params.speed_cycle,
@@ -220,7 +203,9 @@ impl Cascade {
                 position,
                 velocity_ff,
                 ..
-            } => self.position.update(position, actual, velocity_ff),
+            } => self
+                .position
+                .update(self.params.kv, position, actual, velocity_ff),
             Setpoint::Velocity { velocity, .. } => velocity,
             _ => 0.0,
         };
@@ -249,7 +234,7 @@ impl Cascade {
             Setpoint::Torque { torque } => torque.clamp(-limit, limit),
             Setpoint::Position { torque_ff, .. } | Setpoint::Velocity { torque_ff, .. } => self
                 .speed
-                .update(self.out.velocity_demand, w, torque_ff, limit),
+                .update(&self.params, self.out.velocity_demand, w, torque_ff, limit),
         };
         self.out.torque_demand = torque;
         axis.motor.set_demand(torque);
@@ -380,13 +365,10 @@ impl Servo {
     // ---- gains (take effect at the next cycle) ----
     pub fn set_kv(&mut self, kv: f64) {
         self.cascade.params.kv = kv;
-        self.cascade.position.kv = kv;
     }
     pub fn set_speed_gains(&mut self, kp: f64, ti: f64) {
         self.cascade.params.speed_kp = kp;
         self.cascade.params.speed_ti = ti;
-        self.cascade.speed.kp = kp;
-        self.cascade.speed.ti = ti;
     }
     pub fn set_position_from_direct(&mut self, direct: bool) {
         self.cascade.params.position_from_direct = direct;

@@ -4,6 +4,7 @@
 
 pub mod cascade;
 pub mod motion;
+pub mod params;
 pub mod position;
 pub mod speed;
 

@@ -1,6 +1,8 @@
 //! Speed loop: speed measured from motor-encoder differences with a short first-order filter
 //! (as a drive does), and a PI controller (k_sp, T_si) producing the torque demand.
 
+use super::params::CascadeParams;
+
 /// Speed from encoder count differences, filtered.
 #[derive(Clone, Debug)]
 pub struct SpeedEstimator {
@@ -50,43 +52,50 @@ impl SpeedEstimator {
     }
 }
 
-/// Speed PI controller, output torque (N m).
+/// Speed PI controller, output torque (N m). It holds its state only; the gains (k_sp,
+/// T_si) and the cycle come from the cascade's [`CascadeParams`], their one copy.
 #[derive(Clone, Debug)]
 pub struct SpeedController {
-    /// Proportional gain k_sp, N m s/rad.
-    pub kp: f64,
-    /// Integral time T_si, s (0 or infinite = no integral action).
-    pub ti: f64,
-    cycle: f64,
     integral: f64,
-    // Cached integral gain per cycle and the (kp, ti) it was computed for.
+    // Cached integral gain per cycle and the (kp, ti, cycle) it was computed for.
     ki: f64,
-    ki_for: (f64, f64),
+    ki_for: (f64, f64, f64),
+}
+
+impl Default for SpeedController {
+    fn default() -> Self {
+        SpeedController {
+            integral: 0.0,
+            ki: 0.0,
+            ki_for: (f64::NAN, f64::NAN, f64::NAN),
+        }
+    }
 }
 
 impl SpeedController {
-    pub fn new(kp: f64, ti: f64, cycle: f64) -> Self {
-        SpeedController {
-            kp,
-            ti,
-            cycle,
-            integral: 0.0,
-            ki: 0.0,
-            ki_for: (f64::NAN, f64::NAN),
-        }
+    pub fn new() -> Self {
+        SpeedController::default()
     }
 
-    /// One speed cycle: torque demand for speed error `set - actual`, with torque
-    /// feed-forward, clipped to `limit`. Conditional integration (no wind-up while saturated
-    /// in the direction of the error).
+    /// One speed cycle with the gains of `p`: torque demand for speed error `set - actual`,
+    /// with torque feed-forward, clipped to `limit`. Conditional integration (no wind-up
+    /// while saturated in the direction of the error).
     #[inline(always)]
-    pub fn update(&mut self, set: f64, actual: f64, torque_ff: f64, limit: f64) -> f64 {
+    pub fn update(
+        &mut self,
+        p: &CascadeParams,
+        set: f64,
+        actual: f64,
+        torque_ff: f64,
+        limit: f64,
+    ) -> f64 {
+        let (kp, ti, cycle) = (p.speed_kp, p.speed_ti, p.speed_cycle);
         let e = set - actual;
-        let p = self.kp * e;
-        if self.ki_for != (self.kp, self.ti) {
-            self.ki_for = (self.kp, self.ti);
-            self.ki = if self.ti > 0.0 && self.ti.is_finite() {
-                self.kp * self.cycle / self.ti
+        let p = kp * e;
+        if self.ki_for != (kp, ti, cycle) {
+            self.ki_for = (kp, ti, cycle);
+            self.ki = if ti > 0.0 && ti.is_finite() {
+                kp * cycle / ti
             } else {
                 0.0
             };

@@ -242,10 +242,10 @@ impl AxisDrive {
     fn supervise(&self) -> Option<u16> {
         let ax = &self.servo.axis;
         let st = &ax.mech.state;
-        let finite = st.pos[0].is_finite()
-            && st.pos[1].is_finite()
-            && st.vel[0].is_finite()
-            && st.vel[1].is_finite()
+        let finite = st.motor.pos.is_finite()
+            && st.load.pos.is_finite()
+            && st.motor.vel.is_finite()
+            && st.load.vel.is_finite()
             && ax.motor.torque().is_finite();
         if !finite {
             return Some(ERROR_PHYSICS);
@@ -260,13 +260,13 @@ impl AxisDrive {
         let measured = self.servo.motor_velocity();
         if !measured.is_finite()
             || measured.abs() > lim.overspeed_rad_per_s
-            || st.vel[0].abs() > lim.overspeed_rad_per_s
-            || (st.vel[1] * ax.ratio()).abs() > lim.overspeed_rad_per_s
+            || st.motor.vel.abs() > lim.overspeed_rad_per_s
+            || (st.load.vel * ax.ratio()).abs() > lim.overspeed_rad_per_s
         {
             return Some(ERROR_OVERSPEED);
         }
         if ax.direct_encoder.position().abs() > lim.position_range
-            || st.pos[1].abs() > lim.position_range
+            || st.load.pos.abs() > lim.position_range
         {
             return Some(ERROR_POSITION_RANGE);
         }
@@ -356,7 +356,7 @@ impl Drive for AxisDrive {
 
     fn param(&self, param: AxisParam) -> Result<f64, ParamError> {
         let s = &self.servo;
-        let m = &s.axis.mech.params;
+        let m = s.axis.mech.params();
         Ok(match param {
             AxisParam::Backlash => m.contact.backlash,
             AxisParam::Stiffness => m.contact.stiffness,
@@ -411,7 +411,7 @@ impl Drive for AxisDrive {
                     })?;
             }
             AxisParam::Damping => {
-                let m = &s.axis.mech.params;
+                let m = s.axis.mech.params();
                 let min = MIN_DAMPING_RATIO * 2.0 * (m.contact.stiffness * m.reduced_mass()).sqrt();
                 let c = check(value, min, f64::MAX)?;
                 s.axis.set_damping(c).map_err(|e| ParamError::OutOfRange {
@@ -421,18 +421,18 @@ impl Drive for AxisDrive {
                 })?;
             }
             AxisParam::LoadCoulombFriction => {
-                let f = s.axis.mech.params.load_friction;
+                let f = s.axis.mech.params().load_friction;
                 s.axis
                     .set_load_friction(f.with_coulomb(check(value, 0.0, f_peak)?));
             }
             AxisParam::LoadViscousFriction => {
-                let mut f = s.axis.mech.params.load_friction;
+                let mut f = s.axis.mech.params().load_friction;
                 // At the maximum speed the viscous force stays within the motor's force.
                 f.viscous = check(value, 0.0, f_peak / v_max_load)?;
                 s.axis.set_load_friction(f);
             }
             AxisParam::MotorCoulombFriction => {
-                let f = s.axis.mech.params.motor_friction;
+                let f = s.axis.mech.params().motor_friction;
                 let max = s.axis.motor.torque_limit();
                 s.axis
                     .set_motor_friction(f.with_coulomb(check(value, 0.0, max)?));

@@ -2,17 +2,37 @@
 //!
 //! - [`Sample`]: one row of the sample log (`samples.csv` of a scenario report, `run --trace`),
 //!   written by the reference master and by the live-run recorder, read by `drive-emu analyze`;
+//!   [`SampleSource`] says which wrote it, and so what its two set-point columns mean;
 //! - [`csv`]: reading trace files (plain or gzip, bounded) and CSV text into named columns.
 
 pub mod csv;
 
-/// What the drive reported at one SYNC (the latest TPDO values), plus our own set-point.
+/// Who recorded a sample log. The row is one layout ([`Sample`], [`Sample::CSV_HEADER`]), but
+/// its two set-point columns mean different things by source; a reader of the log names the
+/// source (the detector's trace converts by it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleSource {
+    /// The reference master (scenario reports' `samples.csv`): `target_uu` is the position
+    /// set-point it sent, `setpoint_velocity_uu_s` its interpolator velocity (a set velocity).
+    Master,
+    /// The drive's own objects (`run --trace`, live scenarios): `target_uu` is its position
+    /// demand 0x6062, `setpoint_velocity_uu_s` its velocity demand 0x606B, the position
+    /// controller's output, which carries the limit cycle (not a set velocity).
+    Drive,
+}
+
+/// One row of a sample log at one SYNC: the drive's actual values (the latest TPDO values, or
+/// its objects) and two set-point columns whose meaning depends on the [`SampleSource`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct Sample {
     pub t_s: f64,
     pub statusword: u16,
     pub mode_display: i8,
+    /// Position set-point, uu: the master's target ([`SampleSource::Master`]) or the drive's
+    /// position demand 0x6062 ([`SampleSource::Drive`]).
     pub target_uu: f64,
+    /// Velocity, uu/s: the master's interpolator velocity ([`SampleSource::Master`]) or the
+    /// drive's velocity demand 0x606B ([`SampleSource::Drive`]).
     pub setpoint_velocity_uu_s: f64,
     pub position_uu: i32,
     pub direct_position_uu: i32,

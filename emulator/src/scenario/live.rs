@@ -25,7 +25,7 @@ use crate::drive::axis_drive::AxisDrive;
 use crate::presets::{AxisConfig, AxisKind};
 use crate::runtime::trace::node_sample;
 use crate::runtime::Runtime;
-use crate::samples::Sample;
+use crate::samples::{Sample, SampleSource};
 use crossbeam::queue::ArrayQueue;
 use drive_protocol::{Cia402State, Drive, NodeEvent};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -433,7 +433,7 @@ fn conclude(
     let rotary = cfg.kind == AxisKind::Rotary;
     let detector = s.detector.enabled.then(|| {
         analyze(
-            &AxisTrace::from_drive_samples(&samples, rotary),
+            &AxisTrace::from_sample_log(&samples, SampleSource::Drive, rotary),
             &detector_config(s, cfg),
         )
     });

@@ -24,7 +24,7 @@ use crate::drive::axis_drive::AxisDrive;
 use crate::master::Master;
 use crate::presets::{AxisConfig, AxisKind};
 use crate::runtime::AxisSlot;
-use crate::samples::Sample;
+use crate::samples::{Sample, SampleSource};
 use crate::session::OfflineRun;
 use drive_protocol::Cia402State;
 use drive_protocol::{Drive, Node};
@@ -494,7 +494,7 @@ fn conclude(
     let samples = ff.to_scenario_time(master.samples());
     let end_us = run.now_us() + ff.offset_us;
     let (detector, trace) = if s.detector.enabled {
-        let tr = AxisTrace::from_samples(&samples, rotary);
+        let tr = AxisTrace::from_sample_log(&samples, SampleSource::Master, rotary);
         (Some(analyze(&tr, &detector_config(s, cfg))), Some(tr))
     } else {
         (None, None)

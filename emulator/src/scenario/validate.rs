@@ -193,6 +193,18 @@ fn required<'a, T>(
     })
 }
 
+/// The velocity keys a step may carry (one at a time).
+const VELOCITY_KEYS: &[&str] = &[
+    "velocity_mm_min",
+    "velocity_mm_s",
+    "velocity_deg_s",
+    "velocity_deg_min",
+    "velocity_uu_s",
+];
+/// The acceleration keys a step may carry (one at a time).
+const ACCEL_KEYS: &[&str] = &["accel_mm_s2", "accel_deg_s2", "accel_uu_s2"];
+
+/// The motion program: each step checked and appended to `out`; a `repeat` unrolled.
 fn steps(
     ctx: &mut Ctx,
     raw: &[Spanned<RawStep>],
@@ -200,158 +212,179 @@ fn steps(
     depth: usize,
 ) -> R<()> {
     for s in raw {
-        let s = s.get_ref();
-        let kind = *s.step.get_ref();
-        let present = s.present();
-        let what = format!("a `{}` step", step_name(&kind));
-        let vel = &[
-            "velocity_mm_min",
-            "velocity_mm_s",
-            "velocity_deg_s",
-            "velocity_deg_min",
-            "velocity_uu_s",
-        ][..];
-        let acc = &["accel_mm_s2", "accel_deg_s2", "accel_uu_s2"][..];
-        let dur_us = |ctx: &Ctx| -> R<u64> {
-            let d = required(ctx, &s.duration, "duration", &s.step)?;
-            if d.us() == 0 {
-                return Err(ctx.err(
-                    s.duration.as_ref().unwrap().span(),
-                    Some("duration"),
-                    "must be longer than 0 s",
-                ));
-            }
-            Ok(d.us())
-        };
-        match kind {
-            StepKind::Enable | StepKind::SetMode => {
-                ctx.only(&present, &["mode"], &what)?;
-                let m = mode(*required(ctx, &s.mode, "mode", &s.step)?);
-                out.push(ProgramStep::Master(if kind == StepKind::Enable {
-                    Step::Enable { mode: m }
-                } else {
-                    Step::SetMode { mode: m }
-                }));
-            }
-            StepKind::MoveTo => {
-                ctx.only(
-                    &present,
-                    &[vel, acc, &["target_mm", "target_deg", "target_uu"]].concat(),
-                    &what,
-                )?;
-                let targets = [
-                    ("target_mm", s.target_mm.as_ref().map(|v| v.span())),
-                    ("target_deg", s.target_deg.as_ref().map(|v| v.span())),
-                    ("target_uu", s.target_uu.as_ref().map(|v| v.span())),
-                ];
-                let i = exactly_one(ctx, s.step.span(), &targets, &what)?;
-                let (key, t, scale) = match i {
-                    0 => ("target_mm", s.target_mm.as_ref().unwrap(), 1000.0),
-                    1 => ("target_deg", s.target_deg.as_ref().unwrap(), 1000.0),
-                    _ => ("target_uu", s.target_uu.as_ref().unwrap(), 1.0),
-                };
-                if i < 2 {
-                    ctx.unit_family(i == 1, key, t.span())?;
-                }
-                let uu = finite(ctx, t, key)? * scale;
-                if uu.abs() > i32::MAX as f64 {
-                    return Err(ctx.err(t.span(), Some(key), "outside the 32-bit position range"));
-                }
-                let v = velocity(ctx, s, true, false)?.unwrap();
-                let a = accel(ctx, s)?;
-                out.push(ProgramStep::Master(Step::MoveTo {
-                    target_uu: uu.round() as i32,
-                    velocity_uu_s: v.round().max(1.0) as u32,
-                    accel_uu_s2: a.round().max(1.0) as u32,
-                }));
-            }
-            StepKind::Cruise => {
-                ctx.only(&present, &[vel, acc, &["duration"]].concat(), &what)?;
-                let v = velocity(ctx, s, true, true)?.unwrap();
-                let a = accel(ctx, s)?;
-                let d = dur_us(ctx)?;
-                out.push(ProgramStep::Master(Step::Cruise {
-                    velocity_uu_s: v,
-                    accel_uu_s2: a,
-                    duration_s: d as f64 * 1e-6,
-                }));
-            }
-            StepKind::Dwell | StepKind::Idle => {
-                ctx.only(&present, &["duration"], &what)?;
-                let d = dur_us(ctx)?;
-                out.push(if kind == StepKind::Dwell {
-                    ProgramStep::Master(Step::Dwell {
-                        duration_s: d as f64 * 1e-6,
-                    })
-                } else {
-                    ProgramStep::Idle { duration_us: d }
-                });
-            }
-            StepKind::WriteSdo => {
-                ctx.only(&present, &["index", "sub", "value", "len"], &what)?;
-                let index = *required(ctx, &s.index, "index", &s.step)?;
-                let value = *required(ctx, &s.value, "value", &s.step)?;
-                let len = *required(ctx, &s.len, "len", &s.step)?;
-                if !matches!(len, 1 | 2 | 4) {
-                    return Err(ctx.err(
-                        s.len.as_ref().unwrap().span(),
-                        Some("len"),
-                        "must be 1, 2 or 4 bytes",
-                    ));
-                }
-                out.push(ProgramStep::Master(Step::WriteSdo {
-                    index,
-                    sub: s.sub.as_ref().map_or(0, |x| *x.get_ref()),
-                    value: value as u32,
-                    len,
-                }));
-            }
-            StepKind::StopHeartbeat | StepKind::StopSync | StepKind::Disable => {
-                ctx.only(&present, &[], &what)?;
-                out.push(ProgramStep::Master(match kind {
-                    StepKind::StopHeartbeat => Step::StopHeartbeat,
-                    StepKind::StopSync => Step::StopSync,
-                    _ => Step::Disable,
-                }));
-            }
-            StepKind::Repeat => {
-                ctx.only(&present, &["times", "body"], &what)?;
-                let times = *required(ctx, &s.times, "times", &s.step)?;
-                let body = s.body.as_ref().ok_or_else(|| {
-                    ctx.err(
-                        s.step.span(),
-                        Some("body"),
-                        "a `repeat` step needs `body`, a list of steps",
-                    )
-                })?;
-                if body.is_empty() || times == 0 {
-                    return Err(ctx.err(
-                        s.step.span(),
-                        Some("body"),
-                        "a `repeat` needs times >= 1 and a non-empty body",
-                    ));
-                }
-                if depth > 3 {
-                    return Err(ctx.err(
-                        s.step.span(),
-                        Some("body"),
-                        "repeats nest at most 4 deep",
-                    ));
-                }
-                let mut inner = Vec::new();
-                steps(ctx, body, &mut inner, depth + 1)?;
-                if inner.len() as u64 * u64::from(times) > 1_000_000 {
-                    return Err(ctx.err(
-                        s.times.as_ref().unwrap().span(),
-                        Some("times"),
-                        "the program would exceed a million steps",
-                    ));
-                }
-                for _ in 0..times {
-                    out.extend(inner.iter().cloned());
-                }
-            }
+        step(ctx, s.get_ref(), out, depth)?;
+    }
+    Ok(())
+}
+
+/// One step: only the keys its kind takes, converted; appended to `out`.
+fn step(ctx: &mut Ctx, s: &RawStep, out: &mut Vec<ProgramStep>, depth: usize) -> R<()> {
+    let kind = *s.step.get_ref();
+    let present = s.present();
+    let what = format!("a `{}` step", step_name(&kind));
+    match kind {
+        StepKind::Enable | StepKind::SetMode => {
+            ctx.only(&present, &["mode"], &what)?;
+            let m = mode(*required(ctx, &s.mode, "mode", &s.step)?);
+            out.push(ProgramStep::Master(if kind == StepKind::Enable {
+                Step::Enable { mode: m }
+            } else {
+                Step::SetMode { mode: m }
+            }));
         }
+        StepKind::MoveTo => {
+            ctx.only(
+                &present,
+                &[
+                    VELOCITY_KEYS,
+                    ACCEL_KEYS,
+                    &["target_mm", "target_deg", "target_uu"],
+                ]
+                .concat(),
+                &what,
+            )?;
+            out.push(move_to_step(ctx, s, &what)?);
+        }
+        StepKind::Cruise => {
+            ctx.only(
+                &present,
+                &[VELOCITY_KEYS, ACCEL_KEYS, &["duration"]].concat(),
+                &what,
+            )?;
+            let v = velocity(ctx, s, true, true)?.unwrap();
+            let a = accel(ctx, s)?;
+            let d = duration_us(ctx, s)?;
+            out.push(ProgramStep::Master(Step::Cruise {
+                velocity_uu_s: v,
+                accel_uu_s2: a,
+                duration_s: d as f64 * 1e-6,
+            }));
+        }
+        StepKind::Dwell | StepKind::Idle => {
+            ctx.only(&present, &["duration"], &what)?;
+            let d = duration_us(ctx, s)?;
+            out.push(if kind == StepKind::Dwell {
+                ProgramStep::Master(Step::Dwell {
+                    duration_s: d as f64 * 1e-6,
+                })
+            } else {
+                ProgramStep::Idle { duration_us: d }
+            });
+        }
+        StepKind::WriteSdo => {
+            ctx.only(&present, &["index", "sub", "value", "len"], &what)?;
+            out.push(write_sdo_step(ctx, s)?);
+        }
+        StepKind::StopHeartbeat | StepKind::StopSync | StepKind::Disable => {
+            ctx.only(&present, &[], &what)?;
+            out.push(ProgramStep::Master(match kind {
+                StepKind::StopHeartbeat => Step::StopHeartbeat,
+                StepKind::StopSync => Step::StopSync,
+                _ => Step::Disable,
+            }));
+        }
+        StepKind::Repeat => {
+            ctx.only(&present, &["times", "body"], &what)?;
+            repeat_step(ctx, s, out, depth)?;
+        }
+    }
+    Ok(())
+}
+
+/// A step's `duration`, us (> 0).
+fn duration_us(ctx: &Ctx, s: &RawStep) -> R<u64> {
+    let d = required(ctx, &s.duration, "duration", &s.step)?;
+    if d.us() == 0 {
+        return Err(ctx.err(
+            s.duration.as_ref().unwrap().span(),
+            Some("duration"),
+            "must be longer than 0 s",
+        ));
+    }
+    Ok(d.us())
+}
+
+/// `move_to`: one target key (mm, deg or uu) within the 32-bit range, velocity, acceleration.
+fn move_to_step(ctx: &mut Ctx, s: &RawStep, what: &str) -> R<ProgramStep> {
+    let targets = [
+        ("target_mm", s.target_mm.as_ref().map(|v| v.span())),
+        ("target_deg", s.target_deg.as_ref().map(|v| v.span())),
+        ("target_uu", s.target_uu.as_ref().map(|v| v.span())),
+    ];
+    let i = exactly_one(ctx, s.step.span(), &targets, what)?;
+    let (key, t, scale) = match i {
+        0 => ("target_mm", s.target_mm.as_ref().unwrap(), 1000.0),
+        1 => ("target_deg", s.target_deg.as_ref().unwrap(), 1000.0),
+        _ => ("target_uu", s.target_uu.as_ref().unwrap(), 1.0),
+    };
+    if i < 2 {
+        ctx.unit_family(i == 1, key, t.span())?;
+    }
+    let uu = finite(ctx, t, key)? * scale;
+    if uu.abs() > i32::MAX as f64 {
+        return Err(ctx.err(t.span(), Some(key), "outside the 32-bit position range"));
+    }
+    let v = velocity(ctx, s, true, false)?.unwrap();
+    let a = accel(ctx, s)?;
+    Ok(ProgramStep::Master(Step::MoveTo {
+        target_uu: uu.round() as i32,
+        velocity_uu_s: v.round().max(1.0) as u32,
+        accel_uu_s2: a.round().max(1.0) as u32,
+    }))
+}
+
+/// `write_sdo`: index, sub (default 0), value and a length of 1, 2 or 4 bytes.
+fn write_sdo_step(ctx: &Ctx, s: &RawStep) -> R<ProgramStep> {
+    let index = *required(ctx, &s.index, "index", &s.step)?;
+    let value = *required(ctx, &s.value, "value", &s.step)?;
+    let len = *required(ctx, &s.len, "len", &s.step)?;
+    if !matches!(len, 1 | 2 | 4) {
+        return Err(ctx.err(
+            s.len.as_ref().unwrap().span(),
+            Some("len"),
+            "must be 1, 2 or 4 bytes",
+        ));
+    }
+    Ok(ProgramStep::Master(Step::WriteSdo {
+        index,
+        sub: s.sub.as_ref().map_or(0, |x| *x.get_ref()),
+        value: value as u32,
+        len,
+    }))
+}
+
+/// `repeat`: the body checked once and appended `times` times (at most 4 deep, at most a
+/// million steps).
+fn repeat_step(ctx: &mut Ctx, s: &RawStep, out: &mut Vec<ProgramStep>, depth: usize) -> R<()> {
+    let times = *required(ctx, &s.times, "times", &s.step)?;
+    let body = s.body.as_ref().ok_or_else(|| {
+        ctx.err(
+            s.step.span(),
+            Some("body"),
+            "a `repeat` step needs `body`, a list of steps",
+        )
+    })?;
+    if body.is_empty() || times == 0 {
+        return Err(ctx.err(
+            s.step.span(),
+            Some("body"),
+            "a `repeat` needs times >= 1 and a non-empty body",
+        ));
+    }
+    if depth > 3 {
+        return Err(ctx.err(s.step.span(), Some("body"), "repeats nest at most 4 deep"));
+    }
+    let mut inner = Vec::new();
+    steps(ctx, body, &mut inner, depth + 1)?;
+    if inner.len() as u64 * u64::from(times) > 1_000_000 {
+        return Err(ctx.err(
+            s.times.as_ref().unwrap().span(),
+            Some("times"),
+            "the program would exceed a million steps",
+        ));
+    }
+    for _ in 0..times {
+        out.extend(inner.iter().cloned());
     }
     Ok(())
 }
@@ -368,23 +401,55 @@ fn param_value(ctx: &Ctx, key: &ParamKey, v: &Spanned<f64>, name: &str) -> R<f64
     Ok(x)
 }
 
+/// The span of an optional key, if given.
+fn span_of<T>(v: &Option<Spanned<T>>) -> Option<Range<usize>> {
+    v.as_ref().map(|x| x.span())
+}
+
+/// `what` needs `key`: an error at the event (`at`) when it is not `given`.
+fn need(ctx: &Ctx, at: &Range<usize>, given: Option<Range<usize>>, key: &str, what: &str) -> R<()> {
+    if given.is_none() {
+        return Err(ctx.err(at.clone(), Some(key), format!("{what} needs `{key}`")));
+    }
+    Ok(())
+}
+
+/// One `[[event]]`: its trigger, its action, and the action's parameter in the program's
+/// units family.
 fn event(ctx: &mut Ctx, e: &Spanned<RawEvent>) -> R<Event> {
     let span = e.span();
     let e = e.get_ref();
-    let sp = |o: Option<Range<usize>>| o;
-    macro_rules! s {
-        ($f:ident) => {
-            sp(e.$f.as_ref().map(|x| x.span()))
-        };
+    let trigger = event_trigger(ctx, e, &span)?;
+    let action = event_action(ctx, e, &span)?;
+    // Parameter keys must fit the program's units family.
+    if let Action::Set { key, .. } | Action::Ramp { key, .. } | Action::Profile { key, .. } =
+        &action
+    {
+        let name_span = span_of(&e.set)
+            .or(span_of(&e.ramp))
+            .or(span_of(&e.profile))
+            .unwrap();
+        if key.axis != AxisKind::Any {
+            ctx.unit_family(key.axis == AxisKind::Rotary, key.key, name_span)?;
+        }
     }
-    // Trigger.
+    Ok(Event {
+        id: e.id.as_ref().map(|i| i.get_ref().clone()),
+        trigger,
+        action,
+        line: ctx.line(&span),
+    })
+}
+
+/// `at`, or `on_state` / `on_emcy` with an optional `after` delay.
+fn event_trigger(ctx: &Ctx, e: &RawEvent, span: &Range<usize>) -> R<Trigger> {
     let trig = exactly_one(
         ctx,
         span.clone(),
         &[
-            ("at", s!(at)),
-            ("on_state", s!(on_state)),
-            ("on_emcy", s!(on_emcy)),
+            ("at", span_of(&e.at)),
+            ("on_state", span_of(&e.on_state)),
+            ("on_emcy", span_of(&e.on_emcy)),
         ],
         "an event",
     )?;
@@ -398,7 +463,7 @@ fn event(ctx: &mut Ctx, e: &Spanned<RawEvent>) -> R<Event> {
             ));
         }
     }
-    let trigger = match trig {
+    Ok(match trig {
         0 => Trigger::At(e.at.as_ref().unwrap().get_ref().us()),
         1 => Trigger::OnState {
             state: e.on_state.as_ref().unwrap().get_ref().0,
@@ -408,20 +473,11 @@ fn event(ctx: &mut Ctx, e: &Spanned<RawEvent>) -> R<Event> {
             code: e.on_emcy.as_ref().unwrap().get_ref().0,
             delay_us: delay,
         },
-    };
-    // Action.
-    let which = exactly_one(
-        ctx,
-        span.clone(),
-        &[
-            ("set", s!(set)),
-            ("ramp", s!(ramp)),
-            ("profile", s!(profile)),
-            ("sensor", s!(sensor)),
-            ("can", s!(can)),
-        ],
-        "an event",
-    )?;
+    })
+}
+
+/// The keys an event gives for its action (besides the action's own name).
+fn event_action_keys(e: &RawEvent) -> Vec<(&'static str, Range<usize>)> {
     let mut present: Vec<(&'static str, Range<usize>)> = Vec::new();
     macro_rules! p {
         ($($f:ident),*) => {$( if let Some(x) = &e.$f { present.push((stringify!($f), x.span())); } )*};
@@ -440,28 +496,40 @@ fn event(ctx: &mut Ctx, e: &Spanned<RawEvent>) -> R<Event> {
         ticks,
         cob_id
     );
-    let need = |ctx: &Ctx, v: Option<Range<usize>>, key: &str, what: &str| -> R<()> {
-        if v.is_none() {
-            return Err(ctx.err(span.clone(), Some(key), format!("{what} needs `{key}`")));
-        }
-        Ok(())
-    };
-    let action = match which {
+    present
+}
+
+/// One of `set`, `ramp`, `profile`, `sensor`, `can`, with only the keys it takes.
+fn event_action(ctx: &Ctx, e: &RawEvent, span: &Range<usize>) -> R<Action> {
+    let which = exactly_one(
+        ctx,
+        span.clone(),
+        &[
+            ("set", span_of(&e.set)),
+            ("ramp", span_of(&e.ramp)),
+            ("profile", span_of(&e.profile)),
+            ("sensor", span_of(&e.sensor)),
+            ("can", span_of(&e.can)),
+        ],
+        "an event",
+    )?;
+    let present = event_action_keys(e);
+    match which {
         0 => {
             ctx.only(&present, &["value"], "a `set` event")?;
-            need(ctx, s!(value), "value", "a `set` event")?;
+            need(ctx, span, span_of(&e.value), "value", "a `set` event")?;
             let key = e.set.as_ref().unwrap().get_ref().0;
-            Action::Set {
+            Ok(Action::Set {
                 key,
                 value: param_value(ctx, key, e.value.as_ref().unwrap(), "value")?,
-            }
+            })
         }
         1 => {
             ctx.only(&present, &["from", "to", "over"], "a `ramp` event")?;
-            need(ctx, s!(to), "to", "a `ramp` event")?;
-            need(ctx, s!(over), "over", "a `ramp` event")?;
+            need(ctx, span, span_of(&e.to), "to", "a `ramp` event")?;
+            need(ctx, span, span_of(&e.over), "over", "a `ramp` event")?;
             let key = e.ramp.as_ref().unwrap().get_ref().0;
-            Action::Ramp {
+            Ok(Action::Ramp {
                 key,
                 from: e
                     .from
@@ -470,245 +538,200 @@ fn event(ctx: &mut Ctx, e: &Spanned<RawEvent>) -> R<Event> {
                     .transpose()?,
                 to: param_value(ctx, key, e.to.as_ref().unwrap(), "to")?,
                 over_us: e.over.as_ref().unwrap().get_ref().us(),
-            }
+            })
         }
-        2 => {
-            ctx.only(
-                &present,
-                &["shape", "mean", "amplitude", "frequency_hz", "over"],
-                "a `profile` event",
-            )?;
-            need(ctx, s!(amplitude), "amplitude", "a `profile` event")?;
-            need(ctx, s!(frequency_hz), "frequency_hz", "a `profile` event")?;
-            let key = e.profile.as_ref().unwrap().get_ref().0;
-            Action::Profile {
-                key,
-                shape: e
-                    .shape
-                    .as_ref()
-                    .map_or(ProfileShape::Sine, |s| *s.get_ref()),
-                mean: e
-                    .mean
-                    .as_ref()
-                    .map(|m| finite(ctx, m, "mean"))
-                    .transpose()?
-                    .unwrap_or(0.0),
-                amplitude: finite(ctx, e.amplitude.as_ref().unwrap(), "amplitude")?,
-                frequency_hz: positive(ctx, e.frequency_hz.as_ref().unwrap(), "frequency_hz")?,
-                over_us: e.over.as_ref().map(|o| o.get_ref().us()),
-            }
-        }
-        3 => {
-            let kind = *e.sensor.as_ref().unwrap().get_ref();
-            let glitch = matches!(
-                kind,
-                SensorKind::MotorEncoderGlitch | SensorKind::DirectEncoderGlitch
-            );
-            if glitch {
-                ctx.only(&present, &["counts"], "an encoder glitch")?;
-                need(ctx, s!(counts), "counts", "an encoder glitch")?;
-            } else {
-                ctx.only(&present, &[], "this sensor event")?;
-            }
-            Action::Sensor {
-                kind,
-                counts: e.counts.as_ref().map_or(0, |c| *c.get_ref()),
-            }
-        }
-        _ => {
-            let kind = *e.can.as_ref().unwrap().get_ref();
-            let over_us = e.over.as_ref().map(|o| o.get_ref().us());
-            let cob = e.cob_id.as_ref().map(|c| c.get_ref().0);
-            let share = e.share.as_ref().map(|s| s.get_ref().0);
-            match kind {
-                CanKind::Drop => {
-                    ctx.only(&present, &["share", "cob_id", "over"], "a CAN drop")?;
-                    need(ctx, s!(share), "share", "a CAN drop")?;
-                    Action::Can {
-                        fault: CanFault::Drop {
-                            share: share.unwrap(),
-                            cob_id: cob,
-                        },
-                        over_us,
-                    }
-                }
-                CanKind::Delay => {
-                    ctx.only(
-                        &present,
-                        &["share", "ticks", "cob_id", "over"],
-                        "a CAN delay",
-                    )?;
-                    need(ctx, s!(share), "share", "a CAN delay")?;
-                    need(ctx, s!(ticks), "ticks", "a CAN delay")?;
-                    Action::Can {
-                        fault: CanFault::Delay {
-                            share: share.unwrap(),
-                            ticks: *e.ticks.as_ref().unwrap().get_ref(),
-                            cob_id: cob,
-                        },
-                        over_us,
-                    }
-                }
-                CanKind::SyncLoss | CanKind::HeartbeatLoss => {
-                    ctx.only(&present, &["over"], "a CAN loss")?;
-                    Action::Can {
-                        fault: if kind == CanKind::SyncLoss {
-                            CanFault::SyncLoss
-                        } else {
-                            CanFault::HeartbeatLoss
-                        },
-                        over_us,
-                    }
-                }
-                CanKind::Restore => {
-                    ctx.only(&present, &[], "a CAN restore")?;
-                    Action::CanRestore
-                }
-            }
-        }
-    };
-    // Parameter keys must fit the program's units family.
-    if let Action::Set { key, .. } | Action::Ramp { key, .. } | Action::Profile { key, .. } =
-        &action
-    {
-        let name_span = s!(set).or(s!(ramp)).or(s!(profile)).unwrap();
-        if key.axis != AxisKind::Any {
-            ctx.unit_family(key.axis == AxisKind::Rotary, key.key, name_span)?;
-        }
+        2 => profile_action(ctx, e, span, &present),
+        3 => sensor_action(ctx, e, span, &present),
+        _ => can_action(ctx, e, span, &present),
     }
-    Ok(Event {
-        id: e.id.as_ref().map(|i| i.get_ref().clone()),
-        trigger,
-        action,
-        line: ctx.line(&span),
+}
+
+/// `profile`: a periodic parameter (shape, mean, amplitude, frequency, optional duration).
+fn profile_action(
+    ctx: &Ctx,
+    e: &RawEvent,
+    span: &Range<usize>,
+    present: &[(&'static str, Range<usize>)],
+) -> R<Action> {
+    ctx.only(
+        present,
+        &["shape", "mean", "amplitude", "frequency_hz", "over"],
+        "a `profile` event",
+    )?;
+    need(
+        ctx,
+        span,
+        span_of(&e.amplitude),
+        "amplitude",
+        "a `profile` event",
+    )?;
+    need(
+        ctx,
+        span,
+        span_of(&e.frequency_hz),
+        "frequency_hz",
+        "a `profile` event",
+    )?;
+    let key = e.profile.as_ref().unwrap().get_ref().0;
+    Ok(Action::Profile {
+        key,
+        shape: e
+            .shape
+            .as_ref()
+            .map_or(ProfileShape::Sine, |s| *s.get_ref()),
+        mean: e
+            .mean
+            .as_ref()
+            .map(|m| finite(ctx, m, "mean"))
+            .transpose()?
+            .unwrap_or(0.0),
+        amplitude: finite(ctx, e.amplitude.as_ref().unwrap(), "amplitude")?,
+        frequency_hz: positive(ctx, e.frequency_hz.as_ref().unwrap(), "frequency_hz")?,
+        over_us: e.over.as_ref().map(|o| o.get_ref().us()),
     })
 }
 
+/// `sensor`: an encoder glitch (with `counts`) or another sensor fault (no keys).
+fn sensor_action(
+    ctx: &Ctx,
+    e: &RawEvent,
+    span: &Range<usize>,
+    present: &[(&'static str, Range<usize>)],
+) -> R<Action> {
+    let kind = *e.sensor.as_ref().unwrap().get_ref();
+    let glitch = matches!(
+        kind,
+        SensorKind::MotorEncoderGlitch | SensorKind::DirectEncoderGlitch
+    );
+    if glitch {
+        ctx.only(present, &["counts"], "an encoder glitch")?;
+        need(ctx, span, span_of(&e.counts), "counts", "an encoder glitch")?;
+    } else {
+        ctx.only(present, &[], "this sensor event")?;
+    }
+    Ok(Action::Sensor {
+        kind,
+        counts: e.counts.as_ref().map_or(0, |c| *c.get_ref()),
+    })
+}
+
+/// `can`: drop, delay, SYNC or heartbeat loss (each with its keys), or restore.
+fn can_action(
+    ctx: &Ctx,
+    e: &RawEvent,
+    span: &Range<usize>,
+    present: &[(&'static str, Range<usize>)],
+) -> R<Action> {
+    let kind = *e.can.as_ref().unwrap().get_ref();
+    let over_us = e.over.as_ref().map(|o| o.get_ref().us());
+    let cob = e.cob_id.as_ref().map(|c| c.get_ref().0);
+    let share = e.share.as_ref().map(|s| s.get_ref().0);
+    Ok(match kind {
+        CanKind::Drop => {
+            ctx.only(present, &["share", "cob_id", "over"], "a CAN drop")?;
+            need(ctx, span, span_of(&e.share), "share", "a CAN drop")?;
+            Action::Can {
+                fault: CanFault::Drop {
+                    share: share.unwrap(),
+                    cob_id: cob,
+                },
+                over_us,
+            }
+        }
+        CanKind::Delay => {
+            ctx.only(
+                present,
+                &["share", "ticks", "cob_id", "over"],
+                "a CAN delay",
+            )?;
+            need(ctx, span, span_of(&e.share), "share", "a CAN delay")?;
+            need(ctx, span, span_of(&e.ticks), "ticks", "a CAN delay")?;
+            Action::Can {
+                fault: CanFault::Delay {
+                    share: share.unwrap(),
+                    ticks: *e.ticks.as_ref().unwrap().get_ref(),
+                    cob_id: cob,
+                },
+                over_us,
+            }
+        }
+        CanKind::SyncLoss | CanKind::HeartbeatLoss => {
+            ctx.only(present, &["over"], "a CAN loss")?;
+            Action::Can {
+                fault: if kind == CanKind::SyncLoss {
+                    CanFault::SyncLoss
+                } else {
+                    CanFault::HeartbeatLoss
+                },
+                over_us,
+            }
+        }
+        CanKind::Restore => {
+            ctx.only(present, &[], "a CAN restore")?;
+            Action::CanRestore
+        }
+    })
+}
+
+/// An optional time key, us.
+fn time_us(v: &Option<Spanned<Time>>) -> Option<u64> {
+    v.as_ref().map(|t| t.get_ref().us())
+}
+
+/// One `[[expect]]`: exactly one kind, with only the keys that kind takes.
 fn expectation(ctx: &mut Ctx, x: &Spanned<RawExpect>, ids: &[String]) -> R<Expect> {
     let span = x.span();
     let x = x.get_ref();
-    macro_rules! s {
-        ($f:ident) => {
-            x.$f.as_ref().map(|v| v.span())
-        };
-    }
     let kinds = [
-        ("emcy", s!(emcy)),
-        ("no_emcy", s!(no_emcy)),
-        ("state", s!(state)),
-        ("following_error_max_mm", s!(following_error_max_mm)),
-        ("following_error_max_deg", s!(following_error_max_deg)),
-        ("verdict", s!(verdict)),
-        ("frequency_hz", s!(frequency_hz)),
+        ("emcy", span_of(&x.emcy)),
+        ("no_emcy", span_of(&x.no_emcy)),
+        ("state", span_of(&x.state)),
+        ("following_error_max_mm", span_of(&x.following_error_max_mm)),
+        (
+            "following_error_max_deg",
+            span_of(&x.following_error_max_deg),
+        ),
+        ("verdict", span_of(&x.verdict)),
+        ("frequency_hz", span_of(&x.frequency_hz)),
         (
             "frequency_over_kv_min",
-            s!(frequency_over_kv_min).or(s!(frequency_over_kv_max)),
+            span_of(&x.frequency_over_kv_min).or(span_of(&x.frequency_over_kv_max)),
         ),
-        ("program", s!(program)),
+        ("program", span_of(&x.program)),
     ];
     let which = exactly_one(ctx, span.clone(), &kinds, "an expectation")?;
-    let mut present: Vec<(&'static str, Range<usize>)> = Vec::new();
-    macro_rules! p {
-        ($($f:ident),*) => {$( if let Some(v) = &x.$f { present.push((stringify!($f), v.span())); } )*};
-    }
-    p!(
-        within,
-        after,
-        at,
-        from,
-        until,
-        by,
-        not_before,
-        tolerance_pct
-    );
-    if which != 7 {
-        p!(frequency_over_kv_max);
-    }
-    let t = |v: &Option<Spanned<Time>>| v.as_ref().map(|t| t.get_ref().us());
-    if let (Some(f), Some(u)) = (&x.from, &x.until) {
-        if u.get_ref() < f.get_ref() {
-            return Err(ctx.err(
-                u.span(),
-                Some("until"),
-                format!(
-                    "`until` ({} s) is before `from` ({} s): the window would be empty",
-                    u.get_ref().secs(),
-                    f.get_ref().secs()
-                ),
-            ));
-        }
-    }
+    let present = expectation_keys(x, which);
+    check_window_order(ctx, x)?;
     let what = match which {
-        0 => {
-            ctx.only(&present, &["within", "after"], "an `emcy` expectation")?;
-            if let Some(a) = &x.after {
-                if !ids.contains(a.get_ref()) {
-                    return Err(ctx.err(
-                        a.span(),
-                        Some("after"),
-                        format!("no event has id `{}`", a.get_ref()),
-                    ));
-                }
-            }
-            Expectation::Emcy {
-                code: x.emcy.as_ref().unwrap().get_ref().0,
-                within_us: t(&x.within),
-                after: x.after.as_ref().map(|a| a.get_ref().clone()),
-            }
-        }
+        0 => emcy_expectation(ctx, x, &present, ids)?,
         1 => {
             ctx.only(&present, &["from", "until"], "a `no_emcy` expectation")?;
             if !*x.no_emcy.as_ref().unwrap().get_ref() {
                 return Err(ctx.err(
-                    s!(no_emcy).unwrap(),
+                    span_of(&x.no_emcy).unwrap(),
                     Some("no_emcy"),
                     "write `no_emcy = true` or leave it out",
                 ));
             }
             Expectation::NoEmcy {
-                from_us: t(&x.from).unwrap_or(0),
-                until_us: t(&x.until),
+                from_us: time_us(&x.from).unwrap_or(0),
+                until_us: time_us(&x.until),
             }
         }
         2 => {
             ctx.only(&present, &["at"], "a `state` expectation")?;
             Expectation::State {
                 state: x.state.as_ref().unwrap().get_ref().0,
-                at_us: t(&x.at),
+                at_us: time_us(&x.at),
             }
         }
-        3 | 4 => {
-            ctx.only(
-                &present,
-                &["from", "until"],
-                "a following-error expectation",
-            )?;
-            let (key, v, rotary) = if which == 3 {
-                (
-                    "following_error_max_mm",
-                    x.following_error_max_mm.as_ref().unwrap(),
-                    false,
-                )
-            } else {
-                (
-                    "following_error_max_deg",
-                    x.following_error_max_deg.as_ref().unwrap(),
-                    true,
-                )
-            };
-            ctx.unit_family(rotary, key, v.span())?;
-            Expectation::FollowingError {
-                max_uu: positive(ctx, v, key)? * 1000.0,
-                from_us: t(&x.from).unwrap_or(0),
-                until_us: t(&x.until),
-            }
-        }
+        3 | 4 => following_error_expectation(ctx, x, &present, which == 4)?,
         5 => {
             ctx.only(&present, &["by", "not_before"], "a `verdict` expectation")?;
             Expectation::Verdict {
                 verdict: *x.verdict.as_ref().unwrap().get_ref(),
-                by_us: t(&x.by),
-                not_before_us: t(&x.not_before),
+                by_us: time_us(&x.by),
+                not_before_us: time_us(&x.not_before),
             }
         }
         6 => {
@@ -723,28 +746,7 @@ fn expectation(ctx: &mut Ctx, x: &Spanned<RawExpect>, ids: &[String]) -> R<Expec
                     .unwrap_or(5.0),
             }
         }
-        7 => {
-            ctx.only(&present, &[], "a `frequency_over_kv` expectation")?;
-            let min = x
-                .frequency_over_kv_min
-                .as_ref()
-                .map(|v| finite(ctx, v, "frequency_over_kv_min"))
-                .transpose()?;
-            let max = x
-                .frequency_over_kv_max
-                .as_ref()
-                .map(|v| finite(ctx, v, "frequency_over_kv_max"))
-                .transpose()?;
-            let (min, max) = (min.unwrap_or(0.0), max.unwrap_or(f64::INFINITY));
-            if min > max {
-                return Err(ctx.err(
-                    s!(frequency_over_kv_min).unwrap(),
-                    Some("frequency_over_kv_min"),
-                    "is above frequency_over_kv_max",
-                ));
-            }
-            Expectation::FrequencyOverKv { min, max }
-        }
+        7 => frequency_over_kv_expectation(ctx, x, &present)?,
         _ => {
             ctx.only(&present, &[], "a `program` expectation")?;
             Expectation::Program(*x.program.as_ref().unwrap().get_ref())
@@ -756,53 +758,217 @@ fn expectation(ctx: &mut Ctx, x: &Spanned<RawExpect>, ids: &[String]) -> R<Expec
     })
 }
 
+/// The keys an expectation gives besides its kind (`which`, an index into the kinds).
+fn expectation_keys(x: &RawExpect, which: usize) -> Vec<(&'static str, Range<usize>)> {
+    let mut present: Vec<(&'static str, Range<usize>)> = Vec::new();
+    macro_rules! p {
+        ($($f:ident),*) => {$( if let Some(v) = &x.$f { present.push((stringify!($f), v.span())); } )*};
+    }
+    p!(
+        within,
+        after,
+        at,
+        from,
+        until,
+        by,
+        not_before,
+        tolerance_pct
+    );
+    // frequency_over_kv_max belongs to the frequency_over_kv kind (index 7).
+    if which != 7 {
+        p!(frequency_over_kv_max);
+    }
+    present
+}
+
+/// `from` .. `until` must not be an empty window.
+fn check_window_order(ctx: &Ctx, x: &RawExpect) -> R<()> {
+    if let (Some(f), Some(u)) = (&x.from, &x.until) {
+        if u.get_ref() < f.get_ref() {
+            return Err(ctx.err(
+                u.span(),
+                Some("until"),
+                format!(
+                    "`until` ({} s) is before `from` ({} s): the window would be empty",
+                    u.get_ref().secs(),
+                    f.get_ref().secs()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `emcy`: a code, optionally `within` a time `after` a named event.
+fn emcy_expectation(
+    ctx: &Ctx,
+    x: &RawExpect,
+    present: &[(&'static str, Range<usize>)],
+    ids: &[String],
+) -> R<Expectation> {
+    ctx.only(present, &["within", "after"], "an `emcy` expectation")?;
+    if let Some(a) = &x.after {
+        if !ids.contains(a.get_ref()) {
+            return Err(ctx.err(
+                a.span(),
+                Some("after"),
+                format!("no event has id `{}`", a.get_ref()),
+            ));
+        }
+    }
+    Ok(Expectation::Emcy {
+        code: x.emcy.as_ref().unwrap().get_ref().0,
+        within_us: time_us(&x.within),
+        after: x.after.as_ref().map(|a| a.get_ref().clone()),
+    })
+}
+
+/// `following_error_max_mm` / `_deg` (in the program's units family) over a window.
+fn following_error_expectation(
+    ctx: &mut Ctx,
+    x: &RawExpect,
+    present: &[(&'static str, Range<usize>)],
+    rotary: bool,
+) -> R<Expectation> {
+    ctx.only(present, &["from", "until"], "a following-error expectation")?;
+    let (key, v) = if rotary {
+        (
+            "following_error_max_deg",
+            x.following_error_max_deg.as_ref().unwrap(),
+        )
+    } else {
+        (
+            "following_error_max_mm",
+            x.following_error_max_mm.as_ref().unwrap(),
+        )
+    };
+    ctx.unit_family(rotary, key, v.span())?;
+    Ok(Expectation::FollowingError {
+        max_uu: positive(ctx, v, key)? * 1000.0,
+        from_us: time_us(&x.from).unwrap_or(0),
+        until_us: time_us(&x.until),
+    })
+}
+
+/// `frequency_over_kv_min` / `_max`: a band (either side open), min <= max.
+fn frequency_over_kv_expectation(
+    ctx: &Ctx,
+    x: &RawExpect,
+    present: &[(&'static str, Range<usize>)],
+) -> R<Expectation> {
+    ctx.only(present, &[], "a `frequency_over_kv` expectation")?;
+    let min = x
+        .frequency_over_kv_min
+        .as_ref()
+        .map(|v| finite(ctx, v, "frequency_over_kv_min"))
+        .transpose()?;
+    let max = x
+        .frequency_over_kv_max
+        .as_ref()
+        .map(|v| finite(ctx, v, "frequency_over_kv_max"))
+        .transpose()?;
+    let (min, max) = (min.unwrap_or(0.0), max.unwrap_or(f64::INFINITY));
+    if min > max {
+        return Err(ctx.err(
+            span_of(&x.frequency_over_kv_min).unwrap(),
+            Some("frequency_over_kv_min"),
+            "is above frequency_over_kv_max",
+        ));
+    }
+    Ok(Expectation::FrequencyOverKv { min, max })
+}
+
+/// The whole file: name, machine, master and timing, program, events, expectations, then
+/// the presets resolved with the overrides, then the detector (errors in that order).
 pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> {
     let mut ctx = Ctx {
         src,
         file,
         units: None,
     };
-    let name = raw.name.get_ref().trim().to_string();
+    let name = scenario_name(&ctx, &raw.name)?;
+    let m = raw.machine.get_ref();
+    let presets = machine_presets(&ctx, &raw.machine)?;
+    let overrides = m
+        .overrides
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.get_ref().to_string()))
+        .collect();
+    let (master, tick_us) = master_timing(&ctx, &raw.master, raw.machine.span())?;
+    let program = motion_program(&mut ctx, &raw.motion)?;
+    let (events, ids) = events(&mut ctx, &raw.event)?;
+    let mut expectations = Vec::new();
+    for x in &raw.expect {
+        expectations.push(expectation(&mut ctx, x, &ids)?);
+    }
+    let configs = resolve_presets(&ctx, m, &presets)?;
+    let detector = detector_spec(&ctx, &raw.detector)?;
+    Ok(Scenario {
+        name,
+        description: raw.description,
+        path: file.to_path_buf(),
+        machine: MachineSpec {
+            presets,
+            overrides,
+            configs,
+            rotary_units: ctx.units.as_ref().map(|u| u.0),
+        },
+        run: RunSpec {
+            master,
+            tick_us,
+            seed: raw.seed.unwrap_or(1),
+            duration_us: raw.duration.map(|d| d.get_ref().us()),
+            fast_forward_idle: raw.fast_forward_idle.unwrap_or(true),
+        },
+        program,
+        events,
+        expectations,
+        detector,
+    })
+}
+
+/// The scenario's name: it names the output directory.
+fn scenario_name(ctx: &Ctx, raw: &Spanned<String>) -> R<String> {
+    let name = raw.get_ref().trim().to_string();
     if name.is_empty()
         || !name
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.')
     {
         return Err(ctx.err(
-            raw.name.span(),
+            raw.span(),
             Some("name"),
             "must be non-empty and use only letters, digits, - _ . (it names the output directory)",
         ));
     }
-    // Machine.
-    let m = raw.machine.get_ref();
-    let presets: Vec<String> = match (&m.preset, &m.presets) {
-        (Some(p), None) => vec![p.get_ref().clone()],
+    Ok(name)
+}
+
+/// `preset`, or a non-empty `presets` list for a sweep.
+fn machine_presets(ctx: &Ctx, machine: &Spanned<RawMachine>) -> R<Vec<String>> {
+    let m = machine.get_ref();
+    match (&m.preset, &m.presets) {
+        (Some(p), None) => Ok(vec![p.get_ref().clone()]),
         (None, Some(ps)) if !ps.get_ref().is_empty() => {
-            ps.get_ref().iter().map(|p| p.get_ref().clone()).collect()
+            Ok(ps.get_ref().iter().map(|p| p.get_ref().clone()).collect())
         }
-        (None, _) => {
-            return Err(ctx.err(
-                raw.machine.span(),
-                Some("machine.preset"),
-                "[machine] needs `preset` (or a non-empty `presets` list for a sweep)",
-            ))
-        }
-        (Some(_), Some(ps)) => {
-            return Err(ctx.err(
-                ps.span(),
-                Some("machine.presets"),
-                "give `preset` or `presets`, not both",
-            ))
-        }
-    };
-    let mut overrides = Vec::new();
-    for (k, v) in &m.overrides {
-        overrides.push((k.to_string(), v.get_ref().to_string()));
+        (None, _) => Err(ctx.err(
+            machine.span(),
+            Some("machine.preset"),
+            "[machine] needs `preset` (or a non-empty `presets` list for a sweep)",
+        )),
+        (Some(_), Some(ps)) => Err(ctx.err(
+            ps.span(),
+            Some("machine.presets"),
+            "give `preset` or `presets`, not both",
+        )),
     }
-    // Master and timing.
+}
+
+/// `[master]` over the defaults, and the tick (a divisor of the SYNC period), us. Errors
+/// point at `[machine]` (`at`): `[master]` is optional and may have no span.
+fn master_timing(ctx: &Ctx, mr: &RawMaster, at: Range<usize>) -> R<(MasterConfig, u64)> {
     let d = MasterConfig::default();
-    let mr = &raw.master;
     let master = MasterConfig {
         node_id: mr.node_id.unwrap_or(d.node_id),
         master_id: mr.master_id.unwrap_or(d.master_id),
@@ -812,37 +978,45 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
         step_timeout_us: mr.step_timeout.map_or(d.step_timeout_us, |t| t.us()),
         sdo_timeout_us: d.sdo_timeout_us,
     };
-    let mspan = raw.machine.span();
     if !(1..=127).contains(&master.node_id) || !(1..=127).contains(&master.master_id) {
-        return Err(ctx.err(mspan, Some("master.node_id"), "node IDs are 1..127"));
+        return Err(ctx.err(at, Some("master.node_id"), "node IDs are 1..127"));
     }
     if master.sync_period_us < 100 {
-        return Err(ctx.err(mspan, Some("master.sync_period_us"), "at least 100 us"));
+        return Err(ctx.err(at, Some("master.sync_period_us"), "at least 100 us"));
     }
     let tick_us = u64::from(mr.tick_us.unwrap_or(master.sync_period_us));
     if tick_us == 0 || u64::from(master.sync_period_us) % tick_us != 0 {
-        return Err(ctx.err(mspan, Some("master.tick_us"), "must divide the SYNC period"));
+        return Err(ctx.err(at, Some("master.tick_us"), "must divide the SYNC period"));
     }
-    // Program.
+    Ok((master, tick_us))
+}
+
+/// The `[[motion]]` steps, unrolled; a non-empty program starts with `enable`.
+fn motion_program(ctx: &mut Ctx, motion: &[Spanned<RawStep>]) -> R<Vec<ProgramStep>> {
     let mut program = Vec::new();
-    steps(&mut ctx, &raw.motion, &mut program, 0)?;
+    steps(ctx, motion, &mut program, 0)?;
     if !matches!(
         program.first(),
         Some(ProgramStep::Master(Step::Enable { .. }))
     ) && !program.is_empty()
     {
-        let at = raw.motion.first().map(|s| s.span()).unwrap_or(0..0);
+        let at = motion.first().map(|s| s.span()).unwrap_or(0..0);
         return Err(ctx.err(
             at,
             Some("motion[0].step"),
             "the motion program must start with an `enable` step",
         ));
     }
-    // Events.
+    Ok(program)
+}
+
+/// The `[[event]]`s and their ids (each used once); timed ramps of one parameter must not
+/// overlap.
+fn events(ctx: &mut Ctx, raw: &[Spanned<RawEvent>]) -> R<(Vec<Event>, Vec<String>)> {
     let mut events = Vec::new();
     let mut ids: Vec<String> = Vec::new();
-    for e in &raw.event {
-        let ev = event(&mut ctx, e)?;
+    for e in raw {
+        let ev = event(ctx, e)?;
         if let Some(id) = &ev.id {
             if ids.contains(id) {
                 let sp = e.get_ref().id.as_ref().unwrap().span();
@@ -850,49 +1024,56 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
             }
             ids.push(id.clone());
         }
-        // Two timed ramps of one parameter that overlap would fight over its value.
-        if let (Trigger::At(t), Action::Ramp { key, over_us, .. }) = (&ev.trigger, &ev.action) {
-            for other in &events {
-                let Event {
-                    trigger: Trigger::At(t0),
-                    action:
-                        Action::Ramp {
-                            key: k0,
-                            over_us: o0,
-                            ..
-                        },
-                    line,
-                    ..
-                } = other
-                else {
-                    continue;
-                };
-                let (a0, a1) = (*t0, t0.saturating_add(*o0));
-                let (b0, b1) = (*t, t.saturating_add(*over_us));
-                if k0.key == key.key && a0 < b1 && b0 < a1 {
-                    return Err(ctx.err(
-                        e.span(),
-                        Some("ramp"),
-                        format!(
-                            "ramp of `{}` from {} s to {} s overlaps the ramp at line {line} ({} \
-                             s to {} s): one parameter can follow one ramp at a time",
-                            key.key,
-                            b0 as f64 * 1e-6,
-                            b1 as f64 * 1e-6,
-                            a0 as f64 * 1e-6,
-                            a1 as f64 * 1e-6
-                        ),
-                    ));
-                }
-            }
-        }
+        check_ramp_overlap(ctx, e.span(), &ev, &events)?;
         events.push(ev);
     }
-    let mut expectations = Vec::new();
-    for x in &raw.expect {
-        expectations.push(expectation(&mut ctx, x, &ids)?);
+    Ok((events, ids))
+}
+
+/// Two timed ramps of one parameter that overlap would fight over its value.
+fn check_ramp_overlap(ctx: &Ctx, at: Range<usize>, ev: &Event, earlier: &[Event]) -> R<()> {
+    let (Trigger::At(t), Action::Ramp { key, over_us, .. }) = (&ev.trigger, &ev.action) else {
+        return Ok(());
+    };
+    for other in earlier {
+        let Event {
+            trigger: Trigger::At(t0),
+            action:
+                Action::Ramp {
+                    key: k0,
+                    over_us: o0,
+                    ..
+                },
+            line,
+            ..
+        } = other
+        else {
+            continue;
+        };
+        let (a0, a1) = (*t0, t0.saturating_add(*o0));
+        let (b0, b1) = (*t, t.saturating_add(*over_us));
+        if k0.key == key.key && a0 < b1 && b0 < a1 {
+            return Err(ctx.err(
+                at,
+                Some("ramp"),
+                format!(
+                    "ramp of `{}` from {} s to {} s overlaps the ramp at line {line} ({} \
+                     s to {} s): one parameter can follow one ramp at a time",
+                    key.key,
+                    b0 as f64 * 1e-6,
+                    b1 as f64 * 1e-6,
+                    a0 as f64 * 1e-6,
+                    a1 as f64 * 1e-6
+                ),
+            ));
+        }
     }
-    // Resolve every preset with the overrides, so a bad value is reported here, with its line.
+    Ok(())
+}
+
+/// Every preset with the overrides, so a bad value is reported here, with its line; each
+/// preset's kind must fit the program's units family.
+fn resolve_presets(ctx: &Ctx, m: &RawMachine, presets: &[String]) -> R<Vec<AxisConfig>> {
     let mut configs = Vec::new();
     for (i, p) in presets.iter().enumerate() {
         let pspan = match (&m.preset, &m.presets) {
@@ -929,10 +1110,13 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
         }
         configs.push(cfg);
     }
-    // Detector.
-    let rd = &raw.detector;
+    Ok(configs)
+}
+
+/// `[detector]`: optional thresholds (suspect <= alarm) and windows.
+fn detector_spec(ctx: &Ctx, rd: &RawDetector) -> R<DetectorSpec> {
     let pos =
-        |v: &Option<Spanned<f64>>, k: &str| v.as_ref().map(|v| positive(&ctx, v, k)).transpose();
+        |v: &Option<Spanned<f64>>, k: &str| v.as_ref().map(|v| positive(ctx, v, k)).transpose();
     let detector = DetectorSpec {
         enabled: rd.enabled.unwrap_or(true),
         kv_per_s: pos(&rd.kv_per_s, "kv_per_s")?,
@@ -954,28 +1138,7 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
             ));
         }
     }
-    Ok(Scenario {
-        name,
-        description: raw.description,
-        path: file.to_path_buf(),
-        machine: MachineSpec {
-            presets,
-            overrides,
-            configs,
-            rotary_units: ctx.units.as_ref().map(|u| u.0),
-        },
-        run: RunSpec {
-            master,
-            tick_us,
-            seed: raw.seed.unwrap_or(1),
-            duration_us: raw.duration.map(|d| d.get_ref().us()),
-            fast_forward_idle: raw.fast_forward_idle.unwrap_or(true),
-        },
-        program,
-        events,
-        expectations,
-        detector,
-    })
+    Ok(detector)
 }
 
 /// A step's name as written in the file (`write_sdo`, `move_to`, ...).

@@ -585,6 +585,37 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
         bail!("node {} outside 1..=127", opts.node_id);
     }
     let mut dec = Decoder::new(opts.node_id, &opts.defaults);
+    let cut_line = follow_lines(&mut dec, text, source)?;
+    require_node_and_sync(&dec, source, opts.node_id)?;
+    let mut notes: Vec<String> = cut_line.into_iter().collect();
+    let (period_us, period_source, measured) = sync_period(&dec, opts, source, &mut notes)?;
+    let mut stats = dec.stats;
+    let gap_us = GAP_PERIODS * f64::from(period_us);
+    stats.sync_gaps = dec
+        .sync_t_us
+        .windows(2)
+        .filter(|w| (w[1] - w[0]) as f64 > gap_us)
+        .count();
+    note_decoding_losses(&stats, &mut notes);
+    note_unmapped_objects(&dec.seen, &mut notes);
+    Ok(BusLog {
+        source: source.to_string(),
+        node_id: opts.node_id,
+        samples: dec.samples,
+        period_us,
+        period_source,
+        measured_period_us: measured,
+        stats,
+        kv_written: dec.kv_written,
+        notes,
+        seen: dec.seen,
+        other_ids: dec.other_ids,
+    })
+}
+
+/// Feed every frame of the log to the decoder. Returns the note on a last line cut short
+/// (skipped); an unparsable line is an error.
+fn follow_lines(dec: &mut Decoder, text: &str, source: &str) -> Result<Option<String>> {
     let mut after_error_frame = false;
     let n_lines = text.lines().count();
     let mut cut_line = None;
@@ -615,8 +646,13 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
             dec.record(&f);
         }
     }
-    let n = opts.node_id;
-    let st = dec.stats;
+    Ok(cut_line)
+}
+
+/// The log must hold frames of node `n` (else: the most frequent other COB-IDs, a wrong
+/// --node?) and SYNCs (samples are taken at SYNC).
+fn require_node_and_sync(dec: &Decoder, source: &str, n: u8) -> Result<()> {
+    let st = &dec.stats;
     if st.node_frames == 0 {
         let mut by_count: Vec<(u32, usize)> = dec.other_ids.iter().map(|(i, c)| (*i, *c)).collect();
         by_count.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
@@ -643,6 +679,17 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
              synchronous PDOs is needed"
         );
     }
+    Ok(())
+}
+
+/// The SYNC period, us, and where it came from: the command line, 0x1006 as written (when
+/// the SYNCs agree), or the median SYNC interval; also the measured median, if any.
+fn sync_period(
+    dec: &Decoder,
+    opts: &DecodeOptions,
+    source: &str,
+    notes: &mut Vec<String>,
+) -> Result<(u32, PeriodSource, Option<u32>)> {
     let mut intervals: Vec<i64> = dec
         .sync_t_us
         .windows(2)
@@ -655,7 +702,6 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
         measured
             .is_none_or(|m| (f64::from(m) - f64::from(p)).abs() <= PERIOD_AGREEMENT * f64::from(p))
     };
-    let mut notes: Vec<String> = cut_line.into_iter().collect();
     let (period_us, period_source) = match (opts.sync_period_us, from_1006, measured) {
         (Some(p), _, _) => (p, PeriodSource::CommandLine),
         (None, Some(p), _) if agrees(p) => (p, PeriodSource::Object1006),
@@ -674,13 +720,12 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
     if period_us == 0 {
         bail!("{source}: the SYNC period must be > 0 us");
     }
-    let gap_us = GAP_PERIODS * f64::from(period_us);
-    let mut stats = dec.stats;
-    stats.sync_gaps = dec
-        .sync_t_us
-        .windows(2)
-        .filter(|w| (w[1] - w[0]) as f64 > gap_us)
-        .count();
+    Ok((period_us, period_source, measured))
+}
+
+/// Notes on what the decoder could not follow: SYNC gaps, backward timestamps, short PDOs,
+/// segmented SDOs.
+fn note_decoding_losses(stats: &DecodeStats, notes: &mut Vec<String>) {
     if stats.sync_gaps > 0 {
         notes.push(format!(
             "{} SYNC intervals longer than {GAP_PERIODS} periods (lost SYNCs or a gap in the \
@@ -707,7 +752,10 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
             stats.sdo_not_expedited
         ));
     }
-    let seen = dec.seen;
+}
+
+/// Notes on objects the PDOs did not carry, and what stands in for them.
+fn note_unmapped_objects(seen: &[bool; N_OBJECTS], notes: &mut Vec<String>) {
     let has = |o: Object| seen[o.slot()];
     if has(Object::Velocity) && !has(Object::Current) {
         notes.push(format!(
@@ -727,19 +775,6 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
             });
         }
     }
-    Ok(BusLog {
-        source: source.to_string(),
-        node_id: n,
-        samples: dec.samples,
-        period_us,
-        period_source,
-        measured_period_us: measured,
-        stats,
-        kv_written: dec.kv_written,
-        notes,
-        seen,
-        other_ids: dec.other_ids,
-    })
 }
 
 #[cfg(test)]

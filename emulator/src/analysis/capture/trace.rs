@@ -34,24 +34,10 @@ impl BusLog {
         k as f64 * f64::from(self.period_us) * 1e-6
     }
 
-    /// The set velocity per sample, uu/s, and where it came from; an error
-    /// ([`MissingObjects`]) when the log holds neither a set-point nor an actual position or
-    /// speed to derive it from.
-    ///
-    /// Per sample, by the mode in force: CSP (8) with a target position: from the 0x607A
-    /// targets ([`set_velocity_from_demand`]); CSV or PV (9, 3) with a target velocity:
-    /// 0x60FF (received in an RPDO or written over SDO); any other mode (a PP move, whose
-    /// profile is the drive's), an unknown mode, or a mode without its set-point: from the
-    /// actual values ([`set_velocity_from_actual`] of 0x6064, or of 0x60E4 sub 1, or of the
-    /// integral of 0x606C), the paper's criterion applied to what the axis did.
-    pub fn set_velocity_uu_s(&self) -> Result<(Vec<f64>, String)> {
-        use crate::master::{MODE_CSP, MODE_CSV, MODE_PV};
-        let n = self.samples.len();
-        let t: Vec<f64> = (0..n).map(|k| self.t_s(k)).collect();
-        // The CSP targets as a demand series (holding the last one where a sample has none).
+    /// The CSP targets as a demand series, uu (holding the last one where a sample has none).
+    fn csp_targets_held(&self) -> Vec<f64> {
         let mut last = 0.0;
-        let targets: Vec<f64> = self
-            .samples
+        self.samples
             .iter()
             .map(|s| {
                 if let Some(t) = s.target_position_uu {
@@ -59,9 +45,13 @@ impl BusLog {
                 }
                 last
             })
-            .collect();
-        let from_targets = set_velocity_from_demand(&t, &targets, DEMAND_SPAN_S);
-        let actual: Option<(Vec<f64>, &str)> = if self.seen(Object::Position) {
+            .collect()
+    }
+
+    /// The actual position per sample, uu, and which object it comes from: 0x6064, else
+    /// 0x60E4 sub 1, else the integral of 0x606C; None when the log holds none of them.
+    fn actual_position_series(&self) -> Option<(Vec<f64>, &'static str)> {
+        if self.seen(Object::Position) {
             Some((
                 self.samples
                     .iter()
@@ -92,7 +82,48 @@ impl BusLog {
             ))
         } else {
             None
+        }
+    }
+
+    /// Why no set velocity can be had: neither a set-point nor an actual position or speed.
+    fn no_set_velocity_source(&self) -> MissingObjects {
+        let seen = |o: Object| {
+            if self.seen(o) {
+                "seen"
+            } else {
+                "not in the log"
+            }
         };
+        MissingObjects(format!(
+            "{}: node {}: no set-point and no actual position or speed: needs {} in CSP [{}], \
+             or {} in CSV or PV [{}], or {} / {} to derive the set speed from",
+            self.source,
+            self.node_id,
+            Object::TargetPosition.name(),
+            seen(Object::TargetPosition),
+            Object::TargetVelocity.name(),
+            seen(Object::TargetVelocity),
+            Object::Position.name(),
+            Object::Velocity.name(),
+        ))
+    }
+
+    /// The set velocity per sample, uu/s, and where it came from; an error
+    /// ([`MissingObjects`]) when the log holds neither a set-point nor an actual position or
+    /// speed to derive it from.
+    ///
+    /// Per sample, by the mode in force: CSP (8) with a target position: from the 0x607A
+    /// targets ([`set_velocity_from_demand`]); CSV or PV (9, 3) with a target velocity:
+    /// 0x60FF (received in an RPDO or written over SDO); any other mode (a PP move, whose
+    /// profile is the drive's), an unknown mode, or a mode without its set-point: from the
+    /// actual values ([`set_velocity_from_actual`] of 0x6064, or of 0x60E4 sub 1, or of the
+    /// integral of 0x606C), the paper's criterion applied to what the axis did.
+    pub fn set_velocity_uu_s(&self) -> Result<(Vec<f64>, String)> {
+        use crate::master::{MODE_CSP, MODE_CSV, MODE_PV};
+        let n = self.samples.len();
+        let t: Vec<f64> = (0..n).map(|k| self.t_s(k)).collect();
+        let from_targets = set_velocity_from_demand(&t, &self.csp_targets_held(), DEMAND_SPAN_S);
+        let actual = self.actual_position_series();
         let from_actual = actual
             .as_ref()
             .map(|(x, _)| set_velocity_from_actual(&t, x));
@@ -119,26 +150,7 @@ impl BusLog {
             out.push(v);
         }
         if csp == 0 && csv == 0 && act == 0 {
-            let seen = |o: Object| {
-                if self.seen(o) {
-                    "seen"
-                } else {
-                    "not in the log"
-                }
-            };
-            return Err(MissingObjects(format!(
-                "{}: node {}: no set-point and no actual position or speed: needs {} in CSP [{}], \
-                 or {} in CSV or PV [{}], or {} / {} to derive the set speed from",
-                self.source,
-                self.node_id,
-                Object::TargetPosition.name(),
-                seen(Object::TargetPosition),
-                Object::TargetVelocity.name(),
-                seen(Object::TargetVelocity),
-                Object::Position.name(),
-                Object::Velocity.name(),
-            ))
-            .into());
+            return Err(self.no_set_velocity_source().into());
         }
         let via = |o: Object| match (
             self.stats.pdo_setpoints > 0,
