@@ -283,10 +283,9 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         clock.wait_for(l.deadline_us, fd);
         // No clock read between the wake-up and the answer unless needed (each is a system
         // call, expensive under user-mode Linux or a hypervisor): a frame's arrival comes from
-        // its kernel timestamp, converted without one; the time of the wake-up is read only
-        // when the arrival is unknown or a synchronous window (0x1007) needs how late a frame
-        // is handled.
-        let mut woke = None;
+        // its kernel timestamp, converted without one; the clock is read (for each frame: the
+        // loop may have been stopped between two) only when the arrival is unknown or a
+        // synchronous window (0x1007) needs how late a frame is handled.
         let mut drained = false;
         for _ in 0..MAX_RX_PER_TICK {
             let Some(frame) = self.recv_frame() else {
@@ -299,7 +298,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                 .and_then(|t| clock.realtime_to_us(t));
             let now = match stamp {
                 Some(_) if !l.sync_window => None,
-                _ => Some(*woke.get_or_insert_with(|| clock.now_us())),
+                _ => Some(clock.now_us()),
             };
             let arrived = stamp.or(now).unwrap_or_default();
             self.run_due_ticks(l, clock, arrived, None, hook);
