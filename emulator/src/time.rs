@@ -15,6 +15,21 @@ pub trait Clock {
         let _ = fd;
         self.sleep_until(deadline_us)
     }
+    /// As [`Clock::wait_until_or_readable`] without reading the clock on waking (a system
+    /// call the real-time loop makes only when it needs the time).
+    fn wait_for(&mut self, deadline_us: u64, fd: Option<RawFd>) {
+        self.wait_until_or_readable(deadline_us, fd);
+    }
+    /// This clock's time (us) of a CLOCK_REALTIME instant (a kernel receive timestamp), from
+    /// an offset measured by [`Clock::sync_realtime`]: no system call, so the loop can place a
+    /// frame's arrival without reading a clock per frame. `None`: this clock cannot tell.
+    fn realtime_to_us(&self, realtime_ns: i128) -> Option<u64> {
+        let _ = realtime_ns;
+        None
+    }
+    /// Re-measure the offset [`Clock::realtime_to_us`] uses (two clock reads; the wall
+    /// clock may be slewed or stepped): call it now and then, off the path that answers.
+    fn sync_realtime(&mut self) {}
 }
 
 /// `CLOCK_MONOTONIC` with `clock_nanosleep(TIMER_ABSTIME)`: deadlines do not drift with the
@@ -22,22 +37,34 @@ pub trait Clock {
 #[derive(Debug)]
 pub struct MonotonicClock {
     origin_ns: i128,
+    /// CLOCK_REALTIME minus CLOCK_MONOTONIC, ns, as last measured.
+    realtime_minus_monotonic_ns: i128,
 }
 
 fn monotonic_ns() -> i128 {
+    clock_ns(libc::CLOCK_MONOTONIC)
+}
+
+fn realtime_ns() -> i128 {
+    clock_ns(libc::CLOCK_REALTIME)
+}
+
+fn clock_ns(id: libc::clockid_t) -> i128 {
     let mut ts = libc::timespec {
         tv_sec: 0,
         tv_nsec: 0,
     };
-    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC always exists on Linux.
-    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    // SAFETY: `ts` is a valid, writable timespec; both clocks used here exist on Linux.
+    unsafe { libc::clock_gettime(id, &mut ts) };
     ts.tv_sec as i128 * 1_000_000_000 + ts.tv_nsec as i128
 }
 
 impl MonotonicClock {
     pub fn new() -> Self {
+        let origin_ns = monotonic_ns();
         Self {
-            origin_ns: monotonic_ns(),
+            origin_ns,
+            realtime_minus_monotonic_ns: realtime_ns() - origin_ns,
         }
     }
 }
@@ -51,6 +78,19 @@ impl Default for MonotonicClock {
 impl Clock for MonotonicClock {
     fn now_us(&self) -> u64 {
         ((monotonic_ns() - self.origin_ns).max(0) / 1000) as u64
+    }
+
+    fn realtime_to_us(&self, realtime_ns: i128) -> Option<u64> {
+        let mono = realtime_ns - self.realtime_minus_monotonic_ns;
+        Some(((mono - self.origin_ns).max(0) / 1000) as u64)
+    }
+
+    fn sync_realtime(&mut self) {
+        // Between two monotonic reads, so the offset is off by at most half their spacing.
+        let a = monotonic_ns();
+        let r = realtime_ns();
+        let b = monotonic_ns();
+        self.realtime_minus_monotonic_ns = r - (a + b) / 2;
     }
 
     fn sleep_until(&mut self, deadline_us: u64) -> u64 {
@@ -80,8 +120,14 @@ impl Clock for MonotonicClock {
     }
 
     fn wait_until_or_readable(&mut self, deadline_us: u64, fd: Option<RawFd>) -> u64 {
+        self.wait_for(deadline_us, fd);
+        self.now_us()
+    }
+
+    fn wait_for(&mut self, deadline_us: u64, fd: Option<RawFd>) {
         let Some(fd) = fd else {
-            return self.sleep_until(deadline_us);
+            self.sleep_until(deadline_us);
+            return;
         };
         let abs_ns = self.origin_ns + deadline_us as i128 * 1000;
         let left_ns = (abs_ns - monotonic_ns()).max(0);
@@ -98,7 +144,6 @@ impl Clock for MonotonicClock {
         // returns early: the loop checks its stop flag and waits again.
         // SAFETY: one valid pollfd, a valid timespec, no signal mask change.
         unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
-        self.now_us()
     }
 }
 

@@ -1013,6 +1013,11 @@ impl Node {
     pub fn sync_window_missed(&self) -> u32 {
         self.core.sync_window_missed
     }
+    /// The synchronous window length 0x1007, us (0: none). A runtime that hands frames over
+    /// late needs to tell [`Node::handle_late`] how late only when it is non-zero.
+    pub fn sync_window_us(&self) -> u32 {
+        self.core.store.u32(R_1007)
+    }
     /// Frames waiting in the TX queue.
     pub fn tx_pending(&self) -> usize {
         self.core.tx.len()

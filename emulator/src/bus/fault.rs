@@ -206,6 +206,18 @@ impl<B: CanBus> FaultyBus<B> {
 }
 
 impl<B: CanBus> CanBus for FaultyBus<B> {
+    fn send_batch(&mut self, frames: &[CanFrame]) -> (usize, Option<SendError>) {
+        if self.rules.is_empty() {
+            return self.inner.send_batch(frames);
+        }
+        for (i, f) in frames.iter().enumerate() {
+            if let Err(e) = self.send(f) {
+                return (i, Some(e));
+            }
+        }
+        (frames.len(), None)
+    }
+
     fn send(&mut self, frame: &CanFrame) -> Result<(), SendError> {
         match self.decide(frame, Direction::Tx) {
             None => self.inner.send(frame),
@@ -267,11 +279,11 @@ impl<B: CanBus> CanBus for FaultyBus<B> {
         self.inner.rx_fd()
     }
 
-    fn last_rx_age_us(&self) -> Option<u64> {
+    fn last_rx_stamp_ns(&self) -> Option<i128> {
         if self.delayed_rx {
             None
         } else {
-            self.inner.last_rx_age_us()
+            self.inner.last_rx_stamp_ns()
         }
     }
 

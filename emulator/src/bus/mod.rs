@@ -35,6 +35,18 @@ pub enum RecvError {
 pub trait CanBus {
     /// Queue a frame for transmission.
     fn send(&mut self, frame: &CanFrame) -> Result<(), SendError>;
+    /// Queue several frames, in order, with as few system calls as the transport can (one
+    /// `sendmmsg` on SocketCAN). Returns how many were taken from the front of `frames`, and
+    /// why the next one was not (`None`: it may simply be retried, e.g. the transport takes
+    /// at most so many at once). The default sends them one by one.
+    fn send_batch(&mut self, frames: &[CanFrame]) -> (usize, Option<SendError>) {
+        for (i, f) in frames.iter().enumerate() {
+            if let Err(e) = self.send(f) {
+                return (i, Some(e));
+            }
+        }
+        (frames.len(), None)
+    }
     /// The next received frame, `Ok(None)` when there is none now.
     fn recv(&mut self) -> Result<Option<CanFrame>, RecvError>;
     /// Wait up to `timeout_us` for a frame to arrive (lock-step mode); returns at once if one is
@@ -48,9 +60,10 @@ pub trait CanBus {
     fn rx_fd(&self) -> Option<std::os::fd::RawFd> {
         None
     }
-    /// How long before now the frame last returned by [`CanBus::recv`] arrived (the kernel's
-    /// receive timestamp), microseconds; `None` when the transport does not know.
-    fn last_rx_age_us(&self) -> Option<u64> {
+    /// The kernel's receive timestamp of the frame last returned by [`CanBus::recv`], ns on
+    /// CLOCK_REALTIME (SO_TIMESTAMPNS); `None` when the transport does not know. Reading it
+    /// costs no system call (the loop converts it with [`crate::time::Clock::realtime_to_us`]).
+    fn last_rx_stamp_ns(&self) -> Option<i128> {
         None
     }
     /// Received frames the transport lost before the runtime could read them (the kernel's

@@ -73,8 +73,8 @@ pub fn kernel_has_can() -> bool {
 pub struct SocketCanBus {
     socket: CanSocket,
     link_up: bool,
-    /// Age of the last received frame (kernel timestamp vs CLOCK_REALTIME now), if known.
-    last_rx_age_us: Option<u64>,
+    /// Kernel receive timestamp of the last received frame, ns, CLOCK_REALTIME, if known.
+    last_rx_stamp_ns: Option<i128>,
     /// Frames the kernel dropped on this socket's full receive queue (SO_RXQ_OVFL), summed
     /// from its wrapping 32-bit counter.
     rx_overflows: RxOverflows,
@@ -94,7 +94,7 @@ impl SocketCanBus {
         Ok(Self {
             socket,
             link_up: true,
-            last_rx_age_us: None,
+            last_rx_stamp_ns: None,
             rx_overflows: RxOverflows::default(),
         })
     }
@@ -205,16 +205,6 @@ struct RxMeta {
     drops: Option<u32>,
 }
 
-fn realtime_ns() -> i128 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: valid, writable timespec.
-    unsafe { libc::clock_gettime(libc::CLOCK_REALTIME, &mut ts) };
-    ts.tv_sec as i128 * 1_000_000_000 + ts.tv_nsec as i128
-}
-
 /// One non-blocking `recvmsg` of a `can_frame` with its receive timestamp (ns, CLOCK_REALTIME)
 /// and the kernel's drop count. No allocation: the frame and the control messages live on the
 /// stack.
@@ -314,7 +304,59 @@ pub fn from_raw(raw: &libc::can_frame) -> Option<CanFrame> {
     })
 }
 
+/// Frames one `sendmmsg` takes at most (its arrays live on the stack).
+pub const SEND_BATCH_MAX: usize = 64;
+
+impl SocketCanBus {
+    fn send_result(&mut self, result: std::io::Result<()>) -> Result<(), SendError> {
+        match result {
+            Ok(()) => {
+                self.link_up = true;
+                Ok(())
+            }
+            Err(e) if is_down(&e) => {
+                self.link_up = false;
+                Err(SendError::Down)
+            }
+            // ENOBUFS, EAGAIN and anything else: the frame is lost, the loop goes on.
+            Err(_) => Err(SendError::Full),
+        }
+    }
+}
+
 impl CanBus for SocketCanBus {
+    /// Up to [`SEND_BATCH_MAX`] frames in one `sendmmsg` (one system call, where a `write` per
+    /// frame costs one each: expensive in user-mode Linux and under a hypervisor). No
+    /// allocation: the frames, their iovecs and message headers are on the stack.
+    fn send_batch(&mut self, frames: &[CanFrame]) -> (usize, Option<SendError>) {
+        let n = frames.len().min(SEND_BATCH_MAX);
+        if n == 0 {
+            return (0, None);
+        }
+        let mut raw = [can_frame_default(); SEND_BATCH_MAX];
+        // SAFETY: iovec and mmsghdr are plain data; all-zero is a valid (empty) value.
+        let mut iov: [libc::iovec; SEND_BATCH_MAX] = unsafe { std::mem::zeroed() };
+        // SAFETY: as above.
+        let mut msgs: [libc::mmsghdr; SEND_BATCH_MAX] = unsafe { std::mem::zeroed() };
+        for i in 0..n {
+            raw[i] = to_raw(&frames[i]);
+            iov[i].iov_base = (&mut raw[i] as *mut libc::can_frame).cast();
+            iov[i].iov_len = std::mem::size_of::<libc::can_frame>();
+            msgs[i].msg_hdr.msg_iov = &mut iov[i];
+            msgs[i].msg_hdr.msg_iovlen = 1;
+        }
+        // SAFETY: `n` valid message headers, each pointing at one valid iovec of one whole
+        // can_frame, all alive for the call.
+        let rc = unsafe { libc::sendmmsg(self.socket.as_raw_fd(), msgs.as_mut_ptr(), n as _, 0) };
+        if rc < 0 {
+            let e = std::io::Error::last_os_error();
+            return (0, self.send_result(Err(e)).err());
+        }
+        // Fewer than `n` taken: the next one failed; the caller's retry reports why.
+        self.link_up = true;
+        (rc as usize, None)
+    }
+
     fn send(&mut self, frame: &CanFrame) -> Result<(), SendError> {
         let raw = to_raw(frame);
         // SAFETY: writing one whole can_frame from a valid stack value.
@@ -332,28 +374,15 @@ impl CanBus for SocketCanBus {
         } else {
             Err(std::io::Error::from(std::io::ErrorKind::WriteZero))
         };
-        match result {
-            Ok(()) => {
-                self.link_up = true;
-                Ok(())
-            }
-            Err(e) if is_down(&e) => {
-                self.link_up = false;
-                Err(SendError::Down)
-            }
-            // ENOBUFS, EAGAIN and anything else: the frame is lost, the loop goes on.
-            Err(_) => Err(SendError::Full),
-        }
+        self.send_result(result)
     }
 
     fn recv(&mut self) -> Result<Option<CanFrame>, RecvError> {
-        self.last_rx_age_us = None;
+        self.last_rx_stamp_ns = None;
         match recv_stamped(self.socket.as_raw_fd()) {
             Ok((raw, meta)) => {
                 self.link_up = true;
-                self.last_rx_age_us = meta
-                    .stamp_ns
-                    .map(|t| ((realtime_ns() - t).max(0) / 1000) as u64);
+                self.last_rx_stamp_ns = meta.stamp_ns;
                 if let Some(drops) = meta.drops {
                     self.rx_overflows.update(drops);
                 }
@@ -384,8 +413,8 @@ impl CanBus for SocketCanBus {
         Some(self.socket.as_raw_fd())
     }
 
-    fn last_rx_age_us(&self) -> Option<u64> {
-        self.last_rx_age_us
+    fn last_rx_stamp_ns(&self) -> Option<i128> {
+        self.last_rx_stamp_ns
     }
 
     fn rx_overflows(&self) -> u64 {

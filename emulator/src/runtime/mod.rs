@@ -35,6 +35,8 @@ pub const DEFAULT_SYNC_PERIOD_US: u64 = 1000;
 /// received frame paces the catch-up: frames read after a stall are interleaved with the ticks
 /// that were due before each arrived, see [`Runtime::realtime_wake`]).
 pub const MAX_CATCH_UP_TICKS: u64 = 20;
+/// Frames handed to the bus at once by [`Runtime::flush_tx`] (a stack array).
+pub const TX_BATCH: usize = 64;
 /// A transmit queue that is full is retried after waits of this length ...
 pub const TX_WAIT_STEP_US: u64 = 50;
 /// ... for at most this long per flush; after that the remaining refused frames are dropped
@@ -175,25 +177,44 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         self.sim_time_us += self.period_us;
     }
 
-    /// Send everything the nodes queued, in order. A full transmit queue (ENOBUFS) is waited
-    /// out in steps of [`TX_WAIT_STEP_US`] (counted), up to [`TX_WAIT_BUDGET_US`] per flush;
-    /// only then, or with the interface down, is a frame dropped (counted).
+    /// Send everything the nodes queued, in order, in batches of up to [`TX_BATCH`] frames
+    /// (one `sendmmsg` each on SocketCAN). A full transmit queue (ENOBUFS) is waited out in
+    /// steps of [`TX_WAIT_STEP_US`] (counted), up to [`TX_WAIT_BUDGET_US`] per flush; only
+    /// then, or with the interface down, is a frame dropped (counted).
     pub fn flush_tx(&mut self) {
         let mut budget_us = TX_WAIT_BUDGET_US;
-        for ax in &mut self.axes {
-            while let Some(f) = ax.node.pop_tx() {
-                loop {
-                    match self.bus.send(&f) {
-                        Ok(()) => break,
-                        Err(SendError::Full) if budget_us > 0 => {
-                            self.stats.tx_full_waits += 1;
-                            self.bus.wait_writable(TX_WAIT_STEP_US);
-                            budget_us = budget_us.saturating_sub(TX_WAIT_STEP_US);
-                        }
-                        Err(_) => {
-                            self.stats.tx_dropped += 1;
-                            break;
-                        }
+        let mut batch = [CanFrame::default(); TX_BATCH];
+        let mut axis = 0;
+        loop {
+            let mut n = 0;
+            while n < TX_BATCH && axis < self.axes.len() {
+                match self.axes[axis].node.pop_tx() {
+                    Some(f) => {
+                        batch[n] = f;
+                        n += 1;
+                    }
+                    None => axis += 1,
+                }
+            }
+            if n == 0 {
+                return;
+            }
+            let mut sent = 0;
+            while sent < n {
+                let (taken, err) = self.bus.send_batch(&batch[sent..n]);
+                sent += taken;
+                // Nothing taken and no reason given: as a full queue (bounded).
+                let err = err.or((taken == 0).then_some(SendError::Full));
+                match err {
+                    None => {}
+                    Some(SendError::Full) if budget_us > 0 => {
+                        self.stats.tx_full_waits += 1;
+                        self.bus.wait_writable(TX_WAIT_STEP_US);
+                        budget_us = budget_us.saturating_sub(TX_WAIT_STEP_US);
+                    }
+                    Some(_) => {
+                        self.stats.tx_dropped += 1;
+                        sent += 1;
                     }
                 }
             }
@@ -259,20 +280,30 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         hook: &mut impl FnMut(&mut Self),
     ) {
         let fd = self.bus.rx_fd();
-        clock.wait_until_or_readable(l.deadline_us, fd);
+        clock.wait_for(l.deadline_us, fd);
+        // No clock read between the wake-up and the answer unless needed (each is a system
+        // call, expensive under user-mode Linux or a hypervisor): a frame's arrival comes from
+        // its kernel timestamp, converted without one; the clock is read (for each frame: the
+        // loop may have been stopped between two) only when the arrival is unknown or a
+        // synchronous window (0x1007) needs how late a frame is handled.
         let mut drained = false;
         for _ in 0..MAX_RX_PER_TICK {
             let Some(frame) = self.recv_frame() else {
                 drained = true;
                 break;
             };
-            let now = clock.now_us();
-            let arrived = self
+            let stamp = self
                 .bus
-                .last_rx_age_us()
-                .map_or(now, |age| now.saturating_sub(age));
-            self.run_due_ticks(l, clock, arrived, hook);
-            if self.handle_frame(&frame, now.saturating_sub(arrived)) {
+                .last_rx_stamp_ns()
+                .and_then(|t| clock.realtime_to_us(t));
+            let now = match stamp {
+                Some(_) if !l.sync_window => None,
+                _ => Some(clock.now_us()),
+            };
+            let arrived = stamp.or(now).unwrap_or_default();
+            self.run_due_ticks(l, clock, arrived, None, hook);
+            let late_us = now.map_or(0, |n| n.saturating_sub(arrived));
+            if self.handle_frame(&frame, late_us) {
                 l.pll.on_sync(arrived);
                 self.stats.sync_lock_state = l.pll.state().code();
                 self.stats.sync_phase_error_us = l.pll.phase_error_avg_us().round() as u64;
@@ -286,38 +317,46 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             let now = clock.now_us();
             l.pll.check_lost(now);
             self.stats.sync_lock_state = l.pll.state().code();
-            self.run_due_ticks(l, clock, now, hook);
+            self.run_due_ticks(l, clock, now, Some(now), hook);
         }
     }
 
-    /// Run the control ticks whose deadline is at or before `until_us`.
+    /// Run the control ticks whose deadline is at or before `until_us`. `now_us`: the time,
+    /// if the caller just read it (it starts the first tick; each later one starts when the
+    /// one before finished: one clock read per tick, not two).
     fn run_due_ticks<C: Clock>(
         &mut self,
         l: &mut RealtimeLoop,
         clock: &mut C,
         until_us: u64,
+        now_us: Option<u64>,
         hook: &mut impl FnMut(&mut Self),
     ) {
+        let mut now_us = now_us;
         let behind = until_us.saturating_sub(l.deadline_us) / self.period_us;
         if behind > MAX_CATCH_UP_TICKS {
             self.stats.skipped_ticks += behind;
             l.deadline_us += behind * self.period_us;
         }
         while l.deadline_us <= until_us {
-            let start = clock.now_us();
+            let start = now_us.unwrap_or_else(|| clock.now_us());
             self.step();
             self.flush_tx();
             self.bus.end_tick();
             let done = clock.now_us();
+            now_us = Some(done);
             self.stats.record_tick(
                 start.saturating_sub(l.deadline_us),
                 done.saturating_sub(start),
             );
-            // Statistics object refreshed every 256 ticks: cheap, and fresh enough for SDO.
+            // Statistics object refreshed every 256 ticks: cheap, and fresh enough for SDO;
+            // the wall clock's offset (for frame arrival times) as often.
             if self.stats.ticks.is_multiple_of(256) {
                 self.publish_stats();
+                clock.sync_realtime();
             }
             hook(self);
+            l.sync_window = self.axes.iter().any(|a| a.node.sync_window_us() > 0);
             l.deadline_us = l.pll.next_deadline(l.deadline_us);
         }
     }
@@ -462,6 +501,9 @@ pub struct RealtimeLoop {
     /// Next control tick, microseconds on the loop's clock.
     pub deadline_us: u64,
     pub pll: SyncPll,
+    /// Some node has a synchronous window (0x1007): frames need the time they are handled
+    /// at (refreshed every control tick).
+    pub sync_window: bool,
 }
 
 impl RealtimeLoop {
@@ -469,6 +511,7 @@ impl RealtimeLoop {
         Self {
             deadline_us: start_us,
             pll: SyncPll::new(period_us, SYNC_LEAD_US),
+            sync_window: false,
         }
     }
 }

@@ -28,8 +28,11 @@ const SLIPS_TO_REACQUIRE: u32 = 8;
 const BRIDGES_TO_REACQUIRE: u32 = 4;
 /// How many smoothed phase errors the control tick keeps before the predicted SYNC.
 const JITTER_MARGIN: f64 = 3.0;
-/// SYNC intervals averaged for the first period estimate.
+/// SYNC intervals collected for the first period estimate.
 const ACQUIRE_SYNCS: u32 = 8;
+/// Their mean is the estimate when it is within this fraction of their median; else the mean
+/// of those within it (see [`robust_period_us`]).
+const ACQUIRE_WINDOW: f64 = 0.25;
 /// Without a SYNC for this many periods the loop is unlocked and free-runs.
 pub const LOST_AFTER_PERIODS: f64 = 3.0;
 /// Accepted SYNC periods, microseconds (CiA 301 allows much more, but the loop's tick range
@@ -72,9 +75,9 @@ pub struct SyncPll {
     tick_period_us: f64,
     lead_us: f64,
     last_sync_us: Option<f64>,
-    /// Acquisition: the SYNC it started at (the mean interval since is the first period
-    /// estimate).
-    acquire_start_us: f64,
+    /// Acquisition: the SYNC intervals seen so far (a fixed array: no allocation on the
+    /// real-time path); their robust mean is the first period estimate.
+    intervals_us: [f64; ACQUIRE_SYNCS as usize],
     acquired: u32,
     /// Predicted time of the next SYNC; valid once `period_us` is.
     predicted_us: f64,
@@ -99,7 +102,7 @@ impl SyncPll {
             tick_period_us: tick_period_us as f64,
             lead_us: lead_us as f64,
             last_sync_us: None,
-            acquire_start_us: 0.0,
+            intervals_us: [0.0; ACQUIRE_SYNCS as usize],
             acquired: 0,
             predicted_us: 0.0,
             period_us: 0.0,
@@ -134,7 +137,6 @@ impl SyncPll {
 
     fn restart(&mut self, t: f64) {
         self.last_sync_us = Some(t);
-        self.acquire_start_us = t;
         self.acquired = 0;
         self.period_us = 0.0;
         self.good = 0;
@@ -154,19 +156,21 @@ impl SyncPll {
             return; // not monotonic: ignore rather than corrupt the estimate
         }
         if self.period_us == 0.0 {
-            // Acquisition: the mean of ACQUIRE_SYNCS intervals, so a jittered master does not
-            // start the loop far off its period.
+            // Acquisition: a robust mean of ACQUIRE_SYNCS intervals, so a jittered master does
+            // not start the loop far off its period, and a stall (an interval of several
+            // periods) or a bunch sent after one (intervals near zero) does not count.
+            self.intervals_us[self.acquired as usize] = t - last;
             self.acquired += 1;
             self.last_sync_us = Some(t);
             if self.acquired >= ACQUIRE_SYNCS {
-                let dt = (t - self.acquire_start_us) / f64::from(self.acquired);
-                if (PERIOD_MIN_US..=PERIOD_MAX_US).contains(&dt) {
-                    self.period_us = dt;
-                    self.predicted_us = t + dt;
-                    self.phase_error_us = 0.0;
-                    self.phase_error_avg_us = 0.0;
-                } else {
-                    self.restart(t);
+                match robust_period_us(&mut self.intervals_us) {
+                    Some(dt) if (PERIOD_MIN_US..=PERIOD_MAX_US).contains(&dt) => {
+                        self.period_us = dt;
+                        self.predicted_us = t + dt;
+                        self.phase_error_us = 0.0;
+                        self.phase_error_avg_us = 0.0;
+                    }
+                    _ => self.restart(t),
                 }
             }
             return;
@@ -259,6 +263,34 @@ impl SyncPll {
         // Never earlier than half a tick after the last one, never later than 1.5 ticks.
         next.clamp(last + 0.5 * step, last + 1.5 * step).round() as u64
     }
+}
+
+/// The SYNC period from acquisition intervals. Their mean (the time from the first SYNC to
+/// the last over their number: each SYNC's jitter cancels but the ends') when it agrees with
+/// their median within [`ACQUIRE_WINDOW`]; a master that missed SYNCs for a while (one
+/// interval of many periods) or sent them in a bunch after a stall (intervals near zero, the
+/// mean is then still right) pulls the mean off the median, and the estimate is then the mean
+/// of the intervals within that window of the median. `None` when fewer than half of them are
+/// (no consistent period). Sorts in place.
+fn robust_period_us(intervals_us: &mut [f64]) -> Option<f64> {
+    let n = intervals_us.len();
+    let mean = intervals_us.iter().sum::<f64>() / n as f64;
+    intervals_us.sort_unstable_by(f64::total_cmp);
+    let median = 0.5 * (intervals_us[(n - 1) / 2] + intervals_us[n / 2]);
+    if median <= 0.0 {
+        return None;
+    }
+    if (mean - median).abs() <= ACQUIRE_WINDOW * median {
+        return Some(mean);
+    }
+    let (mut sum, mut count) = (0.0, 0usize);
+    for &dt in intervals_us.iter() {
+        if (dt - median).abs() <= ACQUIRE_WINDOW * median {
+            sum += dt;
+            count += 1;
+        }
+    }
+    (2 * count >= n).then(|| sum / count as f64)
 }
 
 #[cfg(test)]
@@ -473,5 +505,57 @@ mod tests {
             "locked for {locked} of {} SYNCs",
             recs.len()
         );
+    }
+
+    /// A master stalled during acquisition (a 400 ms gap among the first SYNCs at 4 ms, with
+    /// or without the missed SYNCs sent in a bunch after it): the first period estimate is the
+    /// true period (the mean of the intervals measured 54.6 ms), or, when the bunch leaves no
+    /// consistent period, none until one is seen; then the loop locks at 4 ms.
+    #[test]
+    fn a_stall_during_acquisition_yields_the_true_period() {
+        for (stall_at, bunch) in [(3u64, 0u64), (1, 0), (6, 0), (3, 3), (2, 5)] {
+            let mut pll = SyncPll::new(1000, 100);
+            let mut times = Vec::new();
+            let mut t = 50_000u64;
+            for k in 0..200u64 {
+                // jitter of +-30 us, deterministic
+                let j = (k * 7919 % 61) as i64 - 30;
+                if k == stall_at {
+                    t += 400_000;
+                    for b in 0..bunch {
+                        times.push(t + 80 * b);
+                    }
+                    t += 80 * bunch;
+                } else {
+                    t += 4000;
+                }
+                times.push((t as i64 + j) as u64);
+            }
+            let mut first_estimate = None;
+            for &ts in &times {
+                pll.on_sync(ts);
+                if first_estimate.is_none() && pll.sync_period_us() > 0.0 {
+                    first_estimate = Some(pll.sync_period_us());
+                }
+            }
+            let first = first_estimate.expect("a period was acquired");
+            assert!(
+                (first - 4000.0).abs() < 40.0,
+                "stall at SYNC {stall_at}, bunch {bunch}: first estimate {first} us"
+            );
+            assert_eq!(pll.state(), LockState::Locked, "stall at {stall_at}");
+            assert!((pll.sync_period_us() - 4000.0).abs() < 5.0);
+        }
+    }
+
+    #[test]
+    fn robust_period_ignores_stalls_and_bunches_and_refuses_chaos() {
+        let mut a = [1000.0, 1010.0, 990.0, 5000.0, 1000.0, 1005.0, 995.0, 1000.0];
+        assert!((robust_period_us(&mut a).unwrap() - 1000.0).abs() < 1.0);
+        let mut b = [1000.0, 1000.0, 9000.0, 50.0, 50.0, 50.0, 1000.0, 1000.0];
+        let got = robust_period_us(&mut b);
+        assert!(got.is_none_or(|p| (p - 1000.0).abs() < 1.0), "{got:?}");
+        let mut c = [100.0, 900.0, 3000.0, 7000.0, 250.0, 12000.0, 40.0, 1500.0];
+        assert_eq!(robust_period_us(&mut c), None);
     }
 }
