@@ -1015,6 +1015,7 @@ impl Node {
     }
     /// The synchronous window length 0x1007, us (0: none). A runtime that hands frames over
     /// late needs to tell [`Node::handle_late`] how late only when it is non-zero.
+    #[inline]
     pub fn sync_window_us(&self) -> u32 {
         self.core.store.u32(R_1007)
     }
