@@ -89,7 +89,7 @@ impl SocketCanBus {
         let socket = CanSocket::open(iface).map_err(err)?;
         socket.set_nonblocking(true).map_err(err)?;
         set_receive_buffer(&socket, RECEIVE_BUFFER_BYTES);
-        enable_rx_timestamps(&socket);
+        enable_rx_timestamps(socket.as_raw_fd());
         enable_rx_overflow_count(socket.as_raw_fd());
         Ok(Self {
             socket,
@@ -116,24 +116,10 @@ pub const RECEIVE_BUFFER_BYTES: i32 = 32 << 20;
 /// Returns the size the kernel granted.
 pub fn set_receive_buffer(socket: &CanSocket, bytes: i32) -> i32 {
     let fd = socket.as_raw_fd();
-    let len = std::mem::size_of::<libc::c_int>() as libc::socklen_t;
-    for opt in [libc::SO_RCVBUFFORCE, libc::SO_RCVBUF] {
-        // SAFETY: setsockopt on our own descriptor with a valid c_int option value.
-        let rc = unsafe {
-            libc::setsockopt(
-                fd,
-                libc::SOL_SOCKET,
-                opt,
-                (&bytes as *const libc::c_int).cast(),
-                len,
-            )
-        };
-        if rc == 0 {
-            break;
-        }
-    }
+    let _ = set_socket_int(fd, libc::SO_RCVBUFFORCE, bytes)
+        || set_socket_int(fd, libc::SO_RCVBUF, bytes);
     let mut granted: libc::c_int = 0;
-    let mut glen = len;
+    let mut glen = std::mem::size_of::<libc::c_int>() as libc::socklen_t;
     // SAFETY: getsockopt into a c_int of the size we pass.
     unsafe {
         libc::getsockopt(
@@ -147,38 +133,33 @@ pub fn set_receive_buffer(socket: &CanSocket, bytes: i32) -> i32 {
     granted
 }
 
-/// Ask the kernel to stamp every received frame (SO_TIMESTAMPNS, CLOCK_REALTIME), so the loop
-/// knows when a frame arrived even if it read it late (after a stall). Failing is harmless: the
-/// frame is then taken to have arrived when it was read.
-fn enable_rx_timestamps(socket: &CanSocket) {
-    let on: libc::c_int = 1;
-    // SAFETY: setsockopt on our own descriptor with a valid c_int option value.
-    unsafe {
-        libc::setsockopt(
-            socket.as_raw_fd(),
-            libc::SOL_SOCKET,
-            libc::SO_TIMESTAMPNS,
-            (&on as *const libc::c_int).cast(),
-            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-        )
-    };
-}
-
-/// Ask the kernel to attach its count of frames dropped on this socket (receive queue full)
-/// to the frames received after a drop (SO_RXQ_OVFL), so a drive that lost frames in the kernel can say
-/// so. Failing is harmless: the count then stays 0.
-fn enable_rx_overflow_count(fd: libc::c_int) {
-    let on: libc::c_int = 1;
-    // SAFETY: setsockopt on our own descriptor with a valid c_int option value.
+/// Set the socket-level (SOL_SOCKET) option `opt` to the int `value` on `fd`; true if the
+/// kernel took it.
+fn set_socket_int(fd: libc::c_int, opt: libc::c_int, value: libc::c_int) -> bool {
+    // SAFETY: setsockopt on a descriptor we own, with a valid c_int option value and its size.
     unsafe {
         libc::setsockopt(
             fd,
             libc::SOL_SOCKET,
-            libc::SO_RXQ_OVFL,
-            (&on as *const libc::c_int).cast(),
+            opt,
+            (&value as *const libc::c_int).cast(),
             std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-        )
-    };
+        ) == 0
+    }
+}
+
+/// Ask the kernel to stamp every received frame (SO_TIMESTAMPNS, CLOCK_REALTIME), so the loop
+/// knows when a frame arrived even if it read it late (after a stall). Failing is harmless: the
+/// frame is then taken to have arrived when it was read.
+fn enable_rx_timestamps(fd: libc::c_int) {
+    set_socket_int(fd, libc::SO_TIMESTAMPNS, 1);
+}
+
+/// Ask the kernel to attach its count of frames dropped on this socket (receive queue full)
+/// to the frames received after a drop (SO_RXQ_OVFL), so a drive that lost frames in the
+/// kernel can say so. Failing is harmless: the count then stays 0.
+fn enable_rx_overflow_count(fd: libc::c_int) {
+    set_socket_int(fd, libc::SO_RXQ_OVFL, 1);
 }
 
 /// The kernel's drop counter (a wrapping u32, cumulative for the socket) as a u64 total.
@@ -458,25 +439,8 @@ mod tests {
         use std::os::fd::AsRawFd;
         let rx = UdpSocket::bind("127.0.0.1:0").expect("bind");
         let tx = UdpSocket::bind("127.0.0.1:0").expect("bind");
-        let small: libc::c_int = 4096;
-        let on: libc::c_int = 1;
-        // SAFETY: setsockopt on our own sockets with c_int values.
-        unsafe {
-            libc::setsockopt(
-                rx.as_raw_fd(),
-                libc::SOL_SOCKET,
-                libc::SO_RCVBUF,
-                (&small as *const libc::c_int).cast(),
-                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-            );
-            libc::setsockopt(
-                rx.as_raw_fd(),
-                libc::SOL_SOCKET,
-                libc::SO_TIMESTAMPNS,
-                (&on as *const libc::c_int).cast(),
-                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-            );
-        }
+        assert!(set_socket_int(rx.as_raw_fd(), libc::SO_RCVBUF, 4096));
+        enable_rx_timestamps(rx.as_raw_fd());
         enable_rx_overflow_count(rx.as_raw_fd());
         let frame = [0u8; std::mem::size_of::<libc::can_frame>()];
         const SENT: u64 = 2000;
