@@ -486,10 +486,7 @@ fn line_prominence(
     fs: f64,
     band: (f64, f64),
 ) -> f64 {
-    let df = fs / n as f64;
-    let lo = ((band.0 / df).ceil() as usize).max(1);
-    let hi = ((band.1 / df).floor() as usize).min(an.amplitudes().len() - 1);
-    let mut m: Vec<f64> = an.amplitudes()[lo..=hi.max(lo)].to_vec();
+    let mut m: Vec<f64> = band_bins(an, n, fs, band).to_vec();
     let med = median(&mut m).unwrap_or(0.0);
     if med > 0.0 {
         amplitude / med
@@ -622,11 +619,20 @@ fn set_point_line(
     if an.fundamental(&pos, fs, band).is_none() {
         return 0.0;
     }
-    let df = fs / sp.len() as f64;
+    band_bins(an, sp.len(), fs, band)
+        .iter()
+        .copied()
+        .fold(0.0, f64::max)
+}
+
+/// The amplitudes of the last spectrum `an` computed (`n` samples at rate `fs`) whose bins
+/// lie in `band` (Hz), DC excluded.
+fn band_bins(an: &SpectrumAnalyzer, n: usize, fs: f64, band: (f64, f64)) -> &[f64] {
     let m = an.amplitudes();
+    let df = fs / n as f64;
     let lo = ((band.0 / df).ceil() as usize).max(1);
     let hi = ((band.1 / df).floor() as usize).min(m.len() - 1);
-    m[lo..=hi.max(lo)].iter().copied().fold(0.0, f64::max)
+    &m[lo..=hi.max(lo)]
 }
 
 /// Run the detector on a trace.
