@@ -804,19 +804,16 @@ fn watch(
     Ok(())
 }
 
-/// An inconclusive detector result for people: the verdict, its kind and the first reason
-/// (no amplitude or frequency: nothing was measured).
+/// An inconclusive detector result for people: its first reason, which
+/// [`DetectorReport::mark_inconclusive`](crate::analysis::detector::DetectorReport::mark_inconclusive)
+/// words as the verdict, its kind and why (no amplitude or frequency: nothing was measured).
 pub(crate) fn inconclusive_text(d: &crate::analysis::detector::DetectorReport) -> String {
-    let head = format!(
-        "inconclusive ({})",
-        d.inconclusive.map_or("", |i| i.as_str())
-    );
-    match d.reasons.first() {
-        // The first reason already starts with the verdict and its kind.
-        Some(r) if r.starts_with(&head) => r.clone(),
-        Some(r) => format!("{head}: {r}"),
-        None => head,
-    }
+    d.reasons.first().cloned().unwrap_or_else(|| {
+        format!(
+            "inconclusive ({})",
+            d.inconclusive.map_or("", |i| i.as_str())
+        )
+    })
 }
 
 /// Columns of the terminal on stderr (TIOCGWINSZ), 80 when it does not say.
