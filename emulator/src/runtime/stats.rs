@@ -135,25 +135,17 @@ impl StatsSummary {
     /// The summary for people; a lock-step loop (its time is the SYNCs themselves) has no SYNC
     /// phase lock, so it says "lock-step" there instead of "free-running, SYNC phase error 0".
     pub fn text(&self, lockstep: bool) -> String {
-        let full = self.to_string();
-        if !lockstep {
-            return full;
-        }
-        let lock = format!(", {}, SYNC phase error", lock_name(self.sync_lock_state));
-        match full.find(&lock) {
-            Some(at) => format!("{}, lock-step", &full[..at]),
-            None => full,
-        }
+        let mut out = String::new();
+        let _ = self.write(&mut out, lockstep);
+        out
     }
-}
 
-impl fmt::Display for StatsSummary {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+    fn write(&self, f: &mut impl fmt::Write, lockstep: bool) -> fmt::Result {
         write!(
             f,
             "ticks {} at {} us, overruns {}, skipped {}, lateness p50/p99/max {}/{}/{} us, \
              work p50/p99/max {}/{}/{} us, tx dropped {}, rx errors {}, rx overflow {}, tx full waits {}, \
-             SYNCs {}, {}, SYNC phase error {} us, SYNC period {} us",
+             SYNCs {}, ",
             self.ticks,
             self.period_us,
             self.overruns,
@@ -169,10 +161,23 @@ impl fmt::Display for StatsSummary {
             self.rx_overflows,
             self.tx_full_waits,
             self.syncs,
+        )?;
+        if lockstep {
+            return f.write_str("lock-step");
+        }
+        write!(
+            f,
+            "{}, SYNC phase error {} us, SYNC period {} us",
             lock_name(self.sync_lock_state),
             self.sync_phase_error_us,
             self.sync_period_us
         )
+    }
+}
+
+impl fmt::Display for StatsSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.write(f, false)
     }
 }
 
