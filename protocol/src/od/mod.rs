@@ -4,85 +4,12 @@
 
 pub mod eds;
 mod table;
+mod types;
 
 use crate::drive::DriveInfo;
 pub use table::OBJECTS;
 
-/// CANopen basic data types used by this device (CiA 301 numbering).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DataType {
-    /// INTEGER8 (0x0002).
-    I8 = 2,
-    /// INTEGER16 (0x0003).
-    I16 = 3,
-    /// INTEGER32 (0x0004).
-    I32 = 4,
-    /// UNSIGNED8 (0x0005).
-    U8 = 5,
-    /// UNSIGNED16 (0x0006).
-    U16 = 6,
-    /// UNSIGNED32 (0x0007).
-    U32 = 7,
-    /// REAL32, IEEE 754 single (0x0008).
-    Real32 = 8,
-    /// VISIBLE_STRING (0x0009).
-    VisibleString = 9,
-}
-
-impl DataType {
-    /// Size in bytes (strings: 0 = variable).
-    pub const fn size(self) -> usize {
-        match self {
-            DataType::I8 | DataType::U8 => 1,
-            DataType::I16 | DataType::U16 => 2,
-            DataType::I32 | DataType::U32 | DataType::Real32 => 4,
-            DataType::VisibleString => 0,
-        }
-    }
-    /// A two's-complement integer type (stored sign-extended to 32 bits).
-    pub const fn signed(self) -> bool {
-        matches!(self, DataType::I8 | DataType::I16 | DataType::I32)
-    }
-}
-
-/// Access type as written in the EDS.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Access {
-    /// Read only (`ro`).
-    Ro,
-    /// Write only (`wo`).
-    Wo,
-    /// Read/write (`rw`).
-    Rw,
-    /// Read/write, mappable into a TPDO.
-    Rwr,
-    /// Read/write, mappable into an RPDO.
-    Rww,
-    /// Read only and never changes (`const`).
-    Const,
-}
-
-impl Access {
-    /// An SDO upload may read it.
-    pub const fn readable(self) -> bool {
-        !matches!(self, Access::Wo)
-    }
-    /// An SDO download may write it.
-    pub const fn writable(self) -> bool {
-        matches!(self, Access::Wo | Access::Rw | Access::Rwr | Access::Rww)
-    }
-    /// The AccessType string of the EDS (CiA 306).
-    pub const fn eds(self) -> &'static str {
-        match self {
-            Access::Ro => "ro",
-            Access::Wo => "wo",
-            Access::Rw => "rw",
-            Access::Rwr => "rwr",
-            Access::Rww => "rww",
-            Access::Const => "const",
-        }
-    }
-}
+pub use types::{Access, DataType};
 
 /// The kind of object a row belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
