@@ -3,6 +3,7 @@
 //! layer and the EDS export (`eds.rs`) all read the same table.
 
 pub mod eds;
+pub mod eds_parse;
 mod table;
 mod types;
 
