@@ -1173,25 +1173,18 @@ pub fn parse(text: &str) -> Result<EdsFile, EdsError> {
     let mut subs_of: HashMap<u16, Vec<(u8, usize)>> = HashMap::new();
     let mut orphan: Option<(usize, usize)> = None; // (line, section idx)
     for (kind, &i) in &cx.by_kind {
-        match *kind {
+        let index = match *kind {
             Kind::Sub(index, sub) => {
-                if !cx.by_kind.contains_key(&Kind::Object(index)) {
-                    let line = cx.sections[i].line;
-                    if orphan.is_none_or(|(l, _)| line < l) {
-                        orphan = Some((line, i));
-                    }
-                }
                 subs_of.entry(index).or_default().push((sub, i));
+                index
             }
-            Kind::Names(index) | Kind::Values(index) | Kind::Links(index) => {
-                if !cx.by_kind.contains_key(&Kind::Object(index)) {
-                    let line = cx.sections[i].line;
-                    if orphan.is_none_or(|(l, _)| line < l) {
-                        orphan = Some((line, i));
-                    }
-                }
-            }
-            _ => {}
+            Kind::Names(index) | Kind::Values(index) | Kind::Links(index) => index,
+            _ => continue,
+        };
+        // the first (by line) section whose object is missing
+        let line = cx.sections[i].line;
+        if !cx.by_kind.contains_key(&Kind::Object(index)) && orphan.is_none_or(|(l, _)| line < l) {
+            orphan = Some((line, i));
         }
     }
     if let Some((line, i)) = orphan {
