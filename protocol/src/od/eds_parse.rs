@@ -81,6 +81,14 @@
 //!   `CompactPDO` in `[DeviceInfo]` (implicit PDO objects, Lely only) is kept but not
 //!   expanded (warning).
 //!
+//! # Why not a crate
+//! Checked: `canopen-host` (0.6, the EDS reader of `canopen-rs`, whose wire codecs we use)
+//! reads only the numeric basic types and skips VISIBLE_STRING, OCTET_STRING and DOMAIN
+//! objects, which a vendor file has and a master reads; `canopen` 0.1.0 (2018) is an early,
+//! unmaintained stack. An INI crate alone does not do it: EDS needs duplicate detection across
+//! spellings (`[1018sub1]`/`[1018sub01]`), CompactSubObj, `$NODEID` forms, typed values and
+//! a line for every error. So this module reads the lines itself (a few dozen lines of it).
+//!
 //! # Bounds
 //! At most [`MAX_INPUT_BYTES`] of text, [`MAX_SECTIONS`] sections, [`MAX_OBJECTS`] objects,
 //! [`MAX_SUBS`] sub-indices in all (after CompactSubObj) and [`MAX_VALUE_BYTES`] in one name or
@@ -177,7 +185,7 @@ pub struct EdsFile {
     pub commissioning: Option<Commissioning>,
     /// Every object, sorted by index.
     pub objects: Vec<EdsObject>,
-    /// What a user should hear about; the file was read all the same.
+    /// What a user should hear about (the file was read all the same), in line order.
     pub warnings: Vec<EdsWarning>,
 }
 
@@ -1228,7 +1236,8 @@ pub fn parse(text: &str) -> Result<EdsFile, EdsError> {
     check_lists(&mut cx, &indices)?;
     warn_unknown_keys(&mut cx);
 
-    let warnings = std::mem::take(&mut cx.warnings);
+    let mut warnings = std::mem::take(&mut cx.warnings);
+    warnings.sort_by_key(|w| w.line); // stable: same-line warnings keep their order
     Ok(EdsFile {
         file_info,
         device_info,
