@@ -21,6 +21,7 @@
 //! (docs/decisions/0009-object-dictionary.md).
 
 pub mod eds;
+pub mod eds_parse;
 mod standard;
 mod store;
 mod types;
