@@ -889,8 +889,10 @@ fn our_exported_eds_parses_back_to_the_dictionary_in_both_real32_notations() {
     let node_id = 7;
     let od = dictionary();
     let node = Node::new(NodeConfig::new(node_id, common::info()).with_od(od)).unwrap();
-    let mut drive = common::SimDrive::default();
-    drive.params = [0.0, 0.125, -0.0, 1.0];
+    let mut drive = common::SimDrive {
+        params: [0.0, 0.125, -0.0, 1.0],
+        ..Default::default()
+    };
     for real32 in [Real32Notation::Bits, Real32Notation::Decimal] {
         let meta = EdsMeta {
             node_id: Some(node_id),
