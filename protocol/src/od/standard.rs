@@ -566,6 +566,18 @@ pub(crate) const fn idx(index: u16, sub: u8) -> usize {
     panic!("object not in the standard table")
 }
 
+/// The slot of a standard (index, sub) at run time, if it is one.
+pub(crate) fn slot_of(index: u16, sub: u8) -> Option<usize> {
+    STANDARD
+        .binary_search_by(|o| (o.index, o.sub).cmp(&(index, sub)))
+        .ok()
+}
+
+/// Number of standard slots (the first slots of every dictionary).
+pub(crate) const fn len() -> usize {
+    STANDARD.len()
+}
+
 /// The standard rows as entries, defaults resolved from `info`; entry `i` is slot `i`.
 pub(crate) fn entries(info: &DriveInfo) -> Vec<Entry> {
     STANDARD
