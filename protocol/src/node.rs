@@ -571,6 +571,10 @@ impl Node {
             }
         }
         let factor = Factor::from_info(&info).ok_or(ConfigError::InvalidDriveInfo)?;
+        // the 0x1003 history has the sub-indices the dictionary shows (a vendor's may have 2)
+        let history_len = (1..=8u8)
+            .take_while(|&s| od.get(0x1003, s).is_some())
+            .count();
         let store = Store::new(&od, node_id);
         let saved = store.clone();
         let mut sdo = SdoServer::with_capacity(store.max_capacity());
@@ -589,7 +593,7 @@ impl Node {
             hb: Producer::default(),
             hbc: Consumer::default(),
             hb_lost: false,
-            emcy: Emcy::default(),
+            emcy: Emcy::with_history(history_len),
             cia: Cia402::new(factor),
             tx: Deque::new(),
             tx_overflows: 0,
