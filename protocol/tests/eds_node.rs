@@ -78,7 +78,7 @@ fn every_object_of_every_vendor_file_is_served_with_its_size() {
                         || (o.index < 0x2000 && o.index != 0x1001 && o.index != 0x1003)
                     {
                         let want = d.resolve(s.data_type, Some(ID)).unwrap();
-                        if !(o.index == 0x6502) {
+                        if o.index != 0x6502 {
                             assert_eq!(got, want, "{where_}: default");
                         }
                     }
