@@ -36,4 +36,6 @@ pub use cia402::State as Cia402State;
 pub use drive::{AxisParam, Drive, DriveCommand, DriveInfo, Feedback, ParamError, Setpoint};
 pub use event::{NodeEvent, SdoDirection, SdoTransfer, EVENT_QUEUE};
 pub use frame::CanFrame;
-pub use node::{ConfigError, FrameEvent, Node, RuntimeStats, TX_QUEUE};
+pub use node::{
+    ConfigError, FrameEvent, LssStore, Node, RuntimeStats, DEFAULT_LSS_BIT_TIMING, TX_QUEUE,
+};

@@ -12,6 +12,7 @@ use crate::cia301::pdo::rpdo::RxOutcome;
 use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer, BUF};
 use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
+use crate::cia305::{LssConfigError, LssEvent, LssIdentity, LssSlave, LssState};
 use crate::cia402::factor::Factor;
 use crate::cia402::{mode, objects as o402, Cia402, State};
 use crate::drive::{Drive, DriveInfo, ParamError};
@@ -19,6 +20,7 @@ use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
 use crate::od::{self, idx, Lookup, Store, OBJECTS};
 use crate::params;
+use crate::wire::lss::{LSS_REQUEST, UNCONFIGURED_NODE_ID};
 use crate::wire::{cob, Heartbeat};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
@@ -43,6 +45,21 @@ const R_1016: usize = idx(0x1016, 1);
 const R_1017: usize = idx(0x1017, 0);
 const R_1019: usize = idx(0x1019, 0);
 const R_STATS: usize = idx(params::STATS_INDEX, 1);
+const R_SERIAL: usize = idx(0x1018, 4);
+
+/// The bit timing an LSS slave reports at power-on unless told otherwise
+/// ([`Node::set_lss_power_on`]): CiA 301 table index 0, 1 Mbit/s.
+pub const DEFAULT_LSS_BIT_TIMING: u8 = 0;
+
+/// A store configuration (LSS) the emulator is to write to non-volatile memory: the pending
+/// node-ID (`None`: 0xFF) and bit timing. See [`Node::take_lss_store`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LssStore {
+    /// Node-ID to store (`None`: non-configured).
+    pub node_id: Option<u8>,
+    /// CiA 301 bit timing table index to store.
+    pub bit_timing_index: u8,
+}
 
 /// Runtime statistics exposed read-only at 0x2100.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -89,7 +106,7 @@ pub enum FrameEvent {
 /// Why a node could not be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ConfigError {
-    /// Node IDs are 1..=127.
+    /// Node IDs are 1..=127, or 255: non-configured, waiting for one by LSS.
     InvalidNodeId(u8),
     /// A zero in the encoder resolution, gear ratio or feed constant.
     InvalidDriveInfo,
@@ -98,7 +115,9 @@ pub enum ConfigError {
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ConfigError::InvalidNodeId(n) => write!(f, "node id {n} outside 1..=127"),
+            ConfigError::InvalidNodeId(n) => {
+                write!(f, "node id {n} outside 1..=127 (255: non-configured, LSS)")
+            }
             ConfigError::InvalidDriveInfo => write!(f, "drive info has a zero in the factor group"),
         }
     }
@@ -144,6 +163,15 @@ struct Core {
     boot_keeps_app: bool,
     events: Deque<NodeEvent, EVENT_QUEUE>,
     events_dropped: u32,
+    /// LSS slave (CiA 305); `node_id` is its active node-ID (0xFF: non-configured).
+    lss: LssSlave,
+    /// LSS store configuration is written by the emulator ([`Node::take_lss_store`]); else
+    /// the node keeps the stored values in memory and answers at once.
+    lss_store_external: bool,
+    /// A store the emulator has not taken yet.
+    lss_store: Option<LssStore>,
+    /// The last activate bit timing (table index, switch delay ms), not yet taken.
+    lss_bit_timing_activated: Option<(u8, u16)>,
     /// CiA 402 and NMT state as last reported in an event.
     seen_cia: State,
     seen_nmt: NmtState,
@@ -478,6 +506,11 @@ impl Core {
     fn boot(&mut self, now_us: u64) {
         self.boot_due_us = None;
         self.boot_keeps_app = false;
+        if self.node_id == UNCONFIGURED_NODE_ID {
+            // CiA 305: no node-ID, no boot-up; the node stays initialising and answers LSS
+            // only (as Lely's NMT does, CANopenNode skips the other services).
+            return;
+        }
         self.nmt = NmtState::PreOperational;
         self.refresh_all();
         self.sync = SyncConsumer::default();
@@ -491,10 +524,26 @@ impl Core {
     }
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
+        let serial = self.store.u32(R_SERIAL);
         match &self.saved {
             Some(s) => self.store.copy_range(s, lo, hi),
             None => self.store.reset_range(lo, hi, self.node_id, &self.info),
         }
+        // The serial number (0x1018:4, $NODEID in the table) is part of the LSS address: it
+        // stays what it was at power-on when LSS changes the node-ID.
+        self.store.set(R_SERIAL, serial);
+    }
+
+    /// An NMT reset: the LSS slave's node-ID for the reset (pending at reset communication,
+    /// stored at reset node) becomes the node's.
+    fn take_lss_node_id(&mut self, reset_node: bool) {
+        if reset_node {
+            self.lss.reset_node();
+            self.lss_store = None;
+        } else {
+            self.lss.reset_communication();
+        }
+        self.node_id = self.lss.active_node_id().unwrap_or(UNCONFIGURED_NODE_ID);
     }
 
     /// A SYNC, handled `late_us` after it arrived (the runtime read it late). Synchronous TPDOs
@@ -538,11 +587,20 @@ impl Core {
 impl Node {
     /// Build a node (state: initialising; call [`Node::boot`]).
     pub fn new(node_id: u8, info: DriveInfo) -> Result<Node, ConfigError> {
-        if !(1..=127).contains(&node_id) {
+        if !(1..=127).contains(&node_id) && node_id != UNCONFIGURED_NODE_ID {
             return Err(ConfigError::InvalidNodeId(node_id));
         }
         let factor = Factor::from_info(&info).ok_or(ConfigError::InvalidDriveInfo)?;
         let store = Store::new(node_id, &info);
+        let identity = LssIdentity {
+            vendor_id: store.u32(idx(0x1018, 1)),
+            product_code: store.u32(idx(0x1018, 2)),
+            revision_number: store.u32(idx(0x1018, 3)),
+            serial_number: store.u32(R_SERIAL),
+        };
+        let lss_node_id = (node_id != UNCONFIGURED_NODE_ID).then_some(node_id);
+        let lss = LssSlave::new(identity, lss_node_id, DEFAULT_LSS_BIT_TIMING)
+            .map_err(|_| ConfigError::InvalidNodeId(node_id))?;
         let mut core = Core {
             node_id,
             info,
@@ -567,6 +625,10 @@ impl Node {
             boot_keeps_app: false,
             events: Deque::new(),
             events_dropped: 0,
+            lss,
+            lss_store_external: false,
+            lss_store: None,
+            lss_bit_timing_activated: None,
             seen_cia: State::NotReadyToSwitchOn,
             seen_nmt: NmtState::Initialising,
         };
@@ -619,6 +681,7 @@ impl Node {
             NmtCommand::ResetNode => {
                 // The application resets too: the drive re-initialises its axis.
                 drive.reset();
+                c.take_lss_node_id(true);
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
                 c.cia = Cia402::new(f);
@@ -628,6 +691,7 @@ impl Node {
                 c.start_boot(now_us, false);
             }
             NmtCommand::ResetCommunication => {
+                c.take_lss_node_id(false);
                 c.restore_range(0x1000, 0x1FFF);
                 // 0x1001 / 0x1003 keep what the drive is still in FAULT for
                 let before = c.emcy.active_codes();
@@ -692,6 +756,19 @@ impl Node {
         self.core.now_us = now_us;
         if frame.extended || frame.id > 0x7FF {
             return FrameEvent::Ignored;
+        }
+        if frame.id == LSS_REQUEST && self.core.boot_due_us.is_none() {
+            return self.lss_frame(frame, now_us, drive);
+        }
+        if self.lss_unconfigured() {
+            // Non-configured: silent but for LSS; a broadcast NMT reset still resets it.
+            return match nmt::decode(frame, 0) {
+                Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication)) => {
+                    self.nmt_command(cmd, now_us, drive);
+                    FrameEvent::Handled
+                }
+                _ => FrameEvent::Ignored,
+            };
         }
         if self.core.nmt == NmtState::Initialising {
             // Deaf while booting, but a SYNC still tells a lock-step runtime time goes on.
@@ -771,6 +848,46 @@ impl Node {
             return FrameEvent::Handled;
         }
         FrameEvent::Ignored
+    }
+
+    /// Non-configured (node-ID 0xFF) and not booting: only LSS is served.
+    fn lss_unconfigured(&self) -> bool {
+        self.core.node_id == UNCONFIGURED_NODE_ID && self.core.boot_due_us.is_none()
+    }
+
+    /// An LSS request (COB-ID 0x7E5), in every NMT state once booted (as Lely; CANopenNode
+    /// too) and while non-configured.
+    fn lss_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
+        let out = self.core.lss.handle(frame);
+        if let Some(f) = out.response {
+            self.core.push(f);
+        }
+        match out.event {
+            Some(LssEvent::ResetCommunication { .. }) => {
+                // CiA 305: a non-configured node given a node-ID boots with it when switched
+                // back to waiting.
+                self.nmt_command(NmtCommand::ResetCommunication, now_us, drive);
+            }
+            Some(LssEvent::StoreRequested {
+                node_id,
+                bit_timing_index,
+            }) => {
+                if self.core.lss_store_external {
+                    self.core.lss_store = Some(LssStore {
+                        node_id,
+                        bit_timing_index,
+                    });
+                } else if let Some(f) = self.core.lss.store_done(true) {
+                    self.core.push(f);
+                }
+            }
+            Some(LssEvent::ActivateBitTiming {
+                table_index,
+                switch_delay_ms,
+            }) => self.core.lss_bit_timing_activated = Some((table_index, switch_delay_ms)),
+            _ => {}
+        }
+        FrameEvent::Handled
     }
 
     fn heartbeat_in(&mut self, id_low: u8, now_us: u64) {
@@ -923,6 +1040,64 @@ impl Node {
         self.sdo.timeout_us = timeout_us;
     }
 
+    /// What the LSS slave holds at power-on (its non-volatile memory): the node-ID (`None`:
+    /// non-configured) and the bit timing (CiA 301 table index). Call before [`Node::boot`];
+    /// the node takes that node-ID. The LSS address (0x1018, serial number included) stays
+    /// the one the node was built with.
+    pub fn set_lss_power_on(
+        &mut self,
+        node_id: Option<u8>,
+        bit_timing_index: u8,
+    ) -> Result<(), LssConfigError> {
+        let c = &mut self.core;
+        let lss = LssSlave::new(c.lss.identity(), node_id, bit_timing_index)?;
+        let serial = c.store.u32(R_SERIAL);
+        c.lss = lss;
+        c.node_id = node_id.unwrap_or(UNCONFIGURED_NODE_ID);
+        c.store = Store::new(c.node_id, &c.info);
+        c.store.set(R_SERIAL, serial);
+        c.refresh_all();
+        Ok(())
+    }
+
+    /// LSS store configuration goes to the emulator: the node hands each request out through
+    /// [`Node::take_lss_store`] and answers when told the outcome ([`Node::lss_store_done`]).
+    /// Without this (default) the node keeps the stored values in memory (an NMT reset node
+    /// loads them; a new process does not) and answers at once.
+    pub fn set_lss_store_external(&mut self, external: bool) {
+        self.core.lss_store_external = external;
+    }
+
+    /// A store configuration to write (once per request); then call
+    /// [`Node::lss_store_done`].
+    pub fn take_lss_store(&mut self) -> Option<LssStore> {
+        self.core.lss_store.take()
+    }
+
+    /// The outcome of the store handed out by [`Node::take_lss_store`]: the LSS answer is
+    /// queued (error 0, or 2 when `stored` is false).
+    pub fn lss_store_done(&mut self, stored: bool) {
+        if let Some(f) = self.core.lss.store_done(stored) {
+            self.core.push(f);
+        }
+    }
+
+    /// The last LSS activate bit timing not yet taken: (CiA 301 table index, switch delay
+    /// ms). A real drive switches its CAN controller; the emulator can only report it.
+    pub fn take_lss_bit_timing_activation(&mut self) -> Option<(u8, u16)> {
+        self.core.lss_bit_timing_activated.take()
+    }
+
+    /// LSS state (waiting or configuration).
+    pub fn lss_state(&self) -> LssState {
+        self.core.lss.state()
+    }
+
+    /// The LSS slave's pending node-ID (active after the next NMT reset communication).
+    pub fn lss_pending_node_id(&self) -> Option<u8> {
+        self.core.lss.pending_node_id()
+    }
+
     /// The next frame to send.
     pub fn pop_tx(&mut self) -> Option<CanFrame> {
         self.core.tx.pop_front()
@@ -977,7 +1152,7 @@ impl Node {
     }
 
     // ----- read-only accessors -----
-    /// Node ID, 1..=127.
+    /// Node ID, 1..=127, or 255 while non-configured (LSS).
     pub fn node_id(&self) -> u8 {
         self.core.node_id
     }

@@ -156,7 +156,7 @@ pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
     s.push_str(
         "SimpleBootUpMaster=0\nSimpleBootUpSlave=1\nGranularity=8\nDynamicChannelsSupported=0\n",
     );
-    s.push_str("GroupMessaging=0\nNrOfRXPDO=4\nNrOfTXPDO=4\nLSS_Supported=0\n\n");
+    s.push_str("GroupMessaging=0\nNrOfRXPDO=4\nNrOfTXPDO=4\nLSS_Supported=1\n\n");
     if let Some(id) = meta.node_id {
         let _ = writeln!(
             s,
