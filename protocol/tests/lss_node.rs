@@ -316,3 +316,10 @@ fn power_on_values_from_non_volatile_memory() {
         assert!(Node::new(n, info()).is_err(), "{n}");
     }
 }
+
+#[test]
+fn the_eds_says_lss_is_supported() {
+    let eds = Node::new(5, info()).unwrap().export_eds();
+    assert!(eds.contains("\nLSS_Supported=1\n"), "{eds}");
+    assert!(!eds.contains("LSS_Supported=0"));
+}
