@@ -5,10 +5,8 @@
 //!
 //! Needs vcan: `./vcan-setup.sh -- cargo nextest run -p e2e --test lss`. Bus 0, node 40.
 
-use std::process::Command;
-use std::time::Duration;
-
 use e2e::{iface, open_bus, python, repo_root, sdo_u32, wait_bootup, Emu, Peer, PEER_TIMEOUT};
+use std::process::Command;
 
 const NODE: u8 = 40;
 /// The drive's LSS address: 0x1018 of `--node 255` (vendor 0, product 0x402, revision
@@ -113,6 +111,5 @@ fn python_lss_master_gives_a_non_configured_drive_its_node_id_and_the_store_surv
         "{}",
         exit.stderr
     );
-    std::thread::sleep(Duration::from_millis(10));
     let _ = std::fs::remove_dir_all(&dir);
 }
