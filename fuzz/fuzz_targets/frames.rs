@@ -1,5 +1,6 @@
 //! Any byte string becomes a sequence of frames and time steps; the node must never panic
-//! and must answer a valid SDO afterwards.
+//! and must answer a valid SDO afterwards (given back its node-ID by LSS if the frames
+//! changed it).
 //!
 //! Run (nightly): cargo +nightly fuzz run frames
 //! Compile check (stable): cargo check --manifest-path fuzz/Cargo.toml
@@ -130,6 +131,20 @@ fuzz_target!(|data: &[u8]| {
             node.poll(now, &mut drive);
         }
         while node.pop_tx().is_some() {}
+    }
+    // LSS (0x7E5) may have given the node another node-ID or none: the master gives it back
+    // by LSS and resets its communication.
+    if node.node_id() != ID {
+        for d in [
+            [0x04, 1, 0, 0, 0, 0, 0, 0],
+            [0x11, ID, 0, 0, 0, 0, 0, 0],
+            [0x04, 0, 0, 0, 0, 0, 0, 0],
+        ] {
+            node.handle(&CanFrame::new(0x7E5, &d), now, &mut drive);
+        }
+        node.handle(&CanFrame::new(0, &[0x82, 0]), now, &mut drive);
+        node.poll(now, &mut drive);
+        assert_eq!(node.node_id(), ID, "node-ID given back by LSS");
     }
     node.handle(&CanFrame::new(0, &[0x80, ID]), now, &mut drive);
     now += 2_000_000;

@@ -13,6 +13,7 @@ use crate::cia301::pdo::rpdo::RxOutcome;
 use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer};
 use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
+use crate::cia305::{LssEvent, LssIdentity, LssSlave, LssState};
 use crate::cia402::factor::Factor;
 use crate::cia402::mode::Mode;
 use crate::cia402::{objects as o402, Cia402, State};
@@ -20,6 +21,7 @@ use crate::drive::{Drive, DriveInfo};
 use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
 use crate::od::{idx, Backing, Entry, Lookup, ObjectDictionary, Slot, Store};
+use crate::wire::lss::{LSS_REQUEST, UNCONFIGURED_NODE_ID};
 use crate::wire::{cob, Heartbeat};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
@@ -44,11 +46,48 @@ const R_1016: usize = idx(0x1016, 1);
 const R_1017: usize = idx(0x1017, 0);
 const R_1019: usize = idx(0x1019, 0);
 const R_6502: usize = idx(0x6502, 0);
+const R_SERIAL: usize = idx(0x1018, 4);
+
+/// The bit timing an LSS slave reports at power-on unless told otherwise: CiA 301 table
+/// index 0, 1 Mbit/s.
+pub const DEFAULT_LSS_BIT_TIMING: u8 = 0;
+
+/// The node's LSS slave (CiA 305): what its non-volatile memory holds at power-on and who
+/// writes a store configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LssConfig {
+    /// Bit timing (CiA 301 table index) at power-on.
+    pub bit_timing_index: u8,
+    /// A store configuration goes to the application ([`Node::take_lss_store`], answered by
+    /// [`Node::lss_store_done`]); else the node keeps the stored values in memory (an NMT
+    /// reset node loads them, a new node does not) and answers at once.
+    pub store_external: bool,
+}
+
+impl Default for LssConfig {
+    fn default() -> Self {
+        LssConfig {
+            bit_timing_index: DEFAULT_LSS_BIT_TIMING,
+            store_external: false,
+        }
+    }
+}
+
+/// A store configuration (LSS) the application is to write to non-volatile memory: the
+/// pending node-ID (`None`: non-configured) and bit timing. See [`Node::take_lss_store`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LssStore {
+    /// Node-ID to store (`None`: non-configured).
+    pub node_id: Option<u8>,
+    /// CiA 301 bit timing table index to store.
+    pub bit_timing_index: u8,
+}
 
 /// Everything a node is built from, once ([`Node::new`]).
 #[derive(Clone, Debug)]
 pub struct NodeConfig {
-    /// Node ID 1..=127.
+    /// Node ID 1..=127; 255 (with LSS): non-configured, silent but for LSS until a master
+    /// gives it one.
     pub node_id: u8,
     /// Static facts of the drive (factor-group defaults).
     pub info: DriveInfo,
@@ -61,6 +100,9 @@ pub struct NodeConfig {
     pub boot_delay_us: u64,
     /// Timeout of a stalled SDO transfer, us (default 1 s).
     pub sdo_timeout_us: u64,
+    /// The LSS slave (CiA 305); `None`: the node answers no LSS (and cannot be
+    /// non-configured). Its identity is the dictionary's 0x1018:1-4.
+    pub lss: Option<LssConfig>,
 }
 
 impl NodeConfig {
@@ -72,6 +114,7 @@ impl NodeConfig {
             od: ObjectDictionary::standard(&info),
             boot_delay_us: 0,
             sdo_timeout_us: crate::cia301::sdo::DEFAULT_TIMEOUT_US,
+            lss: Some(LssConfig::default()),
         }
     }
 
@@ -106,10 +149,12 @@ pub enum FrameEvent {
 /// Why a node could not be built.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum ConfigError {
-    /// Node IDs are 1..=127.
+    /// Node IDs are 1..=127, or 255 (non-configured) with LSS.
     InvalidNodeId(u8),
     /// A zero in the encoder resolution, gear ratio or feed constant.
     InvalidDriveInfo,
+    /// The LSS bit timing is not a CiA 301 table index the slave supports.
+    InvalidBitTiming(u8),
     /// The dictionary lacks an object every CiA 301 node has (0x1000, 0x1001, 0x1018:1-4).
     MissingObject {
         /// Index.
@@ -122,8 +167,17 @@ pub enum ConfigError {
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ConfigError::InvalidNodeId(n) => write!(f, "node id {n} outside 1..=127"),
+            ConfigError::InvalidNodeId(n) => {
+                write!(
+                    f,
+                    "node id {n} outside 1..=127 (255: non-configured, with LSS)"
+                )
+            }
             ConfigError::InvalidDriveInfo => write!(f, "drive info has a zero in the factor group"),
+            ConfigError::InvalidBitTiming(i) => write!(
+                f,
+                "LSS bit timing index {i} is not a CiA 301 bit rate (0..=4, 6..=8)"
+            ),
             ConfigError::MissingObject { index, sub } => write!(
                 f,
                 "the object dictionary has no 0x{index:04X} sub {sub}, which every CiA 301 node has"
@@ -174,6 +228,14 @@ struct Core {
     boot_keeps_app: bool,
     events: Deque<NodeEvent, EVENT_QUEUE>,
     events_dropped: u32,
+    /// LSS slave (CiA 305); `node_id` is its active node-ID (0xFF: non-configured).
+    lss: Option<LssSlave>,
+    /// Store configuration is written by the application ([`LssConfig::store_external`]).
+    lss_store_external: bool,
+    /// A store the application has not taken yet.
+    lss_store: Option<LssStore>,
+    /// The last activate bit timing (table index, switch delay ms), not yet taken.
+    lss_bit_timing_activated: Option<(u8, u16)>,
     /// CiA 402 and NMT state as last reported in an event.
     seen_cia: State,
     seen_nmt: NmtState,
@@ -485,6 +547,11 @@ impl Core {
     fn boot(&mut self, now_us: u64) {
         self.boot_due_us = None;
         self.boot_keeps_app = false;
+        if self.node_id == UNCONFIGURED_NODE_ID {
+            // CiA 305: no node-ID, no boot-up; the node stays initialising and answers LSS
+            // only (as Lely's NMT does; CANopenNode skips the other services).
+            return;
+        }
         self.nmt = NmtState::PreOperational;
         self.refresh_all();
         self.sync = SyncConsumer::default();
@@ -498,11 +565,28 @@ impl Core {
     }
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
+        let serial = self.store.raw(R_SERIAL);
         if self.has_saved {
             self.store.copy_range(&self.saved, &self.od, lo, hi);
         } else {
             self.store.reset_range(&self.od, lo, hi, self.node_id);
         }
+        // The serial number (0x1018:4, $NODEID in the standard dictionary) is part of the
+        // LSS address: it stays what it was at power-on when LSS changes the node-ID.
+        self.store.set(R_SERIAL, serial);
+    }
+
+    /// An NMT reset: the LSS slave's node-ID for the reset (pending at reset communication,
+    /// stored at reset node) becomes the node's.
+    fn take_lss_node_id(&mut self, reset_node: bool) {
+        let Some(lss) = self.lss.as_mut() else { return };
+        if reset_node {
+            lss.reset_node();
+            self.lss_store = None;
+        } else {
+            lss.reset_communication();
+        }
+        self.node_id = lss.active_node_id().unwrap_or(UNCONFIGURED_NODE_ID);
     }
 
     /// A SYNC, handled `late_us` after it arrived (the runtime read it late). Synchronous TPDOs
@@ -554,8 +638,10 @@ impl Node {
             od,
             boot_delay_us,
             sdo_timeout_us,
+            lss,
         } = cfg;
-        if !(1..=127).contains(&node_id) {
+        let unconfigured = node_id == UNCONFIGURED_NODE_ID && lss.is_some();
+        if !(1..=127).contains(&node_id) && !unconfigured {
             return Err(ConfigError::InvalidNodeId(node_id));
         }
         for (index, sub) in [
@@ -580,6 +666,28 @@ impl Node {
         let mut sdo = SdoServer::with_capacity(store.max_capacity());
         sdo.timeout_us = sdo_timeout_us;
         let pdo = PdoEngine::new(&od);
+        let lss_slave = match lss {
+            Some(l) => {
+                let identity = LssIdentity {
+                    vendor_id: store.u32(idx(0x1018, 1)),
+                    product_code: store.u32(idx(0x1018, 2)),
+                    revision_number: store.u32(idx(0x1018, 3)),
+                    serial_number: store.u32(R_SERIAL),
+                };
+                let id = (node_id != UNCONFIGURED_NODE_ID).then_some(node_id);
+                Some(
+                    LssSlave::new(identity, id, l.bit_timing_index).map_err(|e| match e {
+                        crate::cia305::LssConfigError::UnsupportedBitTiming(i) => {
+                            ConfigError::InvalidBitTiming(i)
+                        }
+                        crate::cia305::LssConfigError::InvalidNodeId(n) => {
+                            ConfigError::InvalidNodeId(n)
+                        }
+                    })?,
+                )
+            }
+            None => None,
+        };
         let mut core = Core {
             node_id,
             info,
@@ -605,6 +713,10 @@ impl Node {
             boot_keeps_app: false,
             events: Deque::new(),
             events_dropped: 0,
+            lss: lss_slave,
+            lss_store_external: lss.is_some_and(|l| l.store_external),
+            lss_store: None,
+            lss_bit_timing_activated: None,
             seen_cia: State::NotReadyToSwitchOn,
             seen_nmt: NmtState::Initialising,
         };
@@ -647,6 +759,7 @@ impl Node {
             NmtCommand::ResetNode => {
                 // The application resets too: the drive re-initialises its axis.
                 drive.reset();
+                c.take_lss_node_id(true);
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
                 c.cia = Cia402::new(f);
@@ -655,6 +768,7 @@ impl Node {
                 c.start_boot(now_us, false);
             }
             NmtCommand::ResetCommunication => {
+                c.take_lss_node_id(false);
                 c.restore_range(0x1000, 0x1FFF);
                 // 0x1001 / 0x1003 keep what the drive is still in FAULT for
                 let before = c.emcy.active_codes();
@@ -719,6 +833,19 @@ impl Node {
         self.core.now_us = now_us;
         if frame.extended || frame.id > 0x7FF {
             return FrameEvent::Ignored;
+        }
+        if frame.id == LSS_REQUEST && self.core.boot_due_us.is_none() && self.core.lss.is_some() {
+            return self.lss_frame(frame, now_us, drive);
+        }
+        if self.lss_unconfigured() {
+            // Non-configured: silent but for LSS; a broadcast NMT reset still resets it.
+            return match nmt::decode(frame, 0) {
+                Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication)) => {
+                    self.nmt_command(cmd, now_us, drive);
+                    FrameEvent::Handled
+                }
+                _ => FrameEvent::Ignored,
+            };
         }
         if self.core.nmt == NmtState::Initialising {
             // Deaf while booting, but a SYNC still tells a lock-step runtime time goes on.
@@ -800,6 +927,49 @@ impl Node {
             return FrameEvent::Handled;
         }
         FrameEvent::Ignored
+    }
+
+    /// Non-configured (node-ID 0xFF) and not booting: only LSS is served.
+    fn lss_unconfigured(&self) -> bool {
+        self.core.node_id == UNCONFIGURED_NODE_ID && self.core.boot_due_us.is_none()
+    }
+
+    /// An LSS request (COB-ID 0x7E5), in every NMT state once booted (as Lely and
+    /// CANopenNode) and while non-configured.
+    fn lss_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
+        let Some(lss) = self.core.lss.as_mut() else {
+            return FrameEvent::Ignored;
+        };
+        let out = lss.handle(frame);
+        if let Some(f) = out.response {
+            self.core.push(f);
+        }
+        match out.event {
+            Some(LssEvent::ResetCommunication { .. }) => {
+                // CiA 305: a non-configured node given a node-ID boots with it when switched
+                // back to waiting.
+                self.nmt_command(NmtCommand::ResetCommunication, now_us, drive);
+            }
+            Some(LssEvent::StoreRequested {
+                node_id,
+                bit_timing_index,
+            }) => {
+                if self.core.lss_store_external {
+                    self.core.lss_store = Some(LssStore {
+                        node_id,
+                        bit_timing_index,
+                    });
+                } else if let Some(f) = self.core.lss.as_mut().and_then(|l| l.store_done(true)) {
+                    self.core.push(f);
+                }
+            }
+            Some(LssEvent::ActivateBitTiming {
+                table_index,
+                switch_delay_ms,
+            }) => self.core.lss_bit_timing_activated = Some((table_index, switch_delay_ms)),
+            _ => {}
+        }
+        FrameEvent::Handled
     }
 
     fn heartbeat_in(&mut self, id_low: u8, now_us: u64) {
@@ -944,6 +1114,36 @@ impl Node {
         }
     }
 
+    /// A store configuration to write (once per request, with [`LssConfig::store_external`]);
+    /// then call [`Node::lss_store_done`].
+    pub fn take_lss_store(&mut self) -> Option<LssStore> {
+        self.core.lss_store.take()
+    }
+
+    /// The outcome of the store handed out by [`Node::take_lss_store`]: the LSS answer is
+    /// queued (error 0, or 2 when `stored` is false).
+    pub fn lss_store_done(&mut self, stored: bool) {
+        if let Some(f) = self.core.lss.as_mut().and_then(|l| l.store_done(stored)) {
+            self.core.push(f);
+        }
+    }
+
+    /// The last LSS activate bit timing not yet taken: (CiA 301 table index, switch delay
+    /// ms). A real drive switches its CAN controller; the emulator can only report it.
+    pub fn take_lss_bit_timing_activation(&mut self) -> Option<(u8, u16)> {
+        self.core.lss_bit_timing_activated.take()
+    }
+
+    /// LSS state (waiting or configuration); `None` without LSS.
+    pub fn lss_state(&self) -> Option<LssState> {
+        self.core.lss.as_ref().map(|l| l.state())
+    }
+
+    /// The LSS slave's pending node-ID (active after the next NMT reset communication).
+    pub fn lss_pending_node_id(&self) -> Option<u8> {
+        self.core.lss.as_ref().and_then(|l| l.pending_node_id())
+    }
+
     /// The next frame to send.
     pub fn pop_tx(&mut self) -> Option<CanFrame> {
         self.core.tx.pop_front()
@@ -985,7 +1185,7 @@ impl Node {
     }
 
     // ----- read-only accessors -----
-    /// Node ID, 1..=127.
+    /// Node ID, 1..=127, or 255 while non-configured (LSS).
     pub fn node_id(&self) -> u8 {
         self.core.node_id
     }

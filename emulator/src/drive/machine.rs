@@ -71,9 +71,12 @@ pub fn validate(m: &MachineFile) -> Result<()> {
     }
     let mut seen = std::collections::BTreeSet::new();
     for (i, a) in m.axes.iter().enumerate() {
-        if !(1..=127).contains(&a.node_id) {
+        // 255: non-configured (LSS), for a single drive: two would share one LSS address
+        let lss_single = a.node_id == 255 && m.axes.len() == 1;
+        if !(1..=127).contains(&a.node_id) && !lss_single {
             bail!(
-                "axis {} key `node_id`: {} is outside 1..=127",
+                "axis {} key `node_id`: {} is outside 1..=127 (255, non-configured for LSS, \
+                 only on a machine of one axis)",
                 i + 1,
                 a.node_id
             );
@@ -122,6 +125,24 @@ pub fn value_text(v: &toml::Value) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Node-ID 255 (non-configured, LSS) on a machine of one axis; not on two (they would
+    /// share one LSS address).
+    #[test]
+    fn node_id_255_only_on_a_single_axis() {
+        assert!(parse("[[axis]]\nnode_id = 255\npreset = \"cnc1\"\n", "m.toml").is_ok());
+        let e = parse(
+            "[[axis]]\nnode_id = 255\npreset = \"a\"\n[[axis]]\nnode_id = 6\npreset = \"b\"\n",
+            "m.toml",
+        )
+        .unwrap_err();
+        let e = format!("{e:#}");
+        assert!(e.contains("255") && e.contains("one axis"), "{e}");
+        for bad in [0u8, 128, 254] {
+            let text = format!("[[axis]]\nnode_id = {bad}\npreset = \"a\"\n");
+            assert!(parse(&text, "m.toml").is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn parses_axes_and_overrides() {

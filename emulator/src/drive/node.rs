@@ -5,8 +5,8 @@
 use super::axis_drive::AxisDrive;
 use super::objects;
 use super::vendor::VendorEds;
-use drive_protocol::od::{BuildReport, ObjectDictionary};
-use drive_protocol::{Drive, Node, NodeConfig};
+use drive_protocol::od::{BuildReport, DefaultValue, ObjectDictionary};
+use drive_protocol::{Drive, LssConfig, Node, NodeConfig};
 use std::sync::Arc;
 
 /// How to build a drive's node.
@@ -21,6 +21,13 @@ pub struct NodeOptions {
     pub objects_base: Option<u16>,
     /// The vendor's EDS or DCF whose dictionary the drive serves (`None`: the standard one).
     pub eds: Option<Arc<VendorEds>>,
+    /// The LSS slave's power-on bit timing and who writes a store configuration (the slave
+    /// exists where the dictionary says LSS_Supported: always for ours).
+    pub lss: LssConfig,
+    /// The identity's serial number 0x1018:4, part of the LSS address (`None`: the
+    /// dictionary's default; the standard one's is the node-ID). Give it when the node-ID
+    /// may change (LSS, a stored node-ID) so that the address stays.
+    pub serial_number: Option<u32>,
 }
 
 impl NodeOptions {
@@ -32,6 +39,8 @@ impl NodeOptions {
             boot_delay_us: 0,
             objects_base: None,
             eds: None,
+            lss: LssConfig::default(),
+            serial_number: None,
         }
     }
 
@@ -72,12 +81,20 @@ pub fn node_setup(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<N
             (od, objects, None)
         }
     };
+    let mut od = od;
+    if let Some(serial) = opts.serial_number {
+        od.set_default(0x1018, 4, DefaultValue::Value(u64::from(serial)))
+            .map_err(|e| anyhow::anyhow!("serial number: {e}"))?;
+    }
     let objects_base = objects.base;
     drive.objects = Some(objects);
+    let lss = od.device.lss_supported.then_some(opts.lss);
+    let mut config = NodeConfig::new(opts.node_id, info)
+        .with_od(od)
+        .with_boot_delay_us(opts.boot_delay_us);
+    config.lss = lss;
     Ok(NodeSetup {
-        config: NodeConfig::new(opts.node_id, info)
-            .with_od(od)
-            .with_boot_delay_us(opts.boot_delay_us),
+        config,
         objects_base,
         report,
     })

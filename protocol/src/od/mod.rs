@@ -362,7 +362,7 @@ impl Default for DeviceDescription {
             order_code: "-".into(),
             baud_rates_kbit: vec![10, 20, 50, 125, 250, 500, 800, 1000],
             granularity: 8,
-            lss_supported: false,
+            lss_supported: true,
             dummy_usage: [false; 8],
         }
     }
@@ -546,6 +546,27 @@ impl ObjectDictionary {
             }
         };
         Ok(Slot::at(i))
+    }
+
+    /// Give the visible entry at (index, sub) another default (e.g. the identity's serial
+    /// number); the entry's checks apply (kind, limits, capacity).
+    pub fn set_default(
+        &mut self,
+        index: u16,
+        sub: u8,
+        default: DefaultValue,
+    ) -> Result<(), OdError> {
+        let Lookup::Found(slot) = self.find(index, sub) else {
+            return Err(OdError::Invalid {
+                index,
+                sub,
+                reason: "no such entry".into(),
+            });
+        };
+        let e = self.slots[slot.get()].entry.clone().with_default(default);
+        ObjectDictionary::validate(&e)?;
+        self.slots[slot.get()].entry = e;
+        Ok(())
     }
 
     /// Take an entry out of reach (SDO, PDO, EDS); a standard one keeps its slot, hidden.

@@ -417,13 +417,15 @@ impl<D: Drive> Harness<D> {
             if f.extended || f.rtr || f.id > 0x7FF || f.len > 8 {
                 return Err(fail(format!("invalid frame sent: {f:?}")));
             }
-            let allowed = match nmt {
-                NmtState::Stopped => f.id == 0x700 + id,
-                NmtState::PreOperational | NmtState::Initialising => {
-                    f.id == 0x700 + id || f.id == 0x580 + id || f.id == emcy_cob
-                }
-                NmtState::Operational => true,
-            };
+            // LSS (CiA 305) answers on 0x7E4 in every NMT state
+            let allowed = f.id == 0x7E4
+                || match nmt {
+                    NmtState::Stopped => f.id == 0x700 + id,
+                    NmtState::PreOperational | NmtState::Initialising => {
+                        f.id == 0x700 + id || f.id == 0x580 + id || f.id == emcy_cob
+                    }
+                    NmtState::Operational => true,
+                };
             if !allowed {
                 return Err(fail(format!("{nmt:?}: sent {f:?}")));
             }
