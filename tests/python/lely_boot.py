@@ -34,8 +34,8 @@ timeouts (lely-core, src/co/nmt.c, nmt_boot.c, nmt_cfg.c, csdo.c, nmt_hb.c; comm
 Master TPDOs carry the remote objects of master.dcf's remote PDO mappings (0x5E00+, dcfgen
 -r); synchronous ones (type 1-240) go out after every SYNC, event-driven ones (0xFE/0xFF) when
 a mapped object is written. The drive's TPDOs are decoded with 0x5A00+. One value per remote
-object: Lely keeps one copy per PDO (so an object mapped in two of the slave's RPDOs is sent
-stale in the other one); this client does not replay that.
+object, as in dcfgen's master DCF (an object the slave maps in several RPDOs is one local
+sub-object of the master, 0x2200+).
 
 Usage: lely_boot.py --iface vcan0 --node 5 --master-dcf DIR/master.dcf [--master-bin
 DIR/master.bin] [--sdo-timeout-ms 100] [--boot-wait-s 30] [--move-uu 5000]
