@@ -45,7 +45,6 @@ Exit status: 0 pass, 1 fail, 2 bad input (files, options), 3 boot error.
 """
 import argparse
 import configparser
-import os
 import struct
 import sys
 import threading
