@@ -21,7 +21,6 @@ use drive_emu::presets::{preset_names, AxisConfig, AxisKind};
 use drive_emu::runtime::AxisSlot;
 use drive_emu::samples::Sample;
 use drive_emu::session::OfflineRun;
-use drive_protocol::{Drive, Node};
 
 const NODE: u8 = 5;
 const TARGET_UU: i32 = 10_000;
@@ -100,8 +99,8 @@ fn pp_move_and_stand(preset: &'static str, backlash: Option<f64>) -> Run {
         cfg = cfg.with_override(key, &b.to_string()).unwrap();
     }
     let gap_uu = 1000.0 * cfg.backlash_mm.or(cfg.backlash_deg).unwrap_or(0.0);
-    let drive = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(NODE, drive.info()).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node(&mut drive, NODE).unwrap();
     let program = vec![
         Step::Enable { mode: MODE_PP },
         Step::MoveTo {
