@@ -153,19 +153,19 @@ pub struct RunResult {
 pub const SEARCH_BAND_HZ: (f64, f64) = (1.0, 200.0);
 
 /// Why [`constant_velocity_run_until`] gave no result.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum RunError {
     /// The configuration was rejected (key and reason).
     Config(ConfigError),
-    /// The stop flag was set before the run had finished.
-    Stopped,
+    /// The stop flag was set before the run had finished, at this simulated time, s.
+    Stopped { at_s: f64 },
 }
 
 impl std::fmt::Display for RunError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             RunError::Config(e) => e.fmt(f),
-            RunError::Stopped => f.write_str("the run was stopped before it finished"),
+            RunError::Stopped { at_s } => write!(f, "the run was stopped at {at_s:.3} s"),
         }
     }
 }
@@ -190,7 +190,7 @@ pub fn constant_velocity_run(
     run(cfg, opts, || false).map_err(|e| match e {
         RunError::Config(e) => e,
         // `|| false` never stops the run.
-        RunError::Stopped => ConfigError::new("stop", "stopped"),
+        RunError::Stopped { .. } => ConfigError::new("stop", "stopped"),
     })
 }
 
@@ -243,7 +243,7 @@ fn run(
     let kick_force = built.axis.mech.load_mass * kick * unit / (kick_cycles as f64 * dt);
     for i in 0..n {
         if i % STOP_CHECK_CYCLES == 0 && stopped() {
-            return Err(RunError::Stopped);
+            return Err(RunError::Stopped { at_s: servo.time() });
         }
         if kick != 0.0 {
             let on = i >= kick_start && i < kick_start + kick_cycles;

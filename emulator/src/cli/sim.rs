@@ -126,7 +126,7 @@ pub fn simulate(args: &SimArgs, record: bool, stop: &AtomicBool) -> anyhow::Resu
         kick: args.kick,
     };
     constant_velocity_run_until(&cfg, &opts, stop).map_err(|e| match e {
-        RunError::Stopped => anyhow::Error::new(e),
+        RunError::Stopped { .. } => anyhow::Error::new(e),
         RunError::Config(e) => anyhow::anyhow!("{e}"),
     })
 }

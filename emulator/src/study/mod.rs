@@ -117,7 +117,7 @@ pub const CASE_DURATION_S: std::ops::RangeInclusive<f64> = 2.0..=600.0;
 pub fn run_case(base: &AxisConfig, case: &Case) -> Result<CaseRow, ConfigError> {
     run_case_until(base, case, &AtomicBool::new(false)).map_err(|e| match e {
         RunError::Config(e) => e,
-        RunError::Stopped => ConfigError::new("stop", "stopped"),
+        RunError::Stopped { .. } => ConfigError::new("stop", "stopped"),
     })
 }
 

@@ -42,12 +42,14 @@ const POLL: Duration = Duration::from_millis(50);
 
 /// Run `work` on a thread of its own with the GIL released; meanwhile look at Python's signals
 /// every [`POLL`] (a pending `KeyboardInterrupt` sets the stop flag, waits for the work to
-/// end and is raised) and call `progress(done)` when the count of finished items changed. A
-/// panic in `work` is raised as [`InternalError`].
+/// end and is raised, with the note `stopped(result, done)` says: how far the work got) and
+/// call `progress(done)` when the count of finished items changed. A panic in `work` is
+/// raised as [`InternalError`].
 fn interruptible<T: Send>(
     py: Python<'_>,
     progress: Option<Py<PyAny>>,
     work: impl FnOnce(&AtomicBool, &AtomicUsize) -> T + Send,
+    stopped: impl FnOnce(&T, usize) -> Option<String> + Send,
 ) -> PyResult<T> {
     let stop = AtomicBool::new(false);
     let done = AtomicUsize::new(0);
@@ -75,9 +77,17 @@ fn interruptible<T: Send>(
                 });
                 if let Err(e) = looked {
                     stop.store(true, Ordering::Relaxed);
-                    // The work ends within a fraction of a millisecond once it sees the flag;
-                    // its result (or panic) no longer matters.
-                    let _ = worker.join();
+                    // The work ends within a fraction of a millisecond once it sees the flag.
+                    let note = match worker.join() {
+                        Ok(Ok(v)) => stopped(&v, done.load(Ordering::Relaxed)),
+                        _ => None,
+                    };
+                    if let Some(note) = note {
+                        Python::attach(|py| {
+                            // BaseException.add_note: Python 3.11 and later
+                            let _ = e.value(py).call_method1("add_note", (note,));
+                        });
+                    }
                     return Err(e);
                 }
                 if finished {
@@ -162,7 +172,18 @@ fn sim<'py>(
         json: true,
         max_memory_mb,
     };
-    let res = interruptible(py, None, |stop, _| simulate(&args, record, stop))?;
+    let duration = args.duration;
+    let res = interruptible(
+        py,
+        None,
+        |stop, _| simulate(&args, record, stop),
+        |r, _| match r.as_ref().err()?.downcast_ref::<RunError>()? {
+            RunError::Stopped { at_s } => Some(format!(
+                "drive_emu.sim: stopped at {at_s:.3} of {duration} simulated s"
+            )),
+            RunError::Config(_) => None,
+        },
+    )?;
     let res = res.map_err(to_py_err)?;
     let summary = serde_json::to_string(&res.summary)
         .map_err(|e| InternalError::new_err(format!("summary as JSON: {e}")))?;
@@ -218,20 +239,25 @@ fn analyze(
         json: true,
         ..AnalyzeArgs::default()
     };
-    let result = interruptible(py, None, |_, _| -> anyhow::Result<String> {
-        let input = match &columns {
-            Some(columns) => AnalyzeInput::Columns {
-                source: &source,
-                columns,
-            },
-            None => AnalyzeInput::File,
-        };
-        let mut analysis = analyze_input(&args, input)?;
-        if let Some(out) = &out {
-            write_report(&mut analysis, out)?;
-        }
-        Ok(serde_json::to_string(&analysis.output)?)
-    })?;
+    let result = interruptible(
+        py,
+        None,
+        |_, _| -> anyhow::Result<String> {
+            let input = match &columns {
+                Some(columns) => AnalyzeInput::Columns {
+                    source: &source,
+                    columns,
+                },
+                None => AnalyzeInput::File,
+            };
+            let mut analysis = analyze_input(&args, input)?;
+            if let Some(out) = &out {
+                write_report(&mut analysis, out)?;
+            }
+            Ok(serde_json::to_string(&analysis.output)?)
+        },
+        |_, _| None,
+    )?;
     result.map_err(|e| {
         if e.chain().any(|c| c.downcast_ref::<UsageError>().is_some()) {
             PyValueError::new_err(python_names(&format!("{e:#}")))
@@ -320,15 +346,26 @@ fn sweep(
             );
         }
     }
-    let rows = interruptible(py, progress, |stop, done| {
-        run_parallel(&cases, threads, stop, done, |case| {
-            let r = run_one(&bases, case, stop);
-            if matches!(r, Err(Some(_))) {
-                stop.store(true, Ordering::Relaxed);
-            }
-            r
-        })
-    })?;
+    let total = cases.len();
+    let rows = interruptible(
+        py,
+        progress,
+        |stop, done| {
+            run_parallel(&cases, threads, stop, done, |case| {
+                let r = run_one(&bases, case, stop);
+                if matches!(r, Err(Some(_))) {
+                    stop.store(true, Ordering::Relaxed);
+                }
+                r
+            })
+        },
+        |rows, _| {
+            let finished = rows.iter().filter(|r| matches!(r, Some(Ok(_)))).count();
+            Some(format!(
+                "drive_emu.sweep: stopped after {finished} of {total} runs"
+            ))
+        },
+    )?;
     let mut out = Vec::with_capacity(rows.len());
     let mut first_error = None;
     for (i, r) in rows.into_iter().enumerate() {
@@ -390,7 +427,7 @@ fn run_one(
         )));
     }
     measure_until(&cfg, velocity, *duration, stop).map_err(|e| match e {
-        RunError::Stopped => None,
+        RunError::Stopped { .. } => None,
         RunError::Config(e) => Some(e.to_string()),
     })
 }
@@ -399,7 +436,7 @@ fn run_one(
 /// leaves the interpreter running (it runs on the worker thread, as real work does).
 #[pyfunction]
 fn _panic_for_test(py: Python<'_>, message: String) -> PyResult<()> {
-    interruptible(py, None, |_, _| -> () { panic!("{message}") })
+    interruptible(py, None, |_, _| -> () { panic!("{message}") }, |_, _| None)
 }
 
 #[pymodule]
