@@ -19,9 +19,10 @@ use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyRuntimeError, PyValueEr
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use clap::{Args as _, FromArgMatches as _};
 use drive_emu::analysis::{RunError, Trace};
 use drive_emu::cli::analyze::{analyze_input, write_report, AnalyzeArgs, AnalyzeInput, UsageError};
-use drive_emu::cli::eds::{eds_text, EdsArgs, Real32Arg};
+use drive_emu::cli::eds::{eds_text, EdsArgs};
 use drive_emu::cli::sim::{simulate, SimArgs};
 use drive_emu::presets::{preset_names, AxisConfig, AxisKind};
 use drive_emu::study::{
@@ -292,33 +293,33 @@ fn presets() -> PyResult<String> {
     serde_json::to_string(&all).map_err(|e| InternalError::new_err(e.to_string()))
 }
 
-/// `drive-emu eds`: the EDS text.
+/// `drive-emu eds`: the EDS text. The arguments go through the command's own parser, so
+/// every flag the module does not set keeps the CLI's default.
 #[pyfunction]
 #[pyo3(signature = (preset, node, sets, real32, canopen_monitor))]
 fn eds(
     preset: String,
     node: Option<u8>,
     sets: Vec<String>,
-    real32: &str,
+    real32: String,
     canopen_monitor: bool,
 ) -> PyResult<String> {
-    let real32 = match real32 {
-        "bits" => Real32Arg::Bits,
-        "decimal" => Real32Arg::Decimal,
-        other => {
-            return Err(PyValueError::new_err(format!(
-                "real32: `{other}` is not a notation (bits or decimal)"
-            )))
-        }
-    };
-    let args = EdsArgs {
-        preset,
-        node,
-        set: sets,
-        real32,
-        canopen_monitor,
-    };
-    eds_text(&args).map_err(to_py_err)
+    let mut argv = vec!["eds".to_string(), "--preset".into(), preset];
+    if let Some(n) = node {
+        argv.extend(["--node".into(), n.to_string()]);
+    }
+    for s in sets {
+        argv.extend(["--set".into(), s]);
+    }
+    argv.extend(["--real32".into(), real32]);
+    if canopen_monitor {
+        argv.push("--canopen-monitor".into());
+    }
+    let parsed = EdsArgs::augment_args(clap::Command::new("eds").no_binary_name(false))
+        .try_get_matches_from(&argv)
+        .and_then(|m| EdsArgs::from_arg_matches(&m))
+        .map_err(|e| PyValueError::new_err(python_names(&e.render().to_string())))?;
+    eds_text(&parsed).map_err(to_py_err)
 }
 
 /// One case of a sweep as Python sends it: preset, `key=value` overrides (`backlash` is the

@@ -89,7 +89,7 @@ def test_sweep_bad_arguments():
 
 
 def test_eds_bad_arguments():
-    with pytest.raises(ValueError, match="real32.*bits or decimal"):
+    with pytest.raises(ValueError, match=r"(?s)invalid value 'hex'.*real32.*bits, decimal"):
         drive_emu.eds("cnc1", real32="hex")
     with pytest.raises(ValueError, match="node"):
         drive_emu.eds("cnc1", node=128)
