@@ -43,7 +43,8 @@ def cli_path():
 def grid(n_cases, duration):
     presets = drive_emu.presets()
     k = max(1, round(n_cases / (len(presets) * 3)))
-    mults = [0.5 + 1.5 * i / (k - 1) for i in range(k)] if k > 1 else [0.5]
+    # as the CLI's ValueSpec computes 0.5x..2x:k, to the last bit
+    mults = [0.5 + (i / (k - 1)) * (2.0 - 0.5) for i in range(k)] if k > 1 else [0.5]
     cases = [{"preset": name, "kv_per_s": m * p["kv_per_s"], "backlash": b * p["backlash"],
               "duration": duration}
              for name, p in presets.items() for m in mults for b in (0.5, 1.0, 2.0)]
