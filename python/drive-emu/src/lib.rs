@@ -2,8 +2,8 @@
 //! every function calls the code `drive-emu sim`, `analyze`, `sweep`, `eds` and `presets`
 //! run, and hands back JSON text (parsed by `python/drive_emu/__init__.py`) and numpy arrays.
 //!
-//! Every run goes through [`interruptible`]: the work runs on a thread of its own with the GIL
-//! released, while the calling thread wakes every [`POLL`] to look at Python's signals
+//! Every run goes through `interruptible`: the work runs on a thread of its own with the GIL
+//! released, while the calling thread wakes every `POLL` (50 ms) to look at Python's signals
 //! (Ctrl-C: the run is stopped through its stop flag and `KeyboardInterrupt` raised) and to
 //! report progress; a panic in the work becomes `drive_emu.InternalError`, never an abort.
 
