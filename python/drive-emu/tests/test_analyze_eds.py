@@ -71,3 +71,21 @@ def test_eds_equals_the_cli(cli, monkeypatch, args, kwargs):
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")  # the same FileInfo time
     want = cli("eds", *args).stdout
     assert drive_emu.eds(**kwargs) == want
+
+
+CORPUS = os.path.join(os.path.dirname(__file__), "..", "..", "..", "tests", "corpus")
+
+
+@pytest.mark.parametrize("capture", ["csp-1ms-lock-worn05.log.gz", "csp-4ms-lock-healthy.log.gz"])
+def test_analyze_capture_equals_cli_json(cli, tmp_path, capture):
+    """A candump capture (python canopen master on vcan0, tests/corpus), decoded with the
+    drive's PDO mapping: the same report as the CLI, and the corpus' ground truth verdict."""
+    path = os.path.join(CORPUS, capture)
+    truth = json.loads(open(path.replace(".log.gz", ".json")).read())
+    want = cli.json("analyze", path, "--preset", "cnc1", "--node", "5", "--json", "--out",
+                    tmp_path)
+    got = drive_emu.analyze(path, preset="cnc1", node=5)
+    assert got.report == want["report"]
+    assert (got.format, got.capture, got.kv_source) == ("candump", want["capture"],
+                                                        want["kv_source"])
+    assert got.backlash_found == truth["limit_cycle"], (got.verdict, truth)
