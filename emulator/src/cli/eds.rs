@@ -5,7 +5,6 @@ use crate::presets::{preset_names, AxisConfig};
 use anyhow::Result;
 use clap::Args;
 use drive_protocol::od::eds::{EdsMeta, Real32Notation};
-use drive_protocol::{Drive, Node};
 
 #[derive(Args, Debug, Clone)]
 pub struct EdsArgs {
@@ -50,9 +49,8 @@ pub enum Real32Arg {
 pub fn eds_text(args: &EdsArgs) -> Result<String> {
     let cfg = AxisConfig::from_preset(&args.preset)?
         .with_overrides(args.set.iter().map(String::as_str))?;
-    let drive = AxisDrive::from_config(&cfg)?;
-    let node =
-        Node::new(args.node.unwrap_or(1), drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut drive = AxisDrive::from_config(&cfg)?;
+    let node = crate::drive::node(&mut drive, args.node.unwrap_or(1))?;
     let secs = std::env::var("SOURCE_DATE_EPOCH")
         .ok()
         .and_then(|v| v.trim().parse::<u64>().ok())
@@ -84,13 +82,12 @@ pub fn eds_text(args: &EdsArgs) -> Result<String> {
         time: &time,
         date: &date,
         node_id: args.node,
-        params: &[],
         real32: match args.real32 {
             Real32Arg::Bits => Real32Notation::Bits,
             Real32Arg::Decimal => Real32Notation::Decimal,
         },
     };
-    let eds = node.export_eds_of(&drive, &meta);
+    let eds = node.export_eds(&mut drive, &meta);
     Ok(match args.node.filter(|_| args.canopen_monitor) {
         Some(n) => with_canopen_monitor_section(&eds, n),
         None => eds,

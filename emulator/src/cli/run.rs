@@ -4,6 +4,7 @@ use crate::bus::fault::FaultyBus;
 use crate::bus::socketcan::SocketCanBus;
 use crate::drive::axis_drive::AxisDrive;
 use crate::drive::machine::{self, AxisEntry, MachineFile};
+use crate::drive::{build_node, NodeOptions};
 use crate::presets::AxisConfig;
 use crate::runtime::realtime::{self, RealtimeRequest};
 use crate::runtime::trace::{trace_paths, Recorder, TraceTap};
@@ -13,7 +14,6 @@ use crate::scenario::Scenario;
 use crate::time::MonotonicClock;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use drive_protocol::{Drive, Node};
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
@@ -137,7 +137,8 @@ pub fn validate_args(args: &RunArgs) -> Result<()> {
 }
 
 /// Build the nodes and drives of a machine.
-pub fn build_axes(entries: &[AxisEntry]) -> Result<Vec<AxisSlot<AxisDrive>>> {
+/// The axes of a machine, each node with `boot_delay_us` before its boot-up.
+pub fn build_axes(entries: &[AxisEntry], boot_delay_us: u64) -> Result<Vec<AxisSlot<AxisDrive>>> {
     entries
         .iter()
         .map(|e| {
@@ -148,9 +149,10 @@ pub fn build_axes(entries: &[AxisEntry]) -> Result<Vec<AxisSlot<AxisDrive>>> {
                     .with_override(k, &machine::value_text(v))
                     .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
             }
-            let drive = AxisDrive::from_config(&cfg)
+            let mut drive = AxisDrive::from_config(&cfg)
                 .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
-            let node = Node::new(e.node_id, drive.info())
+            let opts = NodeOptions::new(e.node_id).with_boot_delay_us(boot_delay_us);
+            let node = build_node(&mut drive, &opts)
                 .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
             Ok(AxisSlot { node, drive })
         })
@@ -585,18 +587,16 @@ fn live_axes(
         None => machine_from_args(args)?,
     };
     machine::validate(&machine)?;
+    let boot_delay_us = args.boot_delay_ms * 1000;
     let axes = match scenario {
         Some(s) => {
-            let drive = AxisDrive::from_config(&s.machine.configs[0])?;
-            let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
+            let mut drive = AxisDrive::from_config(&s.machine.configs[0])?;
+            let opts = NodeOptions::new(args.node).with_boot_delay_us(boot_delay_us);
+            let node = build_node(&mut drive, &opts)?;
             vec![AxisSlot { node, drive }]
         }
-        None => build_axes(&machine.axes)?,
+        None => build_axes(&machine.axes, boot_delay_us)?,
     };
-    let mut axes = axes;
-    for ax in &mut axes {
-        ax.node.set_boot_delay_us(args.boot_delay_ms * 1000);
-    }
     Ok((machine, axes))
 }
 

@@ -71,7 +71,7 @@ impl Emcy {
         self.queue.clear();
         self.active.clear();
         self.last_tx_us = None;
-        store.set(R_1001, 0);
+        store.set_u32(R_1001, 0);
     }
 
     /// Reset communication: the supervisions restart and the PDOs are configured anew, so
@@ -85,12 +85,12 @@ impl Emcy {
             a.causes != 0
         });
         for s in 0..=8 {
-            store.set(R_1003 + s, 0);
+            store.set_u32(R_1003 + s, 0);
         }
         for (n, a) in self.active.iter().rev().enumerate() {
-            store.set(R_1003 + 1 + n, a.entry);
+            store.set_u32(R_1003 + 1 + n, a.entry);
         }
-        store.set(R_1003, self.active.len() as u32);
+        store.set_u32(R_1003, self.active.len() as u32);
         self.update_register(store);
     }
 
@@ -104,7 +104,7 @@ impl Emcy {
     }
 
     fn update_register(&self, store: &mut Store) {
-        store.set(R_1001, self.register() as u32);
+        store.set_u32(R_1001, self.register() as u32);
     }
 
     pub fn is_active(&self, code: u16) -> bool {
@@ -130,15 +130,15 @@ impl Emcy {
             // table full: keep the older errors, still report this one
         }
         let reg = self.register() | 0x01 | register_bits(code);
-        store.set(R_1001, reg as u32);
+        store.set_u32(R_1001, reg as u32);
         // history: shift down, newest in sub 1
         let n = (store.u32(R_1003) as usize).min(8);
         for s in (1..8).rev() {
             let v = store.u32(R_1003 + s);
-            store.set(R_1003 + s + 1, v);
+            store.set_u32(R_1003 + s + 1, v);
         }
-        store.set(R_1003 + 1, entry);
-        store.set(R_1003, (n + 1).min(8) as u32);
+        store.set_u32(R_1003 + 1, entry);
+        store.set_u32(R_1003, (n + 1).min(8) as u32);
         let msg = EmcyFrame {
             code,
             register: reg,
