@@ -247,8 +247,7 @@ impl Observer {
                 t_us: now,
                 controlword: ax.node.object_raw(0x6040, 0).unwrap_or(0) as u16,
                 nmt: ax.node.nmt_state() as u8,
-                motor_speed_rpm: ax.drive.servo.axis.motor_speed() * 60.0
-                    / std::f64::consts::TAU,
+                motor_speed_rpm: ax.drive.servo.axis.motor_speed() * 60.0 / std::f64::consts::TAU,
                 load_speed_uu_per_s: ax.drive.servo.axis.load_velocity() / ax.drive.user_unit,
                 current_a: ax.drive.servo.axis.motor.current(),
                 events: [None; EVENTS_PER_TICK],

@@ -50,9 +50,7 @@ pub fn offered<'a>(headers: &'a axum::http::HeaderMap, query: Option<&'a str>) -
     if let Some(t) = h("x-panel-token") {
         return Some(t.trim());
     }
-    query?
-        .split('&')
-        .find_map(|kv| kv.strip_prefix("token="))
+    query?.split('&').find_map(|kv| kv.strip_prefix("token="))
 }
 
 impl Auth {
@@ -115,7 +113,10 @@ mod tests {
     fn a_non_loopback_address_needs_a_token() {
         let e = super::super::check_bind("0.0.0.0:8080", None).unwrap_err();
         let msg = e.to_string();
-        assert!(msg.contains("not a loopback address") && msg.contains("--panel-token"), "{msg}");
+        assert!(
+            msg.contains("not a loopback address") && msg.contains("--panel-token"),
+            "{msg}"
+        );
         assert!(super::super::check_bind("192.168.1.10:8080", None).is_err());
         assert!(super::super::check_bind("[::]:8080", None).is_err());
         assert!(super::super::check_bind("0.0.0.0:8080", Some("tok")).is_ok());

@@ -25,13 +25,31 @@ use std::path::Path;
 const ACTION_KEYS: &[&str] = &["set", "sensor", "can"];
 /// Keys the panel sets itself or does not take live.
 const REFUSED_KEYS: &[(&str, &str)] = &[
-    ("at", "the panel injects now; a time belongs in a scenario file"),
-    ("on_state", "the panel injects now; a condition belongs in a scenario file"),
-    ("on_emcy", "the panel injects now; a condition belongs in a scenario file"),
-    ("after", "the panel injects now; a delay belongs in a scenario file"),
+    (
+        "at",
+        "the panel injects now; a time belongs in a scenario file",
+    ),
+    (
+        "on_state",
+        "the panel injects now; a condition belongs in a scenario file",
+    ),
+    (
+        "on_emcy",
+        "the panel injects now; a condition belongs in a scenario file",
+    ),
+    (
+        "after",
+        "the panel injects now; a delay belongs in a scenario file",
+    ),
     ("id", "the panel names its events itself"),
-    ("ramp", "the panel sets values at once; ramps belong in a scenario file"),
-    ("profile", "the panel sets values at once; profiles belong in a scenario file"),
+    (
+        "ramp",
+        "the panel sets values at once; ramps belong in a scenario file",
+    ),
+    (
+        "profile",
+        "the panel sets values at once; profiles belong in a scenario file",
+    ),
 ];
 /// Most events one session keeps (the loop's marks are 16-bit).
 pub const MAX_SESSION_EVENTS: usize = 10_000;
@@ -275,9 +293,7 @@ impl Controls {
                 reason: e.reason,
             }
         })?;
-        s.events
-            .pop()
-            .ok_or_else(|| Refused::new(None, "no event"))
+        s.events.pop().ok_or_else(|| Refused::new(None, "no event"))
     }
 
     pub fn rotary(&self) -> bool {
@@ -335,10 +351,16 @@ impl Session {
         for (k, v) in &axis.overrides {
             out += &format!("{k} = {v}\n");
         }
-        out += &format!("\n[master]\nnode_id = {}\nmaster_id = {master_id}\n", axis.node_id);
+        out += &format!(
+            "\n[master]\nnode_id = {}\nmaster_id = {master_id}\n",
+            axis.node_id
+        );
         for e in &self.events {
             let Some(t) = e.applied_us else { continue };
-            out += &format!("\n[[event]]\n# {}\nat = \"{t} us\"\n{}", e.describe, e.toml_lines);
+            out += &format!(
+                "\n[[event]]\n# {}\nat = \"{t} us\"\n{}",
+                e.describe, e.toml_lines
+            );
         }
         out
     }
@@ -390,34 +412,87 @@ mod tests {
         assert!(b.max > 0.1 && b.max.is_finite(), "{}", b.max);
         assert!(c.params.iter().all(|p| !p.key.ends_with("_deg")));
         assert!(c.params.iter().any(|p| p.key == "kv_per_s"));
-        assert!(c.params.iter().all(|p| p.min <= p.initial && p.initial <= p.max));
+        assert!(c
+            .params
+            .iter()
+            .all(|p| p.min <= p.initial && p.initial <= p.max));
     }
 
     #[test]
     fn writes_are_checked_as_scenario_events() {
         let c = Controls::new(&setup("cnc1")).unwrap();
-        let ok = c.check(&json!({"set": "backlash_mm", "value": 0.05})).unwrap();
+        let ok = c
+            .check(&json!({"set": "backlash_mm", "value": 0.05}))
+            .unwrap();
         assert_eq!(ok.describe, "set backlash_mm = 0.05");
         assert!(matches!(ok.action, Action::Set { value, .. } if value == 0.05));
         // An integer value is a float in TOML terms.
         assert!(c.check(&json!({"set": "backlash_mm", "value": 0})).is_ok());
         let cases = [
-            (json!({"set": "backlash_mm", "value": -0.01}), "value", "at least 0"),
-            (json!({"set": "backlash_mm", "value": 1e9}), "value", "within"),
-            (json!({"set": "backlash_deg", "value": 0.1}), "preset", "linear axis"),
-            (json!({"set": "no_such_key", "value": 1.0}), "set", "unknown parameter"),
+            (
+                json!({"set": "backlash_mm", "value": -0.01}),
+                "value",
+                "at least 0",
+            ),
+            (
+                json!({"set": "backlash_mm", "value": 1e9}),
+                "value",
+                "within",
+            ),
+            (
+                json!({"set": "backlash_deg", "value": 0.1}),
+                "preset",
+                "linear axis",
+            ),
+            (
+                json!({"set": "no_such_key", "value": 1.0}),
+                "set",
+                "unknown parameter",
+            ),
             (json!({"set": "backlash_mm"}), "value", "needs `value`"),
-            (json!({"set": "backlash_mm", "value": "x"}), "value", "invalid type"),
-            (json!({"set": "backlash_mm", "value": 1, "share": 0.5}), "share", "does not apply"),
-            (json!({"sensor": "motor_encoder_glitch"}), "counts", "needs `counts`"),
-            (json!({"can": "drop", "share": 2.0}), "share", "outside 0..1"),
-            (json!({"can": "drop", "share": 0.5, "over": 5}), "over", "no unit"),
+            (
+                json!({"set": "backlash_mm", "value": "x"}),
+                "value",
+                "invalid type",
+            ),
+            (
+                json!({"set": "backlash_mm", "value": 1, "share": 0.5}),
+                "share",
+                "does not apply",
+            ),
+            (
+                json!({"sensor": "motor_encoder_glitch"}),
+                "counts",
+                "needs `counts`",
+            ),
+            (
+                json!({"can": "drop", "share": 2.0}),
+                "share",
+                "outside 0..1",
+            ),
+            (
+                json!({"can": "drop", "share": 0.5, "over": 5}),
+                "over",
+                "no unit",
+            ),
             (json!({"can": "bogus"}), "can", "unknown variant"),
-            (json!({"ramp": "backlash_mm", "to": 0.1, "over": "1 s"}), "ramp", "at once"),
-            (json!({"at": "1 s", "set": "kv_per_s", "value": 10.0}), "at", "now"),
+            (
+                json!({"ramp": "backlash_mm", "to": 0.1, "over": "1 s"}),
+                "ramp",
+                "at once",
+            ),
+            (
+                json!({"at": "1 s", "set": "kv_per_s", "value": 10.0}),
+                "at",
+                "now",
+            ),
             (json!({"value": 1.0}), "", "needs one of"),
             (json!([1, 2]), "", "JSON object"),
-            (json!({"set": ["backlash_mm"], "value": 1.0}), "set", "string, a number"),
+            (
+                json!({"set": ["backlash_mm"], "value": 1.0}),
+                "set",
+                "string, a number",
+            ),
         ];
         for (body, key, why) in cases {
             let e = c.check(&body).expect_err(&body.to_string());
@@ -443,7 +518,9 @@ mod tests {
     fn a_rotary_axis_takes_deg_keys() {
         let c = Controls::new(&setup("cnc3")).unwrap();
         assert!(c.rotary());
-        assert!(c.check(&json!({"set": "backlash_deg", "value": 0.01})).is_ok());
+        assert!(c
+            .check(&json!({"set": "backlash_deg", "value": 0.01}))
+            .is_ok());
         let e = c
             .check(&json!({"set": "backlash_mm", "value": 0.01}))
             .unwrap_err();
@@ -458,7 +535,10 @@ mod tests {
         let writes = [
             (json!({"set": "backlash_mm", "value": 0.05}), 1_234_000),
             (json!({"can": "sync_loss", "over": "2 s"}), 2_000_500),
-            (json!({"sensor": "direct_encoder_glitch", "counts": -40}), 3_000_000),
+            (
+                json!({"sensor": "direct_encoder_glitch", "counts": -40}),
+                3_000_000,
+            ),
         ];
         for (w, t) in &writes {
             let k = c.check(w).unwrap();
@@ -484,7 +564,10 @@ mod tests {
         assert_eq!(sc.run.duration_us, Some(5_000_000));
         assert_eq!(sc.run.master.master_id, 0x22);
         assert_eq!(sc.run.master.node_id, 5);
-        assert_eq!(sc.machine.overrides, vec![("backlash_mm".into(), "0.01".into())]);
+        assert_eq!(
+            sc.machine.overrides,
+            vec![("backlash_mm".into(), "0.01".into())]
+        );
         let got: Vec<(String, u64)> = sc
             .events
             .iter()
@@ -501,7 +584,10 @@ mod tests {
                     "CAN: SYNC lost (no SYNC reaches the drive) for 2 s".to_string(),
                     2_000_500
                 ),
-                ("sensor: direct encoder jumps -40 counts".to_string(), 3_000_000),
+                (
+                    "sensor: direct encoder jumps -40 counts".to_string(),
+                    3_000_000
+                ),
             ]
         );
     }

@@ -261,10 +261,8 @@ pub fn start_on(
         bail!("the panel needs at least one axis");
     }
     let addr = listener.local_addr()?;
-    let (observer, observation) = observe::channel(
-        setup.axes.len(),
-        observe::ring_capacity(setup.tick_hz),
-    );
+    let (observer, observation) =
+        observe::channel(setup.axes.len(), observe::ring_capacity(setup.tick_hz));
     let link = Arc::new(LiveLink::new());
     let controls = control::Controls::new(&setup)?;
     let shared = Arc::new(server::Shared::new(

@@ -117,7 +117,11 @@ pub fn start(
     })
 }
 
-fn spawn_capture(bus: SocketCanBus, iface: String, mut out: BufWriter<File>) -> std::io::Result<Capture> {
+fn spawn_capture(
+    bus: SocketCanBus,
+    iface: String,
+    mut out: BufWriter<File>,
+) -> std::io::Result<Capture> {
     let stop = Arc::new(AtomicBool::new(false));
     let frames = Arc::new(AtomicU64::new(0));
     let thread = {
@@ -268,7 +272,13 @@ mod tests {
     fn only_the_panels_own_file_names_are_served() {
         assert!(is_served_name("rec-1-node5.csv"));
         assert!(is_served_name("rec-12.log"));
-        for bad in ["../etc/passwd", "rec-1/../../x.csv", "trace.csv", "rec-1.txt", "rec-%2e.csv"] {
+        for bad in [
+            "../etc/passwd",
+            "rec-1/../../x.csv",
+            "trace.csv",
+            "rec-1.txt",
+            "rec-%2e.csv",
+        ] {
             assert!(!is_served_name(bad), "{bad}");
         }
         let dir = Path::new("/tmp/x");

@@ -193,7 +193,10 @@ pub fn router(shared: Arc<Shared>) -> Router {
             require_token,
         ));
     Router::new()
-        .route("/", get(|| async { page(assets::INDEX_HTML, "text/html; charset=utf-8") }))
+        .route(
+            "/",
+            get(|| async { page(assets::INDEX_HTML, "text/html; charset=utf-8") }),
+        )
         .route("/assets/{name}", get(asset))
         .merge(api)
         .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page") })
@@ -286,7 +289,10 @@ async fn stream(State(sh): State<Arc<Shared>>) -> Response {
     };
     let events = futures_util::stream::unfold(st, |mut st| async move {
         if let Some(h) = st.hello.take() {
-            return Some((Ok::<_, Infallible>(Event::default().event("hello").data(h)), st));
+            return Some((
+                Ok::<_, Infallible>(Event::default().event("hello").data(h)),
+                st,
+            ));
         }
         if *st.shutdown.borrow() {
             return None;
@@ -326,8 +332,12 @@ fn json_body(sh: &Shared, body: Result<Bytes, BytesRejection>) -> Result<Value, 
         };
         refuse(status, why)
     })?;
-    serde_json::from_slice(&b)
-        .map_err(|e| refuse(StatusCode::BAD_REQUEST, format!("the body is not JSON: {e}")))
+    serde_json::from_slice(&b).map_err(|e| {
+        refuse(
+            StatusCode::BAD_REQUEST,
+            format!("the body is not JSON: {e}"),
+        )
+    })
 }
 
 async fn inject(State(sh): State<Arc<Shared>>, body: Result<Bytes, BytesRejection>) -> Response {
@@ -432,7 +442,10 @@ fn record_json(sh: &Shared, st: &RecordState) -> Value {
 
 async fn record_state(State(sh): State<Arc<Shared>>) -> Response {
     let Ok(st) = sh.record.lock() else {
-        return error(StatusCode::INTERNAL_SERVER_ERROR, "recording state poisoned");
+        return error(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "recording state poisoned",
+        );
     };
     Json(record_json(&sh, &st)).into_response()
 }
@@ -453,13 +466,18 @@ async fn record_cmd(
         sh.refused.fetch_add(1, Ordering::Relaxed);
         return (
             StatusCode::BAD_REQUEST,
-            Json(json!({"error": "expected {\"action\": \"start\"} or {\"action\": \"stop\"}",
-                        "key": "action"})),
+            Json(
+                json!({"error": "expected {\"action\": \"start\"} or {\"action\": \"stop\"}",
+                        "key": "action"}),
+            ),
         )
             .into_response();
     }
     let Ok(mut st) = sh.record.lock() else {
-        return error(StatusCode::INTERNAL_SERVER_ERROR, "recording state poisoned");
+        return error(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "recording state poisoned",
+        );
     };
     if action == Some("start") {
         if st.active.is_some() {
@@ -507,12 +525,18 @@ async fn record_cmd(
 async fn record_file(State(sh): State<Arc<Shared>>, Path(name): Path<String>) -> Response {
     let path = {
         let Ok(st) = sh.record.lock() else {
-            return error(StatusCode::INTERNAL_SERVER_ERROR, "recording state poisoned");
+            return error(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                "recording state poisoned",
+            );
         };
         record::served_path(&sh.record_dir, &st, &name)
     };
     let Some(path) = path else {
-        return error(StatusCode::NOT_FOUND, "no such recording (finished ones only)");
+        return error(
+            StatusCode::NOT_FOUND,
+            "no such recording (finished ones only)",
+        );
     };
     match std::fs::read(&path) {
         Ok(bytes) => {
@@ -540,11 +564,7 @@ async fn record_file(State(sh): State<Arc<Shared>>, Path(name): Path<String>) ->
 async fn session(State(sh): State<Arc<Shared>>, headers: HeaderMap) -> Response {
     let _ = headers;
     let master_id = {
-        let hb = sh
-            .obs
-            .board
-            .heartbeat_consumer_1016
-            .load(Ordering::Relaxed);
+        let hb = sh.obs.board.heartbeat_consumer_1016.load(Ordering::Relaxed);
         match ((hb >> 16) & 0x7F) as u8 {
             0 => sh.setup.master_id,
             id => id,

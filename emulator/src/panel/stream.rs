@@ -301,8 +301,12 @@ impl Collector {
             });
             let mut out = std::io::stdout().lock();
             let _ = if self.json_stdout {
-                writeln!(out, "{}", json!({"event": "panel_injection", "t_s": r(t_s, 6),
-                                          "node_id": node, "what": what}))
+                writeln!(
+                    out,
+                    "{}",
+                    json!({"event": "panel_injection", "t_s": r(t_s, 6),
+                                          "node_id": node, "what": what})
+                )
             } else {
                 writeln!(out, "drive-emu: panel: t={t_s:.3} s node {node}: {what}")
             };
