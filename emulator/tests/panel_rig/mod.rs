@@ -22,7 +22,7 @@ use std::time::Duration;
 pub const NODE: u8 = 5;
 
 enum Cmd {
-    SdoRead(u16, u8, mpsc::Sender<Option<u32>>),
+    SdoRead(u16, u8, mpsc::Sender<Option<(u32, u64)>>),
 }
 
 pub struct Rig {
@@ -68,7 +68,7 @@ fn sdo_read(
     index: u16,
     sub: u8,
     step: &mut impl FnMut(&mut Runtime<FaultyBus<InProcEndpoint>, AxisDrive>),
-) -> Option<u32> {
+) -> Option<(u32, u64)> {
     while let Ok(Some(_)) = client.recv() {}
     let req = CanFrame::new(
         0x600 + u32::from(NODE),
@@ -76,6 +76,7 @@ fn sdo_read(
     );
     client.send(&req).ok()?;
     for _ in 0..50 {
+        let t = rt.sim_time_us;
         step(rt);
         while let Ok(Some(f)) = client.recv() {
             if f.id == 0x580 + u32::from(NODE)
@@ -84,9 +85,8 @@ fn sdo_read(
                 && f.data[3] == sub
             {
                 if f.data[0] & 0xE0 == 0x40 {
-                    return Some(u32::from_le_bytes([
-                        f.data[4], f.data[5], f.data[6], f.data[7],
-                    ]));
+                    let v = u32::from_le_bytes([f.data[4], f.data[5], f.data[6], f.data[7]]);
+                    return Some((v, t));
                 }
                 return None;
             }
@@ -190,6 +190,11 @@ impl Rig {
 
     /// Read an object over SDO (expedited upload), between two ticks.
     pub fn sdo_read(&self, index: u16, sub: u8) -> Option<u32> {
+        self.sdo_read_at(index, sub).map(|(v, _)| v)
+    }
+
+    /// An SDO read and the drive's time at the start of the tick that answered it, us.
+    pub fn sdo_read_at(&self, index: u16, sub: u8) -> Option<(u32, u64)> {
         let (tx, rx) = mpsc::channel();
         self.cmd.send(Cmd::SdoRead(index, sub, tx)).ok()?;
         rx.recv_timeout(Duration::from_secs(10)).ok().flatten()

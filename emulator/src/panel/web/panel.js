@@ -31,12 +31,12 @@ function newBuffers() {
   return { t: [], demand: [], actual: [], ferr: [], rpm: [], load: [], current: [] };
 }
 
-function plot(container, title, series, scales) {
+function plot(container, title, series, scales, xlabel = "t [s]") {
   const opts = {
     title, width: 560, height: 170, legend: { live: false },
     scales: Object.assign({ x: { time: false } }, scales || {}),
-    series: [{ label: "t [s]" }].concat(series),
-    axes: [{ label: "t [s]" }].concat(
+    series: [{ label: xlabel }].concat(series),
+    axes: [{ label: xlabel }].concat(
       (series.map((s) => s.scale || "y").filter((v, i, a) => a.indexOf(v) === i)).map(
         (sc, i) => ({ scale: sc, side: i === 0 ? 3 : 1, grid: { show: i === 0 }, size: 60 }))),
     cursor: { drag: { x: false, y: false } },
@@ -77,7 +77,7 @@ function buildAxis(a) {
       { label: "load [uu/s]", stroke: "#6a1b9a", scale: "uus" }]),
     current: plot(mk(), "motor current [A]", [{ label: "current", stroke: "#ef6c00" }]),
     spectrum: plot(mk(), "spectrum of 0x606C [uu/s]", [
-      { label: "amplitude", stroke: "#37474f", fill: "rgba(55,71,79,0.15)" }]),
+      { label: "amplitude", stroke: "#37474f", fill: "rgba(55,71,79,0.15)" }], null, "f [Hz]"),
     plotted: null,
   };
   const verdict = el("div", { class: "verdict", id: "verdict-" + a.index }, "detector: waiting for data");
@@ -325,6 +325,15 @@ function connect() {
 // What a test (or a curious user) can ask the page: the last plotted values and states.
 window.panel = {
   plotted: (axis) => state.axes[axis] && state.axes[axis].plotted,
+  // The plotted actual position at drive time t_s (the last plotted point at or before it).
+  plottedAt: (axis, t_s) => {
+    const ax = state.axes[axis];
+    if (!ax) return null;
+    const d = ax.pos.data;
+    let k = -1;
+    for (let i = 0; i < d[0].length && d[0][i] <= t_s + 1e-9; i++) k = i;
+    return k < 0 ? null : { t_s: d[0][k], position_actual_uu: d[2][k] };
+  },
   state: (axis) => $("state-" + axis) && $("state-" + axis).textContent,
   inject,
 };
