@@ -597,3 +597,62 @@ fn a_saved_session_replays_the_same_events_at_the_same_times() {
         );
     }
 }
+
+/// python/examples/panel_stream.py (stdlib only) against the panel: its injection is applied
+/// (read back over SDO) and it reads the stream's messages.
+#[test]
+fn the_python_example_reads_the_stream_and_injects() {
+    let rig = Rig::start(RigOptions {
+        token: Some("py-tok".into()),
+        ..Default::default()
+    });
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../python/examples/panel_stream.py"
+    );
+    let python = std::env::var("DRIVE_EMU_PYTHON").unwrap_or_else(|_| "python3".into());
+    let run = |extra: &[&str]| {
+        let out = std::process::Command::new(&python)
+            .arg(script)
+            .args(["--url", &rig.base, "--count", "30"])
+            .args(extra)
+            .output()
+            .unwrap_or_else(|e| panic!("cannot run {python}: {e}"));
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    // Without the token: refused, and it says so.
+    let (code, _, err) = run(&[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("401"), "{err}");
+    let (code, out, err) = run(&[
+        "--token",
+        "py-tok",
+        "--inject",
+        r#"{"set": "backlash_mm", "value": 0.045}"#,
+    ]);
+    assert_eq!(code, Some(0), "{out}\n{err}");
+    let lines: Vec<&str> = out.lines().collect();
+    assert!(lines[0].starts_with("inject: ") && lines[0].contains("set backlash_mm = 0.045"));
+    assert!(lines[1].starts_with("hello: 1000 Hz, 500") && lines[1].contains("node 5 (cnc1"));
+    assert!(
+        lines
+            .iter()
+            .filter(|l| l.contains(" samples, position "))
+            .count()
+            >= 20,
+        "{out}"
+    );
+    assert!((backlash_mm(&rig).unwrap() - 0.045).abs() < 1e-6);
+    // --json: one message per line, each with its type.
+    let (code, out, err) = run(&["--token", "py-tok", "--json"]);
+    assert_eq!(code, Some(0), "{err}");
+    for l in out.lines() {
+        let v: Value = serde_json::from_str(l).unwrap();
+        assert!(v["type"].is_string(), "{l}");
+    }
+    rig.stop();
+}

@@ -462,6 +462,7 @@ type LiveBus = FaultyBus<SocketCanBus>;
 /// scenario thread, the loop thread, the status line until the run stops, the summary.
 pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> {
     validate_args(args)?;
+    crate::panel::check_args(&args.panel)?;
     let (machine, axes) = live_axes(args, scenario)?;
     let seed = scenario.map_or(1, |s| s.run.seed);
     let bus = FaultyBus::new(SocketCanBus::open(&args.iface)?, seed);

@@ -81,6 +81,15 @@ pub fn check_bind(addr: &str, token: Option<&str>) -> Result<SocketAddr> {
     Ok(sa)
 }
 
+/// The panel's options checked before anything opens (the CAN interface, the port): a
+/// non-loopback address without a token is refused at start.
+pub fn check_args(args: &PanelArgs) -> Result<()> {
+    if let Some(addr) = &args.panel {
+        check_bind(addr, args.panel_token.as_deref())?;
+    }
+    Ok(())
+}
+
 /// One axis as the panel shows it.
 #[derive(Debug, Clone)]
 pub struct PanelAxis {
