@@ -502,8 +502,16 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     let mut injector = scenario.map(|s| LoopInjector::new(s.run.master.master_id));
     // The live panel (--panel): bound before the loop starts; it takes the scenario's
     // injections into its own injector.
+    let context = crate::panel::RunContext {
+        iface: &args.iface,
+        node: args.node,
+        lockstep: args.lockstep,
+        json: args.json,
+        machine: &machine,
+        scenario,
+    };
     let (panel, panel_loop) =
-        crate::panel::start_for_run(args, &machine, scenario, &link, &mut injector)?.unzip();
+        crate::panel::start_for_run(&args.panel, context, &link, &mut injector)?.unzip();
     let scenario_thread = match scenario {
         Some(s) => Some(spawn_scenario(args, s, &link, &stop)?),
         None => None,

@@ -170,22 +170,41 @@ impl PanelLoop {
     }
 }
 
+/// What the panel needs of a live run's options.
+pub struct RunContext<'a> {
+    pub iface: &'a str,
+    /// The node ID a scenario's axis gets (`--node`).
+    pub node: u8,
+    pub lockstep: bool,
+    /// `--json`: injections logged as JSON lines.
+    pub json: bool,
+    pub machine: &'a crate::drive::machine::MachineFile,
+    pub scenario: Option<&'a crate::scenario::Scenario>,
+}
+
 /// `run --panel`: the panel of a live run (`drive-emu run`, `scenario --iface`), started when
 /// the options ask for it, with the machine's axes; a live scenario's injections (`link`,
 /// `injector`) move into the panel's loop half. Says where it listens on stderr.
 pub fn start_for_run(
-    args: &crate::cli::run::RunArgs,
-    machine: &crate::drive::machine::MachineFile,
-    scenario: Option<&crate::scenario::Scenario>,
+    args: &PanelArgs,
+    run: RunContext<'_>,
     link: &Arc<LiveLink>,
     injector: &mut Option<LoopInjector>,
 ) -> Result<Option<(Panel, PanelLoop)>> {
-    if args.panel.panel.is_none() {
+    if args.panel.is_none() {
         return Ok(None);
     }
+    let RunContext {
+        iface,
+        node,
+        lockstep,
+        json,
+        machine,
+        scenario,
+    } = run;
     let axes = match scenario {
         Some(s) => vec![PanelAxis {
-            node_id: args.node,
+            node_id: node,
             preset: s.machine.presets[0].clone(),
             config: s.machine.configs[0].clone(),
             overrides: s.machine.overrides.clone(),
@@ -215,15 +234,15 @@ pub fn start_for_run(
     };
     let setup = PanelSetup {
         axes,
-        iface: Some(args.iface.clone()),
+        iface: Some(iface.to_string()),
         tick_hz: machine.tick_hz,
-        lockstep: args.lockstep,
+        lockstep,
         master_id: scenario.map_or(crate::master::MasterConfig::default().master_id, |s| {
             s.run.master.master_id
         }),
-        json_stdout: args.json,
+        json_stdout: json,
     };
-    let started = start(&args.panel, setup)?;
+    let started = start(args, setup)?;
     if let Some((panel, mut panel_loop)) = started {
         if let (Some(s), Some(_)) = (scenario, injector.take()) {
             panel_loop.attach_scenario(Arc::clone(link), s.run.master.master_id);
@@ -231,7 +250,7 @@ pub fn start_for_run(
         eprintln!(
             "drive-emu: panel on {}{}",
             panel.url(),
-            if args.panel.panel_token.is_some() {
+            if args.panel_token.is_some() {
                 " (token required: ?token=TOKEN)"
             } else {
                 ""

@@ -23,7 +23,7 @@ use crate::scenario::live::LiveLink;
 use axum::body::{Body, Bytes};
 use axum::extract::rejection::BytesRejection;
 use axum::extract::{DefaultBodyLimit, Path, Request, State};
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::http::{header, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
@@ -318,10 +318,10 @@ async fn stream(State(sh): State<Arc<Shared>>) -> Response {
 }
 
 /// The body as JSON, or the error reply (too large, unreadable, not JSON).
-fn json_body(sh: &Shared, body: Result<Bytes, BytesRejection>) -> Result<Value, Response> {
+fn json_body(sh: &Shared, body: Result<Bytes, BytesRejection>) -> Result<Value, Box<Response>> {
     let refuse = |status, why: String| {
         sh.refused.fetch_add(1, Ordering::Relaxed);
-        error(status, why)
+        Box::new(error(status, why))
     };
     let b = body.map_err(|e| {
         let status = e.status();
@@ -343,7 +343,7 @@ fn json_body(sh: &Shared, body: Result<Bytes, BytesRejection>) -> Result<Value, 
 async fn inject(State(sh): State<Arc<Shared>>, body: Result<Bytes, BytesRejection>) -> Response {
     let v = match json_body(&sh, body) {
         Ok(v) => v,
-        Err(r) => return r,
+        Err(r) => return *r,
     };
     let checked = match sh.controls.check(&v) {
         Ok(c) => c,
@@ -456,7 +456,7 @@ async fn record_cmd(
 ) -> Response {
     let v = match json_body(&sh, body) {
         Ok(v) => v,
-        Err(r) => return r,
+        Err(r) => return *r,
     };
     let action = v.get("action").and_then(Value::as_str);
     let extra = v
@@ -561,8 +561,7 @@ async fn record_file(State(sh): State<Arc<Shared>>, Path(name): Path<String>) ->
     }
 }
 
-async fn session(State(sh): State<Arc<Shared>>, headers: HeaderMap) -> Response {
-    let _ = headers;
+async fn session(State(sh): State<Arc<Shared>>) -> Response {
     let master_id = {
         let hb = sh.obs.board.heartbeat_consumer_1016.load(Ordering::Relaxed);
         match ((hb >> 16) & 0x7F) as u8 {
