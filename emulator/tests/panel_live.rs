@@ -656,3 +656,134 @@ fn the_python_example_reads_the_stream_and_injects() {
     }
     rig.stop();
 }
+
+/// `run --scenario ... --panel`: the scenario's injections go through the panel's loop half,
+/// and the fan-out, which drains the node's events once per tick, hands axis 0's EMCYs to the
+/// scenario (its expectations hold) while the page's stream reports them too.
+#[test]
+fn a_live_scenario_beside_the_panel_gets_its_emcys_through_the_fan_out() {
+    use drive_emu::bus::fault::FaultyBus;
+    use drive_emu::bus::inproc::InProcBus;
+    use drive_emu::bus::CanBus;
+    use drive_emu::drive::axis_drive::AxisDrive;
+    use drive_emu::master::{Master, MasterConfig};
+    use drive_emu::panel::{PanelAxis, PanelSetup};
+    use drive_emu::runtime::{AxisSlot, Runtime};
+    use drive_emu::scenario::live::{run_timeline, LiveEnd, LiveLink};
+    use drive_protocol::{AxisParam, Drive, Node};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    const SCENARIO: &str = r#"
+name = "live-panel"
+duration = "2.5 s"
+[machine]
+preset = "cnc1"
+[[motion]]
+step = "enable"
+mode = "csp"
+[[event]]
+at = "0.3 s"
+set = "backlash_mm"
+value = 0.06
+[[event]]
+id = "loss"
+at = "1.5 s"
+sensor = "direct_encoder_loss"
+[[expect]]
+emcy = "0x7300"
+after = "loss"
+within = "100 ms"
+[[expect]]
+no_emcy = true
+until = "1.4 s"
+"#;
+    let s = scenario::parse(SCENARIO, std::path::Path::new("live-panel.toml")).unwrap();
+    let cfg = s.machine.configs[0].clone();
+    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let snapshot = AxisDrive::from_config(&cfg).unwrap();
+    let node = Node::new(5, drive.info()).unwrap();
+    let mut eps = InProcBus::endpoints(2, 4096);
+    let mut master_bus = eps.pop().unwrap();
+    let mut rt = Runtime::new(
+        FaultyBus::new(eps.pop().unwrap(), 1),
+        vec![AxisSlot { node, drive }],
+        1000,
+    );
+    rt.boot();
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let setup = PanelSetup {
+        axes: vec![PanelAxis {
+            node_id: 5,
+            preset: "cnc1".into(),
+            config: cfg.clone(),
+            overrides: vec![],
+        }],
+        iface: None,
+        tick_hz: 1000,
+        lockstep: false,
+        master_id: 0x7F,
+        json_stdout: false,
+    };
+    let dir = std::env::temp_dir().join(format!("drive-emu-panel-scn-{}", std::process::id()));
+    let (panel, mut panel_loop) = drive_emu::panel::start_on(listener, None, dir, setup).unwrap();
+    let link = Arc::new(LiveLink::new());
+    panel_loop.attach_scenario(Arc::clone(&link), s.run.master.master_id);
+    let mut sse = stream(&format!("http://{}/api/stream", panel.addr));
+    next_of(&mut sse, "hello", 1);
+    let stop = Arc::new(AtomicBool::new(false));
+    let scenario_thread = {
+        let (s, cfg, link, stop) = (s.clone(), cfg.clone(), link.clone(), stop.clone());
+        std::thread::spawn(move || {
+            let o = run_timeline(
+                &s,
+                &cfg,
+                &snapshot,
+                &link,
+                &stop,
+                LiveEnd::for_scenario(&s, None),
+            );
+            stop.store(true, Ordering::Relaxed);
+            o
+        })
+    };
+    let mut master = Master::new(
+        MasterConfig::default(),
+        vec![
+            Step::Enable { mode: MODE_CSP },
+            Step::Cruise {
+                velocity_uu_s: 10_000.0,
+                accel_uu_s2: 100_000.0,
+                duration_s: 10.0,
+            },
+        ],
+    );
+    let mut backlash_at_1s = None;
+    while !stop.load(Ordering::Relaxed) && rt.sim_time_us < 10_000_000 {
+        std::thread::sleep(Duration::from_micros(900));
+        master.poll(rt.sim_time_us);
+        while let Some(f) = master.pop_tx() {
+            master_bus.send(&f).unwrap();
+        }
+        rt.tick();
+        panel_loop.on_tick(&mut rt);
+        while let Ok(Some(f)) = master_bus.recv() {
+            master.handle(&f, rt.sim_time_us);
+        }
+        if rt.sim_time_us == 1_000_000 {
+            backlash_at_1s = Some(rt.axes[0].drive.param(AxisParam::Backlash).unwrap());
+        }
+    }
+    let outcome = scenario_thread.join().unwrap();
+    assert_eq!(
+        backlash_at_1s,
+        Some(0.06e-3),
+        "the scenario's set reached the drive"
+    );
+    assert!(outcome.passed(), "{:?}", outcome.expectations);
+    assert!(outcome.record.emcys.iter().any(|(_, c)| *c == 0x7300));
+    let e = next_of(&mut sse, "emcy", 3000);
+    assert_eq!(e["code"], "0x7300");
+    let t = e["t_s"].as_f64().unwrap();
+    assert!((1.5..1.6).contains(&t), "{t}");
+    panel.stop();
+}
