@@ -364,7 +364,7 @@ fn the_tick_with_the_panel_open_and_five_clients_does_not_allocate() {
         .map(|_| {
             let stop = std::sync::Arc::clone(&stop);
             let mut c = std::net::TcpStream::connect(addr).unwrap();
-            write!(c, "GET /api/stream HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+            write!(c, "GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").unwrap();
             c.set_read_timeout(Some(std::time::Duration::from_millis(200)))
                 .unwrap();
             std::thread::spawn(move || {
@@ -390,7 +390,7 @@ fn the_tick_with_the_panel_open_and_five_clients_does_not_allocate() {
                 let mut c = std::net::TcpStream::connect(addr).unwrap();
                 write!(
                     c,
-                    "POST /api/inject HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+                    "POST /api/inject HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
                     body.len()
                 )
                 .unwrap();

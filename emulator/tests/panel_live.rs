@@ -317,12 +317,58 @@ fn bad_and_oversized_messages_get_an_error_and_change_nothing() {
             .unwrap_or_else(|| panic!("no error text: {v}"));
         assert!(e.contains(why), "{e:?} should say {why:?}");
     }
+    // Requests a page of another site could make: a write that is not JSON (a cross-site
+    // form or a no-cors fetch), a request from another origin, a request to another host name
+    // (DNS rebinding).
+    let raw = |head: &str, body: &str| {
+        let mut c = TcpStream::connect(rig.panel().addr).unwrap();
+        write!(
+            c,
+            "{head}Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+            body.len()
+        )
+        .unwrap();
+        let mut answer = String::new();
+        let _ = c.read_to_string(&mut answer);
+        answer
+    };
+    let write = r#"{"set": "backlash_mm", "value": 0.05}"#;
+    let host = format!("Host: {}\r\n", rig.panel().addr);
+    for (head, status) in [
+        (format!("POST /api/inject HTTP/1.1\r\n{host}Content-Type: text/plain\r\n"), "415"),
+        (format!("POST /api/inject HTTP/1.1\r\n{host}"), "415"),
+        (
+            format!("POST /api/inject HTTP/1.1\r\n{host}Content-Type: application/json\r\nOrigin: http://evil.example\r\n"),
+            "403",
+        ),
+        (
+            "POST /api/inject HTTP/1.1\r\nHost: evil.example:8080\r\nContent-Type: application/json\r\n".to_string(),
+            "403",
+        ),
+        ("GET /api/stream HTTP/1.1\r\nHost: evil.example:8080\r\n".to_string(), "403"),
+    ] {
+        let answer = raw(&head, write);
+        assert!(answer.starts_with(&format!("HTTP/1.1 {status}")), "{head:?}: {answer}");
+    }
+    // The page's own requests pass: same origin, localhost by name.
+    let ok = raw(
+        &format!(
+            "POST /api/inject HTTP/1.1\r\nHost: localhost:{}\r\nContent-Type: application/json\r\nOrigin: http://localhost:{}\r\n",
+            rig.panel().addr.port(),
+            rig.panel().addr.port()
+        ),
+        r#"{"set": "kv_per_s", "value": 30}"#,
+    );
+    assert!(ok.starts_with("HTTP/1.1 200"), "{ok}");
     let (st, v) = call("GET", &format!("{}/api/nothing-here", rig.base), &[], None);
     assert_eq!((st, v["error"].as_str().is_some()), (404, true));
     // Nothing changed: the drive, the session, the recordings.
     assert_eq!(backlash_mm(&rig), Some(before));
     let (_, status) = call("GET", &format!("{}/api/status", rig.base), &[], None);
-    assert_eq!(status["session_events"], 0);
+    assert_eq!(
+        status["session_events"], 1,
+        "only the page's own kv_per_s write"
+    );
     assert!(
         status["requests_refused"].as_u64().unwrap() >= 13,
         "{status}"
@@ -334,7 +380,7 @@ fn bad_and_oversized_messages_get_an_error_and_change_nothing() {
     let body = vec![b'{'; 100_000];
     write!(
         c,
-        "POST /api/inject HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        "POST /api/inject HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
         body.len()
     )
     .unwrap();
@@ -458,7 +504,7 @@ fn fifty_clients_connecting_and_leaving_leak_nothing() {
     for i in 0..50 {
         let mut c = TcpStream::connect(rig.panel().addr).unwrap();
         c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-        write!(c, "GET /api/stream HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+        write!(c, "GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").unwrap();
         // Read until a samples message went by, then leave (half of them mid-message).
         let mut got = Vec::new();
         let mut buf = [0u8; 4096];
@@ -477,7 +523,7 @@ fn fifty_clients_connecting_and_leaving_leak_nothing() {
             let many: Vec<_> = (0..5)
                 .map(|_| {
                     let mut c = TcpStream::connect(rig.panel().addr).unwrap();
-                    write!(c, "GET /api/stream HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+                    write!(c, "GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").unwrap();
                     c
                 })
                 .collect();

@@ -9,7 +9,8 @@
 //! - `GET /api/session`: the session as a scenario file;
 //! - `GET /api/status`: clients connected, messages sent, requests refused.
 //!
-//! Everything under `/api/` needs the token when there is one. A body over [`MAX_BODY`]
+//! Everything under `/api/` needs the token when there is one, and is refused when it could
+//! come from a page of another site (see `cross_site`). A body over [`MAX_BODY`]
 //! bytes, a body that is not JSON, or a write the checks refuse gets an error status with a
 //! JSON body `{"error": reason, "key": key or null}` and changes nothing.
 
@@ -164,7 +165,69 @@ fn error(status: StatusCode, reason: impl Into<String>) -> Response {
     (status, Json(json!({"error": reason.into(), "key": null}))).into_response()
 }
 
+/// The host part of a `Host` header or an origin's authority (`[::1]:8080` -> `::1`).
+fn host_part(authority: &str) -> &str {
+    let a = authority.trim();
+    if let Some(rest) = a.strip_prefix('[') {
+        return rest.split(']').next().unwrap_or(rest);
+    }
+    a.rsplit_once(':').map_or(a, |(h, _)| h)
+}
+
+/// Whether a request could come from a page of another site (cross-site request forgery,
+/// DNS rebinding): the reason to refuse it, if so. Without a token the panel is on loopback
+/// and answers only requests addressed to a loopback IP or `localhost`; a request that says
+/// where it comes from (`Origin`) must come from the panel's own address; a write must be
+/// `application/json` (a browser sends that cross-site only after a preflight, which the
+/// panel does not grant).
+fn cross_site(sh: &Shared, req: &Request) -> Option<(StatusCode, &'static str)> {
+    let h = req.headers();
+    let host = h
+        .get(header::HOST)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    if !sh.auth.required() {
+        let name = host_part(host);
+        let loopback = name.eq_ignore_ascii_case("localhost")
+            || name
+                .parse::<std::net::IpAddr>()
+                .is_ok_and(|ip| ip.is_loopback());
+        if !loopback {
+            return Some((
+                StatusCode::FORBIDDEN,
+                "without --panel-token the panel answers requests to 127.0.0.1, [::1] or                  localhost only",
+            ));
+        }
+    }
+    if let Some(origin) = h.get(header::ORIGIN).and_then(|v| v.to_str().ok()) {
+        let authority = origin.split_once("://").map_or(origin, |(_, a)| a);
+        if !authority.eq_ignore_ascii_case(host) {
+            return Some((
+                StatusCode::FORBIDDEN,
+                "a request from a page of another origin is refused",
+            ));
+        }
+    }
+    if req.method() == axum::http::Method::POST {
+        let json = h
+            .get(header::CONTENT_TYPE)
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(|ct| ct.trim_start().starts_with("application/json"));
+        if !json {
+            return Some((
+                StatusCode::UNSUPPORTED_MEDIA_TYPE,
+                "a write must be sent as Content-Type: application/json",
+            ));
+        }
+    }
+    None
+}
+
 async fn require_token(State(sh): State<Arc<Shared>>, req: Request, next: Next) -> Response {
+    if let Some((status, why)) = cross_site(&sh, &req) {
+        sh.refused.fetch_add(1, Ordering::Relaxed);
+        return error(status, why);
+    }
     let ok = sh
         .auth
         .check(offered(req.headers(), req.uri().query()))
