@@ -74,6 +74,15 @@ fn the_page_shows_a_drive_on_vcan_moved_by_python_canopen() {
     }
     d.go(&format!("http://{addr}/"));
     line_with(&mut master, "enabled", Duration::from_secs(120));
+    // Record the moves: a CSV per axis and a capture of the bus.
+    let post = |path: &str, body: Value| -> Value {
+        let mut r = ureq::post(&format!("http://{addr}{path}"))
+            .send_json(body)
+            .unwrap_or_else(|e| panic!("{path}: {e}"));
+        r.body_mut().read_json().unwrap()
+    };
+    let rec = post("/api/record", json!({"action": "start"}));
+    assert_eq!(rec["active"]["capture"], "rec-1.log", "{rec}");
     let st = d.wait_js(
         Duration::from_secs(60),
         "return panel.state(0) === 'OPERATION ENABLED' ? panel.state(0) : null",
