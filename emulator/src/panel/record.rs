@@ -269,6 +269,34 @@ mod tests {
     }
 
     #[test]
+    fn a_recording_without_a_can_interface_says_why_it_has_no_capture() {
+        let dir = std::env::temp_dir().join(format!("drive-emu-rec-test-{}", std::process::id()));
+        let r = start(&dir, 7, &[5, 6], Some("nocan9"), 1_000).unwrap();
+        assert_eq!(r.csv_names, vec!["rec-7-node5.csv", "rec-7-node6.csv"]);
+        assert!(r.capture_name.is_none());
+        let note = r.capture_note.clone().unwrap();
+        assert!(
+            note.starts_with("no capture: ") && note.contains("nocan9"),
+            "{note}"
+        );
+        assert!(
+            !dir.join("rec-7.log").exists(),
+            "no empty capture file is left"
+        );
+        let (names, problem) = r.finish();
+        assert_eq!(names, vec!["rec-7-node5.csv", "rec-7-node6.csv"]);
+        assert!(problem.is_none());
+        let text = std::fs::read_to_string(dir.join("rec-7-node5.csv")).unwrap();
+        assert_eq!(text.trim_end(), Sample::CSV_HEADER);
+        let _ = std::fs::remove_dir_all(&dir);
+        // A directory that cannot be made: an error, nothing started.
+        let e = start(Path::new("/proc/no/such/dir"), 1, &[5], None, 0)
+            .err()
+            .expect("refused");
+        assert!(e.to_string().contains("/proc/no/such/dir"), "{e}");
+    }
+
+    #[test]
     fn only_the_panels_own_file_names_are_served() {
         assert!(is_served_name("rec-1-node5.csv"));
         assert!(is_served_name("rec-12.log"));
