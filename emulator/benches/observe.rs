@@ -11,12 +11,11 @@ use drive_emu::observe;
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::AxisSlot;
 use drive_emu::session::OfflineRun;
-use drive_protocol::{Drive, Node};
 
 fn cruising() -> OfflineRun<AxisDrive> {
     let cfg = AxisConfig::from_preset("cnc1").unwrap();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(5, drive.info()).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
     let program = vec![
         Step::Enable { mode: MODE_CSP },
         Step::Cruise {

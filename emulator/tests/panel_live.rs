@@ -712,11 +712,11 @@ fn a_live_scenario_beside_the_panel_gets_its_emcys_through_the_fan_out() {
     use drive_emu::bus::inproc::InProcBus;
     use drive_emu::bus::CanBus;
     use drive_emu::drive::axis_drive::AxisDrive;
+    use drive_emu::drive::AxisParam;
     use drive_emu::master::{Master, MasterConfig};
     use drive_emu::panel::{PanelAxis, PanelSetup};
     use drive_emu::runtime::{AxisSlot, Runtime};
     use drive_emu::scenario::live::{run_timeline, LiveEnd, LiveLink};
-    use drive_protocol::{AxisParam, Drive, Node};
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
     const SCENARIO: &str = r#"
@@ -745,9 +745,9 @@ until = "1.4 s"
 "#;
     let s = scenario::parse(SCENARIO, std::path::Path::new("live-panel.toml")).unwrap();
     let cfg = s.machine.configs[0].clone();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
     let snapshot = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(5, drive.info()).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
     let mut eps = InProcBus::endpoints(2, 4096);
     let mut master_bus = eps.pop().unwrap();
     let mut rt = Runtime::new(
@@ -816,7 +816,7 @@ until = "1.4 s"
             master.handle(&f, rt.sim_time_us);
         }
         if rt.sim_time_us == 1_000_000 {
-            backlash_at_1s = Some(rt.axes[0].drive.param(AxisParam::Backlash).unwrap());
+            backlash_at_1s = Some(rt.axes[0].drive.param(AxisParam::Backlash));
         }
     }
     let outcome = scenario_thread.join().unwrap();

@@ -47,7 +47,7 @@ proptest! {
 
     #[test]
     fn arbitrary_frames_never_break_the_node(frames in proptest::collection::vec(frame_strategy(), 1..200)) {
-        let mut node = Node::new(ID, info()).unwrap();
+        let mut node = Node::new(drive_protocol::NodeConfig::new(ID, info()).with_od(od_with_handler())).unwrap();
         let mut drive = SimDrive::default();
         let mut now = 0u64;
         node.boot(now);

@@ -4,6 +4,8 @@ use crate::bus::fault::FaultyBus;
 use crate::bus::socketcan::SocketCanBus;
 use crate::drive::axis_drive::AxisDrive;
 use crate::drive::machine::{self, AxisEntry, MachineFile};
+use crate::drive::vendor::{self, VendorEds};
+use crate::drive::{node_setup, NodeOptions};
 use crate::presets::AxisConfig;
 use crate::runtime::realtime::{self, RealtimeRequest};
 use crate::runtime::trace::{trace_paths, Recorder, TraceTap};
@@ -13,7 +15,6 @@ use crate::scenario::Scenario;
 use crate::time::MonotonicClock;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use drive_protocol::{Drive, Node};
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
@@ -33,9 +34,21 @@ pub struct RunArgs {
     /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
-    /// Machine file with several axes (see README); replaces --node/--preset/--set.
+    /// Machine file with several axes (see README); replaces --node/--preset/--set/--eds.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Serve this vendor's EDS or DCF as the drive's own: its identity, device type, PDO
+    /// defaults and COB-IDs, every object it has (the CiA 301/402 ones simulated, the rest
+    /// stored), the modes of its 0x6502 that the emulator runs; the motor encoder takes its
+    /// 0x608F resolution. The axis behind it is still --preset's. What became of each object:
+    /// `drive-emu eds --from FILE`.
+    #[arg(long, value_name = "FILE")]
+    pub eds: Option<PathBuf>,
+    /// First index of the emulator's own objects (axis parameters at +0x00..0x0D, loop
+    /// statistics at +0x100, fault injection at +0x101), e.g. 0x4000. Default 0x2000, or
+    /// with --eds the first free base of 0x2000, 0x3000, 0x4000, 0x5000, ...
+    #[arg(long, value_name = "INDEX", value_parser = parse_index)]
+    pub objects_base: Option<u16>,
     /// Loop rate, Hz (250..8000).
     #[arg(long, default_value_t = 1000)]
     pub tick_hz: u32,
@@ -139,24 +152,94 @@ pub fn validate_args(args: &RunArgs) -> Result<()> {
 }
 
 /// Build the nodes and drives of a machine.
-pub fn build_axes(entries: &[AxisEntry]) -> Result<Vec<AxisSlot<AxisDrive>>> {
+/// The axes of a machine, each node with `boot_delay_us` before its boot-up. With a vendor's
+/// EDS, what became of its objects is said on stderr, and the entry's `objects_base` is set
+/// to where the emulator's own objects went.
+pub fn build_axes(
+    entries: &mut [AxisEntry],
+    boot_delay_us: u64,
+) -> Result<Vec<AxisSlot<AxisDrive>>> {
     entries
-        .iter()
+        .iter_mut()
         .map(|e| {
-            let mut cfg = AxisConfig::from_preset(&e.preset)
+            let cfg = AxisConfig::from_preset(&e.preset)
                 .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+            let mut cfg = cfg;
             for (k, v) in &e.set {
                 cfg = cfg
                     .with_override(k, &machine::value_text(v))
                     .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
             }
-            let drive = AxisDrive::from_config(&cfg)
-                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
-            let node = Node::new(e.node_id, drive.info())
-                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
-            Ok(AxisSlot { node, drive })
+            axis_slot(cfg, e, boot_delay_us)
         })
         .collect()
+}
+
+/// One axis from its configuration and its machine entry (node ID, vendor EDS, objects base).
+fn axis_slot(
+    cfg: AxisConfig,
+    e: &mut AxisEntry,
+    boot_delay_us: u64,
+) -> Result<AxisSlot<AxisDrive>> {
+    let ctx = |err: anyhow::Error| anyhow::anyhow!("axis node {}: {err:#}", e.node_id);
+    let eds = match &e.eds {
+        Some(p) => Some(Arc::new(VendorEds::load(p).map_err(ctx)?)),
+        None => None,
+    };
+    let cfg = match &eds {
+        Some(v) => v.adapt(cfg).map_err(ctx)?,
+        None => cfg,
+    };
+    let mut drive = AxisDrive::from_config(&cfg).map_err(|err| ctx(err.into()))?;
+    let opts = NodeOptions {
+        objects_base: e.objects_base,
+        eds: eds.clone(),
+        ..NodeOptions::new(e.node_id).with_boot_delay_us(boot_delay_us)
+    };
+    let setup = node_setup(&mut drive, &opts).map_err(ctx)?;
+    if let (Some(v), Some(r)) = (&eds, &setup.report) {
+        eprint!(
+            "drive-emu: node {}: {}",
+            e.node_id,
+            report_summary(r, setup.objects_base, &v.path)
+        );
+    }
+    e.objects_base = Some(setup.objects_base);
+    let node = drive_protocol::Node::new(setup.config)
+        .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+    Ok(AxisSlot { node, drive })
+}
+
+/// The first line and the notes of a build report (the whole report: `drive-emu eds --from`).
+fn report_summary(
+    r: &drive_protocol::od::BuildReport,
+    base: u16,
+    path: &std::path::Path,
+) -> String {
+    vendor::report_text(r, base, path)
+        .lines()
+        .filter(|l| !l.starts_with("  0x"))
+        .map(|l| format!("{l}\n"))
+        .collect()
+}
+
+/// An object index as a user writes it: 0x4000, 4000h or 16384.
+pub fn parse_index(s: &str) -> Result<u16, String> {
+    let t = s.trim();
+    let v = if let Some(h) = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        u16::from_str_radix(h, 16)
+    } else if let Some(h) = t.strip_suffix('h').or_else(|| t.strip_suffix('H')) {
+        u16::from_str_radix(h, 16)
+    } else {
+        t.parse::<u16>()
+    };
+    let v = v.map_err(|_| format!("`{s}` is not an object index (0x0000..=0xFFFF)"))?;
+    if !(0x2000..=0x5F00).contains(&v) {
+        return Err(format!(
+            "0x{v:04X} is outside the manufacturer area 0x2000..=0x5F00 (CiA 301)"
+        ));
+    }
+    Ok(v)
 }
 
 /// The machine described by the command line (one axis) or by --config.
@@ -181,6 +264,8 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
             node_id: args.node,
             preset: args.preset.clone(),
             set,
+            eds: args.eds.clone(),
+            objects_base: args.objects_base,
         }],
     };
     machine::validate(&m)?;
@@ -598,24 +683,24 @@ fn live_axes(
                     node_id: args.node,
                     preset: cfg.name.clone(),
                     set: Default::default(),
+                    eds: args.eds.clone(),
+                    objects_base: args.objects_base,
                 }],
             }
         }
         None => machine_from_args(args)?,
     };
     machine::validate(&machine)?;
+    let mut machine = machine;
+    let boot_delay_us = args.boot_delay_ms * 1000;
     let axes = match scenario {
-        Some(s) => {
-            let drive = AxisDrive::from_config(&s.machine.configs[0])?;
-            let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
-            vec![AxisSlot { node, drive }]
-        }
-        None => build_axes(&machine.axes)?,
+        Some(s) => vec![axis_slot(
+            s.machine.configs[0].clone(),
+            &mut machine.axes[0],
+            boot_delay_us,
+        )?],
+        None => build_axes(&mut machine.axes, boot_delay_us)?,
     };
-    let mut axes = axes;
-    for ax in &mut axes {
-        ax.node.set_boot_delay_us(args.boot_delay_ms * 1000);
-    }
     Ok((machine, axes))
 }
 
@@ -796,6 +881,8 @@ fn watch(
                 "iface": args.iface,
                 "nodes": machine.axes.iter().map(|a| serde_json::json!({
                     "node_id": a.node_id, "preset": a.preset,
+                    "eds": a.eds.as_ref().map(|p| p.display().to_string()),
+                    "objects_base": a.objects_base.map(|b| format!("0x{b:04X}")),
                 })).collect::<Vec<_>>(),
                 "tick_hz": machine.tick_hz,
                 "lockstep": args.lockstep,

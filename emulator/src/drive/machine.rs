@@ -9,12 +9,14 @@
 //! [[axis]]
 //! node_id = 6
 //! preset = "cnc3"
+//! eds = "vendor/epos4.eds"  # optional: serve this vendor's EDS/DCF (relative to this file)
+//! objects_base = 0x4000     # optional: where the emulator's own objects go
 //! ```
 
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 pub const MIN_TICK_HZ: u32 = 250;
 pub const MAX_TICK_HZ: u32 = 8000;
@@ -36,6 +38,14 @@ pub struct AxisEntry {
     /// Preset overrides, `key = value` with the preset file's keys (units in the names).
     #[serde(default)]
     pub set: BTreeMap<String, toml::Value>,
+    /// A vendor's EDS or DCF the drive serves as its own (`drive/vendor.rs`); in a machine
+    /// file, relative to the file's directory.
+    #[serde(default)]
+    pub eds: Option<PathBuf>,
+    /// First index of the emulator's own objects (default 0x2000, or the first free base
+    /// with `eds`).
+    #[serde(default)]
+    pub objects_base: Option<u16>,
 }
 
 fn default_tick_hz() -> u32 {
@@ -88,7 +98,17 @@ pub fn parse(text: &str, origin: &str) -> Result<MachineFile> {
 pub fn load(path: &Path) -> Result<MachineFile> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read machine file {}", path.display()))?;
-    parse(&text, &path.display().to_string())
+    let mut m = parse(&text, &path.display().to_string())?;
+    // an EDS path is relative to the machine file, as a user writes it beside it
+    let dir = path.parent().unwrap_or(Path::new("."));
+    for a in &mut m.axes {
+        if let Some(e) = &a.eds {
+            if e.is_relative() {
+                a.eds = Some(dir.join(e));
+            }
+        }
+    }
+    Ok(m)
 }
 
 /// Render an override value as the text a preset's `--set key=value` takes.

@@ -18,7 +18,7 @@ pub mod ring;
 use crate::bus::CanBus;
 use crate::drive::axis_drive::AxisDrive;
 use crate::runtime::trace::node_sample;
-use crate::runtime::Runtime;
+use crate::runtime::{Runtime, SimulatedDrive};
 use crate::samples::Sample;
 use drive_protocol::NodeEvent;
 use ring::{Cursor, RingWriter, SeqRing};
@@ -32,8 +32,8 @@ pub const WORDS: usize = 12;
 pub const EVENTS_PER_TICK: usize = 4;
 /// Node events kept per axis and tick for [`Observer::events`] (the node's own queue holds 32).
 const EVENT_BUFFER: usize = drive_protocol::EVENT_QUEUE;
-/// Sub-indices of the loop statistics object 0x2100 (1..=13).
-pub const STATS_SUBS: usize = 13;
+/// Sub-indices of the loop statistics object (0x2100 by default; 1..=13).
+pub const STATS_SUBS: usize = crate::runtime::stats::STATS_NAMES.len();
 
 /// An EMCY event of one tick.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -275,9 +275,13 @@ impl Observer {
         let board = &self.shared.board;
         if self.published.is_multiple_of(256) {
             if let Some(ax) = rt.axes.first() {
-                for (i, s) in board.stats_2100.iter().enumerate() {
-                    let v = ax.node.object_raw(0x2100, i as u8 + 1).unwrap_or(0);
-                    s.store(v, Ordering::Relaxed);
+                // The statistics object where the drive put it (base + 0x100; 0x2100 unless
+                // moved by --objects-base or a vendor's EDS).
+                if let Some(slots) = ax.drive.stats_slots() {
+                    for (s, slot) in board.stats_2100.iter().zip(slots) {
+                        let v = ax.node.value(*slot).unwrap_or(0) as u32;
+                        s.store(v, Ordering::Relaxed);
+                    }
                 }
                 let hb = ax.node.object_raw(0x1016, 1).unwrap_or(0);
                 board.heartbeat_consumer_1016.store(hb, Ordering::Relaxed);

@@ -17,7 +17,6 @@ use crate::scenario::inject::{param_bounds, Injection};
 use crate::scenario::timeline::{Action, Event};
 use crate::scenario::units::{AxisKind as KeyKind, PARAM_KEYS};
 use anyhow::Result;
-use drive_protocol::Drive;
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -117,10 +116,7 @@ impl Controls {
             .iter()
             .filter(|k| k.axis == want || k.axis == KeyKind::Any)
         {
-            let initial = match drive.param(k.param) {
-                Ok(v) => v / k.scale,
-                Err(_) => continue,
-            };
+            let initial = drive.param(k.param) / k.scale;
             let Some((min, max)) = param_bounds(&mut drive, k) else {
                 continue;
             };

@@ -125,22 +125,8 @@ pub fn state_json(s: &AxisSnapshot) -> Value {
     })
 }
 
-/// 0x2100's sub-indices 1..=13 by name (as `Node::set_runtime_stats` fills them).
-pub const STATS_NAMES: [&str; crate::observe::STATS_SUBS] = [
-    "ticks",
-    "overruns",
-    "lateness_p50_us",
-    "lateness_p99_us",
-    "lateness_max_us",
-    "tx_dropped_frames",
-    "tx_queue_overflows",
-    "sync_lock_state",
-    "sync_phase_error_us",
-    "sync_period_us",
-    "tx_full_waits",
-    "sync_window_missed",
-    "rx_overflows",
-];
+/// The statistics object's sub-indices 1..=13 by name (as the drive's object names them).
+pub use crate::runtime::stats::STATS_NAMES;
 
 struct Collector {
     sh: Arc<Shared>,

@@ -13,7 +13,6 @@ use drive_emu::master::{Master, MasterConfig, Step};
 use drive_emu::panel::{self, Panel, PanelAxis, PanelLoop, PanelSetup};
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::{AxisSlot, Runtime};
-use drive_protocol::{Drive, Node};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
@@ -101,8 +100,8 @@ impl Rig {
         for (k, v) in &o.overrides {
             cfg = cfg.with_override(k, v).unwrap();
         }
-        let drive = AxisDrive::from_config(&cfg).unwrap();
-        let node = Node::new(NODE, drive.info()).unwrap();
+        let mut drive = AxisDrive::from_config(&cfg).unwrap();
+        let node = drive_emu::drive::node(&mut drive, NODE).unwrap();
         let mut eps = InProcBus::endpoints(3, 4096);
         let mut client = eps.pop().unwrap();
         let mut master_bus = eps.pop().unwrap();
