@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """A python canopen master for the panel's browser test on vcan (tests/tests/panel_vcan.rs).
 
-Resets node 5, enables it in profile position with BaseNode402, then, in steps the test
+Resets node 5, starts SYNC (10 ms), enables it in profile position with BaseNode402, then, in steps the test
 paces with files in --dir (`go-N`): moves to each --targets position and prints
 `{"at": TARGET, "position": 0x6064 over SDO}` once the axis stands there; after the last
 target it reads the backlash 0x2000 (REAL32, mm) over SDO every 0.2 s and prints
@@ -69,6 +69,9 @@ def main():
         node.nmt.wait_for_bootup(10)
         node.setup_402_state_machine()
         node.nmt.state = "OPERATIONAL"
+        # SYNC every 10 ms: the drive's synchronous TPDOs (position, velocity, direct
+        # encoder) then go out, so a capture of the bus holds samples `analyze` can read.
+        network.sync.start(0.01)
         wait_for(lambda: node.statusword & 0x4F == 0x40, 10, "SWITCH ON DISABLED")
         node.op_mode = "PROFILED POSITION"
         node.state = "OPERATION ENABLED"
@@ -88,6 +91,7 @@ def main():
                 last = v
             time.sleep(0.2)
         node.state = "SWITCH ON DISABLED"
+        network.sync.stop()
     finally:
         network.disconnect()
     return 0

@@ -104,6 +104,44 @@ fn the_page_shows_a_drive_on_vcan_moved_by_python_canopen() {
             d.js("return panel.plotted(0)", json!([]))
         );
     }
+    let rec = post("/api/record", json!({"action": "stop"}));
+    assert_eq!(
+        rec["files"],
+        json!(["rec-1-node5.csv", "rec-1.log"]),
+        "{rec}"
+    );
+    // Both downloadable, and both read by `drive-emu analyze`.
+    for name in ["rec-1-node5.csv", "rec-1.log"] {
+        let text = ureq::get(&format!("http://{addr}/api/record/file/{name}"))
+            .call()
+            .unwrap()
+            .body_mut()
+            .read_to_string()
+            .unwrap();
+        assert!(
+            text.lines().count() > 100,
+            "{name}: {} lines",
+            text.lines().count()
+        );
+        let file = dir.join(format!("download-{name}"));
+        std::fs::write(&file, &text).unwrap();
+        let out = Command::new(drive_emu_bin())
+            .args(["analyze", "--preset", "cnc1", "--json", "--out"])
+            .arg(dir.join(format!("analyze-{name}")))
+            .arg(&file)
+            .output()
+            .unwrap();
+        // 0: a verdict, 3: inconclusive (PP moves hold no long constant speed); 2 and 4
+        // would be a file it cannot read.
+        assert!(
+            matches!(out.status.code(), Some(0) | Some(3)),
+            "analyze {name}: {:?} {}",
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(v.is_object(), "{v}");
+    }
     assert_eq!(
         line_with(&mut master, "backlash_mm", Duration::from_secs(30))["backlash_mm"],
         0.0
