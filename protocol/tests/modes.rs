@@ -437,3 +437,48 @@ fn one_drive_command_per_poll() {
     b.ticks(7);
     assert_eq!(b.drive.commands, c + 7);
 }
+
+/// Interpolated position (7): with controlword bit 4 clear the drive holds and 0x60C1:1 follows
+/// it; with bit 4 set ("enable ip mode", statusword bit 12 "ip mode active") it interpolates
+/// linearly between the set-points written to 0x60C1:1 at each SYNC over 0x60C2.
+#[test]
+fn ip_interpolates_the_data_record_only_while_enabled() {
+    let mut b = Bench::new();
+    b.w8(0x60C2, 1, 4).unwrap(); // 4 ms
+    b.w8(0x60C2, 2, (-3i8) as u8).unwrap();
+    b.start();
+    b.enable(7);
+    assert_eq!(b.node.mode(), 7);
+    let p0 = b.ri32(0x6064, 0);
+    // bit 4 clear: a set-point written is not followed, bit 12 clear
+    b.w32(0x60C1, 1, (p0 + 5000) as u32).unwrap();
+    for _ in 0..5 {
+        b.sync();
+        b.ticks(4);
+    }
+    assert_eq!(b.node.statusword() & (1 << 12), 0, "ip mode not active");
+    assert!((b.ri32(0x6064, 0) - p0).abs() < 5, "held");
+    assert!(
+        (b.ri32(0x60C1, 1) - p0).abs() < 5,
+        "the set-point follows the axis"
+    );
+    // bit 4 set: 400 uu per 4 ms SYNC, smooth 100 uu per 1 ms tick
+    b.cw(0x1F);
+    let start = b.ri32(0x60C1, 1);
+    let mut demands = Vec::new();
+    for k in 1..=10 {
+        b.w32(0x60C1, 1, (start + k * 400) as u32).unwrap();
+        b.sync();
+        for _ in 0..4 {
+            b.tick();
+            demands.push(demand(&b) / INC_PER_UU);
+        }
+    }
+    let steps: Vec<f64> = demands.windows(2).map(|w| w[1] - w[0]).collect();
+    for s in &steps[4..] {
+        assert!((s - 100.0).abs() < 0.5, "step {s} in {steps:?}");
+    }
+    assert_eq!(b.node.statusword() & (1 << 12), 1 << 12, "ip mode active");
+    // 0x60C0: linear interpolation (0) is the only sub-mode
+    assert_eq!(b.w16(0x60C0, 0, 1), Err(0x0609_0031));
+}

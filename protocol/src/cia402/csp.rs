@@ -2,7 +2,9 @@
 //! over the interpolation period (0x60C2; else 0x1006; else the measured SYNC interval) so the
 //! position demand is smooth at the tick rate. 0x60B1 adds velocity and 0x60B2 torque
 //! feed-forward. Targets are unwrapped across the I32 range. Without SYNC (none for three
-//! periods, or never) a new target is taken at once.
+//! periods, or never) a new target is taken at once. The same interpolator serves the
+//! interpolated position mode (`ip.rs`), whose set-point is 0x60C1:1: the target object is
+//! the caller's.
 
 use super::objects as o;
 use super::{Ctx, ModeOut};
@@ -21,10 +23,15 @@ pub struct Csp {
 impl Csp {
     /// Entering CSP holds the current position: 0x607A is set to it.
     pub fn enter(&mut self, ctx: &mut Ctx) {
+        self.enter_on(ctx, o::TARGET_POSITION);
+    }
+
+    /// Hold the current position, the target object `target` (a store slot) set to it.
+    pub fn enter_on(&mut self, ctx: &mut Ctx, target: usize) {
         let uu = ctx.to_uu_pos(ctx.axis.pos);
         self.target_uu = uu.round();
         self.last_raw = super::factor::sat_i32(uu);
-        ctx.store.set_i32(o::TARGET_POSITION, self.last_raw);
+        ctx.store.set_i32(target, self.last_raw);
         self.prev = ctx.axis.pos;
         self.next = ctx.axis.pos;
         self.period_us = 0;
@@ -45,7 +52,18 @@ impl Csp {
     }
 
     pub fn step(&mut self, ctx: &mut Ctx, sync_at: Option<u64>, period_us: u64) -> ModeOut {
-        let raw = ctx.store.i32(o::TARGET_POSITION);
+        self.step_on(ctx, o::TARGET_POSITION, sync_at, period_us)
+    }
+
+    /// One tick following the target object `target` (a store slot).
+    pub fn step_on(
+        &mut self,
+        ctx: &mut Ctx,
+        target: usize,
+        sync_at: Option<u64>,
+        period_us: u64,
+    ) -> ModeOut {
+        let raw = ctx.store.i32(target);
         let changed = raw != self.last_raw;
         if changed {
             self.target_uu += raw.wrapping_sub(self.last_raw) as f64;

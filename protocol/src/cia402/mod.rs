@@ -11,6 +11,7 @@ mod cst;
 mod csv;
 pub(crate) mod factor;
 mod hm;
+mod ip;
 pub mod mode;
 pub(crate) mod objects;
 mod pp;
@@ -166,6 +167,7 @@ pub(crate) struct Cia402 {
     pv: pv::Pv,
     hm: hm::Hm,
     csp: csp::Csp,
+    ip: ip::Ip,
     pending_fault: Option<u16>,
     fault_code: u16,
     fe_timer: TimedWindow,
@@ -195,6 +197,7 @@ impl Cia402 {
             pv: Default::default(),
             hm: Default::default(),
             csp: Default::default(),
+            ip: Default::default(),
             pending_fault: None,
             fault_code: 0,
             fe_timer: TimedWindow::default(),
@@ -269,6 +272,10 @@ impl Cia402 {
             mode::value::CSP => {
                 ctx.axis.vel = 0.0;
                 self.csp.enter(ctx)
+            }
+            mode::value::IP => {
+                ctx.axis.vel = 0.0;
+                self.ip.enter(ctx)
             }
             _ => {}
         }
@@ -527,6 +534,7 @@ impl Cia402 {
             mode::value::PV => self.pv.step(ctx),
             mode::value::HM => self.hm.step(ctx),
             mode::value::CSP => self.csp.step(ctx, sync_at, csp_period_us),
+            mode::value::IP => self.ip.step(ctx, sync_at, csp_period_us),
             mode::value::CSV => csv::step(ctx),
             mode::value::CST => cst::step(ctx),
             _ => {
@@ -641,7 +649,12 @@ impl Cia402 {
                 s |= sw::BIT_OMS13;
             }
         }
-        if self.fe_flag && matches!(self.mode_display, mode::value::PP | mode::value::CSP) {
+        if self.fe_flag
+            && matches!(
+                self.mode_display,
+                mode::value::PP | mode::value::CSP | mode::value::IP
+            )
+        {
             s |= sw::BIT_OMS13;
         }
         s

@@ -80,7 +80,7 @@ pub const MODES: [ModeInfo; 10] = [
     row(Mode::ProfileVelocity,           3, "PV",   "profile velocity",               Some(2), true,  true),
     row(Mode::ProfileTorque,             4, "PT",   "profile torque",                 Some(3), false, true),
     row(Mode::Homing,                    6, "HM",   "homing",                         Some(5), true,  true),
-    row(Mode::InterpolatedPosition,      7, "IP",   "interpolated position",          Some(6), false, true),
+    row(Mode::InterpolatedPosition,      7, "IP",   "interpolated position",          Some(6), true,  true),
     row(Mode::CyclicSyncPosition,        8, "CSP",  "cyclic synchronous position",    Some(7), true,  false),
     row(Mode::CyclicSyncVelocity,        9, "CSV",  "cyclic synchronous velocity",    Some(8), true,  false),
     row(Mode::CyclicSyncTorque,         10, "CST",  "cyclic synchronous torque",      Some(9), true,  false),
@@ -182,6 +182,8 @@ pub mod value {
     pub const PV: i8 = 3;
     /// Homing mode.
     pub const HM: i8 = 6;
+    /// Interpolated position mode.
+    pub const IP: i8 = 7;
     /// Cyclic synchronous position mode.
     pub const CSP: i8 = 8;
     /// Cyclic synchronous velocity mode.
@@ -204,8 +206,8 @@ mod tests {
         }
         assert_eq!(value::CSP, Mode::CyclicSyncPosition.value());
         assert_eq!(value::PV, Mode::ProfileVelocity.value());
-        // the mask the drive has always shipped: PP, PV, HM, CSP, CSV, CST
-        assert_eq!(SIMULATED_MODES_MASK, 0x3A5);
+        // PP, PV, HM, IP, CSP, CSV, CST
+        assert_eq!(SIMULATED_MODES_MASK, 0x3E5);
     }
 
     #[test]
@@ -216,7 +218,7 @@ mod tests {
         assert_eq!(Mode::parse("5"), None);
         assert_eq!(Mode::parse("-"), None);
         assert!(Mode::NoMode.in_mask(0));
-        assert!(!Mode::CyclicSyncTorque.in_mask(0x1A5));
+        assert!(!Mode::CyclicSyncTorque.in_mask(0x1E5));
         assert!(Mode::CyclicSyncTorque.in_mask(0x3A5));
     }
 }

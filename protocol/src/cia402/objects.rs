@@ -53,6 +53,7 @@ pub const HOMING_SPEED_ZERO: usize = idx(0x6099, 2);
 pub const HOMING_ACC: usize = idx(0x609A, 0);
 pub const VEL_OFFSET: usize = idx(0x60B1, 0);
 pub const TORQUE_OFFSET: usize = idx(0x60B2, 0);
+pub const IP_DATA: usize = idx(0x60C1, 1);
 pub const IP_VALUE: usize = idx(0x60C2, 1);
 pub const IP_INDEX: usize = idx(0x60C2, 2);
 pub const DIRECT_POS: usize = idx(0x60E4, 1);

@@ -292,11 +292,21 @@ impl ObjectDictionary {
                         // the file leaves the value to the device: the drive's own, not 0
                         // (a profile velocity of 0 would never move); the device name is the
                         // file's product name
-                        let product = file.device_info.product_name.as_ref();
-                        let d = match (obj.index, product) {
-                            (0x1008, Some(p)) => DefaultValue::Bytes(p.as_bytes().to_vec()),
-                            _ => od.slots[slot].entry.default.clone(),
+                        // the device name and the identity from [DeviceInfo] (what python
+                        // canopen and Lely take for them too)
+                        let info = &file.device_info;
+                        let ident = |v: Option<u32>| v.map(|x| DefaultValue::Value(u64::from(x)));
+                        let from_info = match (obj.index, s.sub) {
+                            (0x1008, 0) => info
+                                .product_name
+                                .as_ref()
+                                .map(|p| DefaultValue::Bytes(p.as_bytes().to_vec())),
+                            (0x1018, 1) => ident(info.vendor_number),
+                            (0x1018, 2) => ident(info.product_number),
+                            (0x1018, 3) => ident(info.revision_number),
+                            _ => None,
                         };
+                        let d = from_info.unwrap_or_else(|| od.slots[slot].entry.default.clone());
                         e = e.with_default(d);
                         why = "no DefaultValue in the file: the drive's standard value".into();
                     }
@@ -365,7 +375,9 @@ impl ObjectDictionary {
             granularity: file.device_info.granularity.unwrap_or(8),
             lss_supported: file.device_info.lss_supported.unwrap_or(false),
             dummy_usage: file.dummy_usage,
+            shipped_read_only_rpdo_entries: Vec::new(),
         };
+        od.device.shipped_read_only_rpdo_entries = shipped_read_only_rpdo_entries(&od, &mut report);
         report.lines.sort_by_key(|l| (l.index, l.sub));
         check_default_mappings(&od, &mut report);
         Ok((od, report))
@@ -469,4 +481,39 @@ fn check_default_mappings(od: &ObjectDictionary, report: &mut BuildReport) {
             }
         }
     }
+}
+
+/// The RPDO mapping entries of the file's defaults that map a read-only object: CiA 301 wants
+/// writable objects in an RPDO, but the device ships them (a scanned file shows what the
+/// device holds), so it takes them; the drive accepts them too, and ignores what is received
+/// for those objects.
+fn shipped_read_only_rpdo_entries(od: &ObjectDictionary, report: &mut BuildReport) -> Vec<u32> {
+    let mut v = Vec::new();
+    for n in 0..512u16 {
+        let index = 0x1600 + n;
+        let Some((_, count)) = od.get(index, 0) else {
+            continue;
+        };
+        for sub in 1..=(count.default_raw(0) as u8).min(8) {
+            let Some((_, e)) = od.get(index, sub) else {
+                break;
+            };
+            let value = e.default_raw(0) as u32;
+            let Some((_, target)) = od.get((value >> 16) as u16, (value >> 8) as u8) else {
+                continue;
+            };
+            if target.pdo && target.access.readable() && !target.access.writable() {
+                v.push(value);
+                report.notes.push(format!(
+                    "RPDO{} (0x{index:04X}): the shipped mapping entry 0x{value:08X} maps the \
+                     read-only 0x{:04X}:{} (CiA 301 wants writable objects in an RPDO): taken as \
+                     the device takes it, a received value for it ignored",
+                    n + 1,
+                    target.index,
+                    target.sub
+                ));
+            }
+        }
+    }
+    v
 }

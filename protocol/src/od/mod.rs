@@ -352,6 +352,10 @@ pub struct DeviceDescription {
     /// `[DummyUsage]`: which of the data types 0x0001..=0x0007 an RPDO may map as a dummy
     /// (index 1..=7 of this array; 0 unused).
     pub dummy_usage: [bool; 8],
+    /// RPDO mapping entries the device ships that map a read-only object (a vendor's default
+    /// mapping CiA 301 would refuse, e.g. a scanned SCHUNK file): accepted as the device
+    /// accepts them, a received value for such an object ignored.
+    pub shipped_read_only_rpdo_entries: Vec<u32>,
 }
 
 impl Default for DeviceDescription {
@@ -364,6 +368,7 @@ impl Default for DeviceDescription {
             granularity: 8,
             lss_supported: true,
             dummy_usage: [false; 8],
+            shipped_read_only_rpdo_entries: Vec::new(),
         }
     }
 }

@@ -454,7 +454,7 @@ const fn pdo_rows() -> [Obj; N_PDO] {
 
 // ----- CiA 402 profile objects -----
 #[rustfmt::skip]
-const PROFILE: [Obj; 67] = [
+const PROFILE: [Obj; 70] = [
     lim(var(0x6007, "Abort connection option code", I16, Rw, false, V(1)), 0, 3),
     var(0x603F, "Error code", U16, Ro, true, V(0)),
     var(0x6040, "Controlword", U16, Rww, true, V(0)),
@@ -513,6 +513,9 @@ const PROFILE: [Obj; 67] = [
     var(0x609A, "Homing acceleration", U32, Rw, true, Info(d_acc)),
     var(0x60B1, "Velocity offset", I32, Rww, true, V(0)),
     var(0x60B2, "Torque offset", I16, Rww, true, V(0)),
+    lim(var(0x60C0, "Interpolation sub mode select", I16, Rw, false, V(0)), 0, 0),
+    arr(0x60C1, 0, "Interpolation data record", HSI, U8, Const, false, V(1)),
+    arr(0x60C1, 1, "Interpolation data record", "Interpolation data record 1", I32, Rww, true, V(0)),
     rec(0x60C2, 0, "Interpolation time period", HSI, U8, Const, false, V(2)),
     rec(0x60C2, 1, "Interpolation time period", "Interpolation time period value", U8, Rw, false, V(0)),
     lim(rec(0x60C2, 2, "Interpolation time period", "Interpolation time index", I8, Rw, false, V(-3i32 as u32)), -6, 0),

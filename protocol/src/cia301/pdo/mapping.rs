@@ -13,6 +13,9 @@ pub struct Mapped {
     pub slot: Option<u32>,
     /// Type of the value.
     pub dtype: DataType,
+    /// An RPDO writes the received value (false: a read-only object the device ships in a
+    /// default mapping; its bytes are skipped).
+    pub write: bool,
 }
 
 impl Default for Mapped {
@@ -20,6 +23,7 @@ impl Default for Mapped {
         Mapped {
             slot: None,
             dtype: DataType::U8,
+            write: true,
         }
     }
 }
@@ -44,16 +48,22 @@ pub fn check_entry(od: &ObjectDictionary, entry: u32, tx: bool) -> Result<Mapped
         if tx || !od.device.dummy_usage[index as usize] || bits != dtype.size() * 8 {
             return Err(abort::NOT_MAPPABLE);
         }
-        return Ok(Mapped { slot: None, dtype });
+        return Ok(Mapped {
+            slot: None,
+            dtype,
+            write: false,
+        });
     }
     let Lookup::Found(slot) = od.find(index, sub) else {
         return Err(abort::NOT_MAPPABLE);
     };
     let e = od.entry(slot);
+    let shipped =
+        !tx && e.access.readable() && od.device.shipped_read_only_rpdo_entries.contains(&entry);
     let access_ok = if tx {
         e.access.readable()
     } else {
-        e.access.writable()
+        e.access.writable() || shipped
     };
     let size = e.dtype.size();
     if !e.pdo
@@ -68,6 +78,7 @@ pub fn check_entry(od: &ObjectDictionary, entry: u32, tx: bool) -> Result<Mapped
     Ok(Mapped {
         slot: Some(slot.get() as u32),
         dtype: e.dtype,
+        write: tx || e.access.writable(),
     })
 }
 
@@ -132,7 +143,7 @@ pub fn unpack(
         let Some(bytes) = data.get(pos..pos + n) else {
             return false;
         };
-        if let Some(s) = m.slot {
+        if let (Some(s), true) = (m.slot, m.write) {
             let raw = od::decode(m.dtype, bytes);
             if accept(store, s as usize, raw) {
                 store.set(s as usize, raw);
