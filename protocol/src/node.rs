@@ -520,6 +520,12 @@ impl Core {
                     return Err(abort::PARAM_INCOMPATIBLE);
                 }
                 self.hbc.configure(i, raw as u32);
+                // the consumer restarts (it waits for a first heartbeat again): a loss it
+                // reported is over; the fault it caused stays until the fault reset
+                if self.hb_lost {
+                    self.hb_lost = false;
+                    self.clear_emcy(EMCY_HEARTBEAT, Cause::Condition);
+                }
             }
             (0x1017, _) => self.hb.restart(self.comm_us, raw as u16),
             (0x1019, _) => {

@@ -59,9 +59,9 @@ fn start_candump(ifname: &str, sock: &e2e::socketcan::CanSocket, marker: u16) ->
 }
 
 /// The capture: boot-up first, heartbeats (state 0x7F in pre-operational, 0x05 in
-/// operational) with counts fixed by the SYNCs sent (lock-step), SDO answers on 0x580+n
-/// only when asked, TPDOs on 0x180../0x280../0x380../0x480.. only in operational and, for
-/// the synchronous ones, exactly one per SYNC, each after a SYNC.
+/// operational; on the wall clock, as a master supervises them, also in lock-step), SDO
+/// answers on 0x580+n only when asked, TPDOs on 0x180../0x280../0x380../0x480.. only in
+/// operational and, for the synchronous ones, exactly one per SYNC, each after a SYNC.
 #[test]
 fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
     const NODE: u8 = 12;
@@ -98,6 +98,9 @@ fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
     }
     // An SDO round trip after the SYNCs: all of them have been handled by now.
     assert_eq!(sdo_u32(&sock, NODE, 0x1017, 0), u32::from(HB_MS));
+    let hb_id = 0x700 + u32::from(NODE);
+    recv_matching(&sock, PEER_TIMEOUT, |f| id_data(f) == (hb_id, vec![0x7F]))
+        .expect("a heartbeat 70C#7F in pre-operational");
 
     // Phase 2: operational; each SYNC answered by the synchronous TPDOs.
     nmt(&sock, 0x01, NODE);
@@ -110,6 +113,8 @@ fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
         .unwrap_or_else(|| panic!("no TPDO4 0x48C after SYNC {i}"));
     }
     assert_eq!(sdo_u32(&sock, NODE, 0x1000, 0), DEVICE_TYPE);
+    recv_matching(&sock, PEER_TIMEOUT, |f| id_data(f) == (hb_id, vec![0x05]))
+        .expect("a heartbeat 70C#05 in operational");
     send(&sock, 0x7A2, &[0x02]);
     dump.wait_line("7A2#02", PEER_TIMEOUT)
         .expect("candump did not see the end marker");
@@ -166,24 +171,16 @@ fn candump_boot_heartbeat_sdo_and_tpdo_cob_ids() {
         })
         .collect();
     eprintln!("sequence: {}", seq.join(" "));
-    // 100 ms of drive time at a 10 ms period: 10 heartbeats, +-1 for where the period
-    // starts relative to the SDO write.
     assert!(
         !dump_out.contains("DROPCOUNT"),
         "candump dropped frames (its socket overflowed); the capture is incomplete:\n{dump_out}"
     );
-    // 100 ms of drive time per phase at a 10 ms period: 10 heartbeats, +-1 for where the
-    // period starts relative to the SDO write and to the NMT start.
+    // Heartbeats go by the wall clock (a master supervises them so, CiA 301), so their
+    // number depends on how long the run took, not on the SYNCs: each state has some.
     let hb_pre = count(&frames, hb, Some(&[0x7F]));
     let hb_op = count(&frames, hb, Some(&[0x05]));
-    assert!(
-        (9..=11).contains(&hb_pre),
-        "{hb_pre} heartbeats 70C#7F for {SYNCS} SYNCs of 1 ms at {HB_MS} ms"
-    );
-    assert!(
-        (9..=11).contains(&hb_op),
-        "{hb_op} heartbeats 70C#05 for {SYNCS} SYNCs of 1 ms at {HB_MS} ms"
-    );
+    assert!(hb_pre >= 1, "no heartbeat 70C#7F in pre-operational");
+    assert!(hb_op >= 1, "no heartbeat 70C#05 in operational");
     assert_eq!(
         count(pre, hb, Some(&[0x05])),
         0,

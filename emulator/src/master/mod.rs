@@ -342,6 +342,9 @@ pub struct Master {
     sync_on: bool,
     next_heartbeat_us: u64,
     heartbeat_on: bool,
+    /// The wall clock on a real bus (`set_wall_us`): the heartbeat a drive supervises in real
+    /// milliseconds goes by it. `None` offline: the master's own clock.
+    wall_us: Option<u64>,
     controlword: u16,
     /// Interpolator (CSP/CSV): set-point position and velocity.
     target_uu: f64,
@@ -371,6 +374,7 @@ impl Master {
             sync_on: false,
             next_heartbeat_us: 0,
             heartbeat_on: false,
+            wall_us: None,
             controlword: 0,
             target_uu: 0.0,
             velocity_uu_s: 0.0,
@@ -524,6 +528,14 @@ impl Master {
     }
 
     /// Advance by time: run the program, produce SYNC, RPDOs and heartbeat.
+    /// On a real bus: the wall clock (us, any origin), by which the master's heartbeat goes
+    /// (a drive supervises it in real milliseconds, CiA 301), while its own clock (`now_us` of
+    /// `poll` / `handle`) counts its SYNC cycles so that its time-outs do not depend on the
+    /// host's load.
+    pub fn set_wall_us(&mut self, wall_us: u64) {
+        self.wall_us = Some(wall_us);
+    }
+
     pub fn poll(&mut self, now_us: u64) {
         match self.phase.clone() {
             Phase::Reset => {
@@ -546,7 +558,7 @@ impl Master {
                     self.sync_on = true;
                     self.heartbeat_on = true;
                     self.next_sync_us = now_us;
-                    self.next_heartbeat_us = now_us;
+                    self.next_heartbeat_us = self.wall_us.unwrap_or(now_us);
                     self.step = StepState {
                         started_us: now_us,
                         ..Default::default()
@@ -757,13 +769,16 @@ impl Master {
 
     fn produce(&mut self, now_us: u64) {
         let n = u32::from(self.cfg.node_id);
-        if self.heartbeat_on && now_us >= self.next_heartbeat_us {
+        let hb_now = self.wall_us.unwrap_or(now_us);
+        if self.heartbeat_on && hb_now >= self.next_heartbeat_us {
             let hb = Heartbeat { state: 0x05 };
             self.tx.push_back(CanFrame::new(
                 cob::HEARTBEAT + u32::from(self.cfg.master_id),
                 &hb.emit(),
             ));
-            self.next_heartbeat_us += u64::from(self.cfg.heartbeat_ms) * 1000;
+            // on the period's grid; after a stall, one heartbeat and on from now
+            let period = u64::from(self.cfg.heartbeat_ms) * 1000;
+            self.next_heartbeat_us = (self.next_heartbeat_us + period).max(hb_now);
         }
         if !(self.sync_on && now_us >= self.next_sync_us) {
             return;

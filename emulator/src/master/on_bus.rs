@@ -65,6 +65,7 @@ pub fn run_on_bus<B: CanBus, C: Clock>(
                 }
             }
         }
+        master.set_wall_us(woke - start_us);
         master.poll(now);
         while let Some(f) = master.pop_tx() {
             match bus.send(&f) {
