@@ -1,14 +1,18 @@
 #!/usr/bin/env bash
 # Run the whole test suite:
 #   1. host tests (protocol, emulator): cargo nextest run --workspace --exclude e2e
+#   1b. a bounded run of the `cargo fuzz` target fuzz/fuzz_targets/frames.rs (FUZZ_SECONDS,
+#      default 60; stable Rust, no sanitizer, overflow checks on; needs cargo-fuzz, which
+#      .ci/run installs: a missing cargo-fuzz fails this phase)
 #   2. end-to-end tests on a real virtual CAN bus (package e2e): built and archived here
 #      with `cargo nextest archive`, then run from the archive through ./vcan-setup.sh
 #      (natively where the kernel has CAN, inside user-mode Linux otherwise), followed in
 #      the same vcan run by the python package's pytest tests (python/tests: the drive_emu
 #      fixture and the examples; needs `pip install ./python`; "no tests" fails).
-# Exits non-zero if either phase fails (both always run). See docs/vcan.md.
+# Exits non-zero if any phase fails (all always run). See docs/vcan.md.
 #
-# Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase; the
+# Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase; FUZZ_SECONDS the
+# fuzz run; the
 # CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
 set -euo pipefail
 
@@ -33,6 +37,19 @@ banner "host tests: cargo nextest run --workspace --exclude e2e"
 t=$(now); host_rc=0
 cargo nextest run --workspace --exclude e2e --no-fail-fast || host_rc=$?
 host_time=$(secs "$t")
+
+# ---- 1b. bounded fuzz run (the frames target asserts the Node::poll_at contract after
+# every poll; -s none: sanitizers need nightly; -a: debug assertions and overflow checks)
+banner "fuzz: cargo fuzz run frames for ${FUZZ_SECONDS:-60} s"
+t=$(now); fuzz_rc=0
+if cargo fuzz --version >/dev/null 2>&1; then
+    (cd fuzz && cargo fuzz run --sanitizer none --debug-assertions frames -- \
+        -max_total_time="${FUZZ_SECONDS:-60}" -print_final_stats=1) || fuzz_rc=$?
+else
+    echo "test-all.sh: cargo-fuzz missing: cargo install cargo-fuzz --version 0.13.2 --locked" >&2
+    fuzz_rc=127
+fi
+fuzz_time=$(secs "$t")
 
 # ---- 2. vcan (e2e) tests
 banner "vcan tests: build + archive e2e on the host, run it through ./vcan-setup.sh"
@@ -78,6 +95,7 @@ fi
 
 banner "summary"
 printf 'host tests: %s (%ss)\n' "$([[ $host_rc == 0 ]] && echo ok || echo "FAILED ($host_rc)")" "$host_time"
+printf 'fuzz run: %s (%ss)\n' "$([[ $fuzz_rc == 0 ]] && echo ok || echo "FAILED ($fuzz_rc)")" "$fuzz_time"
 printf 'vcan tests: %s (build+archive %ss, run via vcan-setup.sh %ss)\n' \
     "$([[ $e2e_rc == 0 ]] && echo ok || echo "FAILED ($e2e_rc)")" "$build_time" "$run_time"
-if [[ $host_rc != 0 || $e2e_rc != 0 ]]; then exit 1; fi
+if [[ $host_rc != 0 || $fuzz_rc != 0 || $e2e_rc != 0 ]]; then exit 1; fi

@@ -16,7 +16,10 @@
 //!   is a supported mode (0x6061 too), and a drive in FAULT has 0x1001 and 0x603F set;
 //! - SDO: after a client abort the server answers a fresh request, whatever state the
 //!   sequence left it in; at the end of each case, a stalled transfer has timed out and the
-//!   server answers again.
+//!   server answers again;
+//! - the `Node::poll_at` contract: right after `poll(now)`, `poll_at()` is `None` or `> now`,
+//!   on any clock: the steps include jumps to the end of the u64 range (`Time::End`), where
+//!   nothing may overflow (the test profile checks overflow).
 #![allow(dead_code)]
 
 use drive_protocol::cia402::mode::Mode;
@@ -92,6 +95,9 @@ pub enum Time {
     Jump(u64),
     /// Backwards (a clock that is not monotonic).
     Back(u32),
+    /// To this far before the end of the clock's range, `u64::MAX - n` (584 542 years of
+    /// uptime; later steps stay there, saturating).
+    End(u64),
 }
 
 /// One step of a case.
@@ -172,6 +178,7 @@ fn time_strategy() -> impl Strategy<Value = Time> {
         6 => (0u32..20_000).prop_map(Time::Advance),
         1 => (1_000_000u64..20_000_000_000).prop_map(Time::Jump),
         1 => (1u32..2_000_000).prop_map(Time::Back),
+        1 => prop_oneof![0u64..5_000_000, 0u64..2_000_000_000, Just(0)].prop_map(Time::End),
     ]
 }
 
@@ -451,18 +458,35 @@ impl<D: Drive> Harness<D> {
     pub fn poll(&mut self, t: &Time) -> Result<(), TestCaseError> {
         match *t {
             Time::Advance(dt) => {
-                self.now_us += dt as u64;
+                self.now_us = self.now_us.saturating_add(dt as u64);
                 (self.advance)(&mut self.drive, (dt as u64).min(self.max_physics_us));
             }
             Time::Jump(dt) => {
-                self.now_us += dt;
+                self.now_us = self.now_us.saturating_add(dt);
                 (self.advance)(&mut self.drive, dt.min(self.max_physics_us));
             }
             Time::Back(dt) => self.now_us = self.now_us.saturating_sub(dt as u64),
+            Time::End(n) => {
+                self.now_us = u64::MAX - n;
+                (self.advance)(&mut self.drive, self.max_physics_us);
+            }
         }
         self.node.poll(self.now_us, &mut self.drive);
+        self.check_poll_at()?;
         self.drain()?;
         self.check_state()
+    }
+
+    /// The `Node::poll_at` contract, right after `poll(now)`: no deadline, or a later one.
+    fn check_poll_at(&self) -> Result<(), TestCaseError> {
+        match self.node.poll_at() {
+            Some(at) if at <= self.now_us => Err(fail(format!(
+                "poll_at() = {at} <= now = {} right after poll(now) ({} us before it)",
+                self.now_us,
+                self.now_us - at
+            ))),
+            _ => Ok(()),
+        }
     }
 
     fn tick(&mut self) -> Result<(), TestCaseError> {
