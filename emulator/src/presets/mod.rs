@@ -261,12 +261,11 @@ impl AxisConfig {
         };
         // Integer-typed fields accept integers only; let a float like "1e6" through for them.
         table.insert(key.to_string(), parsed);
-        let cfg: AxisConfig = table.try_into().map_err(|e: toml::de::Error| {
-            let mut err = parse_error(e);
-            if err.key.is_empty() {
-                err.key = key.to_string();
-            }
-            err
+        // Only `key` changed: any error is about it (serde's messages may quote the value
+        // in backticks, e.g. "invalid value: integer `-1`", which is not the key).
+        let cfg: AxisConfig = table.try_into().map_err(|e: toml::de::Error| ConfigError {
+            key: key.to_string(),
+            ..parse_error(e)
         })?;
         cfg.build()?;
         Ok(cfg)
