@@ -305,7 +305,7 @@ run_uml() {
     t0=$(now)
     local -a uml=(env TMPDIR="$memdir" "$kernel" "mem=$mem" root=/dev/root rootfstype=hostfs rootflags=/ rw
                   "init=$tmpdir/init" con=null con0=fd:3,fd:1 con1=fd:4,fd:2 ssl=null
-                  quiet loglevel=0 selinux=0 ubd0=/dev/null)
+                  quiet loglevel=0 selinux=0)
     (( TIMEOUT == 0 )) || uml=(timeout --kill-after=10 "$TIMEOUT" "${uml[@]}")
     # linux.uml puts itself in its own process group, so a Ctrl-C does not reach it:
     # run it in the background and forward INT/TERM/HUP (SIGTERM shuts it down).
@@ -357,7 +357,7 @@ uml_boots() {
     # in a subshell: a kernel that aborts is reported by our log, not by bash's job message
     (timeout --kill-after=5 60 env TMPDIR="$dir" "$kernel" mem=256M root=/dev/root \
         rootfstype=hostfs rootflags=/ rw "init=$dir/init" con=null ssl=null quiet loglevel=0 \
-        ubd0=/dev/null </dev/null >"$dir/log" 2>&1) 2>/dev/null || rc=$?
+        </dev/null >"$dir/log" 2>&1) 2>/dev/null || rc=$?
     if [[ -f $dir/booted ]]; then rm -rf "$dir"; return 0; fi
     grep -a -m1 -E 'ptrace|panic|failed' "$dir/log" >&2 || true
     rm -rf "$dir"

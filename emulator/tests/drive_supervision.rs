@@ -376,7 +376,7 @@ fn an_injected_fault_refuses_its_reset_while_it_lasts() {
 #[test]
 fn the_emulators_objects_move_with_their_base() {
     let opts = NodeOptions {
-        objects_base: 0x3000,
+        objects_base: Some(0x3000),
         ..NodeOptions::new(NODE)
     };
     let mut b = Bench::with_options("cnc1", &opts);

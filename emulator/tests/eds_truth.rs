@@ -43,6 +43,8 @@ fn args(preset: &str, node: Option<u8>, set: &[&str]) -> EdsArgs {
         set: set.iter().map(|s| s.to_string()).collect(),
         real32: Real32Arg::Bits,
         canopen_monitor: false,
+        from: None,
+        objects_base: None,
     }
 }
 

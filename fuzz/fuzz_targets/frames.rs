@@ -1,10 +1,10 @@
 //! Any byte string becomes a sequence of frames and time steps (forward, back, and to the end
 //! of the u64 clock range); the node must never panic, must keep the `Node::poll_at` contract
 //! after every poll (`None` or later than the poll's `now`), and must answer a valid SDO
-//! afterwards.
+//! afterwards (given back its node-ID by LSS if the frames changed it).
 //!
-//! Run (nightly): cargo +nightly fuzz run frames
-//! Compile check (stable): cargo check --manifest-path fuzz/Cargo.toml
+//! Run: cargo fuzz run --sanitizer none --debug-assertions frames (stable; ./test-all.sh
+//! runs it for FUZZ_SECONDS), or cargo +nightly fuzz run frames (AddressSanitizer).
 #![no_main]
 
 use drive_protocol::od::{Access, DataType, DefaultValue, Entry, ObjectDictionary};
@@ -120,7 +120,8 @@ fuzz_target!(|data: &[u8]| {
     node.boot(now);
     // 13 bytes per step: id (2), flags (1), dlc (1), data (8), dt (1). Flags: 0x80 fold the
     // ID onto this node, 0x01 extended, 0x02 RTR, 0x04 drive fault, 0x08 poll after the
-    // frame, 0x10 the clock jumps to dt x 50 ms before u64::MAX, 0x20 it goes back dt x 10 ms.
+    // frame (0x40: the communication timers alone, poll_comm), 0x10 the clock jumps to
+    // dt x 50 ms before u64::MAX, 0x20 it goes back dt x 10 ms.
     for chunk in data.chunks_exact(13) {
         let raw_id = u16::from_le_bytes([chunk[0], chunk[1]]) as u32;
         // fold IDs onto this node's channels half of the time
@@ -149,9 +150,30 @@ fuzz_target!(|data: &[u8]| {
         };
         let _ = node.handle(&f, now, &mut drive);
         if chunk[2] & 0x08 != 0 {
-            poll(&mut node, now, &mut drive);
+            if chunk[2] & 0x40 != 0 {
+                node.poll_comm(now, &mut drive);
+                if let Some(at) = node.poll_at_comm() {
+                    assert!(at > now, "poll_at_comm() = {at} <= {now} after poll_comm");
+                }
+            } else {
+                poll(&mut node, now, &mut drive);
+            }
         }
         while node.pop_tx().is_some() {}
+    }
+    // LSS (0x7E5) may have given the node another node-ID or none: the master gives it back
+    // by LSS and resets its communication.
+    if node.node_id() != ID {
+        for d in [
+            [0x04, 1, 0, 0, 0, 0, 0, 0],
+            [0x11, ID, 0, 0, 0, 0, 0, 0],
+            [0x04, 0, 0, 0, 0, 0, 0, 0],
+        ] {
+            node.handle(&CanFrame::new(0x7E5, &d), now, &mut drive);
+        }
+        node.handle(&CanFrame::new(0, &[0x82, 0]), now, &mut drive);
+        poll(&mut node, now, &mut drive);
+        assert_eq!(node.node_id(), ID, "node-ID given back by LSS");
     }
     node.handle(&CanFrame::new(0, &[0x80, ID]), now, &mut drive);
     let end_of_range = now > u64::MAX - 4_000_000;

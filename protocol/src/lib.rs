@@ -4,10 +4,11 @@
 //! The surface: [`Node`] (frames in with [`Node::handle`], time in with [`Node::poll`], frames
 //! out with [`Node::pop_tx`], events out with [`Node::poll_event`], next deadline from
 //! [`Node::poll_at`]); the [`Drive`] contract the emulator implements ([`DriveCommand`] in,
-//! [`Feedback`] out); [`CanFrame`]; the states [`NmtState`] and [`Cia402State`]. Three modules
-//! are public: [`wire`] (parse and emit of SDO, NMT, EMCY, heartbeat and SYNC frames, for a
-//! master or a capture decoder), [`od`] (the object dictionary, its EDS export and parse) and
-//! [`cia402`] (modes of operation, controlword and statusword bits).
+//! [`Feedback`] out); [`CanFrame`]; the states [`NmtState`] and [`Cia402State`]. Four modules
+//! are public: [`wire`] (parse and emit of SDO, NMT, EMCY, heartbeat, SYNC and LSS frames, for
+//! a master or a capture decoder), [`od`] (the object dictionary, its EDS export and parse),
+//! [`cia402`] (modes of operation, controlword and statusword bits) and [`cia305`] (the LSS
+//! slave).
 //!
 //! Inside (private): `cia301` (NMT, SDO server, PDO engine, SYNC, heartbeat, EMCY), the rest
 //! of `cia402` (state machine, one file per mode, factor group, profiles), `node` (the glue)
@@ -22,6 +23,7 @@
 // needs), `od` (the object table behind the EDS) and `cia402` (state, modes, control and status
 // bits) as modules. Everything else is the node's inside.
 mod cia301;
+pub mod cia305;
 pub mod cia402;
 mod drive;
 mod event;
@@ -35,4 +37,7 @@ pub use cia402::State as Cia402State;
 pub use drive::{Drive, DriveCommand, DriveInfo, Feedback, Setpoint};
 pub use event::{NodeEvent, SdoDirection, SdoTransfer, EVENT_QUEUE};
 pub use frame::CanFrame;
-pub use node::{ConfigError, FrameEvent, Node, NodeConfig, TX_QUEUE};
+pub use node::{
+    Clocks, ConfigError, FrameEvent, LssConfig, LssStore, Node, NodeConfig, DEFAULT_LSS_BIT_TIMING,
+    TX_QUEUE,
+};

@@ -13,6 +13,7 @@ use crate::cia301::pdo::rpdo::RxOutcome;
 use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer};
 use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
+use crate::cia305::{LssEvent, LssIdentity, LssSlave, LssState};
 use crate::cia402::factor::Factor;
 use crate::cia402::mode::Mode;
 use crate::cia402::{objects as o402, Cia402, State};
@@ -20,6 +21,7 @@ use crate::drive::{Drive, DriveInfo};
 use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
 use crate::od::{idx, Backing, Entry, Lookup, ObjectDictionary, Slot, Store};
+use crate::wire::lss::{LSS_REQUEST, UNCONFIGURED_NODE_ID};
 use crate::wire::{cob, Heartbeat};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
@@ -44,11 +46,48 @@ const R_1016: usize = idx(0x1016, 1);
 const R_1017: usize = idx(0x1017, 0);
 const R_1019: usize = idx(0x1019, 0);
 const R_6502: usize = idx(0x6502, 0);
+const R_SERIAL: usize = idx(0x1018, 4);
+
+/// The bit timing an LSS slave reports at power-on unless told otherwise: CiA 301 table
+/// index 0, 1 Mbit/s.
+pub const DEFAULT_LSS_BIT_TIMING: u8 = 0;
+
+/// The node's LSS slave (CiA 305): what its non-volatile memory holds at power-on and who
+/// writes a store configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LssConfig {
+    /// Bit timing (CiA 301 table index) at power-on.
+    pub bit_timing_index: u8,
+    /// A store configuration goes to the application ([`Node::take_lss_store`], answered by
+    /// [`Node::lss_store_done`]); else the node keeps the stored values in memory (an NMT
+    /// reset node loads them, a new node does not) and answers at once.
+    pub store_external: bool,
+}
+
+impl Default for LssConfig {
+    fn default() -> Self {
+        LssConfig {
+            bit_timing_index: DEFAULT_LSS_BIT_TIMING,
+            store_external: false,
+        }
+    }
+}
+
+/// A store configuration (LSS) the application is to write to non-volatile memory: the
+/// pending node-ID (`None`: non-configured) and bit timing. See [`Node::take_lss_store`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LssStore {
+    /// Node-ID to store (`None`: non-configured).
+    pub node_id: Option<u8>,
+    /// CiA 301 bit timing table index to store.
+    pub bit_timing_index: u8,
+}
 
 /// Everything a node is built from, once ([`Node::new`]).
 #[derive(Clone, Debug)]
 pub struct NodeConfig {
-    /// Node ID 1..=127.
+    /// Node ID 1..=127; 255 (with LSS): non-configured, silent but for LSS until a master
+    /// gives it one.
     pub node_id: u8,
     /// Static facts of the drive (factor-group defaults).
     pub info: DriveInfo,
@@ -61,6 +100,9 @@ pub struct NodeConfig {
     pub boot_delay_us: u64,
     /// Timeout of a stalled SDO transfer, us (default 1 s).
     pub sdo_timeout_us: u64,
+    /// The LSS slave (CiA 305); `None`: the node answers no LSS (and cannot be
+    /// non-configured). Its identity is the dictionary's 0x1018:1-4.
+    pub lss: Option<LssConfig>,
 }
 
 impl NodeConfig {
@@ -72,6 +114,7 @@ impl NodeConfig {
             od: ObjectDictionary::standard(&info),
             boot_delay_us: 0,
             sdo_timeout_us: crate::cia301::sdo::DEFAULT_TIMEOUT_US,
+            lss: Some(LssConfig::default()),
         }
     }
 
@@ -103,13 +146,41 @@ pub enum FrameEvent {
     },
 }
 
+/// The two clocks a node runs on, us. The application clock times the drive: the CiA 402
+/// cycle, window times, following-error time-outs, the CSP interpolation, SYNC supervision.
+/// The communication clock times what a master measures on its own clock: the heartbeat
+/// producer and consumer, TPDO event timers and inhibit times, the EMCY inhibit time, the SDO
+/// time-out and the boot delay. A runtime in real time gives the same clock twice
+/// ([`Clocks::same`]); a lock-step runtime, whose simulated time advances only with SYNC,
+/// gives the wall clock as the communication clock, so a master's heartbeat supervision
+/// agrees with the drive whatever its SYNC period. The two are never compared.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Clocks {
+    /// Application (simulated) time.
+    pub app_us: u64,
+    /// Communication time.
+    pub comm_us: u64,
+}
+
+impl Clocks {
+    /// One clock for both.
+    pub const fn same(now_us: u64) -> Clocks {
+        Clocks {
+            app_us: now_us,
+            comm_us: now_us,
+        }
+    }
+}
+
 /// Why a node could not be built.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum ConfigError {
-    /// Node IDs are 1..=127.
+    /// Node IDs are 1..=127, or 255 (non-configured) with LSS.
     InvalidNodeId(u8),
     /// A zero in the encoder resolution, gear ratio or feed constant.
     InvalidDriveInfo,
+    /// The LSS bit timing is not a CiA 301 table index the slave supports.
+    InvalidBitTiming(u8),
     /// The dictionary lacks an object every CiA 301 node has (0x1000, 0x1001, 0x1018:1-4).
     MissingObject {
         /// Index.
@@ -122,8 +193,17 @@ pub enum ConfigError {
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ConfigError::InvalidNodeId(n) => write!(f, "node id {n} outside 1..=127"),
+            ConfigError::InvalidNodeId(n) => {
+                write!(
+                    f,
+                    "node id {n} outside 1..=127 (255: non-configured, with LSS)"
+                )
+            }
             ConfigError::InvalidDriveInfo => write!(f, "drive info has a zero in the factor group"),
+            ConfigError::InvalidBitTiming(i) => write!(
+                f,
+                "LSS bit timing index {i} is not a CiA 301 bit rate (0..=4, 6..=8)"
+            ),
             ConfigError::MissingObject { index, sub } => write!(
                 f,
                 "the object dictionary has no 0x{index:04X} sub {sub}, which every CiA 301 node has"
@@ -164,7 +244,10 @@ struct Core {
     /// Synchronous TPDOs not sent because the 0x1007 window had closed.
     sync_window_missed: u32,
     pending_sync: Option<u64>,
+    /// Application clock, as last given.
     now_us: u64,
+    /// Communication clock, as last given.
+    comm_us: u64,
     /// Time from a reset (or power-on) to the boot-up message, us (0: at once).
     boot_delay_us: u64,
     /// While initialising after a reset: when the boot-up is due.
@@ -174,6 +257,14 @@ struct Core {
     boot_keeps_app: bool,
     events: Deque<NodeEvent, EVENT_QUEUE>,
     events_dropped: u32,
+    /// LSS slave (CiA 305); `node_id` is its active node-ID (0xFF: non-configured).
+    lss: Option<LssSlave>,
+    /// Store configuration is written by the application ([`LssConfig::store_external`]).
+    lss_store_external: bool,
+    /// A store the application has not taken yet.
+    lss_store: Option<LssStore>,
+    /// The last activate bit timing (table index, switch delay ms), not yet taken.
+    lss_bit_timing_activated: Option<(u8, u16)>,
     /// CiA 402 and NMT state as last reported in an event.
     seen_cia: State,
     seen_nmt: NmtState,
@@ -430,7 +521,7 @@ impl Core {
                 }
                 self.hbc.configure(i, raw as u32);
             }
-            (0x1017, _) => self.hb.restart(self.now_us, raw as u16),
+            (0x1017, _) => self.hb.restart(self.comm_us, raw as u16),
             (0x1019, _) => {
                 if self.store.u32(R_1006) != 0 {
                     return Err(abort::DEVICE_STATE);
@@ -454,6 +545,23 @@ impl Core {
         for i in 0..4 {
             let e = self.store.u32(R_1016 + i);
             self.hbc.configure(i, e);
+        }
+    }
+
+    /// Event-driven TPDOs (with the values of the last CiA 402 cycle) and EMCYs held by their
+    /// inhibit time, on the communication clock.
+    fn comm_timers_after(&mut self, comm_us: u64) {
+        if self.nmt == NmtState::Operational {
+            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
+            self.pdo
+                .poll_events(&self.store, comm_us, &mut |f| push(tx, overflows, f));
+        }
+        if self.emcy_allowed() {
+            let inhibit = self.store.u32(R_1015) as u16;
+            while let Some(d) = self.emcy.next(comm_us, inhibit) {
+                let f = CanFrame::new(self.store.u32(R_1014) & 0x7FF, &d);
+                self.push(f);
+            }
         }
     }
 
@@ -485,6 +593,11 @@ impl Core {
     fn boot(&mut self, now_us: u64) {
         self.boot_due_us = None;
         self.boot_keeps_app = false;
+        if self.node_id == UNCONFIGURED_NODE_ID {
+            // CiA 305: no node-ID, no boot-up; the node stays initialising and answers LSS
+            // only (as Lely's NMT does; CANopenNode skips the other services).
+            return;
+        }
         self.nmt = NmtState::PreOperational;
         self.refresh_all();
         self.sync = SyncConsumer::default();
@@ -498,17 +611,35 @@ impl Core {
     }
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
+        let serial = self.store.raw(R_SERIAL);
         if self.has_saved {
             self.store.copy_range(&self.saved, &self.od, lo, hi);
         } else {
             self.store.reset_range(&self.od, lo, hi, self.node_id);
         }
+        // The serial number (0x1018:4, $NODEID in the standard dictionary) is part of the
+        // LSS address: it stays what it was at power-on when LSS changes the node-ID.
+        self.store.set(R_SERIAL, serial);
+    }
+
+    /// An NMT reset: the LSS slave's node-ID for the reset (pending at reset communication,
+    /// stored at reset node) becomes the node's.
+    fn take_lss_node_id(&mut self, reset_node: bool) {
+        let Some(lss) = self.lss.as_mut() else { return };
+        if reset_node {
+            lss.reset_node();
+            self.lss_store = None;
+        } else {
+            lss.reset_communication();
+        }
+        self.node_id = lss.active_node_id().unwrap_or(UNCONFIGURED_NODE_ID);
     }
 
     /// A SYNC, handled `late_us` after it arrived (the runtime read it late). Synchronous TPDOs
     /// are sampled and queued now, unless the synchronous window (0x1007, non-zero) has
     /// already closed: then CiA 301 says they are not sent (counted in 0x2100).
-    fn on_sync(&mut self, frame: &CanFrame, now_us: u64, late_us: u64) -> FrameEvent {
+    fn on_sync(&mut self, frame: &CanFrame, clocks: Clocks, late_us: u64) -> FrameEvent {
+        let now_us = clocks.app_us;
         let window_us = u64::from(self.store.u32(R_1007));
         let window_closed = window_us > 0 && late_us > window_us;
         let overflow = self.store.u32(R_1019) as u8;
@@ -534,7 +665,7 @@ impl Core {
             let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
             let missed = self
                 .pdo
-                .on_sync(&self.store, now_us, window_closed, &mut |f| {
+                .on_sync(&self.store, clocks.comm_us, window_closed, &mut |f| {
                     push(tx, overflows, f)
                 });
             self.sync_window_missed = self.sync_window_missed.wrapping_add(missed);
@@ -554,8 +685,10 @@ impl Node {
             od,
             boot_delay_us,
             sdo_timeout_us,
+            lss,
         } = cfg;
-        if !(1..=127).contains(&node_id) {
+        let unconfigured = node_id == UNCONFIGURED_NODE_ID && lss.is_some();
+        if !(1..=127).contains(&node_id) && !unconfigured {
             return Err(ConfigError::InvalidNodeId(node_id));
         }
         for (index, sub) in [
@@ -571,11 +704,37 @@ impl Node {
             }
         }
         let factor = Factor::from_info(&info).ok_or(ConfigError::InvalidDriveInfo)?;
+        // the 0x1003 history has the sub-indices the dictionary shows (a vendor's may have 2)
+        let history_len = (1..=8u8)
+            .take_while(|&s| od.get(0x1003, s).is_some())
+            .count();
         let store = Store::new(&od, node_id);
         let saved = store.clone();
         let mut sdo = SdoServer::with_capacity(store.max_capacity());
         sdo.timeout_us = sdo_timeout_us;
         let pdo = PdoEngine::new(&od);
+        let lss_slave = match lss {
+            Some(l) => {
+                let identity = LssIdentity {
+                    vendor_id: store.u32(idx(0x1018, 1)),
+                    product_code: store.u32(idx(0x1018, 2)),
+                    revision_number: store.u32(idx(0x1018, 3)),
+                    serial_number: store.u32(R_SERIAL),
+                };
+                let id = (node_id != UNCONFIGURED_NODE_ID).then_some(node_id);
+                Some(
+                    LssSlave::new(identity, id, l.bit_timing_index).map_err(|e| match e {
+                        crate::cia305::LssConfigError::UnsupportedBitTiming(i) => {
+                            ConfigError::InvalidBitTiming(i)
+                        }
+                        crate::cia305::LssConfigError::InvalidNodeId(n) => {
+                            ConfigError::InvalidNodeId(n)
+                        }
+                    })?,
+                )
+            }
+            None => None,
+        };
         let mut core = Core {
             node_id,
             info,
@@ -589,18 +748,23 @@ impl Node {
             hb: Producer::default(),
             hbc: Consumer::default(),
             hb_lost: false,
-            emcy: Emcy::default(),
+            emcy: Emcy::with_history(history_len),
             cia: Cia402::new(factor),
             tx: Deque::new(),
             tx_overflows: 0,
             sync_window_missed: 0,
             pending_sync: None,
             now_us: 0,
+            comm_us: 0,
             boot_delay_us,
             boot_due_us: None,
             boot_keeps_app: false,
             events: Deque::new(),
             events_dropped: 0,
+            lss: lss_slave,
+            lss_store_external: lss.is_some_and(|l| l.store_external),
+            lss_store: None,
+            lss_bit_timing_activated: None,
             seen_cia: State::NotReadyToSwitchOn,
             seen_nmt: NmtState::Initialising,
         };
@@ -612,8 +776,14 @@ impl Node {
     /// Power-on: queue the boot-up message and enter pre-operational, after the boot delay
     /// ([`NodeConfig::boot_delay_us`]) if there is one.
     pub fn boot(&mut self, now_us: u64) {
-        self.core.now_us = now_us;
-        self.core.start_boot(now_us, false);
+        self.boot_with(Clocks::same(now_us));
+    }
+
+    /// [`Node::boot`] with two clocks (the boot delay runs on the communication clock).
+    pub fn boot_with(&mut self, clocks: Clocks) {
+        self.core.now_us = clocks.app_us;
+        self.core.comm_us = clocks.comm_us;
+        self.core.start_boot(clocks.comm_us, false);
         self.core.observe();
     }
 
@@ -632,6 +802,7 @@ impl Node {
     pub fn finish_boot(&mut self, now_us: u64) {
         if self.boot_pending() {
             self.core.now_us = now_us;
+            self.core.comm_us = now_us;
             self.core.boot(now_us);
             self.core.observe();
         }
@@ -643,6 +814,7 @@ impl Node {
             NmtCommand::ResetNode => {
                 // The application resets too: the drive re-initialises its axis.
                 drive.reset();
+                c.take_lss_node_id(true);
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
                 c.cia = Cia402::new(f);
@@ -651,6 +823,7 @@ impl Node {
                 c.start_boot(now_us, false);
             }
             NmtCommand::ResetCommunication => {
+                c.take_lss_node_id(false);
                 c.restore_range(0x1000, 0x1FFF);
                 // 0x1001 / 0x1003 keep what the drive is still in FAULT for
                 let before = c.emcy.active_codes();
@@ -684,7 +857,7 @@ impl Node {
 
     /// Handle one received frame.
     pub fn handle(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
-        self.handle_late(frame, now_us, 0, drive)
+        self.handle_with(frame, Clocks::same(now_us), 0, drive)
     }
 
     /// Handle one received frame that arrived `late_us` before `now_us` (a runtime that read it
@@ -697,7 +870,19 @@ impl Node {
         late_us: u64,
         drive: &mut impl Drive,
     ) -> FrameEvent {
-        let ev = self.handle_frame(frame, now_us, late_us, drive);
+        self.handle_with(frame, Clocks::same(now_us), late_us, drive)
+    }
+
+    /// [`Node::handle_late`] with two clocks ([`Clocks`]): a lock-step runtime gives the wall
+    /// clock as the communication clock.
+    pub fn handle_with(
+        &mut self,
+        frame: &CanFrame,
+        clocks: Clocks,
+        late_us: u64,
+        drive: &mut impl Drive,
+    ) -> FrameEvent {
+        let ev = self.handle_frame(frame, clocks, late_us, drive);
         if let Some(t) = self.sdo.take_finished() {
             self.core.event(NodeEvent::SdoTransfer(t));
         }
@@ -708,13 +893,30 @@ impl Node {
     fn handle_frame(
         &mut self,
         frame: &CanFrame,
-        now_us: u64,
+        clocks: Clocks,
         late_us: u64,
         drive: &mut impl Drive,
     ) -> FrameEvent {
-        self.core.now_us = now_us;
+        self.core.now_us = clocks.app_us;
+        self.core.comm_us = clocks.comm_us;
+        // everything a frame times here is communication: resets (boot delay), heartbeats,
+        // SDO, RTR answers; a SYNC is the exception (on_sync takes both)
+        let now_us = clocks.comm_us;
         if frame.extended || frame.id > 0x7FF {
             return FrameEvent::Ignored;
+        }
+        if frame.id == LSS_REQUEST && self.core.boot_due_us.is_none() && self.core.lss.is_some() {
+            return self.lss_frame(frame, now_us, drive);
+        }
+        if self.lss_unconfigured() {
+            // Non-configured: silent but for LSS; a broadcast NMT reset still resets it.
+            return match nmt::decode(frame, 0) {
+                Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication)) => {
+                    self.nmt_command(cmd, now_us, drive);
+                    FrameEvent::Handled
+                }
+                _ => FrameEvent::Ignored,
+            };
         }
         if self.core.nmt == NmtState::Initialising {
             // Deaf while booting, but a SYNC still tells a lock-step runtime time goes on.
@@ -737,7 +939,7 @@ impl Node {
         let nmt = self.core.nmt;
         let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
         if id == sync_cob && !frame.rtr {
-            return self.core.on_sync(frame, now_us, late_us);
+            return self.core.on_sync(frame, clocks, late_us);
         }
         if nmt == NmtState::Stopped {
             if (0x701..=0x77F).contains(&id) && !frame.rtr && frame.len >= 1 {
@@ -798,6 +1000,49 @@ impl Node {
         FrameEvent::Ignored
     }
 
+    /// Non-configured (node-ID 0xFF) and not booting: only LSS is served.
+    fn lss_unconfigured(&self) -> bool {
+        self.core.node_id == UNCONFIGURED_NODE_ID && self.core.boot_due_us.is_none()
+    }
+
+    /// An LSS request (COB-ID 0x7E5), in every NMT state once booted (as Lely and
+    /// CANopenNode) and while non-configured.
+    fn lss_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
+        let Some(lss) = self.core.lss.as_mut() else {
+            return FrameEvent::Ignored;
+        };
+        let out = lss.handle(frame);
+        if let Some(f) = out.response {
+            self.core.push(f);
+        }
+        match out.event {
+            Some(LssEvent::ResetCommunication { .. }) => {
+                // CiA 305: a non-configured node given a node-ID boots with it when switched
+                // back to waiting.
+                self.nmt_command(NmtCommand::ResetCommunication, now_us, drive);
+            }
+            Some(LssEvent::StoreRequested {
+                node_id,
+                bit_timing_index,
+            }) => {
+                if self.core.lss_store_external {
+                    self.core.lss_store = Some(LssStore {
+                        node_id,
+                        bit_timing_index,
+                    });
+                } else if let Some(f) = self.core.lss.as_mut().and_then(|l| l.store_done(true)) {
+                    self.core.push(f);
+                }
+            }
+            Some(LssEvent::ActivateBitTiming {
+                table_index,
+                switch_delay_ms,
+            }) => self.core.lss_bit_timing_activated = Some((table_index, switch_delay_ms)),
+            _ => {}
+        }
+        FrameEvent::Handled
+    }
+
     fn heartbeat_in(&mut self, id_low: u8, now_us: u64) {
         let node = id_low & 0x7F;
         let c = &mut self.core;
@@ -812,7 +1057,29 @@ impl Node {
 
     /// Timers, the CiA 402 state machine and mode, and exactly one `drive.command(..)`.
     pub fn poll(&mut self, now_us: u64, drive: &mut impl Drive) {
-        self.poll_timers_and_drive(now_us, drive);
+        self.poll_with(Clocks::same(now_us), drive);
+    }
+
+    /// [`Node::poll`] with two clocks ([`Clocks`]).
+    pub fn poll_with(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+        self.poll_timers_and_drive(clocks, drive);
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+    }
+
+    /// The communication timers alone, at `comm_us` on the communication clock: SDO
+    /// time-out, a boot whose delay is over, the heartbeat producer and consumer, event-driven
+    /// TPDOs, EMCYs held by their inhibit time. No CiA 402 cycle, no command to the drive: a
+    /// lock-step runtime calls it between SYNCs, when [`Node::poll_at_comm`] says.
+    pub fn poll_comm(&mut self, comm_us: u64, drive: &mut impl Drive) {
+        self.core.comm_us = comm_us;
+        self.comm_timers_before(comm_us);
+        if self.core.nmt != NmtState::Initialising {
+            self.core.comm_timers_after(comm_us);
+        }
+        let _ = drive;
         if let Some(t) = self.sdo.take_finished() {
             self.core.event(NodeEvent::SdoTransfer(t));
         }
@@ -841,11 +1108,13 @@ impl Node {
     /// **Contract:** right after `poll(now)`, `poll_at()` is `None` or `> now`: `poll` does
     /// everything due at `now` (every heartbeat consumer that timed out, every EMCY the
     /// inhibit time lets go, every event-driven TPDO due), so a loop that sleeps until
-    /// `poll_at()` never spins. A frame that finds the transmit queue full is dropped and
-    /// counted ([`Node::tx_overflows`]), never held for a later poll. `handle` may bring the
-    /// deadline to `now` or before it (a SYNC to process, a TPDO whose data a received frame
-    /// changed): poll then. Checked after every poll by the property tests over the fuzz
-    /// harness (`protocol/tests/fuzz/`) and by the `cargo fuzz` target.
+    /// `poll_at()` never spins. With two clocks the same holds for the communication clock:
+    /// right after `poll_comm(comm)` or `poll_with(clocks)`, [`Node::poll_at_comm`] is `None`
+    /// or `> comm`. A frame that finds the transmit queue full is dropped and counted
+    /// ([`Node::tx_overflows`]), never held for a later poll. `handle` may bring the deadline
+    /// to `now` or before it (a SYNC to process, a TPDO whose data a received frame changed):
+    /// poll then. Checked after every poll by the property tests over the fuzz harness
+    /// (`protocol/tests/fuzz/`) and by the `cargo fuzz` target.
     ///
     /// **The clock** is the caller's, in u64 microseconds (584 542 years), and is not assumed
     /// to be monotonic (a clock that goes back delays the timers that started later). It does
@@ -854,6 +1123,28 @@ impl Node {
     /// TPDO timer does not expire); the boot-up after a reset and the end of an EMCY inhibit
     /// time are clamped to `u64::MAX`. Nothing overflows, in an overflow-checked build too.
     pub fn poll_at(&self) -> Option<u64> {
+        let c = &self.core;
+        let mut at = self.poll_at_comm();
+        let mut take = |t: Option<u64>| {
+            if let Some(t) = t {
+                at = Some(at.map_or(t, |a| a.min(t)));
+            }
+        };
+        if c.nmt == NmtState::Initialising {
+            return at;
+        }
+        take(c.pending_sync);
+        if c.nmt == NmtState::Operational {
+            take(c.sync.deadline_us(c.store.u32(R_1006)));
+        }
+        at
+    }
+
+    /// The communication deadlines of [`Node::poll_at`] alone (on the communication clock):
+    /// when [`Node::poll_comm`] has something to do. Right after `poll_comm(comm)` or
+    /// `poll_with(clocks)` it is `None` or later than the communication time (the contract
+    /// of [`Node::poll_at`]).
+    pub fn poll_at_comm(&self) -> Option<u64> {
         let c = &self.core;
         let mut at = self.sdo.deadline_us();
         let mut take = |t: Option<u64>| {
@@ -865,13 +1156,11 @@ impl Node {
             take(c.boot_due_us); // the boot-up after the boot delay
             return at;
         }
-        take(c.pending_sync);
         take(c.hb.deadline_us(c.store.u32(R_1017) as u16));
         take(c.hbc.deadline_us());
         if c.nmt == NmtState::Operational {
-            take(c.sync.deadline_us(c.store.u32(R_1006)));
             for k in 0..c.pdo.tpdo.len() {
-                take(c.pdo.deadline_us(&c.store, k, c.now_us));
+                take(c.pdo.deadline_us(&c.store, k, c.comm_us));
             }
         }
         if c.emcy_allowed() {
@@ -880,13 +1169,11 @@ impl Node {
         at
     }
 
-    fn poll_timers_and_drive(&mut self, now_us: u64, drive: &mut impl Drive) {
-        self.core.now_us = now_us;
-        let fb = drive.feedback();
-        // SDO timeout
+    /// SDO time-out, the boot after its delay, the heartbeat producer and consumer.
+    fn comm_timers_before(&mut self, comm_us: u64) {
         {
             let mut outv: heapless::Vec<[u8; 8], 2> = heapless::Vec::new();
-            self.sdo.poll(now_us, &mut |f| {
+            self.sdo.poll(comm_us, &mut |f| {
                 let _ = outv.push(f);
             });
             let tx_cob = cob::SDO_TX + self.core.node_id as u32;
@@ -895,28 +1182,21 @@ impl Node {
             }
         }
         let c = &mut self.core;
-        if c.nmt == NmtState::Initialising {
-            if c.boot_due_us.is_some_and(|due| now_us >= due) {
-                c.boot(now_us);
-            } else if !c.boot_keeps_app {
-                drive.command(&crate::drive::DriveCommand {
-                    setpoint: crate::drive::Setpoint::Disabled,
-                    max_torque_permille: 0.0,
-                    max_velocity_inc_per_s: 0.0,
-                });
-                return;
-            }
+        if c.nmt == NmtState::Initialising && c.boot_due_us.is_some_and(|due| comm_us >= due) {
+            c.boot(comm_us);
         }
-        let booting = c.nmt == NmtState::Initialising;
+        if c.nmt == NmtState::Initialising {
+            return;
+        }
         // heartbeat producer
-        if !booting && c.hb.due(now_us, c.store.u32(R_1017) as u16) {
+        if c.hb.due(comm_us, c.store.u32(R_1017) as u16) {
             let hb = Heartbeat { state: c.nmt as u8 };
             let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
             c.push(f);
         }
         // heartbeat consumer: every producer whose time is up (one EMCY, for the first)
         let mut lost = None;
-        while let Some(n) = if booting { None } else { c.hbc.poll(now_us) } {
+        while let Some(n) = c.hbc.poll(comm_us) {
             lost.get_or_insert(n);
         }
         if let Some(n) = lost {
@@ -924,12 +1204,30 @@ impl Node {
             c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
         }
+    }
+
+    fn poll_timers_and_drive(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+        let now_us = clocks.app_us;
+        self.core.now_us = now_us;
+        self.core.comm_us = clocks.comm_us;
+        let fb = drive.feedback();
+        self.comm_timers_before(clocks.comm_us);
+        let c = &mut self.core;
+        if c.nmt == NmtState::Initialising && !c.boot_keeps_app {
+            drive.command(&crate::drive::DriveCommand {
+                setpoint: crate::drive::Setpoint::Disabled,
+                max_torque_permille: 0.0,
+                max_velocity_inc_per_s: 0.0,
+            });
+            return;
+        }
         // SYNC supervision
         if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
             c.raise_emcy(EMCY_SYNC_LOSS, [0; 5], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
         }
-        // CiA 402
+        // CiA 402 (a lost master or SYNC whose reaction is a fault blocks the fault reset)
+        c.cia.comm_fault_present = (c.hb_lost || c.sync.lost) && c.store.i32(o402::ABORT_CONN) == 1;
         let period = csp_period_us(&c.store, c.sync.interval_us);
         let sync_at = c.pending_sync.take();
         let out = c
@@ -943,20 +1241,39 @@ impl Node {
             c.clear_cause(Cause::Fault);
         }
         drive.command(&out.command);
-        // event-driven TPDOs
-        if c.nmt == NmtState::Operational {
-            let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
-            c.pdo
-                .poll_events(&c.store, now_us, &mut |f| push(tx, overflows, f));
+        if c.nmt != NmtState::Initialising {
+            c.comm_timers_after(clocks.comm_us);
         }
-        // EMCY
-        if c.emcy_allowed() {
-            let inhibit = c.store.u32(R_1015) as u16;
-            while let Some(d) = c.emcy.next(now_us, inhibit) {
-                let f = CanFrame::new(c.store.u32(R_1014) & 0x7FF, &d);
-                c.push(f);
-            }
+    }
+
+    /// A store configuration to write (once per request, with [`LssConfig::store_external`]);
+    /// then call [`Node::lss_store_done`].
+    pub fn take_lss_store(&mut self) -> Option<LssStore> {
+        self.core.lss_store.take()
+    }
+
+    /// The outcome of the store handed out by [`Node::take_lss_store`]: the LSS answer is
+    /// queued (error 0, or 2 when `stored` is false).
+    pub fn lss_store_done(&mut self, stored: bool) {
+        if let Some(f) = self.core.lss.as_mut().and_then(|l| l.store_done(stored)) {
+            self.core.push(f);
         }
+    }
+
+    /// The last LSS activate bit timing not yet taken: (CiA 301 table index, switch delay
+    /// ms). A real drive switches its CAN controller; the emulator can only report it.
+    pub fn take_lss_bit_timing_activation(&mut self) -> Option<(u8, u16)> {
+        self.core.lss_bit_timing_activated.take()
+    }
+
+    /// LSS state (waiting or configuration); `None` without LSS.
+    pub fn lss_state(&self) -> Option<LssState> {
+        self.core.lss.as_ref().map(|l| l.state())
+    }
+
+    /// The LSS slave's pending node-ID (active after the next NMT reset communication).
+    pub fn lss_pending_node_id(&self) -> Option<u8> {
+        self.core.lss.as_ref().and_then(|l| l.pending_node_id())
     }
 
     /// The next frame to send.
@@ -1000,7 +1317,7 @@ impl Node {
     }
 
     // ----- read-only accessors -----
-    /// Node ID, 1..=127.
+    /// Node ID, 1..=127, or 255 while non-configured (LSS).
     pub fn node_id(&self) -> u8 {
         self.core.node_id
     }

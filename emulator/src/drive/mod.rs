@@ -6,6 +6,7 @@ pub mod axis_drive;
 pub mod machine;
 pub mod node;
 pub mod objects;
+pub mod vendor;
 
-pub use node::{build_node, node, node_config, NodeOptions};
+pub use node::{build_node, node, node_config, node_setup, NodeOptions, NodeSetup};
 pub use objects::{AxisParam, ParamError};

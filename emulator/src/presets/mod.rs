@@ -261,11 +261,14 @@ impl AxisConfig {
         };
         // Integer-typed fields accept integers only; let a float like "1e6" through for them.
         table.insert(key.to_string(), parsed);
-        // Only `key` changed: any error is about it (serde's messages may quote the value
-        // in backticks, e.g. "invalid value: integer `-1`", which is not the key).
-        let cfg: AxisConfig = table.try_into().map_err(|e: toml::de::Error| ConfigError {
-            key: key.to_string(),
-            ..parse_error(e)
+        let cfg: AxisConfig = table.try_into().map_err(|e: toml::de::Error| {
+            // The table was valid but for this key: the error is about it, whatever the
+            // message quotes first (a wrong type quotes the value: "invalid type: floating
+            // point `1.5`, expected u64").
+            ConfigError {
+                key: key.to_string(),
+                ..parse_error(e)
+            }
         })?;
         cfg.build()?;
         Ok(cfg)

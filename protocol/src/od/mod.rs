@@ -21,6 +21,8 @@
 //! (docs/decisions/0009-object-dictionary.md).
 
 pub mod eds;
+pub mod eds_parse;
+mod from_eds;
 mod standard;
 mod store;
 mod types;
@@ -28,6 +30,10 @@ mod types;
 use std::borrow::Cow;
 
 use crate::drive::DriveInfo;
+pub use from_eds::{
+    BuildReport, EdsBuildError, Fate, ReportLine, WRITABLE_DOMAIN_CAPACITY,
+    WRITABLE_STRING_CAPACITY,
+};
 pub(crate) use standard::idx;
 pub(crate) use store::Store;
 pub use types::{Access, DataType};
@@ -356,7 +362,7 @@ impl Default for DeviceDescription {
             order_code: "-".into(),
             baud_rates_kbit: vec![10, 20, 50, 125, 250, 500, 800, 1000],
             granularity: 8,
-            lss_supported: false,
+            lss_supported: true,
             dummy_usage: [false; 8],
         }
     }
@@ -440,7 +446,6 @@ impl ObjectDictionary {
     }
 
     /// The standard slots, every one hidden: the start of a dictionary built from an EDS.
-    #[allow(dead_code)] // used by from_eds (next)
     pub(crate) fn standard_hidden(info: &DriveInfo) -> ObjectDictionary {
         let mut od = ObjectDictionary::standard(info);
         for s in &mut od.slots {
@@ -509,8 +514,16 @@ impl ObjectDictionary {
     /// Add an entry. One the node knows (a standard (index, sub) that is hidden) takes the
     /// node's slot, so the node simulates it with these attributes; any other gets a new slot.
     pub fn insert(&mut self, e: Entry) -> Result<Slot, OdError> {
+        let slot = self.insert_unsorted(e)?;
+        self.resort();
+        Ok(slot)
+    }
+
+    /// [`ObjectDictionary::insert`] without re-sorting (a build that adds many entries
+    /// sorts once at the end with `resort`).
+    fn insert_unsorted(&mut self, e: Entry) -> Result<Slot, OdError> {
         ObjectDictionary::validate(&e)?;
-        let slot = match self.find_any(e.index, e.sub) {
+        let i = match self.find_any(e.index, e.sub) {
             Some(i) if self.slots[i].visible => {
                 return Err(OdError::Duplicate {
                     index: e.index,
@@ -532,8 +545,28 @@ impl ObjectDictionary {
                 self.slots.len() - 1
             }
         };
-        self.resort();
-        Ok(Slot::at(slot))
+        Ok(Slot::at(i))
+    }
+
+    /// Give the visible entry at (index, sub) another default (e.g. the identity's serial
+    /// number); the entry's checks apply (kind, limits, capacity).
+    pub fn set_default(
+        &mut self,
+        index: u16,
+        sub: u8,
+        default: DefaultValue,
+    ) -> Result<(), OdError> {
+        let Lookup::Found(slot) = self.find(index, sub) else {
+            return Err(OdError::Invalid {
+                index,
+                sub,
+                reason: "no such entry".into(),
+            });
+        };
+        let e = self.slots[slot.get()].entry.clone().with_default(default);
+        ObjectDictionary::validate(&e)?;
+        self.slots[slot.get()].entry = e;
+        Ok(())
     }
 
     /// Take an entry out of reach (SDO, PDO, EDS); a standard one keeps its slot, hidden.
@@ -550,9 +583,13 @@ impl ObjectDictionary {
 
     /// Any slot (visible or hidden) with this key.
     fn find_any(&self, index: u16, sub: u8) -> Option<usize> {
-        self.slots
-            .iter()
-            .position(|s| s.entry.index == index && s.entry.sub == sub)
+        standard::slot_of(index, sub).or_else(|| {
+            let extra = &self.slots[standard::len()..];
+            extra
+                .iter()
+                .position(|s| s.entry.index == index && s.entry.sub == sub)
+                .map(|p| p + standard::len())
+        })
     }
 
     /// Look up an (index, sub) among the visible entries.

@@ -471,8 +471,8 @@ const PROFILE: [Obj; 67] = [
     var(0x6064, "Position actual value", I32, Ro, true, V(0)),
     var(0x6065, "Following error window", U32, Rw, true, Info(d_fe_window)),
     var(0x6066, "Following error time out", U16, Rw, true, V(10)),
-    var(0x6067, "Position window", U32, Rw, true, V(10)),
-    var(0x6068, "Position window time", U16, Rw, true, V(0)),
+    var(0x6067, "Position window", U32, Rw, true, V(50)),
+    var(0x6068, "Position window time", U16, Rw, true, V(100)),
     var(0x6069, "Velocity sensor actual value", I32, Ro, true, V(0)),
     var(0x606B, "Velocity demand value", I32, Ro, true, V(0)),
     var(0x606C, "Velocity actual value", I32, Ro, true, V(0)),
@@ -564,6 +564,18 @@ pub(crate) const fn idx(index: u16, sub: u8) -> usize {
         i += 1;
     }
     panic!("object not in the standard table")
+}
+
+/// The slot of a standard (index, sub) at run time, if it is one.
+pub(crate) fn slot_of(index: u16, sub: u8) -> Option<usize> {
+    STANDARD
+        .binary_search_by(|o| (o.index, o.sub).cmp(&(index, sub)))
+        .ok()
+}
+
+/// Number of standard slots (the first slots of every dictionary).
+pub(crate) const fn len() -> usize {
+    STANDARD.len()
 }
 
 /// The standard rows as entries, defaults resolved from `info`; entry `i` is slot `i`.

@@ -199,6 +199,32 @@ impl Drive for SimDrive {
     }
 }
 
+/// A node with LSS: node-ID `node_id` (255: non-configured), LSS serial number `serial`
+/// (0x1018:4), boot delay, power-on bit timing, store written by the application or not.
+pub fn lss_config(
+    node_id: u8,
+    serial: u32,
+    boot_delay_us: u64,
+    bit_timing_index: u8,
+    store_external: bool,
+) -> NodeConfig {
+    let mut od = od_with_handler();
+    od.set_default(
+        0x1018,
+        4,
+        drive_protocol::od::DefaultValue::Value(serial as u64),
+    )
+    .unwrap();
+    let mut cfg = NodeConfig::new(node_id, info())
+        .with_od(od)
+        .with_boot_delay_us(boot_delay_us);
+    cfg.lss = Some(drive_protocol::LssConfig {
+        bit_timing_index,
+        store_external,
+    });
+    cfg
+}
+
 /// A node, its drive and the bus as the master sees it.
 pub struct Bench {
     pub node: Node,

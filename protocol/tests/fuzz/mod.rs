@@ -17,16 +17,18 @@
 //! - SDO: after a client abort the server answers a fresh request, whatever state the
 //!   sequence left it in; at the end of each case, a stalled transfer has timed out and the
 //!   server answers again;
-//! - the `Node::poll_at` contract: right after `poll(now)`, `poll_at()` is `None` or `> now`,
-//!   on any clock: the steps include jumps to the end of the u64 range (`Time::End`), where
-//!   nothing may overflow (the test profile checks overflow).
+//! - the `Node::poll_at` contract: right after `poll(now)`, `poll_at()` is `None` or `> now`;
+//!   right after `poll_comm(comm)` or `poll_with(clocks)`, `poll_at_comm()` is `None` or
+//!   `> comm`; on any clock: the steps include jumps to the end of the u64 range
+//!   (`Time::End`), where nothing may overflow (the test profile checks overflow), and the
+//!   two clocks of a lock-step runtime (`CommStep`).
 #![allow(dead_code)]
 
 use drive_protocol::cia402::mode::Mode;
 use drive_protocol::cia402::statusword::decode_state;
 use drive_protocol::cia402::State;
 use drive_protocol::od::{Access, DataType, ObjectDictionary};
-use drive_protocol::{CanFrame, Drive, NmtState, Node, NodeConfig, TX_QUEUE};
+use drive_protocol::{CanFrame, Clocks, Drive, NmtState, Node, NodeConfig, TX_QUEUE};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
 
@@ -100,6 +102,16 @@ pub enum Time {
     End(u64),
 }
 
+/// The two clocks of a lock-step runtime (`Node::poll_comm`, `Node::poll_with`): the
+/// communication clock (the harness's) moves on while the application clock stands.
+#[derive(Clone, Debug)]
+pub enum CommStep {
+    /// The communication timers alone, `dt` us later (between SYNCs).
+    Timers(u32),
+    /// A CiA 402 cycle whose application time lags the communication time by `lag` us.
+    Lagging { dt: u32, lag: u32 },
+}
+
 /// One step of a case.
 #[derive(Clone, Debug)]
 pub enum Op {
@@ -169,6 +181,8 @@ pub enum Op {
     InjectFault { code: u16, reset: bool },
     /// Time moves, then a poll.
     Poll(Time),
+    /// Time moves on the communication clock, then `poll_comm` or `poll_with`.
+    Comm(CommStep),
     /// `n` regular ticks of 1 ms.
     Ticks(u8),
 }
@@ -322,6 +336,11 @@ pub fn op_strategy(id: u8, objects: &Objects) -> impl Strategy<Value = Op> {
         1 => (prop_oneof![Just(0u16), Just(0x7300), Just(0x4310), any::<u16>()], any::<bool>())
             .prop_map(|(code, reset)| Op::InjectFault { code, reset }),
         6 => time_strategy().prop_map(Op::Poll),
+        2 => prop_oneof![
+            (0u32..20_000).prop_map(CommStep::Timers),
+            (0u32..20_000, 0u32..50_000).prop_map(|(dt, lag)| CommStep::Lagging { dt, lag }),
+        ]
+        .prop_map(Op::Comm),
         3 => (1u8..40).prop_map(Op::Ticks),
     ]
 }
@@ -424,13 +443,15 @@ impl<D: Drive> Harness<D> {
             if f.extended || f.rtr || f.id > 0x7FF || f.len > 8 {
                 return Err(fail(format!("invalid frame sent: {f:?}")));
             }
-            let allowed = match nmt {
-                NmtState::Stopped => f.id == 0x700 + id,
-                NmtState::PreOperational | NmtState::Initialising => {
-                    f.id == 0x700 + id || f.id == 0x580 + id || f.id == emcy_cob
-                }
-                NmtState::Operational => true,
-            };
+            // LSS (CiA 305) answers on 0x7E4 in every NMT state
+            let allowed = f.id == 0x7E4
+                || match nmt {
+                    NmtState::Stopped => f.id == 0x700 + id,
+                    NmtState::PreOperational | NmtState::Initialising => {
+                        f.id == 0x700 + id || f.id == 0x580 + id || f.id == emcy_cob
+                    }
+                    NmtState::Operational => true,
+                };
             if !allowed {
                 return Err(fail(format!("{nmt:?}: sent {f:?}")));
             }
@@ -475,6 +496,40 @@ impl<D: Drive> Harness<D> {
         self.check_poll_at()?;
         self.drain()?;
         self.check_state()
+    }
+
+    /// The communication clock moves (the harness's clock), the application clock stands or
+    /// lags: `poll_comm` or `poll_with`, then the contract of `poll_at_comm`.
+    pub fn poll_comm(&mut self, step: &CommStep) -> Result<(), TestCaseError> {
+        match *step {
+            CommStep::Timers(dt) => {
+                self.now_us = self.now_us.saturating_add(dt as u64);
+                self.node.poll_comm(self.now_us, &mut self.drive);
+            }
+            CommStep::Lagging { dt, lag } => {
+                self.now_us = self.now_us.saturating_add(dt as u64);
+                (self.advance)(&mut self.drive, (dt as u64).min(self.max_physics_us));
+                let clocks = Clocks {
+                    app_us: self.now_us.saturating_sub(lag as u64),
+                    comm_us: self.now_us,
+                };
+                self.node.poll_with(clocks, &mut self.drive);
+            }
+        }
+        match self.node.poll_at_comm() {
+            Some(at) if at <= self.now_us => {
+                return Err(fail(format!(
+                    "poll_at_comm() = {at} <= comm = {} right after {step:?}",
+                    self.now_us
+                )))
+            }
+            _ => {}
+        }
+        self.drain()?;
+        if matches!(step, CommStep::Lagging { .. }) {
+            self.check_state()?;
+        }
+        Ok(())
     }
 
     /// The `Node::poll_at` contract, right after `poll(now)`: no deadline, or a later one.
@@ -822,6 +877,7 @@ impl<D: Drive> Harness<D> {
                 }
             }
             Op::Poll(t) => self.poll(t)?,
+            Op::Comm(step) => self.poll_comm(step)?,
             Op::Ticks(n) => {
                 for _ in 0..*n {
                     self.tick()?;
