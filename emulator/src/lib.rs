@@ -22,6 +22,8 @@ pub mod runtime;
 
 pub mod drive;
 
+pub mod observe;
+
 pub mod master;
 
 pub mod analysis;
@@ -31,6 +33,8 @@ pub mod report;
 pub mod session;
 
 pub mod scenario;
+
+pub mod panel;
 
 pub mod study;
 

@@ -13,6 +13,7 @@ use drive_emu::runtime::{AxisSlot, SimulatedDrive};
 use drive_emu::session::OfflineRun;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
+use std::io::{Read, Write};
 
 struct Counting;
 
@@ -302,4 +303,129 @@ fn i2t_heating_trip_and_cooling_do_not_allocate() {
         slot.drive.motor_thermal_load()
     );
     assert_eq!(allocs, 0, "{allocs} allocations on the I2t paths");
+}
+
+/// `run --panel` with 5 stream clients reading: the loop's half of the panel (publishing the
+/// snapshot into the fan-out, applying the panel's injections) does not allocate either, while
+/// the panel's threads build and send messages beside it (they allocate on their own threads,
+/// which the counter does not count). An injection posted over HTTP during the counted ticks
+/// reaches the drive there.
+#[test]
+fn the_tick_with_the_panel_open_and_five_clients_does_not_allocate() {
+    use drive_emu::bus::fault::FaultyBus;
+    use drive_emu::panel::{self, PanelAxis, PanelSetup};
+    let cfg = AxisConfig::from_preset("cnc1")
+        .unwrap()
+        .with_override("backlash_mm", "0.05")
+        .unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
+    let program = vec![
+        Step::Enable { mode: MODE_CSP },
+        Step::Cruise {
+            velocity_uu_s: 10_000.0,
+            accel_uu_s2: 100_000.0,
+            duration_s: 60.0,
+        },
+    ];
+    let mut run = OfflineRun::with_drive_bus(
+        vec![AxisSlot { node, drive }],
+        1000,
+        Master::new(MasterConfig::default(), program),
+        |ep| FaultyBus::new(ep, 1),
+    );
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let setup = PanelSetup {
+        axes: vec![PanelAxis {
+            node_id: 5,
+            preset: "cnc1".into(),
+            config: cfg.clone(),
+            overrides: vec![],
+        }],
+        iface: None,
+        tick_hz: 1000,
+        lockstep: false,
+        master_id: 0x7F,
+        json_stdout: false,
+    };
+    let dir = std::env::temp_dir().join(format!("drive-emu-alloc-panel-{}", std::process::id()));
+    let (panel, mut panel_loop) = panel::start_on(listener, None, dir, setup).unwrap();
+    while run.now_us() < 2_000_000 {
+        run.step();
+        panel_loop.on_tick(&mut run.runtime);
+    }
+    // Five clients, each reading its stream in a thread of its own.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let clients: Vec<_> = (0..5)
+        .map(|_| {
+            let stop = std::sync::Arc::clone(&stop);
+            let mut c = std::net::TcpStream::connect(addr).unwrap();
+            write!(c, "GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").unwrap();
+            c.set_read_timeout(Some(std::time::Duration::from_millis(200)))
+                .unwrap();
+            std::thread::spawn(move || {
+                let (mut text, mut buf) = (Vec::new(), [0u8; 8192]);
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    if let Ok(n) = c.read(&mut buf) {
+                        text.extend_from_slice(&buf[..n]);
+                    }
+                }
+                String::from_utf8_lossy(&text)
+                    .matches("event: samples")
+                    .count()
+            })
+        })
+        .collect();
+    let mut poster = None;
+    ALLOCS.with(|a| a.set(0));
+    for k in 0..5000u32 {
+        if k == 1000 {
+            // An injection from the page, while the loop runs.
+            poster = Some(std::thread::spawn(move || {
+                let body = r#"{"set": "backlash_mm", "value": 0.07}"#;
+                let mut c = std::net::TcpStream::connect(addr).unwrap();
+                write!(
+                    c,
+                    "POST /api/inject HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+                    body.len()
+                )
+                .unwrap();
+                let mut answer = String::new();
+                let _ = c.read_to_string(&mut answer);
+                answer
+            }));
+        }
+        run.master_send();
+        counted(|| {
+            run.runtime.tick();
+            run.runtime.stats.record_tick(3, 40);
+            panel_loop.on_tick(&mut run.runtime);
+            if k % 256 == 0 {
+                run.runtime.publish_stats();
+            }
+        });
+        run.master_receive();
+        // About the wall clock's pace, so the panel reads while the loop runs.
+        std::thread::sleep(std::time::Duration::from_micros(300));
+    }
+    let allocs = ALLOCS.with(Cell::get);
+    let answer = poster.unwrap().join().unwrap();
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let seen: Vec<usize> = clients.into_iter().map(|c| c.join().unwrap()).collect();
+    panel.stop();
+    assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    let backlash = run.runtime.axes[0].drive.param(AxisParam::Backlash);
+    assert!(
+        (backlash - 0.07e-3).abs() < 1e-9,
+        "the panel's injection reached the axis: {backlash}"
+    );
+    assert!(
+        seen.iter().all(|&n| n > 5),
+        "every client received samples while the loop ran: {seen:?}"
+    );
+    assert_eq!(
+        allocs, 0,
+        "{allocs} allocations in 5000 ticks with the panel open and 5 clients"
+    );
 }

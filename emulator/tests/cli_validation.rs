@@ -349,3 +349,45 @@ fn run_checks_lss_flags_and_the_store_file_before_touching_the_bus() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_panel_on_a_non_loopback_address_needs_a_token() {
+    // Refused before the CAN interface is opened (it does not exist here).
+    for addr in ["0.0.0.0:8080", "192.168.7.2:8080", "[::]:8080"] {
+        refused(
+            &["run", "--iface", "no-such-can9", "--panel", addr],
+            &[addr, "not a loopback address", "--panel-token"],
+        );
+    }
+    refused(
+        &["run", "--iface", "no-such-can9", "--panel", "localhost"],
+        &["--panel localhost", "not an address with a port"],
+    );
+    refused(
+        &[
+            "run",
+            "--iface",
+            "no-such-can9",
+            "--panel",
+            "0.0.0.0:8080",
+            "--panel-token",
+            "a b",
+        ],
+        &["--panel-token", "not allowed"],
+    );
+    // With a token, the panel's options pass and the run goes on to the interface.
+    refused(
+        &[
+            "run",
+            "--iface",
+            "no-such-can9",
+            "--panel",
+            "0.0.0.0:0",
+            "--panel-token",
+            "t0k",
+        ],
+        &["no-such-can9"],
+    );
+    // The token needs the panel.
+    refused(&["run", "--panel-token", "t0k"], &["--panel"]);
+}

@@ -19,11 +19,13 @@ const LAYERS: &[&str] = &[
     "presets",  // axis configurations (preset files, overrides)
     "runtime",  // the fixed-rate loop wiring bus, nodes and simulated drives
     "drive",    // the Drive adapter on the simulated axis, machine file
+    "observe",  // the tick's observation fan-out: per-axis snapshots in a seqlock ring
     "master",   // reference CiA 402 master (sans-IO) and its bus loop
     "analysis", // backlash detector, capture decoding, experiments
     "report",   // report files and plots
     "session",  // runtime + master on one bus: offline runs
     "scenario", // scenario files, timelines, expectations, runner
+    "panel",    // the live panel of `run --panel`: server, stream, injections, recording
     "study",    // parameter studies and figures
     "cli",      // the command line
 ];

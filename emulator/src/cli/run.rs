@@ -107,6 +107,8 @@ pub struct RunArgs {
     /// (for scripts and test fixtures; with --json the statistics follow at exit).
     #[arg(long)]
     pub ready: bool,
+    #[command(flatten)]
+    pub panel: crate::panel::PanelArgs,
 }
 
 /// Default boot delay, ms: within the 100 ms - seconds real drives take, and long enough that
@@ -656,6 +658,7 @@ type LiveBus = FaultyBus<SocketCanBus>;
 /// scenario thread, the loop thread, the status line until the run stops, the summary.
 pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> {
     validate_args(args)?;
+    crate::panel::check_args(&args.panel)?;
     let (machine, axes) = live_axes(args, scenario)?;
     let seed = scenario.map_or(1, |s| s.run.seed);
     let bus = FaultyBus::new(SocketCanBus::open(&args.iface)?, seed);
@@ -692,7 +695,19 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
 
     // The scenario thread follows the loop's time and feeds it injections.
     let link = Arc::new(LiveLink::new());
-    let injector = scenario.map(|s| LoopInjector::new(s.run.master.master_id));
+    let mut injector = scenario.map(|s| LoopInjector::new(s.run.master.master_id));
+    // The live panel (--panel): bound before the loop starts; it takes the scenario's
+    // injections into its own injector.
+    let context = crate::panel::RunContext {
+        iface: &args.iface,
+        node: args.node,
+        lockstep: args.lockstep,
+        json: args.json,
+        machine: &machine,
+        scenario,
+    };
+    let (panel, panel_loop) =
+        crate::panel::start_for_run(&args.panel, context, &link, &mut injector)?.unzip();
     let scenario_thread = match scenario {
         Some(s) => Some(spawn_scenario(args, s, &link, &stop)?),
         None => None,
@@ -706,6 +721,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
         link: Arc::clone(&link),
         injector,
         tap: tap.clone(),
+        panel: panel_loop,
     })?;
 
     watch(
@@ -724,6 +740,9 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     // The trace is flushed whatever happened to the loop.
     if let (Some(rec), Some(tap)) = (recorder, &tap) {
         finish_trace(rec, tap)?;
+    }
+    if let Some(p) = panel {
+        p.stop();
     }
     let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
     let summary = rt.stats.summary();
@@ -950,6 +969,7 @@ struct LoopParts {
     link: Arc<LiveLink>,
     injector: Option<LoopInjector>,
     tap: Option<Arc<TraceTap>>,
+    panel: Option<crate::panel::PanelLoop>,
 }
 
 /// Start the loop thread: real-time setup, boot (the delay on the wall clock), then the loop
@@ -965,6 +985,7 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
         link,
         mut injector,
         tap,
+        mut panel,
     } = parts;
     Ok(std::thread::Builder::new()
         .name("drive-emu-loop".into())
@@ -984,7 +1005,9 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
             }
             status.booted.store(true, Ordering::Release);
             let hook = |rt: &mut Runtime<LiveBus, AxisDrive>| {
-                if let Some(inj) = injector.as_mut() {
+                if let Some(p) = panel.as_mut() {
+                    p.on_tick(rt);
+                } else if let Some(inj) = injector.as_mut() {
                     inj.on_tick(&link, rt);
                 }
                 if let Some(tap) = &tap {

@@ -9,6 +9,7 @@
 
 use super::file::SensorKind;
 use super::timeline::{Action, CanFault};
+use super::units::ParamKey;
 use crate::bus::fault::{FaultRule, FaultyBus, RuleId};
 use crate::bus::CanBus;
 use crate::drive::axis_drive::{AxisDrive, Encoder};
@@ -73,6 +74,12 @@ impl<const N: usize> Injector<N> {
         }
     }
 
+    /// The node ID whose heartbeat a heartbeat-loss fault drops from now on (rules already in
+    /// force keep theirs).
+    pub fn set_master_id(&mut self, master_id: u8) {
+        self.master_id = master_id;
+    }
+
     /// Apply one injection. A value the drive refuses changes nothing and is returned as the
     /// error; `Mark` is the caller's business and does nothing here.
     pub fn apply<B: CanBus>(
@@ -110,6 +117,21 @@ impl<const N: usize> Injector<N> {
                 k += 1;
             }
         }
+    }
+}
+
+/// The values a live drive accepts for a scenario parameter key, in the key's file unit
+/// (`backlash_mm`: mm): the key's own lower bound (what scenario files accept) and the drive's
+/// range for its parameter, asked of `drive` without changing it (a value that is not a number
+/// is refused with the range). `None` when the drive has no such parameter.
+pub fn param_bounds(drive: &mut AxisDrive, key: &ParamKey) -> Option<(f64, f64)> {
+    match drive.set_param(key.param, f64::NAN) {
+        Err(ParamError::OutOfRange { min, max }) => {
+            let (a, b) = (min / key.scale, max / key.scale);
+            let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+            Some((lo.max(key.min), hi))
+        }
+        _ => None,
     }
 }
 

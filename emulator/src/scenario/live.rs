@@ -79,14 +79,52 @@ impl LoopInjector {
         }
     }
 
-    /// After every tick: apply injections to axis 0 and publish its actual values.
+    /// After every tick: apply injections to axis 0 and publish its actual values and the EMCYs
+    /// its node raised (drained from the node here).
     pub fn on_tick<B: CanBus>(
         &mut self,
         link: &LiveLink,
         rt: &mut Runtime<FaultyBus<B>, AxisDrive>,
     ) {
+        let mut events = heapless::Vec::<NodeEvent, { drive_protocol::EVENT_QUEUE }>::new();
+        while let Some(e) = rt.axes[0].node.poll_event() {
+            let _ = events.push(e);
+        }
+        self.on_tick_with(link, rt, &events);
+    }
+
+    /// [`LoopInjector::on_tick`] when someone else drains the node's events (the observation
+    /// fan-out, `observe::Observer`): `events` are axis 0's of this tick.
+    pub fn on_tick_with<B: CanBus>(
+        &mut self,
+        link: &LiveLink,
+        rt: &mut Runtime<FaultyBus<B>, AxisDrive>,
+        events: &[NodeEvent],
+    ) {
         let now = rt.sim_time_us;
         link.now_us.store(now, Ordering::Relaxed);
+        self.apply_queued(link, rt);
+        let sample = node_sample(&rt.axes[0].node, now);
+        if link.samples.push(sample).is_err() {
+            link.samples_lost.fetch_add(1, Ordering::Relaxed);
+        }
+        // Every error the node raises, repeats included (the 0x1003 history saturates at 8).
+        for e in events {
+            if let NodeEvent::EmcyRaised { code } = *e {
+                let _ = link.emcys.push((now, code));
+            }
+        }
+    }
+
+    /// Apply the injections queued in `link` to axis 0 and the bus (each `Mark` answered with
+    /// the simulated time in `link.applied`), and end the CAN rules whose time is over. Also
+    /// the live panel's path: its injections come through a link of their own.
+    pub fn apply_queued<B: CanBus>(
+        &mut self,
+        link: &LiveLink,
+        rt: &mut Runtime<FaultyBus<B>, AxisDrive>,
+    ) {
+        let now = rt.sim_time_us;
         while let Some(inj) = link.injections.pop() {
             if let Injection::Mark { event } = inj {
                 let _ = link.applied.push((event, now));
@@ -96,17 +134,11 @@ impl LoopInjector {
             let _ = self.injector.apply(inj, &mut rt.axes[0].drive, &mut rt.bus);
         }
         self.injector.expire(now, &mut rt.bus);
-        let node = &mut rt.axes[0].node;
-        let sample = node_sample(node, now);
-        if link.samples.push(sample).is_err() {
-            link.samples_lost.fetch_add(1, Ordering::Relaxed);
-        }
-        // Every error the node raises, repeats included (the 0x1003 history saturates at 8).
-        while let Some(e) = node.poll_event() {
-            if let NodeEvent::EmcyRaised { code } = e {
-                let _ = link.emcys.push((now, code));
-            }
-        }
+    }
+
+    /// The node ID whose heartbeat a heartbeat-loss fault drops from now on.
+    pub fn set_master_id(&mut self, master_id: u8) {
+        self.injector.set_master_id(master_id);
     }
 }
 

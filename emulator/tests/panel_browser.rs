@@ -1,0 +1,121 @@
+//! The live panel in a real browser: Debian's chromium, headless, driven by chromium-driver
+//! through the WebDriver HTTP API (a small client here), against a drive with the panel on an
+//! in-process bus, moved by the reference master at constant speed in CSP:
+//! - the page shows the drive reach OPERATION ENABLED;
+//! - the position the page plotted at a time equals 0x6064 read over SDO at that time (the
+//!   axis moving at 10 mm/s: within what it travels between two plotted samples);
+//! - a backlash set on the page (its control, typed and clicked) reads back over SDO from
+//!   0x2000, and the page's detector then reports the limit cycle it causes.
+//!
+//! With `DRIVE_EMU_PANEL_SCREENSHOT=PATH` the page's screenshot at the end is written there
+//! (docs/img/panel.png was made so). A missing chromium or chromedriver fails the test with
+//! what to install (CI: `.ci/run` installs both).
+
+mod panel_rig;
+mod webdriver;
+
+use drive_emu::master::{Step, MODE_CSP};
+use panel_rig::{backlash_mm, Rig, RigOptions};
+use serde_json::json;
+use std::time::Duration;
+use webdriver::Driver;
+
+#[test]
+fn the_page_shows_the_drive_live_and_its_backlash_control_reaches_the_drive() {
+    let rig = Rig::start(RigOptions {
+        program: vec![
+            Step::Enable { mode: MODE_CSP },
+            Step::Cruise {
+                velocity_uu_s: 10_000.0,
+                accel_uu_s2: 100_000.0,
+                duration_s: 3600.0,
+            },
+        ],
+        // A healthy axis to start with: the limit cycle comes from the page's injection.
+        overrides: vec![("backlash_mm", "0")],
+        ..Default::default()
+    });
+    let d = Driver::start();
+    d.go(&format!("{}/", rig.base));
+    // The state goes to OPERATION ENABLED, on the page.
+    let st = d.wait_js(
+        Duration::from_secs(60),
+        "return panel.state(0) === 'OPERATION ENABLED' ? panel.state(0) : null",
+    );
+    assert_eq!(st, "OPERATION ENABLED", "the page shows {st}");
+    let shown = d.js(
+        "return document.getElementById('state-0').textContent",
+        json!([]),
+    );
+    assert_eq!(shown, "OPERATION ENABLED");
+    // The plotted position follows 0x6064 read over SDO: at the time of each read, the page
+    // plotted the same position, within the travel between two plotted samples (2 ms at
+    // 10 mm/s: 20 uu) and one tick.
+    let mut reads = Vec::new();
+    for _ in 0..6 {
+        std::thread::sleep(Duration::from_millis(400));
+        let (raw, t_us) = rig.sdo_read_at(0x6064, 0).expect("SDO read of 0x6064");
+        let t_s = t_us as f64 * 1e-6;
+        let v = d.wait_js(
+            Duration::from_secs(30),
+            &format!("const p = panel.plotted(0); return p && p.t_s >= {t_s} ? panel.plottedAt(0, {t_s}) : null"),
+        );
+        let plotted = v["position_actual_uu"]
+            .as_f64()
+            .unwrap_or_else(|| panic!("nothing plotted at t = {t_s} s: {v}"));
+        let sdo = f64::from(raw as i32);
+        let at = v["t_s"].as_f64().unwrap();
+        assert!(
+            (plotted - sdo).abs() <= 10_000.0 * (t_s - at + 0.001) + 2.0,
+            "t = {t_s} s: 0x6064 over SDO {sdo} uu, plotted {plotted} uu at {at} s"
+        );
+        reads.push(sdo);
+    }
+    assert!(
+        reads.windows(2).all(|w| w[1] > w[0] + 1000.0),
+        "the axis moved between the reads: {reads:?}"
+    );
+    // A backlash change made on the page reads back over SDO (0x2000, mm, REAL32).
+    assert_eq!(backlash_mm(&rig), Some(0.0));
+    d.click("#param-key option[value='backlash_mm']");
+    d.type_into("#param-value", "0.05");
+    d.click("#param-set");
+    let logged = d.wait_js(
+        Duration::from_secs(30),
+        "const li = document.querySelector('#injections li'); return li && li.textContent",
+    );
+    assert!(
+        logged
+            .as_str()
+            .is_some_and(|t| t.contains("set backlash_mm = 0.05") && t.starts_with("t=")),
+        "the page logged {logged}"
+    );
+    let b = backlash_mm(&rig).expect("SDO read of 0x2000");
+    assert!((b - 0.05).abs() < 1e-6, "0x2000 reads {b} mm");
+    // The limit cycle the backlash causes: the page's detector reports it (f near 0.6 k_v).
+    let verdict = d.wait_js(
+        Duration::from_secs(120),
+        "const v = document.getElementById('verdict-0').textContent; \
+         return /detector[^:]*: backlash/.test(v) ? v : null",
+    );
+    let text = verdict
+        .as_str()
+        .unwrap_or_else(|| panic!("the page's detector never reported the backlash"));
+    assert!(
+        text.contains("f/k_v 0.") || text.contains("f/k_v 1"),
+        "{text}"
+    );
+    // The picture for the README.
+    std::thread::sleep(Duration::from_millis(500));
+    let png = d.screenshot();
+    assert!(
+        png.starts_with(b"\x89PNG\r\n\x1a\n") && png.len() > 10_000,
+        "{} bytes",
+        png.len()
+    );
+    if let Some(p) = std::env::var_os("DRIVE_EMU_PANEL_SCREENSHOT") {
+        std::fs::write(&p, &png).unwrap();
+    }
+    drop(d);
+    rig.stop();
+}
