@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # Run the whole test suite:
 #   1. host tests (protocol, emulator): cargo nextest run --workspace --exclude e2e
+#   1b. the `cargo fuzz` targets built (fuzz/fuzz_targets/*.rs) and a bounded run of frames.rs
+#      (FUZZ_SECONDS, default 60; stable Rust, no sanitizer, overflow checks on; needs
+#      cargo-fuzz, which .ci/run installs: a missing cargo-fuzz fails this phase)
 #   2. end-to-end tests on a real virtual CAN bus (package e2e): built and archived here
 #      with `cargo nextest archive`, then run from the archive through ./vcan-setup.sh
 #      (natively where the kernel has CAN, inside user-mode Linux otherwise), followed in
@@ -11,12 +14,12 @@
 #      again after a change of the Rust code, and pytest's "no tests" fails).
 # Exits non-zero if any phase fails (all always run). See docs/vcan.md.
 #
-# Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase; the
-# CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
+# Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase, FUZZ_SECONDS the
+# fuzz run; the CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
 set -euo pipefail
 
 case "${1:-}" in
-    -h|--help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     "") ;;
     *) echo "test-all.sh: no arguments expected (see --help)" >&2; exit 2 ;;
 esac
@@ -36,6 +39,20 @@ banner "host tests: cargo nextest run --workspace --exclude e2e"
 t=$(now); host_rc=0
 cargo nextest run --workspace --exclude e2e --no-fail-fast || host_rc=$?
 host_time=$(secs "$t")
+
+# ---- 1b. bounded fuzz run (the frames target asserts the Node::poll_at contract after
+# every poll; -s none: sanitizers need nightly; -a: debug assertions and overflow checks)
+banner "fuzz: cargo fuzz run frames for ${FUZZ_SECONDS:-60} s"
+t=$(now); fuzz_rc=0
+if cargo fuzz --version >/dev/null 2>&1; then
+    (cd fuzz && cargo fuzz build --sanitizer none --debug-assertions &&
+        cargo fuzz run --sanitizer none --debug-assertions frames -- \
+            -max_total_time="${FUZZ_SECONDS:-60}" -print_final_stats=1) || fuzz_rc=$?
+else
+    echo "test-all.sh: cargo-fuzz missing: cargo install cargo-fuzz --version 0.13.2 --locked" >&2
+    fuzz_rc=127
+fi
+fuzz_time=$(secs "$t")
 
 # ---- 2. vcan (e2e) tests
 banner "vcan tests: build + archive e2e on the host, run it through ./vcan-setup.sh"
@@ -94,7 +111,8 @@ py_time=$(secs "$t")
 
 banner "summary"
 printf 'host tests: %s (%ss)\n' "$([[ $host_rc == 0 ]] && echo ok || echo "FAILED ($host_rc)")" "$host_time"
+printf 'fuzz run: %s (%ss)\n' "$([[ $fuzz_rc == 0 ]] && echo ok || echo "FAILED ($fuzz_rc)")" "$fuzz_time"
 printf 'vcan tests: %s (build+archive %ss, run via vcan-setup.sh %ss)\n' \
     "$([[ $e2e_rc == 0 ]] && echo ok || echo "FAILED ($e2e_rc)")" "$build_time" "$run_time"
 printf 'python module tests: %s (%ss)\n' "$([[ $py_rc == 0 ]] && echo ok || echo "FAILED ($py_rc)")" "$py_time"
-if [[ $host_rc != 0 || $e2e_rc != 0 || $py_rc != 0 ]]; then exit 1; fi
+if [[ $host_rc != 0 || $fuzz_rc != 0 || $e2e_rc != 0 || $py_rc != 0 ]]; then exit 1; fi

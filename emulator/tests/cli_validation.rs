@@ -114,6 +114,143 @@ fn demo_and_scenario_refuse_nonsense() {
     );
 }
 
+/// A scenario file in a temporary directory.
+fn scenario_file(name: &str, text: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("drive-emu-cli-validation-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+const SCENARIO: &str = r#"name = "nonsense"
+[machine]
+preset = "cnc1"
+
+[[motion]]
+step = "enable"
+mode = "csp"
+
+[[motion]]
+step = "cruise"
+velocity_mm_min = 600.0
+accel_mm_s2 = 500.0
+duration = "1 s"
+"#;
+
+/// Issue 23: what an outside audit found accepted is refused with file, line, key and reason
+/// (exit status 2, the file is bad), or, where only the run can tell, reported (exit 1).
+#[test]
+fn scenario_nonsense_is_refused_with_file_line_key_and_reason() {
+    let event = |body: &str| format!("{SCENARIO}\n[[event]]\nat = \"0 s\"\n{body}\n");
+    for (name, text, needles) in [
+        (
+            "velocity.toml",
+            SCENARIO.replace("600.0", "1e300"),
+            vec![
+                ":11:19: key `motion[1].velocity_mm_min`",
+                "1e300 is beyond the top speed of the cnc1 axis, 30000 mm/min",
+            ],
+        ),
+        (
+            "profile.toml",
+            event("profile = \"load_force_n\"\namplitude = 100.0\nfrequency_hz = 1e12"),
+            vec![
+                ":19:16: key `event[0].frequency_hz`",
+                "1e12 Hz: a load profile is applied once per tick",
+                "must stay below 500 Hz",
+            ],
+        ),
+        (
+            "delay.toml",
+            event("can = \"delay\"\nshare = 0.5\nticks = 1000000000"),
+            vec![":19:9: key `event[0].ticks`", "at most 1000 ticks"],
+        ),
+        (
+            "late.toml",
+            format!(
+                "duration = \"1 s\"\n{}",
+                event("can = \"restore\"").replace("0 s", "10 s")
+            ),
+            vec![
+                ":17:6: key `event[0].at`",
+                "at or after the scenario's end (duration = 1 s, line 1)",
+            ],
+        ),
+    ] {
+        let p = scenario_file(name, &text);
+        let out = Command::new(env!("CARGO_BIN_EXE_drive-emu"))
+            .args(["scenario", p.to_str().unwrap(), "--quiet", "--no-plots"])
+            .output()
+            .expect("run drive-emu");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name}: {stderr}");
+        assert!(
+            stderr.contains(&p.display().to_string()),
+            "{name}: {stderr}"
+        );
+        for n in needles {
+            assert!(stderr.contains(n), "{name}: `{n}` missing in:\n{stderr}");
+        }
+    }
+}
+
+#[test]
+fn a_scenario_event_after_the_program_is_reported_and_fails_the_run() {
+    // No `duration`: the run ends with the program, before the event.
+    let p = scenario_file(
+        "unfired.toml",
+        &format!("{SCENARIO}\n[[event]]\nat = \"1 h\"\nset = \"backlash_mm\"\nvalue = 0.02\n"),
+    );
+    let dir = p.with_extension("out");
+    let out = Command::new(env!("CARGO_BIN_EXE_drive-emu"))
+        .args([
+            "scenario",
+            p.to_str().unwrap(),
+            "--quiet",
+            "--no-plots",
+            "--out",
+        ])
+        .arg(&dir)
+        .output()
+        .expect("run drive-emu");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    for n in [
+        "FAIL the scenario did not finish: 1 event had not fired",
+        "line 15: set backlash_mm = 0.02",
+        "nonsense: FAILED",
+    ] {
+        assert!(stdout.contains(n), "`{n}` missing in:\n{stdout}");
+    }
+}
+
+#[test]
+fn an_override_of_the_wrong_type_names_the_key() {
+    refused(
+        &["sim", "--velocity", "10", "--set", "noise_seed=-1"],
+        &["`noise_seed`", "invalid value: integer `-1`, expected u64"],
+    );
+}
+
+#[test]
+fn an_interface_that_exists_but_is_not_can_is_named_so() {
+    // lo exists on every Linux machine, with or without CAN in the kernel.
+    let out = Command::new(env!("CARGO_BIN_EXE_drive-emu"))
+        .args(["run", "--iface", "lo", "--duration", "0.1"])
+        .output()
+        .expect("run drive-emu");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("No such device"), "{stderr}");
+    refused(
+        &["run", "--iface", "lo", "--duration", "0.1"],
+        &[
+            "cannot open CAN interface lo: lo exists but is not a CAN interface",
+            "link type 772, loopback",
+        ],
+    );
+}
+
 /// LSS (CiA 305) flags: node-ID 255 (non-configured) is taken, other IDs outside 1..=127 are
 /// not; the `--lss-store` file is read (and checked) before the bus is opened, its node-ID
 /// replaces --node; it is one drive's memory (one axis) and not for lock-step.

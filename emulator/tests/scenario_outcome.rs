@@ -67,3 +67,38 @@ fn a_mistyped_100000_h_cruise_is_refused_before_it_runs() {
         "{e}"
     );
 }
+
+#[test]
+fn events_that_never_fired_fail_the_scenario_and_are_named() {
+    // One event after the program's end (no `duration` to refuse it at the file: the run
+    // ends 0.2 s after the program), one whose condition never comes; both were dropped
+    // silently and the scenario passed.
+    let late = "\n[[event]]\nat = \"30 s\"\nset = \"backlash_mm\"\nvalue = 0.01\n";
+    let never = "\n[[event]]\non_emcy = \"0x7300\"\ncan = \"restore\"\n";
+    let src = format!("{PROGRAM}{late}{never}");
+    let s = scenario::parse(&src, Path::new("late.toml")).unwrap();
+    let out = runner::run(&s, &opts()).unwrap();
+    let r = &out.runs[0];
+    assert!(r.program_failure.is_none() && r.expectations.iter().all(|e| e.passed));
+    assert!(
+        !out.passed,
+        "an event that never fired must fail the scenario"
+    );
+    // each named by the line of its table's header, the line before its first key
+    let line = |needle: &str| src.lines().position(|l| l.contains(needle)).unwrap();
+    let lines: Vec<usize> = r.not_fired.iter().map(|n| n.0).collect();
+    assert_eq!(lines, [line("at = \"30 s\""), line("on_emcy")], "{src}");
+    let why = r.unfinished.as_deref().unwrap();
+    for needle in [
+        "2 events had not fired",
+        &format!("line {}: set backlash_mm = 0.01", r.not_fired[0].0),
+        &format!("line {}: CAN: faults removed", r.not_fired[1].0),
+    ] {
+        assert!(why.contains(needle), "`{needle}` missing: {why}");
+    }
+    let json = serde_json::to_value(&out).unwrap();
+    assert!(json["runs"][0]["unfinished"].is_string(), "{json}");
+    // Without them the same run passes.
+    let s = scenario::parse(PROGRAM, Path::new("ok.toml")).unwrap();
+    assert!(runner::run(&s, &opts()).unwrap().passed);
+}

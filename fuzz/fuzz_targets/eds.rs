@@ -13,10 +13,18 @@ fuzz_target!(|data: &[u8]| {
     let text = decode_text(data);
     let lines = text.split('\n').count().max(1);
     match parse(&text) {
-        Err(e) => assert!(e.line >= 1 && e.line <= lines, "line {} of {lines}: {e}", e.line),
+        Err(e) => assert!(
+            e.line >= 1 && e.line <= lines,
+            "line {} of {lines}: {e}",
+            e.line
+        ),
         Ok(f) => {
             for w in &f.warnings {
-                assert!(w.line >= 1 && w.line <= lines, "warning line {}: {w}", w.line);
+                assert!(
+                    w.line >= 1 && w.line <= lines,
+                    "warning line {}: {w}",
+                    w.line
+                );
             }
             for o in &f.objects {
                 for s in &o.subs {

@@ -1,9 +1,10 @@
-//! Any byte string becomes a sequence of frames and time steps; the node must never panic
-//! and must answer a valid SDO afterwards (given back its node-ID by LSS if the frames
-//! changed it).
+//! Any byte string becomes a sequence of frames and time steps (forward, back, and to the end
+//! of the u64 clock range); the node must never panic, must keep the `Node::poll_at` contract
+//! after every poll (`None` or later than the poll's `now`), and must answer a valid SDO
+//! afterwards (given back its node-ID by LSS if the frames changed it).
 //!
-//! Run (nightly): cargo +nightly fuzz run frames
-//! Compile check (stable): cargo check --manifest-path fuzz/Cargo.toml
+//! Run: cargo fuzz run --sanitizer none --debug-assertions frames (stable; ./test-all.sh
+//! runs it for FUZZ_SECONDS), or cargo +nightly fuzz run frames (AddressSanitizer).
 #![no_main]
 
 use drive_protocol::od::{Access, DataType, DefaultValue, Entry, ObjectDictionary};
@@ -99,6 +100,17 @@ fn dictionary(info: &DriveInfo) -> ObjectDictionary {
     od
 }
 
+/// Poll, then check the `Node::poll_at` contract: no deadline, or one after `now`.
+fn poll(node: &mut Node, now: u64, drive: &mut Model) {
+    node.poll(now, drive);
+    if let Some(at) = node.poll_at() {
+        assert!(
+            at > now,
+            "poll_at() = {at} <= now = {now} right after poll(now)"
+        );
+    }
+}
+
 fuzz_target!(|data: &[u8]| {
     let info = Model::default().info();
     let cfg = NodeConfig::new(ID, info).with_od(dictionary(&info));
@@ -106,7 +118,10 @@ fuzz_target!(|data: &[u8]| {
     let mut drive = Model::default();
     let mut now = 0u64;
     node.boot(now);
-    // 13 bytes per step: id (2), flags (1), dlc (1), data (8), dt (1)
+    // 13 bytes per step: id (2), flags (1), dlc (1), data (8), dt (1). Flags: 0x80 fold the
+    // ID onto this node, 0x01 extended, 0x02 RTR, 0x04 drive fault, 0x08 poll after the
+    // frame (0x40: the communication timers alone, poll_comm), 0x10 the clock jumps to
+    // dt x 50 ms before u64::MAX, 0x20 it goes back dt x 10 ms.
     for chunk in data.chunks_exact(13) {
         let raw_id = u16::from_le_bytes([chunk[0], chunk[1]]) as u32;
         // fold IDs onto this node's channels half of the time
@@ -125,10 +140,24 @@ fuzz_target!(|data: &[u8]| {
         if chunk[2] & 0x04 != 0 {
             drive.fault = Some(0x7300);
         }
-        now += chunk[12] as u64 * 200;
+        let dt = chunk[12] as u64;
+        now = if chunk[2] & 0x10 != 0 {
+            u64::MAX - dt * 50_000
+        } else if chunk[2] & 0x20 != 0 {
+            now.saturating_sub(dt * 10_000)
+        } else {
+            now.saturating_add(dt * 200)
+        };
         let _ = node.handle(&f, now, &mut drive);
         if chunk[2] & 0x08 != 0 {
-            node.poll(now, &mut drive);
+            if chunk[2] & 0x40 != 0 {
+                node.poll_comm(now, &mut drive);
+                if let Some(at) = node.poll_at_comm() {
+                    assert!(at > now, "poll_at_comm() = {at} <= {now} after poll_comm");
+                }
+            } else {
+                poll(&mut node, now, &mut drive);
+            }
         }
         while node.pop_tx().is_some() {}
     }
@@ -143,12 +172,22 @@ fuzz_target!(|data: &[u8]| {
             node.handle(&CanFrame::new(0x7E5, &d), now, &mut drive);
         }
         node.handle(&CanFrame::new(0, &[0x82, 0]), now, &mut drive);
-        node.poll(now, &mut drive);
+        poll(&mut node, now, &mut drive);
         assert_eq!(node.node_id(), ID, "node-ID given back by LSS");
     }
     node.handle(&CanFrame::new(0, &[0x80, ID]), now, &mut drive);
-    now += 2_000_000;
-    node.poll(now, &mut drive);
+    let end_of_range = now > u64::MAX - 4_000_000;
+    now = now.saturating_add(2_000_000);
+    poll(&mut node, now, &mut drive);
+    if end_of_range {
+        // A stalled SDO transfer is not aborted by a timeout that would end beyond u64::MAX
+        // (Node::poll_at): the client aborts it.
+        node.handle(
+            &CanFrame::new(0x600 + ID as u32, &[0x80, 0, 0, 0, 0, 0, 0, 0x08]),
+            now,
+            &mut drive,
+        );
+    }
     while node.pop_tx().is_some() {}
     let ev = node.handle(
         &CanFrame::new(0x600 + ID as u32, &[0x40, 0, 0x10, 0, 0, 0, 0, 0]),

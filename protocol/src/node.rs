@@ -1110,6 +1110,24 @@ impl Node {
     /// end of a TPDO or EMCY inhibit time holding back a frame. A SYNC received and not yet
     /// processed makes it the time of that SYNC (poll now). `None`: no deadline; the node
     /// then needs `poll` only for its CiA 402 cycle, which the caller runs at its own rate.
+    ///
+    /// **Contract:** right after `poll(now)`, `poll_at()` is `None` or `> now`: `poll` does
+    /// everything due at `now` (every heartbeat consumer that timed out, every EMCY the
+    /// inhibit time lets go, every event-driven TPDO due), so a loop that sleeps until
+    /// `poll_at()` never spins. With two clocks the same holds for the communication clock:
+    /// right after `poll_comm(comm)` or `poll_with(clocks)`, [`Node::poll_at_comm`] is `None`
+    /// or `> comm`. A frame that finds the transmit queue full is dropped and counted
+    /// ([`Node::tx_overflows`]), never held for a later poll. `handle` may bring the deadline
+    /// to `now` or before it (a SYNC to process, a TPDO whose data a received frame changed):
+    /// poll then. Checked after every poll by the property tests over the fuzz harness
+    /// (`protocol/tests/fuzz/`) and by the `cargo fuzz` target.
+    ///
+    /// **The clock** is the caller's, in u64 microseconds (584 542 years), and is not assumed
+    /// to be monotonic (a clock that goes back delays the timers that started later). It does
+    /// not wrap: a period or timeout whose end would lie beyond `u64::MAX` never ends (the
+    /// heartbeat producer stops, a stalled SDO transfer is not aborted, a heartbeat, SYNC or
+    /// TPDO timer does not expire); the boot-up after a reset and the end of an EMCY inhibit
+    /// time are clamped to `u64::MAX`. Nothing overflows, in an overflow-checked build too.
     pub fn poll_at(&self) -> Option<u64> {
         let c = &self.core;
         let mut at = self.poll_at_comm();
@@ -1129,7 +1147,9 @@ impl Node {
     }
 
     /// The communication deadlines of [`Node::poll_at`] alone (on the communication clock):
-    /// when [`Node::poll_comm`] has something to do.
+    /// when [`Node::poll_comm`] has something to do. Right after `poll_comm(comm)` or
+    /// `poll_with(clocks)` it is `None` or later than the communication time (the contract
+    /// of [`Node::poll_at`]).
     pub fn poll_at_comm(&self) -> Option<u64> {
         let c = &self.core;
         let mut at = self.sdo.deadline_us();
@@ -1180,8 +1200,12 @@ impl Node {
             let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
             c.push(f);
         }
-        // heartbeat consumer
-        if let Some(n) = c.hbc.poll(comm_us) {
+        // heartbeat consumer: every producer whose time is up (one EMCY, for the first)
+        let mut lost = None;
+        while let Some(n) = c.hbc.poll(comm_us) {
+            lost.get_or_insert(n);
+        }
+        if let Some(n) = lost {
             c.hb_lost = true;
             c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);

@@ -198,3 +198,108 @@ fn poll_at_names_sync_supervision_and_heartbeat_consumer_deadlines() {
         "heartbeat loss at the deadline"
     );
 }
+
+/// The `poll_at` contract: right after `poll(now)` the next deadline is later than `now`.
+fn assert_poll_at_after(b: &Bench, what: &str) {
+    if let Some(at) = b.node.poll_at() {
+        assert!(at > b.now, "{what}: poll_at() = {at} <= now = {}", b.now);
+    }
+}
+
+/// A poll that comes exactly one heartbeat period late (the loop stalled for a period) sends
+/// one heartbeat and schedules the next a period on: it used to keep the grid and leave the
+/// next heartbeat due at `now`, so `poll_at()` said "now" right after the poll.
+#[test]
+fn a_poll_one_period_late_leaves_the_next_heartbeat_in_the_future() {
+    for late_periods in [1u64, 2, 5] {
+        let mut b = Bench::new();
+        b.w16(0x1017, 0, 100).unwrap();
+        b.take();
+        // due at 100 ms; polled at 100 ms + k periods
+        b.now = 100_000 + late_periods * 100_000;
+        b.node.poll(b.now, &mut b.drive);
+        assert_eq!(
+            b.take().iter().filter(|f| f.id == 0x700 + b.id()).count(),
+            1
+        );
+        assert_poll_at_after(&b, &format!("{late_periods} periods late"));
+        assert_eq!(b.node.poll_at(), Some(b.now + 100_000), "one period on");
+        // polling again at the same instant sends nothing
+        b.node.poll(b.now, &mut b.drive);
+        assert!(b.take().is_empty());
+    }
+}
+
+/// Two monitored producers that time out in the same poll are both handled by it (one EMCY
+/// 0x8130): the second used to stay due until the next poll.
+#[test]
+fn heartbeat_consumers_timing_out_together_are_handled_in_one_poll() {
+    let mut b = Bench::new();
+    b.w16(0x1800, 5, 0).unwrap(); // no TPDO1 event timer
+    b.w32(0x1016, 1, (0x7E << 16) | 50).unwrap();
+    b.w32(0x1016, 2, (0x7F << 16) | 50).unwrap();
+    b.send(f(0x77E, &[0x05]));
+    b.send(f(0x77F, &[0x05]));
+    b.take();
+    b.now = 50_001;
+    b.node.poll(b.now, &mut b.drive);
+    assert_poll_at_after(&b, "both consumers timed out");
+    b.drain();
+    assert_eq!(
+        b.emcys().iter().filter(|&&c| c == 0x8130).count(),
+        1,
+        "{:04X?}",
+        b.emcys()
+    );
+}
+
+/// Clocks near the end of the u64 range (584 542 years): nothing overflows (the test
+/// profile checks overflow), deadlines that would lie beyond `u64::MAX` never come, and the
+/// contract holds at every poll up to `u64::MAX` itself. With and without a communication
+/// cycle period (without one, CSP takes the measured SYNC interval: here 2^62 us and more).
+#[test]
+fn clocks_at_the_end_of_the_range_neither_overflow_nor_spin() {
+    let starts = [
+        1u64 << 62,
+        1 << 63,
+        u64::MAX - 2_000_000,
+        u64::MAX - 1000,
+        u64::MAX,
+    ];
+    for (start, cycle_us) in starts.into_iter().flat_map(|s| [(s, 4000u32), (s, 0)]) {
+        let what = format!("clock from {start:#x}, 0x1006 = {cycle_us}");
+        let mut b = Bench::new();
+        b.w16(0x1017, 0, 100).unwrap();
+        b.w32(0x1006, 0, cycle_us).unwrap();
+        b.w8(0x60C2, 1, 0).unwrap();
+        b.w32(0x1016, 1, (0x7F << 16) | 50).unwrap();
+        b.start();
+        b.sync();
+        b.take();
+        b.now = start;
+        b.send(f(0x77F, &[0x05]));
+        b.sync();
+        b.enable(8);
+        let mut heartbeats = 0;
+        for step in [0u64, 1, 999, 50_001, 100_000, 1_000_000, u64::MAX] {
+            b.now = start.saturating_add(step);
+            for again in [false, true] {
+                b.sync();
+                b.node.poll(b.now, &mut b.drive);
+                assert_poll_at_after(&b, &format!("{what}: + {step} us, again: {again}"));
+                heartbeats += b.take().iter().filter(|f| f.id == 0x700 + b.id()).count();
+            }
+        }
+        assert_eq!(b.now, u64::MAX);
+        if start <= u64::MAX - 2_000_000 {
+            assert!(heartbeats >= 2, "{what}: {heartbeats} heartbeats");
+        }
+        // The next heartbeat would be due beyond u64::MAX: it never is, and polling at
+        // u64::MAX sends none (instead of one per poll).
+        for _ in 0..3 {
+            b.node.poll(u64::MAX, &mut b.drive);
+        }
+        let hb = b.take().iter().filter(|f| f.id == 0x700 + b.id()).count();
+        assert_eq!(hb, 0, "{what}: heartbeats polled at u64::MAX");
+    }
+}

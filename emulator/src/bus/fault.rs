@@ -12,6 +12,10 @@
 //!
 //! Wrap the drive's endpoint: received frames are the master's (SYNC, RPDOs, heartbeat, SDO
 //! requests), sent frames are the drive's (TPDOs, EMCY, heartbeat, SDO responses).
+//!
+//! Delayed frames wait in a queue of [`DELAY_QUEUE`] frames per direction, allocated with the
+//! bus: a frame that finds it full is lost (counted in [`FaultStats::delay_queue_full`]), so
+//! a delay never allocates on the loop's tick nor grows without bound.
 
 use super::{CanBus, CanFrame, RecvError, SendError};
 use std::collections::VecDeque;
@@ -86,6 +90,10 @@ impl FaultRule {
     }
 }
 
+/// Frames a [`FaultyBus`] holds back per direction: 4 ticks' worth of a 127-axis bus
+/// (about 4 frames per node and tick), or 1000 ticks of 4 frames per tick.
+pub const DELAY_QUEUE: usize = 4096;
+
 /// What the injector did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct FaultStats {
@@ -93,6 +101,8 @@ pub struct FaultStats {
     pub tx_dropped: u64,
     pub rx_delayed: u64,
     pub tx_delayed: u64,
+    /// Frames a delay rule picked that found the delay queue full ([`DELAY_QUEUE`]): lost.
+    pub delay_queue_full: u64,
 }
 
 /// Handle of a rule added with [`FaultyBus::add_rule`].
@@ -122,8 +132,8 @@ impl<B: CanBus> FaultyBus<B> {
             next_rule: 0,
             rng: seed,
             tick: 0,
-            rx_delayed: VecDeque::with_capacity(256),
-            tx_delayed: VecDeque::with_capacity(256),
+            rx_delayed: VecDeque::with_capacity(DELAY_QUEUE),
+            tx_delayed: VecDeque::with_capacity(DELAY_QUEUE),
             stats: FaultStats::default(),
             delayed_rx: false,
         }
@@ -227,6 +237,10 @@ impl<B: CanBus> CanBus for FaultyBus<B> {
                 Ok(())
             }
             Some(n) => {
+                if self.tx_delayed.len() >= DELAY_QUEUE {
+                    self.stats.delay_queue_full += 1;
+                    return Ok(());
+                }
                 self.stats.tx_delayed += 1;
                 self.tx_delayed
                     .push_back((self.tick + u64::from(n), *frame));
@@ -252,6 +266,9 @@ impl<B: CanBus> CanBus for FaultyBus<B> {
             match self.decide(&f, Direction::Rx) {
                 None => return Ok(Some(f)),
                 Some(0) => self.stats.rx_dropped += 1,
+                Some(_) if self.rx_delayed.len() >= DELAY_QUEUE => {
+                    self.stats.delay_queue_full += 1;
+                }
                 Some(n) => {
                     self.stats.rx_delayed += 1;
                     self.rx_delayed.push_back((self.tick + u64::from(n), f));
@@ -358,6 +375,32 @@ mod tests {
         assert_eq!(peer.recv().unwrap().unwrap().id, 0x701);
         assert!(fb.remove_rule(id));
         assert_eq!(fb.stats().tx_delayed, 1);
+    }
+
+    #[test]
+    fn a_full_delay_queue_loses_frames_and_counts_them() {
+        let (mut fb, mut peer) = pair();
+        fb.add_rule(FaultRule::delay_share(1.0, 1000));
+        let n = DELAY_QUEUE + 10;
+        let cap = (fb.rx_delayed.capacity(), fb.tx_delayed.capacity());
+        for i in 0..n {
+            peer.send(&CanFrame::new(0x185, &[i as u8])).unwrap();
+            assert_eq!(fb.recv().unwrap(), None);
+            fb.send(&CanFrame::new(0x285, &[i as u8])).unwrap();
+        }
+        // nothing grew: the queues are the ones allocated with the bus
+        assert_eq!((fb.rx_delayed.capacity(), fb.tx_delayed.capacity()), cap);
+        let st = fb.stats();
+        assert_eq!(st.rx_delayed + st.tx_delayed, 2 * DELAY_QUEUE as u64);
+        assert_eq!(st.delay_queue_full, 20);
+        for _ in 0..1000 {
+            fb.tick();
+        }
+        let mut got = 0;
+        while fb.recv().unwrap().is_some() {
+            got += 1;
+        }
+        assert_eq!(got, DELAY_QUEUE);
     }
 
     #[test]

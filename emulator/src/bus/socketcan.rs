@@ -22,10 +22,47 @@ const CAN_SFF_MASK: u32 = 0x7FF;
 pub struct OpenError {
     pub iface: String,
     pub source: std::io::Error,
+    /// The interface exists but is not a CAN interface: its link type (ARPHRD_*, from
+    /// `/sys/class/net/IFACE/type`; CAN is 280).
+    pub not_can: Option<u32>,
+}
+
+/// ARPHRD_CAN: the link type of can0, vcan0, slcan0 (`/sys/class/net/IFACE/type`).
+pub const ARPHRD_CAN: u32 = 280;
+
+/// The link type of a network interface from sysfs: `None` when there is no such entry (no
+/// such interface, or no sysfs). Needs no CAN support in the kernel: a kernel without CAN
+/// and a CAN socket bound to a non-CAN interface both say ENODEV, for an interface that
+/// exists.
+pub fn link_type(iface: &str) -> Option<u32> {
+    if iface.is_empty() || iface.contains('/') || iface == "." || iface == ".." {
+        return None;
+    }
+    let text = std::fs::read_to_string(format!("/sys/class/net/{iface}/type")).ok()?;
+    text.trim().parse().ok()
+}
+
+fn link_type_name(t: u32) -> &'static str {
+    match t {
+        1 => ", Ethernet",
+        772 => ", loopback",
+        65534 => ", no link layer (tun, wireguard)",
+        _ => "",
+    }
 }
 
 impl std::fmt::Display for OpenError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(t) = self.not_can {
+            return write!(
+                f,
+                "cannot open CAN interface {0}: {0} exists but is not a CAN interface (link \
+                 type {t}{1}; CAN interfaces such as can0 and vcan0 have type {ARPHRD_CAN}: \
+                 `ip -details link show` lists them; a virtual one: sudo ./vcan-setup.sh)",
+                self.iface,
+                link_type_name(t)
+            );
+        }
         let errno = match self.source.raw_os_error() {
             // Opening looks the interface up first, so a kernel without CAN says ENODEV too.
             Some(libc::ENODEV) if !kernel_has_can() => Some(libc::EAFNOSUPPORT),
@@ -52,7 +89,8 @@ impl std::fmt::Display for OpenError {
 
 impl std::error::Error for OpenError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        Some(&self.source)
+        // Not a CAN interface: no system call failed, the message says it all.
+        self.not_can.is_none().then_some(&self.source as _)
     }
 }
 
@@ -85,7 +123,14 @@ impl SocketCanBus {
         let err = |source| OpenError {
             iface: iface.to_string(),
             source,
+            not_can: None,
         };
+        if let Some(t) = link_type(iface).filter(|&t| t != ARPHRD_CAN) {
+            return Err(OpenError {
+                not_can: Some(t),
+                ..err(std::io::Error::from_raw_os_error(libc::ENODEV))
+            });
+        }
         let socket = CanSocket::open(iface).map_err(err)?;
         socket.set_nonblocking(true).map_err(err)?;
         set_receive_buffer(&socket, RECEIVE_BUFFER_BYTES);
@@ -505,6 +550,27 @@ mod tests {
         raw.can_id = CAN_ERR_FLAG | 0x4;
         raw.can_dlc = 8;
         assert_eq!(from_raw(&raw), None);
+    }
+
+    #[test]
+    fn an_interface_that_is_not_can_is_named_so() {
+        // lo exists on every Linux machine and is a loopback (772), not CAN.
+        assert_eq!(link_type("lo"), Some(772));
+        let msg = match SocketCanBus::open("lo") {
+            Ok(_) => panic!("lo opened as a CAN interface"),
+            Err(e) => e.to_string(),
+        };
+        for needle in [
+            "lo exists but is not a CAN interface",
+            "772",
+            "loopback",
+            "280",
+        ] {
+            assert!(msg.contains(needle), "`{needle}` missing: {msg}");
+        }
+        assert!(!msg.contains("No such device"), "{msg}");
+        assert_eq!(link_type("nosuchcan9"), None);
+        assert_eq!(link_type("../lo"), None);
     }
 
     #[test]

@@ -125,6 +125,9 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
         if let Some(why) = &r.program_failure {
             println!("  FAIL {why}");
         }
+        if let Some(why) = &r.unfinished {
+            println!("  FAIL {why}");
+        }
     }
     println!(
         "{}: {} in {:.2} s; report in {}",

@@ -445,7 +445,7 @@ async fn inject(State(sh): State<Arc<Shared>>, body: Result<Bytes, BytesRejectio
             let _ = q.push(i);
         }
         let _ = q.push(Injection::Mark {
-            event: index as u16,
+            event: index as u32,
         });
         s.events.push(SessionEvent {
             toml_lines: checked.toml_lines.clone(),

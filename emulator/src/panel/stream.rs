@@ -270,7 +270,7 @@ impl Collector {
         let sh = Arc::clone(&self.sh);
         while let Some((index, t_us)) = sh.link.applied.pop() {
             let what = match sh.session.lock() {
-                Ok(mut s) => match s.events.get_mut(usize::from(index)) {
+                Ok(mut s) => match s.events.get_mut(index as usize) {
                     Some(e) => {
                         e.applied_us = Some(t_us);
                         e.describe.clone()

@@ -67,6 +67,18 @@ struct DriveTrain {
 }
 
 impl AxisConfig {
+    /// The axis's top speed at the load in the drive's user units per second (linear: 1 µm,
+    /// rotary: 0.001 deg, as `drive::axis_drive::USER_UNIT_*`): the motor's maximum speed
+    /// (`max_speed_rpm`, 0x6080) through the kinematic ratio. What a motion program may ask.
+    pub fn max_speed_uu_per_s(&self) -> Result<f64, ConfigError> {
+        let motor_rad_per_s = positive("max_speed_rpm", self.max_speed_rpm)? * PI / 30.0;
+        let user_unit = match self.kind {
+            AxisKind::Linear => 1e-6,
+            AxisKind::Rotary => PI / 180.0 * 1e-3,
+        };
+        Ok(motor_rad_per_s / self.read_kinematic_ratio()? / user_unit)
+    }
+
     /// Validate and convert to SI parameters.
     pub fn build(&self) -> Result<BuiltConfig, ConfigError> {
         let units = KindUnits::of(self.kind);

@@ -221,7 +221,9 @@ impl Expectation {
             }
             Expectation::State { state, at_us } => {
                 let at = at_us.map_or(f64::INFINITY, secs);
-                let s = rec.samples.iter().take_while(|s| s.t_s <= at + 1e-9).last();
+                // samples are in time order: the last one by then, in O(log n)
+                let n = rec.samples.partition_point(|s| s.t_s <= at + 1e-9);
+                let s = n.checked_sub(1).map(|i| &rec.samples[i]);
                 match s {
                     None => (false, "no sample recorded by then".into()),
                     Some(s) => {

@@ -34,7 +34,7 @@ pub enum Injection {
     /// The injections of event `event` (index in the timeline) are in: the loop answers with
     /// the simulated time it applied them, so the reported event time is the bus's.
     Mark {
-        event: u16,
+        event: u32,
     },
 }
 

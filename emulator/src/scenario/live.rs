@@ -39,7 +39,7 @@ pub struct LiveLink {
     /// (simulated time us, EMCY code).
     pub emcys: ArrayQueue<(u64, u16)>,
     /// (event index, simulated time us at which the loop applied it).
-    pub applied: ArrayQueue<(u16, u64)>,
+    pub applied: ArrayQueue<(u32, u64)>,
     /// The loop's simulated time, us.
     pub now_us: AtomicU64,
     /// Samples lost because the scenario thread fell behind.
@@ -168,20 +168,7 @@ impl LiveOutcome {
     /// run ended (`--duration` or the file's `duration` too short, Ctrl-C, a condition never
     /// met). `None` when every event fired.
     pub fn unfinished(&self) -> Option<String> {
-        if self.not_fired.is_empty() {
-            return None;
-        }
-        let which: Vec<String> = self
-            .not_fired
-            .iter()
-            .map(|(line, what)| format!("line {line}: {what}"))
-            .collect();
-        Some(format!(
-            "the scenario did not finish: {} had not fired when the run ended at {} ({})",
-            events_text(self.not_fired.len()),
-            super::expect::seconds_text(self.record.end_us),
-            which.join("; ")
-        ))
+        super::timeline::not_fired_text(&self.not_fired, self.record.end_us)
     }
 }
 
@@ -197,11 +184,6 @@ fn initial_values(cfg: &AxisConfig, drive: &AxisDrive) -> Vec<(&'static ParamKey
         .filter(|k| k.axis == kind || k.axis == KeyKind::Any)
         .map(|k| (k, drive.param(k.param) / k.scale))
         .collect()
-}
-
-/// "1 event", "2 events".
-fn events_text(n: usize) -> String {
-    format!("{n} event{}", if n == 1 { "" } else { "s" })
 }
 
 /// When a live run ends.
@@ -315,7 +297,7 @@ impl LiveTimeline {
 
     fn drain_applied(&mut self, link: &LiveLink) {
         while let Some((i, t)) = link.applied.pop() {
-            if let Some(slot) = self.applied_us.get_mut(usize::from(i)) {
+            if let Some(slot) = self.applied_us.get_mut(i as usize) {
                 *slot = Some(t);
             }
         }
@@ -355,7 +337,7 @@ impl LiveTimeline {
             if let Some(inj) = Injection::of_action(&ev.action, now) {
                 inject(inj);
             }
-            inject(Injection::Mark { event: i as u16 });
+            inject(Injection::Mark { event: i as u32 });
         }
     }
 

@@ -255,6 +255,18 @@ impl Scenario {
     }
 }
 
+/// Largest scenario file read, bytes (8 MiB: 130 000 events of four lines; the counts below
+/// bind first for files of ordinary events). Checked before the file is parsed, so a huge
+/// file costs neither time nor memory: the TOML parser holds the whole document, 30-65 bytes
+/// per byte of text (a file at the cap: about 0.5 GB and 1 s, measured).
+pub const MAX_FILE_BYTES: u64 = 8 << 20;
+/// Most `[[event]]`s a scenario has (ramps and load profiles included).
+pub const MAX_EVENTS: usize = 100_000;
+/// Most `[[expect]]`s a scenario has (each is checked against the whole sample log).
+pub const MAX_EXPECTATIONS: usize = 1_000;
+/// Most motion steps, with every `repeat` unrolled.
+pub const MAX_PROGRAM_STEPS: usize = 1_000_000;
+
 /// Parse a scenario from text; `file` is used in error messages.
 pub fn parse(src: &str, file: &Path) -> Result<Scenario, ScenarioError> {
     let raw: file::RawScenario = toml::from_str(src).map_err(|e| {
@@ -271,14 +283,63 @@ pub fn parse(src: &str, file: &Path) -> Result<Scenario, ScenarioError> {
     validate::validate(raw, src, file)
 }
 
-/// Read and parse a scenario file.
+/// Read and parse a scenario file (at most [`MAX_FILE_BYTES`]; a longer one, or an endless
+/// one such as `/dev/zero`, is refused after reading one byte beyond the cap).
 pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
-    let src = std::fs::read_to_string(path).map_err(|e| ScenarioError {
+    use std::io::Read;
+    let err = |reason: String| ScenarioError {
         file: path.to_path_buf(),
         line: 0,
         column: 0,
         key: String::new(),
-        reason: format!("cannot read: {e}"),
+        reason,
+    };
+    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot read: {e}")))?;
+    let too_long = |bytes: String| {
+        err(format!(
+            "{bytes} bytes, above the cap of {MAX_FILE_BYTES} bytes ({} MiB) for a scenario \
+             file (at most {MAX_EVENTS} events, {MAX_EXPECTATIONS} expectations and \
+             {MAX_PROGRAM_STEPS} motion steps)",
+            MAX_FILE_BYTES >> 20
+        ))
+    };
+    if let Some(len) = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len())
+    {
+        if len > MAX_FILE_BYTES {
+            return Err(too_long(len.to_string()));
+        }
+    }
+    let mut bytes = Vec::new();
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| err(format!("cannot read: {e}")))?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(too_long(format!("more than {MAX_FILE_BYTES}")));
+    }
+    let src = String::from_utf8(bytes).map_err(|e| {
+        let (line, column) = line_col_bytes(e.as_bytes(), e.utf8_error().valid_up_to());
+        ScenarioError {
+            line,
+            column,
+            ..err("not UTF-8 text (a TOML file is UTF-8)".into())
+        }
     })?;
     parse(&src, path)
+}
+
+/// 1-based line and column of a byte offset in bytes that may not be UTF-8.
+fn line_col_bytes(bytes: &[u8], offset: usize) -> (usize, usize) {
+    let before = &bytes[..offset.min(bytes.len())];
+    let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+    let col = offset
+        - before
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |i| i + 1)
+        + 1;
+    (line, col)
 }

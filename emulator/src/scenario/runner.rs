@@ -75,6 +75,11 @@ pub struct PresetRun {
     pub program_error: Option<String>,
     /// Set when the master program failed or did not finish: the run fails.
     pub program_failure: Option<String>,
+    /// Events that had not fired when the run ended (file line, description): the run fails
+    /// (an event after the program's end, a condition never met).
+    pub not_fired: Vec<(usize, String)>,
+    /// Why the scenario did not finish (`not_fired`), for people.
+    pub unfinished: Option<String>,
     pub emcys: Vec<(f64, String)>,
     pub events: Vec<(f64, String)>,
     pub fault_stats: FaultStats,
@@ -93,7 +98,9 @@ pub struct PresetRun {
 impl PresetRun {
     /// Every expectation met and the master program ran to its end without error.
     pub fn passed(&self) -> bool {
-        self.program_failure.is_none() && self.expectations.iter().all(|e| e.passed)
+        self.program_failure.is_none()
+            && self.unfinished.is_none()
+            && self.expectations.iter().all(|e| e.passed)
     }
 }
 
@@ -501,6 +508,15 @@ fn conclude(
         end_us,
     };
     let expectations = check_all(&s.expectations, &rec);
+    let not_fired: Vec<(usize, String)> = tl
+        .timeline
+        .not_fired()
+        .map(|i| {
+            let e = &tl.timeline.events()[i];
+            (e.line, e.describe())
+        })
+        .collect();
+    let unfinished = super::timeline::not_fired_text(&not_fired, end_us);
     let physical_s = run.now_us() as f64 * 1e-6;
     let program_failure = program_failure(
         rec.program_error.as_deref(),
@@ -510,6 +526,8 @@ fn conclude(
     );
     PresetRun {
         program_failure,
+        not_fired,
+        unfinished,
         preset: cfg.name.clone(),
         rotary,
         kv_per_s: cfg.kv_per_s,

@@ -6,6 +6,8 @@
 use super::file::{ProfileShape, SensorKind};
 use super::units::ParamKey;
 use drive_protocol::Cia402State;
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
 
 /// When an event fires.
 #[derive(Debug, Clone, PartialEq)]
@@ -159,23 +161,49 @@ pub struct Observation<'a> {
 }
 
 /// Events and their firing times.
+///
+/// A step costs O(log n) for n events (plus O(k log k) for the k events it fires): events
+/// wait in a queue ordered by due time (timed ones from the start, conditional ones once
+/// their condition arms them), and conditional events wait for their condition in lists by
+/// CiA 402 state or EMCY code, which the first matching observation drains.
 #[derive(Debug, Clone)]
 pub struct Timeline {
     events: Vec<Event>,
     /// Scenario time at which each condition was met (armed), us.
     armed: Vec<Option<u64>>,
     fired: Vec<Option<u64>>,
+    fired_count: usize,
+    /// Events not yet fired whose due time is known: (due us, index), earliest first.
+    queue: BinaryHeap<Reverse<(u64, usize)>>,
+    /// Conditional events not yet armed, by the state that arms them.
+    on_state: HashMap<Cia402State, Vec<usize>>,
+    /// Conditional events not yet armed, by the EMCY code that arms them.
+    on_emcy: HashMap<u16, Vec<usize>>,
     due: Vec<usize>,
 }
 
 impl Timeline {
     pub fn new(events: Vec<Event>) -> Self {
         let n = events.len();
+        let mut queue = Vec::new();
+        let mut on_state: HashMap<Cia402State, Vec<usize>> = HashMap::new();
+        let mut on_emcy: HashMap<u16, Vec<usize>> = HashMap::new();
+        for (i, e) in events.iter().enumerate() {
+            match e.trigger {
+                Trigger::At(t) => queue.push(Reverse((t, i))),
+                Trigger::OnState { state, .. } => on_state.entry(state).or_default().push(i),
+                Trigger::OnEmcy { code, .. } => on_emcy.entry(code).or_default().push(i),
+            }
+        }
         Self {
             events,
             armed: vec![None; n],
             fired: vec![None; n],
-            due: Vec::with_capacity(n),
+            fired_count: 0,
+            queue: BinaryHeap::from(queue),
+            on_state,
+            on_emcy,
+            due: Vec::with_capacity(n.min(1024)),
         }
     }
 
@@ -197,23 +225,20 @@ impl Timeline {
         self.fired[i]
     }
 
-    /// Whether every time-triggered event has fired and no conditional one is pending arming.
+    /// Whether every event has fired.
     pub fn all_fired(&self) -> bool {
-        self.fired.iter().all(Option::is_some)
+        self.fired_count == self.events.len()
+    }
+
+    /// The events that have not fired, as indices into [`Timeline::events`], in file order.
+    pub fn not_fired(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.events.len()).filter(|&i| self.fired[i].is_none())
     }
 
     /// The earliest scenario time at which something is scheduled and not yet fired (armed
     /// conditions included), for loops that skip time.
     pub fn next_due_us(&self) -> Option<u64> {
-        (0..self.events.len())
-            .filter(|&i| self.fired[i].is_none())
-            .filter_map(|i| match self.events[i].trigger {
-                Trigger::At(t) => Some(t),
-                Trigger::OnState { delay_us, .. } | Trigger::OnEmcy { delay_us, .. } => {
-                    self.armed[i].map(|a| a + delay_us)
-                }
-            })
-            .min()
+        self.queue.peek().map(|Reverse((t, _))| *t)
     }
 
     /// As [`Timeline::due`], as indices into [`Timeline::events`].
@@ -222,35 +247,68 @@ impl Timeline {
         &self.due
     }
 
-    /// Mark and return the events due at `now_us` (each fires once), in file order.
+    /// Arm the conditional events in `list` at `now_us`: each is due its delay later.
+    fn arm(&mut self, list: Vec<usize>, now_us: u64) {
+        for i in list {
+            let delay_us = match self.events[i].trigger {
+                Trigger::OnState { delay_us, .. } | Trigger::OnEmcy { delay_us, .. } => delay_us,
+                Trigger::At(_) => 0,
+            };
+            self.armed[i] = Some(now_us);
+            self.queue
+                .push(Reverse((now_us.saturating_add(delay_us), i)));
+        }
+    }
+
+    /// Mark and return the events due at `now_us` (each fires once), in file order. A
+    /// condition arms every event waiting for it at the first observation that meets it.
     pub fn due(&mut self, now_us: u64, obs: &Observation) -> impl Iterator<Item = &Event> + '_ {
         self.due.clear();
-        for i in 0..self.events.len() {
-            if self.fired[i].is_some() {
-                continue;
-            }
-            let at = match self.events[i].trigger {
-                Trigger::At(t) => Some(t),
-                Trigger::OnState { state, delay_us } => {
-                    if self.armed[i].is_none() && obs.state == Some(state) {
-                        self.armed[i] = Some(now_us);
-                    }
-                    self.armed[i].map(|a| a + delay_us)
-                }
-                Trigger::OnEmcy { code, delay_us } => {
-                    if self.armed[i].is_none() && obs.new_emcy.contains(&code) {
-                        self.armed[i] = Some(now_us);
-                    }
-                    self.armed[i].map(|a| a + delay_us)
-                }
-            };
-            if at.is_some_and(|t| t <= now_us) {
-                self.fired[i] = Some(now_us);
-                self.due.push(i);
+        if let Some(list) = obs.state.and_then(|st| self.on_state.remove(&st)) {
+            self.arm(list, now_us);
+        }
+        for code in obs.new_emcy {
+            if let Some(list) = self.on_emcy.remove(code) {
+                self.arm(list, now_us);
             }
         }
+        while let Some(&Reverse((t, i))) = self.queue.peek() {
+            if t > now_us {
+                break;
+            }
+            self.queue.pop();
+            self.fired[i] = Some(now_us);
+            self.fired_count += 1;
+            self.due.push(i);
+        }
+        self.due.sort_unstable();
         self.due.iter().map(|&i| &self.events[i])
     }
+}
+
+/// Why a run that ended at `end_us` did not finish, for people: the events (file line,
+/// description) that had not fired, the first ten of them named. `None` when every event
+/// fired.
+pub fn not_fired_text(not_fired: &[(usize, String)], end_us: u64) -> Option<String> {
+    const NAMED: usize = 10;
+    if not_fired.is_empty() {
+        return None;
+    }
+    let mut which: Vec<String> = not_fired
+        .iter()
+        .take(NAMED)
+        .map(|(line, what)| format!("line {line}: {what}"))
+        .collect();
+    if not_fired.len() > NAMED {
+        which.push(format!("and {} more", not_fired.len() - NAMED));
+    }
+    let n = not_fired.len();
+    Some(format!(
+        "the scenario did not finish: {n} event{} had not fired when the run ended at {} ({})",
+        if n == 1 { "" } else { "s" },
+        super::expect::seconds_text(end_us),
+        which.join("; ")
+    ))
 }
 
 /// A running parameter driver.
@@ -441,6 +499,114 @@ mod tests {
         assert_eq!(tl.due(4000, &emcy).count(), 1);
         assert!(tl.all_fired());
         assert_eq!(tl.fired_at(1), Some(3500));
+    }
+
+    /// The timeline as it was (every event looked at every step, O(n) per step): the
+    /// reference the indexed one must agree with.
+    struct Naive {
+        events: Vec<Event>,
+        armed: Vec<Option<u64>>,
+        fired: Vec<Option<u64>>,
+    }
+
+    impl Naive {
+        fn due(&mut self, now_us: u64, obs: &Observation) -> Vec<usize> {
+            let mut due = Vec::new();
+            for i in 0..self.events.len() {
+                if self.fired[i].is_some() {
+                    continue;
+                }
+                let at = match self.events[i].trigger {
+                    Trigger::At(t) => Some(t),
+                    Trigger::OnState { state, delay_us } => {
+                        if self.armed[i].is_none() && obs.state == Some(state) {
+                            self.armed[i] = Some(now_us);
+                        }
+                        self.armed[i].map(|a| a.saturating_add(delay_us))
+                    }
+                    Trigger::OnEmcy { code, delay_us } => {
+                        if self.armed[i].is_none() && obs.new_emcy.contains(&code) {
+                            self.armed[i] = Some(now_us);
+                        }
+                        self.armed[i].map(|a| a.saturating_add(delay_us))
+                    }
+                };
+                if at.is_some_and(|t| t <= now_us) {
+                    self.fired[i] = Some(now_us);
+                    due.push(i);
+                }
+            }
+            due
+        }
+
+        fn next_due_us(&self) -> Option<u64> {
+            (0..self.events.len())
+                .filter(|&i| self.fired[i].is_none())
+                .filter_map(|i| match self.events[i].trigger {
+                    Trigger::At(t) => Some(t),
+                    Trigger::OnState { delay_us, .. } | Trigger::OnEmcy { delay_us, .. } => {
+                        self.armed[i].map(|a| a.saturating_add(delay_us))
+                    }
+                })
+                .min()
+        }
+    }
+
+    const STATES: [Cia402State; 3] = [
+        Cia402State::SwitchOnDisabled,
+        Cia402State::OperationEnabled,
+        Cia402State::Fault,
+    ];
+
+    fn trigger_strategy() -> impl proptest::strategy::Strategy<Value = Trigger> {
+        use proptest::prelude::*;
+        prop_oneof![
+            3 => (0u64..50).prop_map(|t| Trigger::At(t * 100)),
+            1 => (0usize..3, 0u64..20).prop_map(|(s, d)| Trigger::OnState {
+                state: STATES[s],
+                delay_us: d * 100
+            }),
+            1 => (0u16..3, 0u64..20).prop_map(|(c, d)| Trigger::OnEmcy {
+                code: 0x8100 + c,
+                delay_us: d * 100
+            }),
+        ]
+    }
+
+    proptest::proptest! {
+        /// Same events fired at the same steps, in file order, and the same next due time,
+        /// as the naive timeline, over random triggers (many at one time), observations and
+        /// steps (some skipping time, as the fast-forward does).
+        #[test]
+        fn the_indexed_timeline_fires_as_the_naive_one(
+            triggers in proptest::collection::vec(trigger_strategy(), 0..40),
+            steps in proptest::collection::vec(
+                (0u64..700, proptest::option::of(0usize..3), proptest::collection::vec(0u16..4, 0..3)),
+                1..60,
+            ),
+        ) {
+            let events: Vec<Event> = triggers
+                .into_iter()
+                .map(|t| ev(t, Action::CanRestore))
+                .collect();
+            let mut fast = Timeline::new(events.clone());
+            let n = events.len();
+            let mut naive = Naive { events, armed: vec![None; n], fired: vec![None; n] };
+            let mut now = 0u64;
+            for (dt, state, codes) in steps {
+                now += dt;
+                let codes: Vec<u16> = codes.iter().map(|c| 0x8100 + c).collect();
+                let obs = Observation { state: state.map(|s| STATES[s]), new_emcy: &codes };
+                let want = naive.due(now, &obs);
+                let got = fast.due_indices(now, &obs).to_vec();
+                proptest::prop_assert_eq!(&got, &want, "at {}", now);
+                proptest::prop_assert_eq!(fast.next_due_us(), naive.next_due_us());
+                proptest::prop_assert_eq!(fast.all_fired(), naive.fired.iter().all(Option::is_some));
+            }
+            for i in 0..n {
+                proptest::prop_assert_eq!(fast.fired_at(i), naive.fired[i]);
+            }
+        }
     }
 
     #[test]

@@ -8,15 +8,39 @@ use super::units::AxisKind;
 use super::*;
 use crate::master::{MasterConfig, Step};
 use crate::presets::{AxisConfig, AxisKind as PresetKind};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::ops::Range;
 use toml::Spanned;
 
 struct Ctx<'a> {
     src: &'a str,
     file: &'a Path,
+    /// Byte offset of every line break in `src`: a line number in O(log n), so that a file of
+    /// many events is checked in O(n log n).
+    breaks: Vec<usize>,
     /// Units family seen so far in the motion program: (rotary, span of the first key).
     units: Option<(bool, Range<usize>)>,
+    /// The fastest velocity the motion program asks for, checked against each machine's
+    /// top speed once the presets are resolved.
+    fastest: Option<Fastest>,
+    /// The physics tick, us (load profiles are applied once per tick).
+    tick_us: u64,
 }
+
+/// A velocity key of the motion program: its value in user units per second, where it is,
+/// and how it was written.
+struct Fastest {
+    uu_per_s: f64,
+    span: Range<usize>,
+    key: &'static str,
+    /// User units per unit of the key.
+    scale: f64,
+}
+
+/// Longest CAN delay, in ticks: 1 s at the default 1 kHz tick. A frame later than that has
+/// tripped every CANopen supervision (SYNC 1.5 periods, heartbeat, SDO 1 s): it is lost, and
+/// `drop` says so. Bounds the frames the fault injector holds.
+pub(crate) const MAX_CAN_DELAY_TICKS: u32 = 1000;
 
 type R<T> = Result<T, ScenarioError>;
 
@@ -30,7 +54,26 @@ impl Ctx<'_> {
         error_at(self.src, self.file, span, key, reason)
     }
     fn line(&self, span: &Range<usize>) -> usize {
-        line_col(self.src, span.start).0
+        self.breaks.partition_point(|&b| b < span.start) + 1
+    }
+    /// More than `cap` entries of an array of tables (`[[name]]`): an error at the first one
+    /// beyond the cap, with the cap and the count.
+    fn cap<T>(&self, name: &str, what: &str, items: &[Spanned<T>], cap: usize) -> R<()> {
+        let Some(first_beyond) = items.get(cap) else {
+            return Ok(());
+        };
+        let (line, column) = line_col(self.src, first_beyond.span().start);
+        Err(ScenarioError {
+            file: self.file.to_path_buf(),
+            line,
+            column,
+            key: name.to_string(),
+            reason: format!(
+                "{} {what}, above the cap of {cap} per scenario file (this is number {})",
+                items.len(),
+                cap + 1
+            ),
+        })
     }
     /// Reject keys not in `allowed`.
     fn only(
@@ -149,7 +192,20 @@ fn velocity(ctx: &mut Ctx, s: &RawStep, required: bool, signed: bool) -> R<Optio
     } else {
         positive(ctx, v, key)?
     };
-    Ok(Some(x * scale))
+    let uu_per_s = x * scale;
+    if ctx
+        .fastest
+        .as_ref()
+        .is_none_or(|f| uu_per_s.abs() > f.uu_per_s)
+    {
+        ctx.fastest = Some(Fastest {
+            uu_per_s: uu_per_s.abs(),
+            span: v.span(),
+            key,
+            scale,
+        });
+    }
+    Ok(Some(uu_per_s))
 }
 
 fn accel(ctx: &mut Ctx, s: &RawStep) -> R<f64> {
@@ -347,8 +403,8 @@ fn write_sdo_step(ctx: &Ctx, s: &RawStep) -> R<ProgramStep> {
     }))
 }
 
-/// `repeat`: the body checked once and appended `times` times (at most 4 deep, at most a
-/// million steps).
+/// `repeat`: the body checked once and appended `times` times (at most 4 deep, at most
+/// [`MAX_PROGRAM_STEPS`] in the program).
 fn repeat_step(ctx: &mut Ctx, s: &RawStep, out: &mut Vec<ProgramStep>, depth: usize) -> R<()> {
     let times = *required(ctx, &s.times, "times", &s.step)?;
     let body = s.body.as_ref().ok_or_else(|| {
@@ -370,11 +426,15 @@ fn repeat_step(ctx: &mut Ctx, s: &RawStep, out: &mut Vec<ProgramStep>, depth: us
     }
     let mut inner = Vec::new();
     steps(ctx, body, &mut inner, depth + 1)?;
-    if inner.len() as u64 * u64::from(times) > 1_000_000 {
+    let total = out.len() as u64 + inner.len() as u64 * u64::from(times);
+    if total > MAX_PROGRAM_STEPS as u64 {
         return Err(ctx.err(
             s.times.as_ref().unwrap().span(),
             Some("times"),
-            "the program would exceed a million steps",
+            format!(
+                "the program would have {total} steps with this repeat unrolled, above the cap \
+                 of {MAX_PROGRAM_STEPS}"
+            ),
         ));
     }
     for _ in 0..times {
@@ -580,9 +640,31 @@ fn profile_action(
             .transpose()?
             .unwrap_or(0.0),
         amplitude: finite(ctx, e.amplitude.as_ref().unwrap(), "amplitude")?,
-        frequency_hz: positive(ctx, e.frequency_hz.as_ref().unwrap(), "frequency_hz")?,
+        frequency_hz: profile_frequency(ctx, e.frequency_hz.as_ref().unwrap())?,
         over_us: e.over.as_ref().map(|o| o.get_ref().us()),
     })
+}
+
+/// A profile's frequency: positive and below half the rate at which it is applied (once per
+/// tick): at or above that its samples alias into a slower force than the one asked for.
+fn profile_frequency(ctx: &Ctx, v: &Spanned<f64>) -> R<f64> {
+    let f = positive(ctx, v, "frequency_hz")?;
+    let nyquist_hz = 0.5e6 / ctx.tick_us as f64;
+    if f >= nyquist_hz {
+        return Err(ctx.err(
+            v.span(),
+            Some("frequency_hz"),
+            format!(
+                "{} Hz: a load profile is applied once per tick ({} us, {} Hz), so it must \
+                 stay below {nyquist_hz} Hz, half that rate (above, its samples describe a \
+                 slower force); a shorter [master] tick_us raises the limit",
+                number(f),
+                ctx.tick_us,
+                1e6 / ctx.tick_us as f64
+            ),
+        ));
+    }
+    Ok(f)
 }
 
 /// `sensor`: an encoder glitch (with `counts`) or another sensor fault (no keys).
@@ -640,10 +722,25 @@ fn can_action(
             )?;
             need(ctx, span, span_of(&e.share), "share", "a CAN delay")?;
             need(ctx, span, span_of(&e.ticks), "ticks", "a CAN delay")?;
+            let ticks = e.ticks.as_ref().unwrap();
+            if *ticks.get_ref() > MAX_CAN_DELAY_TICKS {
+                return Err(ctx.err(
+                    ticks.span(),
+                    Some("ticks"),
+                    format!(
+                        "{} ticks: a CAN delay is at most {MAX_CAN_DELAY_TICKS} ticks ({} s at \
+                         this file's {} us tick); a frame later than that has tripped every \
+                         supervision (SYNC, heartbeat, SDO timeout): use `can = \"drop\"`",
+                        ticks.get_ref(),
+                        f64::from(MAX_CAN_DELAY_TICKS) * ctx.tick_us as f64 * 1e-6,
+                        ctx.tick_us
+                    ),
+                ));
+            }
             Action::Can {
                 fault: CanFault::Delay {
                     share: share.unwrap(),
-                    ticks: *e.ticks.as_ref().unwrap().get_ref(),
+                    ticks: *ticks.get_ref(),
                     cob_id: cob,
                 },
                 over_us,
@@ -673,7 +770,7 @@ fn time_us(v: &Option<Spanned<Time>>) -> Option<u64> {
 }
 
 /// One `[[expect]]`: exactly one kind, with only the keys that kind takes.
-fn expectation(ctx: &mut Ctx, x: &Spanned<RawExpect>, ids: &[String]) -> R<Expect> {
+fn expectation(ctx: &mut Ctx, x: &Spanned<RawExpect>, ids: &HashSet<String>) -> R<Expect> {
     let span = x.span();
     let x = x.get_ref();
     let kinds = [
@@ -798,7 +895,7 @@ fn emcy_expectation(
     ctx: &Ctx,
     x: &RawExpect,
     present: &[(&'static str, Range<usize>)],
-    ids: &[String],
+    ids: &HashSet<String>,
 ) -> R<Expectation> {
     ctx.only(present, &["within", "after"], "an `emcy` expectation")?;
     if let Some(a) = &x.after {
@@ -878,8 +975,14 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
     let mut ctx = Ctx {
         src,
         file,
+        breaks: src.match_indices('\n').map(|(i, _)| i).collect(),
         units: None,
+        fastest: None,
+        tick_us: 1000,
     };
+    ctx.cap("event", "events", &raw.event, MAX_EVENTS)?;
+    ctx.cap("expect", "expectations", &raw.expect, MAX_EXPECTATIONS)?;
+    ctx.cap("motion", "motion steps", &raw.motion, MAX_PROGRAM_STEPS)?;
     let name = scenario_name(&ctx, &raw.name)?;
     let m = raw.machine.get_ref();
     let presets = machine_presets(&ctx, &raw.machine)?;
@@ -889,8 +992,12 @@ pub(super) fn validate(raw: RawScenario, src: &str, file: &Path) -> R<Scenario> 
         .map(|(k, v)| (k.to_string(), v.get_ref().to_string()))
         .collect();
     let (master, tick_us) = master_timing(&ctx, &raw.master, raw.machine.span())?;
+    ctx.tick_us = tick_us;
     let program = motion_program(&mut ctx, &raw.motion)?;
     let (events, ids) = events(&mut ctx, &raw.event)?;
+    if let Some(d) = &raw.duration {
+        events_before_the_end(&ctx, &raw.event, &events, d)?;
+    }
     let mut expectations = Vec::new();
     for x in &raw.expect {
         expectations.push(expectation(&mut ctx, x, &ids)?);
@@ -989,6 +1096,18 @@ fn master_timing(ctx: &Ctx, mr: &RawMaster, at: Range<usize>) -> R<(MasterConfig
 fn motion_program(ctx: &mut Ctx, motion: &[Spanned<RawStep>]) -> R<Vec<ProgramStep>> {
     let mut program = Vec::new();
     steps(ctx, motion, &mut program, 0)?;
+    if program.len() > MAX_PROGRAM_STEPS {
+        let at = motion.last().map(|s| s.span()).unwrap_or(0..0);
+        return Err(ctx.err(
+            at,
+            Some("motion"),
+            format!(
+                "the program has {} steps with every repeat unrolled, above the cap of \
+                 {MAX_PROGRAM_STEPS}",
+                program.len()
+            ),
+        ));
+    }
     if !matches!(
         program.first(),
         Some(ProgramStep::Master(Step::Enable { .. }))
@@ -1006,63 +1125,98 @@ fn motion_program(ctx: &mut Ctx, motion: &[Spanned<RawStep>]) -> R<Vec<ProgramSt
 
 /// The `[[event]]`s and their ids (each used once); timed ramps of one parameter must not
 /// overlap.
-fn events(ctx: &mut Ctx, raw: &[Spanned<RawEvent>]) -> R<(Vec<Event>, Vec<String>)> {
+fn events(ctx: &mut Ctx, raw: &[Spanned<RawEvent>]) -> R<(Vec<Event>, HashSet<String>)> {
     let mut events = Vec::new();
-    let mut ids: Vec<String> = Vec::new();
+    let mut ids = HashSet::new();
+    let mut ramps = RampSchedule::default();
     for e in raw {
         let ev = event(ctx, e)?;
         if let Some(id) = &ev.id {
-            if ids.contains(id) {
+            if !ids.insert(id.clone()) {
                 let sp = e.get_ref().id.as_ref().unwrap().span();
                 return Err(ctx.err(sp, Some("id"), format!("event id `{id}` used twice")));
             }
-            ids.push(id.clone());
         }
-        check_ramp_overlap(ctx, e.span(), &ev, &events)?;
+        ramps.add(ctx, e.span(), &ev)?;
         events.push(ev);
     }
     Ok((events, ids))
 }
 
-/// Two timed ramps of one parameter that overlap would fight over its value.
-fn check_ramp_overlap(ctx: &Ctx, at: Range<usize>, ev: &Event, earlier: &[Event]) -> R<()> {
-    let (Trigger::At(t), Action::Ramp { key, over_us, .. }) = (&ev.trigger, &ev.action) else {
-        return Ok(());
-    };
-    for other in earlier {
-        let Event {
-            trigger: Trigger::At(t0),
-            action:
-                Action::Ramp {
-                    key: k0,
-                    over_us: o0,
-                    ..
-                },
-            line,
-            ..
-        } = other
-        else {
-            continue;
+/// Every event can fire before the scenario's `duration` ends the run: one timed at or
+/// after the end, or delayed by that much after its condition, would never fire.
+fn events_before_the_end(
+    ctx: &Ctx,
+    raw: &[Spanned<RawEvent>],
+    events: &[Event],
+    duration: &Spanned<Time>,
+) -> R<()> {
+    let end_us = duration.get_ref().us();
+    for (e, ev) in raw.iter().zip(events) {
+        let (key, span, t) = match ev.trigger {
+            Trigger::At(t) => ("at", span_of(&e.get_ref().at), t),
+            Trigger::OnState { delay_us, .. } | Trigger::OnEmcy { delay_us, .. } => {
+                ("after", span_of(&e.get_ref().after), delay_us)
+            }
         };
-        let (a0, a1) = (*t0, t0.saturating_add(*o0));
-        let (b0, b1) = (*t, t.saturating_add(*over_us));
-        if k0.key == key.key && a0 < b1 && b0 < a1 {
+        if t >= end_us {
+            let what = if key == "at" {
+                format!("{} s is", t as f64 * 1e-6)
+            } else {
+                format!("a delay of {} s after its condition is", t as f64 * 1e-6)
+            };
             return Err(ctx.err(
-                at,
-                Some("ramp"),
+                span.unwrap_or_else(|| e.span()),
+                Some(key),
                 format!(
-                    "ramp of `{}` from {} s to {} s overlaps the ramp at line {line} ({} \
-                     s to {} s): one parameter can follow one ramp at a time",
-                    key.key,
-                    b0 as f64 * 1e-6,
-                    b1 as f64 * 1e-6,
-                    a0 as f64 * 1e-6,
-                    a1 as f64 * 1e-6
+                    "{what} at or after the scenario's end (duration = {} s, line {}): the \
+                     event would never fire",
+                    end_us as f64 * 1e-6,
+                    ctx.line(&duration.span())
                 ),
             ));
         }
     }
     Ok(())
+}
+
+/// The timed ramps accepted so far, per parameter: start -> (latest end of a ramp starting
+/// there, its line). Accepted ramps of one parameter do not overlap, so a new one can only
+/// overlap the one starting last before its end: O(log n) per ramp.
+#[derive(Default)]
+struct RampSchedule(HashMap<&'static str, BTreeMap<u64, (u64, usize)>>);
+
+impl RampSchedule {
+    /// Two timed ramps of one parameter that overlap would fight over its value.
+    fn add(&mut self, ctx: &Ctx, at: Range<usize>, ev: &Event) -> R<()> {
+        let (Trigger::At(t), Action::Ramp { key, over_us, .. }) = (&ev.trigger, &ev.action) else {
+            return Ok(());
+        };
+        let (b0, b1) = (*t, t.saturating_add(*over_us));
+        let starts = self.0.entry(key.key).or_default();
+        if let Some((&a0, &(a1, line))) = starts.range(..b1).next_back() {
+            if b0 < a1 {
+                return Err(ctx.err(
+                    at,
+                    Some("ramp"),
+                    format!(
+                        "ramp of `{}` from {} s to {} s overlaps the ramp at line {line} ({} \
+                         s to {} s): one parameter can follow one ramp at a time",
+                        key.key,
+                        b0 as f64 * 1e-6,
+                        b1 as f64 * 1e-6,
+                        a0 as f64 * 1e-6,
+                        a1 as f64 * 1e-6
+                    ),
+                ));
+            }
+        }
+        let end = starts.entry(b0).or_insert((b1, ev.line));
+        if b1 > end.0 {
+            *end = (b1, ev.line);
+        }
+        Ok(())
+    }
 }
 
 /// Every preset with the overrides, so a bad value is reported here, with its line; each
@@ -1086,6 +1240,32 @@ fn resolve_presets(ctx: &Ctx, m: &RawMachine, presets: &[String]) -> R<Vec<AxisC
             cfg = cfg
                 .with_override(k, &v.get_ref().to_string())
                 .map_err(|e| ctx.err(v.span(), Some(k), format!("{} (preset {p})", e.reason)))?;
+        }
+        if let Some(f) = &ctx.fastest {
+            let top = cfg
+                .max_speed_uu_per_s()
+                .map_err(|e| ctx.err(pspan.clone(), Some(key), format!("{e} (preset {p})")))?;
+            if f.uu_per_s > top {
+                return Err(ctx.err(
+                    f.span.clone(),
+                    Some(f.key),
+                    format!(
+                        "{} is beyond the top speed of the {p} axis, {} {} (its motor's \
+                         max_speed_rpm = {} through the transmission): the drive would only \
+                         trip on overspeed or following error",
+                        number(f.uu_per_s / f.scale),
+                        number(round_sig(top / f.scale)),
+                        match f.key {
+                            "velocity_mm_min" => "mm/min",
+                            "velocity_mm_s" => "mm/s",
+                            "velocity_deg_s" => "deg/s",
+                            "velocity_deg_min" => "deg/min",
+                            _ => "uu/s",
+                        },
+                        cfg.max_speed_rpm
+                    ),
+                ));
+            }
         }
         let rotary = cfg.kind == PresetKind::Rotary;
         if let Some((r, first)) = &ctx.units {
@@ -1149,5 +1329,24 @@ fn step_name(k: &StepKind) -> &'static str {
         StepKind::StopSync => "stop_sync",
         StepKind::Disable => "disable",
         StepKind::Repeat => "repeat",
+    }
+}
+
+/// A value rounded to 4 significant digits, for messages.
+fn round_sig(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let p = 10f64.powi(3 - x.abs().log10().floor() as i32);
+    (x * p).round() / p
+}
+
+/// A number for messages: plain where it reads well, else in exponent form (`1e300`, not
+/// three hundred digits).
+fn number(x: f64) -> String {
+    if x == 0.0 || (1e-4..1e9).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
     }
 }

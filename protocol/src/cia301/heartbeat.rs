@@ -1,20 +1,36 @@
 //! Heartbeat producer (0x1017) and consumer (0x1016).
+//!
+//! Near the end of the clock's range a period or timeout that would end after `u64::MAX` us
+//! never ends (no deadline, never due): see `Node::poll_at`.
 
 /// Producer: sends the NMT state every 0x1017 ms.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 pub struct Producer {
-    next_due_us: u64,
+    /// `None`: beyond the end of the clock's range (never due).
+    next_due_us: Option<u64>,
+}
+
+impl Default for Producer {
+    /// Due at once (until a boot restarts it).
+    fn default() -> Self {
+        Producer {
+            next_due_us: Some(0),
+        }
+    }
 }
 
 impl Producer {
     /// Restart the period (boot, or 0x1017 written).
     pub fn restart(&mut self, now_us: u64, period_ms: u16) {
-        self.next_due_us = now_us + period_ms as u64 * 1000;
+        self.next_due_us = now_us.checked_add(period_ms as u64 * 1000);
     }
 
     /// When the next heartbeat is due (us), `None` when the producer is off.
     pub fn deadline_us(&self, period_ms: u16) -> Option<u64> {
-        (period_ms != 0).then_some(self.next_due_us)
+        if period_ms == 0 {
+            return None;
+        }
+        self.next_due_us
     }
 
     /// True when a heartbeat is due now.
@@ -22,17 +38,18 @@ impl Producer {
         if period_ms == 0 {
             return false;
         }
-        if now_us >= self.next_due_us {
-            let p = period_ms as u64 * 1000;
-            // keep the grid; after a long gap, restart from now
-            self.next_due_us = if now_us - self.next_due_us > p {
-                now_us + p
-            } else {
-                self.next_due_us + p
-            };
-            return true;
-        }
-        false
+        let Some(due) = self.next_due_us.filter(|&d| now_us >= d) else {
+            return false;
+        };
+        let p = period_ms as u64 * 1000;
+        // Keep the grid; once a whole period was missed, restart from now (the next beat on
+        // the grid would be due already: one heartbeat per poll, never two at one instant).
+        self.next_due_us = if now_us - due >= p {
+            now_us.checked_add(p)
+        } else {
+            due.checked_add(p)
+        };
+        true
     }
 }
 
@@ -88,7 +105,7 @@ impl Consumer {
         self.slots
             .iter()
             .filter(|s| s.armed && s.time_ms != 0)
-            .map(|s| s.last_us + s.time_ms as u64 * 1000 + 1)
+            .filter_map(|s| s.last_us.checked_add(s.time_ms as u64 * 1000 + 1))
             .min()
     }
 

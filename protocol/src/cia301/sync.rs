@@ -49,8 +49,10 @@ impl SyncConsumer {
         if period_us == 0 || self.lost {
             return None;
         }
-        // poll fires at the first `now` with (now - last) * 2 > 3 * period
-        self.last_us.map(|l| l + period_us as u64 * 3 / 2 + 1)
+        // poll fires at the first `now` with now - last > 1.5 periods; never when that is
+        // beyond the end of the clock's range
+        self.last_us
+            .and_then(|l| l.checked_add(loss_after_us(period_us) + 1))
     }
 
     /// True once when SYNC has been missing for more than 1.5 x `period_us` (0 = off).
@@ -59,11 +61,17 @@ impl SyncConsumer {
             return false;
         }
         if let Some(l) = self.last_us {
-            if now_us.saturating_sub(l) * 2 > period_us as u64 * 3 {
+            if now_us.saturating_sub(l) > loss_after_us(period_us) {
                 self.lost = true;
                 return true;
             }
         }
         false
     }
+}
+
+/// SYNC is lost once it has been missing for more than this, us: 1.5 periods (rounded down;
+/// for whole microseconds "more than floor(1.5 p)" is "more than 1.5 p").
+fn loss_after_us(period_us: u32) -> u64 {
+    period_us as u64 * 3 / 2
 }

@@ -78,8 +78,8 @@ impl Csp {
             self.t_sync = t;
             self.period_us = period_us;
         } else {
-            let stale =
-                self.period_us == 0 || ctx.now.saturating_sub(self.t_sync) > 3 * self.period_us;
+            let stale = self.period_us == 0
+                || ctx.now.saturating_sub(self.t_sync) > self.period_us.saturating_mul(3);
             if stale && changed {
                 self.prev = tgt;
                 self.next = tgt;

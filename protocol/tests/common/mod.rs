@@ -293,7 +293,7 @@ impl Bench {
     }
 
     pub fn tick(&mut self) {
-        self.now += DT_US;
+        self.now = self.now.saturating_add(DT_US);
         self.node.poll(self.now, &mut self.drive);
         self.drain();
     }

@@ -16,14 +16,19 @@
 //!   is a supported mode (0x6061 too), and a drive in FAULT has 0x1001 and 0x603F set;
 //! - SDO: after a client abort the server answers a fresh request, whatever state the
 //!   sequence left it in; at the end of each case, a stalled transfer has timed out and the
-//!   server answers again.
+//!   server answers again;
+//! - the `Node::poll_at` contract: right after `poll(now)`, `poll_at()` is `None` or `> now`;
+//!   right after `poll_comm(comm)` or `poll_with(clocks)`, `poll_at_comm()` is `None` or
+//!   `> comm`; on any clock: the steps include jumps to the end of the u64 range
+//!   (`Time::End`), where nothing may overflow (the test profile checks overflow), and the
+//!   two clocks of a lock-step runtime (`CommStep`).
 #![allow(dead_code)]
 
 use drive_protocol::cia402::mode::Mode;
 use drive_protocol::cia402::statusword::decode_state;
 use drive_protocol::cia402::State;
 use drive_protocol::od::{Access, DataType, ObjectDictionary};
-use drive_protocol::{CanFrame, Drive, NmtState, Node, NodeConfig, TX_QUEUE};
+use drive_protocol::{CanFrame, Clocks, Drive, NmtState, Node, NodeConfig, TX_QUEUE};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
 
@@ -92,6 +97,19 @@ pub enum Time {
     Jump(u64),
     /// Backwards (a clock that is not monotonic).
     Back(u32),
+    /// To this far before the end of the clock's range, `u64::MAX - n` (584 542 years of
+    /// uptime; later steps stay there, saturating).
+    End(u64),
+}
+
+/// The two clocks of a lock-step runtime (`Node::poll_comm`, `Node::poll_with`): the
+/// communication clock (the harness's) moves on while the application clock stands.
+#[derive(Clone, Debug)]
+pub enum CommStep {
+    /// The communication timers alone, `dt` us later (between SYNCs).
+    Timers(u32),
+    /// A CiA 402 cycle whose application time lags the communication time by `lag` us.
+    Lagging { dt: u32, lag: u32 },
 }
 
 /// One step of a case.
@@ -163,6 +181,8 @@ pub enum Op {
     InjectFault { code: u16, reset: bool },
     /// Time moves, then a poll.
     Poll(Time),
+    /// Time moves on the communication clock, then `poll_comm` or `poll_with`.
+    Comm(CommStep),
     /// `n` regular ticks of 1 ms.
     Ticks(u8),
 }
@@ -172,6 +192,7 @@ fn time_strategy() -> impl Strategy<Value = Time> {
         6 => (0u32..20_000).prop_map(Time::Advance),
         1 => (1_000_000u64..20_000_000_000).prop_map(Time::Jump),
         1 => (1u32..2_000_000).prop_map(Time::Back),
+        1 => prop_oneof![0u64..5_000_000, 0u64..2_000_000_000, Just(0)].prop_map(Time::End),
     ]
 }
 
@@ -315,6 +336,11 @@ pub fn op_strategy(id: u8, objects: &Objects) -> impl Strategy<Value = Op> {
         1 => (prop_oneof![Just(0u16), Just(0x7300), Just(0x4310), any::<u16>()], any::<bool>())
             .prop_map(|(code, reset)| Op::InjectFault { code, reset }),
         6 => time_strategy().prop_map(Op::Poll),
+        2 => prop_oneof![
+            (0u32..20_000).prop_map(CommStep::Timers),
+            (0u32..20_000, 0u32..50_000).prop_map(|(dt, lag)| CommStep::Lagging { dt, lag }),
+        ]
+        .prop_map(Op::Comm),
         3 => (1u8..40).prop_map(Op::Ticks),
     ]
 }
@@ -453,18 +479,69 @@ impl<D: Drive> Harness<D> {
     pub fn poll(&mut self, t: &Time) -> Result<(), TestCaseError> {
         match *t {
             Time::Advance(dt) => {
-                self.now_us += dt as u64;
+                self.now_us = self.now_us.saturating_add(dt as u64);
                 (self.advance)(&mut self.drive, (dt as u64).min(self.max_physics_us));
             }
             Time::Jump(dt) => {
-                self.now_us += dt;
+                self.now_us = self.now_us.saturating_add(dt);
                 (self.advance)(&mut self.drive, dt.min(self.max_physics_us));
             }
             Time::Back(dt) => self.now_us = self.now_us.saturating_sub(dt as u64),
+            Time::End(n) => {
+                self.now_us = u64::MAX - n;
+                (self.advance)(&mut self.drive, self.max_physics_us);
+            }
         }
         self.node.poll(self.now_us, &mut self.drive);
+        self.check_poll_at()?;
         self.drain()?;
         self.check_state()
+    }
+
+    /// The communication clock moves (the harness's clock), the application clock stands or
+    /// lags: `poll_comm` or `poll_with`, then the contract of `poll_at_comm`.
+    pub fn poll_comm(&mut self, step: &CommStep) -> Result<(), TestCaseError> {
+        match *step {
+            CommStep::Timers(dt) => {
+                self.now_us = self.now_us.saturating_add(dt as u64);
+                self.node.poll_comm(self.now_us, &mut self.drive);
+            }
+            CommStep::Lagging { dt, lag } => {
+                self.now_us = self.now_us.saturating_add(dt as u64);
+                (self.advance)(&mut self.drive, (dt as u64).min(self.max_physics_us));
+                let clocks = Clocks {
+                    app_us: self.now_us.saturating_sub(lag as u64),
+                    comm_us: self.now_us,
+                };
+                self.node.poll_with(clocks, &mut self.drive);
+            }
+        }
+        match self.node.poll_at_comm() {
+            Some(at) if at <= self.now_us => {
+                return Err(fail(format!(
+                    "poll_at_comm() = {at} <= comm = {} right after {step:?}",
+                    self.now_us
+                )))
+            }
+            _ => {}
+        }
+        self.drain()?;
+        if matches!(step, CommStep::Lagging { .. }) {
+            self.check_state()?;
+        }
+        Ok(())
+    }
+
+    /// The `Node::poll_at` contract, right after `poll(now)`: no deadline, or a later one.
+    fn check_poll_at(&self) -> Result<(), TestCaseError> {
+        match self.node.poll_at() {
+            Some(at) if at <= self.now_us => Err(fail(format!(
+                "poll_at() = {at} <= now = {} right after poll(now) ({} us before it)",
+                self.now_us,
+                self.now_us - at
+            ))),
+            _ => Ok(()),
+        }
     }
 
     fn tick(&mut self) -> Result<(), TestCaseError> {
@@ -800,6 +877,7 @@ impl<D: Drive> Harness<D> {
                 }
             }
             Op::Poll(t) => self.poll(t)?,
+            Op::Comm(step) => self.poll_comm(step)?,
             Op::Ticks(n) => {
                 for _ in 0..*n {
                     self.tick()?;

@@ -82,8 +82,8 @@ impl PdoEngine {
                 continue;
             }
             let (inhibit, timer) = timers_us(store, p);
-            let inhibit_ok = p.last_tx_us.is_none_or(|l| now_us >= l + inhibit);
-            let timer_due = timer > 0 && p.last_tx_us.is_none_or(|l| now_us >= l + timer);
+            let inhibit_ok = passed(p.last_tx_us, inhibit, now_us);
+            let timer_due = timer > 0 && passed(p.last_tx_us, timer, now_us);
             if inhibit_ok && (p.changed(store) || timer_due) {
                 send(p, store, now_us, out);
             }
@@ -101,13 +101,26 @@ impl PdoEngine {
             return Some(now_us);
         };
         let (inhibit, timer) = timers_us(store, p);
-        let mut at = (timer > 0).then(|| (last + timer).max(last + inhibit));
+        // a time beyond the end of the clock's range never comes (`checked_add`)
+        let mut at = if timer > 0 {
+            last.checked_add(timer.max(inhibit))
+        } else {
+            None
+        };
         if p.changed(store) {
-            let t = last + inhibit;
-            at = Some(at.map_or(t, |a| a.min(t)));
+            if let Some(t) = last.checked_add(inhibit) {
+                at = Some(at.map_or(t, |a| a.min(t)));
+            }
         }
         at
     }
+}
+
+/// Whether `dt_us` has passed since `since` (always when nothing was sent yet; never when
+/// `since + dt_us` is beyond the end of the clock's range, nor while the clock is before
+/// `since`).
+fn passed(since: Option<u64>, dt_us: u64, now_us: u64) -> bool {
+    since.is_none_or(|l| l.checked_add(dt_us).is_some_and(|t| now_us >= t))
 }
 
 /// Inhibit time and event timer of a TPDO, us.

@@ -152,13 +152,13 @@ impl SdoServer {
         self.finished.take()
     }
 
-    /// When [`SdoServer::poll`] will abort the transfer in progress (us), if one is.
+    /// When [`SdoServer::poll`] will abort the transfer in progress (us), if one is (never
+    /// when that is beyond the end of the clock's range).
     pub fn deadline_us(&self) -> Option<u64> {
-        self.busy().then(|| {
-            self.last_us
-                .saturating_add(self.timeout_us)
-                .saturating_add(1)
-        })
+        if !self.busy() {
+            return None;
+        }
+        self.last_us.checked_add(self.timeout_us)?.checked_add(1)
     }
 
     /// Abort a stalled transfer.
