@@ -6,7 +6,9 @@
 //! Method, per constant-velocity window ([`super::windows`]):
 //! 1. fundamental of the motor speed and of the motor current in a search band wider than the
 //!    paper's (k_v/8 .. 2 k_v, below Nyquist/1.25), so a peak outside the band is seen and
-//!    rejected rather than missed;
+//!    rejected rather than missed; on the samples' own times
+//!    ([`super::spectrum::WindowSpectra`]: the FFT where they are even, a weighted
+//!    least-squares sine fit where SYNCs came late or were lost, with its limits there);
 //! 2. displacement-equivalent amplitude of the speed fluctuation, `x = A_v / (2 pi f)` (um or
 //!    mdeg: the trace's position unit), and the peak's prominence over the band's median;
 //! 3. the window is flagged `backlash_suspected` when the peak is inside k_v/4 .. k_v, prominent,
@@ -19,10 +21,9 @@
 //! level was confirmed, and the difference between motor and direct encoder (mean per window,
 //! fluctuation, and the lost motion between opposite directions when both are present).
 
-use super::spectrum::SpectrumAnalyzer;
-use super::windows::{median_dt, scan_windows, Window, WindowOptions};
+use super::spectrum::{uniform_interval, WindowSpectra};
+use super::windows::{scan_windows, Window, WindowOptions};
 use crate::samples::{Sample, SampleSource};
-use std::collections::HashMap;
 
 /// A trace as the detector needs it. Positions in one unit `u` (um for a linear axis, mdeg for a
 /// rotary one: the master's user units), velocities in u/s, current in any unit (per mille of
@@ -47,6 +48,9 @@ pub struct AxisTrace {
     /// constant speed on average where the set-points jitter, and to tell a line the
     /// set-point forces from the axis's own.
     pub set_position: Vec<f64>,
+    /// How `t_s` was had, for the report (a capture: its SYNC time stamps or the SYNC count,
+    /// and why); empty: the trace's time column.
+    pub time_base: String,
 }
 
 impl AxisTrace {
@@ -139,31 +143,55 @@ impl AxisTrace {
             current_unit: "A".into(),
             set_velocity_source: "derivative of the position set-point".into(),
             set_position,
+            time_base: String::new(),
         }
     }
 
     /// From a sample log (user units, per mille current), read by who wrote it: the set
-    /// velocity is the master's interpolator velocity ([`SampleSource::Master`]); a drive has
-    /// none to report (its 0x606B is the position controller's output, which carries the
-    /// limit cycle), so for [`SampleSource::Drive`] (`run --trace`, live scenarios:
-    /// [`crate::runtime::trace::node_sample`]) it is derived from the position demand
-    /// `target_uu` (0x6062).
+    /// velocity is the master's interpolator velocity ([`SampleSource::Master`]). A drive has
+    /// none to report in a position mode (its 0x606B is the position controller's output,
+    /// which carries the limit cycle), so for [`SampleSource::Drive`] (`run --trace`, live
+    /// scenarios: [`crate::runtime::trace::node_sample`]) it is derived from the position
+    /// demand `target_uu` (0x6062); in a velocity mode (CSV, PV: mode display 9 or 3) 0x606B is
+    /// the commanded velocity itself (0x60FF, or PV's ramp), and the set position its integral.
     pub fn from_sample_log(samples: &[Sample], source: SampleSource, rotary: bool) -> Self {
         let t_s: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
-        let set_position: Vec<f64> = samples.iter().map(|s| s.target_uu).collect();
-        let (set_velocity, set_velocity_source) = match source {
+        let demand: Vec<f64> = samples.iter().map(|s| s.target_uu).collect();
+        let (set_velocity, set_position, set_velocity_source) = match source {
             SampleSource::Master => (
                 samples.iter().map(|s| s.setpoint_velocity_uu_s).collect(),
-                "the master's interpolator velocity",
+                demand,
+                "the master's interpolator velocity".to_string(),
             ),
-            SampleSource::Drive => (
-                super::windows::set_velocity_from_demand(
+            SampleSource::Drive => {
+                let from_demand = super::windows::set_velocity_from_demand(
                     &t_s,
-                    &set_position,
+                    &demand,
                     super::windows::DEMAND_SPAN_S,
-                ),
-                "position demand 0x6062",
-            ),
+                );
+                let velocity_mode = |s: &Sample| matches!(s.mode_display, 3 | 9);
+                let (mut v, mut sp) = (Vec::with_capacity(samples.len()), Vec::new());
+                let mut x = f64::NAN;
+                for (k, s) in samples.iter().enumerate() {
+                    if velocity_mode(s) {
+                        let dt = if k > 0 { t_s[k] - t_s[k - 1] } else { 0.0 };
+                        x = if x.is_finite() { x } else { s.target_uu }
+                            + s.setpoint_velocity_uu_s * dt;
+                        v.push(s.setpoint_velocity_uu_s);
+                        sp.push(x);
+                    } else {
+                        x = f64::NAN;
+                        v.push(from_demand[k]);
+                        sp.push(s.target_uu);
+                    }
+                }
+                let text = if samples.iter().any(velocity_mode) {
+                    "position demand 0x6062; in CSV/PV velocity demand 0x606B"
+                } else {
+                    "position demand 0x6062"
+                };
+                (v, sp, text.to_string())
+            }
         };
         Self {
             t_s,
@@ -180,8 +208,9 @@ impl AxisTrace {
                 .collect(),
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
-            set_velocity_source: set_velocity_source.into(),
+            set_velocity_source,
             set_position,
+            time_base: String::new(),
         }
     }
 }
@@ -338,6 +367,8 @@ pub struct DetectorReport {
     pub reasons: Vec<String>,
     /// Where the constant speed came from (set-point object, or the actual values).
     pub window_source: String,
+    /// How the samples' times were had (a capture: its SYNC time stamps or the SYNC count).
+    pub time_base: String,
     /// Displacement amplitude of the deciding windows over `alarm_um` (1.0 = at the alarm).
     pub severity: f64,
     /// Median displacement amplitude of the deciding windows, position unit.
@@ -389,26 +420,33 @@ fn slope(x: &[f64], y: &[f64]) -> Option<f64> {
     (sxx > 0.0).then(|| sxy / sxx)
 }
 
-/// Analyze one window (exposed for tests and plots).
+/// Analyze one window (exposed for tests and plots). Its spectra are taken on the samples'
+/// own times ([`WindowSpectra`]: the FFT where they are even, a least-squares fit where not).
 pub fn analyze_window(
     trace: &AxisTrace,
     w: &Window,
     cfg: &DetectorConfig,
-    analyzers: &mut HashMap<usize, SpectrumAnalyzer>,
+    spectra: &mut WindowSpectra,
 ) -> WindowResult {
-    let dt = median_dt(&trace.t_s[w.start..w.end]);
-    let fs = if dt > 0.0 { 1.0 / dt } else { 1.0 };
-    let band = cfg.search_band_hz(fs);
+    let t = &trace.t_s[w.start..w.end];
     let n = w.len();
-    let an = analyzers
-        .entry(n)
-        .or_insert_with(|| SpectrumAnalyzer::new(n));
-    let speed = an.fundamental(&trace.motor_velocity[w.start..w.end], fs, band);
-    let prominence = speed.map_or(0.0, |p| line_prominence(an, p.amplitude, n, fs, band));
-    let current = an.fundamental(&trace.current[w.start..w.end], fs, band);
+    let (uniform, dt) = uniform_interval(t);
+    let span = t[n - 1] - t[0];
+    let fs = if uniform && dt > 0.0 {
+        1.0 / dt
+    } else if span > 0.0 {
+        (n - 1) as f64 / span
+    } else {
+        1.0
+    };
+    let band = cfg.search_band_hz(fs);
+    let speed_spectrum = spectra.band(t, &trace.motor_velocity[w.start..w.end], band);
+    let speed = speed_spectrum.peak;
+    let prominence = speed.map_or(0.0, |p| line_prominence(p.amplitude, &speed_spectrum.band));
+    let current = spectra.band(t, &trace.current[w.start..w.end], band).peak;
     let (speed_hz, speed_amplitude) =
         speed.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
-    let set_point_amplitude = set_point_line(trace, w, an, fs, band);
+    let set_point_amplitude = set_point_line(trace, w, spectra, band);
     let (current_hz, current_amplitude) =
         current.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
     let displacement_amplitude = match speed_hz {
@@ -476,17 +514,11 @@ pub fn analyze_window(
     }
 }
 
-/// The line's amplitude over the median amplitude of the search `band` (Hz) in the last
-/// spectrum `an` computed (`n` samples at rate `fs`): how far the line stands out of the
-/// noise.
-fn line_prominence(
-    an: &SpectrumAnalyzer,
-    amplitude: f64,
-    n: usize,
-    fs: f64,
-    band: (f64, f64),
-) -> f64 {
-    let mut m: Vec<f64> = band_bins(an, n, fs, band).to_vec();
+/// The line's amplitude over the median amplitude of the search band's grid (`band`, the
+/// amplitudes of a [`BandSpectrum`](super::spectrum::BandSpectrum)): how far the line stands
+/// out of the noise.
+fn line_prominence(amplitude: f64, band: &[f64]) -> f64 {
+    let mut m: Vec<f64> = band.to_vec();
     let med = median(&mut m).unwrap_or(0.0);
     if med > 0.0 {
         amplitude / med
@@ -575,75 +607,84 @@ fn judge_line(
 fn set_point_line(
     trace: &AxisTrace,
     w: &Window,
-    an: &mut SpectrumAnalyzer,
-    fs: f64,
+    spectra: &mut WindowSpectra,
     band: (f64, f64),
 ) -> f64 {
     let Some(sp) = trace.set_position.get(w.start..w.end) else {
         return f64::NAN;
     };
-    if sp.iter().any(|x| !x.is_finite()) {
+    if sp.len() < 2 || sp.iter().any(|x| !x.is_finite()) {
         return f64::NAN;
     }
-    // The set position again from its increments. An increment well above the median (by
-    // half of it, or 2 units) is a catch-up: where such are rare (a fifth of the increments
-    // or fewer), they are SYNCs the capture lost (its time base counts SYNCs; the drive saw
-    // them), not a motion of the set-point, and take the median. Holds (increments below it:
-    // the master sent nothing new) are what the drive saw and stay, as does a pattern of
-    // holds and double steps that beats with SYNC (not rare).
-    let mut d: Vec<f64> = sp.windows(2).map(|p| p[1] - p[0]).collect();
-    if d.is_empty() {
-        return f64::NAN;
-    }
-    let mut sorted = d.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let far = (0.5 * median.abs()).max(2.0);
-    let catch_up = |x: f64| (x - median) * median.signum() > far;
-    let catch_ups = d.iter().filter(|x| catch_up(**x)).count();
-    if catch_ups * 5 <= d.len() {
-        for x in d.iter_mut() {
-            if catch_up(*x) {
-                *x = median;
+    let t = &trace.t_s[w.start..w.end];
+    // On an even time base (k x the SYNC period), the set position again from its
+    // increments. An increment well above the median (by half of it, or 2 units) is a
+    // catch-up: where such are rare (a fifth of the increments or fewer), they are SYNCs the
+    // capture lost (its time base counts SYNCs; the drive saw them), not a motion of the
+    // set-point, and take the median. Holds (increments below it: the master sent nothing
+    // new) are what the drive saw and stay, as does a pattern of holds and double steps that
+    // beats with SYNC (not rare). On the samples' own times a lost SYNC is a longer interval
+    // already: the set position is taken as it is.
+    let pos: Vec<f64> = if uniform_interval(t).0 {
+        let mut d: Vec<f64> = sp.windows(2).map(|p| p[1] - p[0]).collect();
+        let mut sorted = d.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        let far = (0.5 * median.abs()).max(2.0);
+        let catch_up = |x: f64| (x - median) * median.signum() > far;
+        let catch_ups = d.iter().filter(|x| catch_up(**x)).count();
+        if catch_ups * 5 <= d.len() {
+            for x in d.iter_mut() {
+                if catch_up(*x) {
+                    *x = median;
+                }
             }
         }
-    }
-    let mut x = 0.0;
-    let pos: Vec<f64> = std::iter::once(0.0)
-        .chain(d.iter().map(|s| {
-            x += s;
-            x
-        }))
-        .collect();
+        let mut x = 0.0;
+        std::iter::once(0.0)
+            .chain(d.iter().map(|s| {
+                x += s;
+                x
+            }))
+            .collect()
+    } else {
+        sp.to_vec()
+    };
     // Its spectrum (trend removed: the cruise itself) is a displacement already.
-    if an.fundamental(&pos, fs, band).is_none() {
+    let s = spectra.band(t, &pos, band);
+    if s.peak.is_none() {
         return 0.0;
     }
-    band_bins(an, sp.len(), fs, band)
-        .iter()
-        .copied()
-        .fold(0.0, f64::max)
+    s.band.iter().copied().fold(0.0, f64::max)
 }
 
-/// The amplitudes of the last spectrum `an` computed (`n` samples at rate `fs`) whose bins
-/// lie in `band` (Hz), DC excluded.
-fn band_bins(an: &SpectrumAnalyzer, n: usize, fs: f64, band: (f64, f64)) -> &[f64] {
-    let m = an.amplitudes();
-    let df = fs / n as f64;
-    let lo = ((band.0 / df).ceil() as usize).max(1);
-    let hi = ((band.1 / df).floor() as usize).min(m.len() - 1);
-    &m[lo..=hi.max(lo)]
+/// Longest gap between two samples bridged inside a window, in periods of the lowest
+/// frequency of the paper's band (k_v/4).
+pub const MAX_GAP_LOW_PERIODS: f64 = 0.5;
+
+/// The window options in force: `cfg.windows`, where no gap limit is set with gaps up to half
+/// the longest period of the paper's band (`0.5 / (k_v/4)` = 2 / k_v, 67 ms at 30 1/s) bridged:
+/// the spectra are fitted on the samples' own times, where a late SYNC or a few lost ones only
+/// cost the samples that are missing; a longer silence (a drive or a capture that stalled)
+/// may hide a change of speed and ends the window.
+pub fn window_options(cfg: &DetectorConfig) -> WindowOptions {
+    let mut wo = cfg.windows;
+    if wo.max_gap_s.is_none() && cfg.kv_per_s > 0.0 {
+        wo.max_gap_s = Some(MAX_GAP_LOW_PERIODS / (cfg.kv_per_s / 4.0));
+    }
+    wo
 }
 
 /// Run the detector on a trace.
 pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
-    let mut scan = scan_windows(&trace.t_s, &trace.set_velocity, &cfg.windows);
+    let wo = window_options(cfg);
+    let mut scan = scan_windows(&trace.t_s, &trace.set_velocity, &wo);
     // No stretch of exactly constant set speed, but set-points that jitter around one:
     // constant on average.
     let mut on_average = false;
     if scan.windows.is_empty() && !trace.set_position.is_empty() {
         let v = super::windows::set_velocity_on_average(&trace.t_s, &trace.set_position);
-        let avg = scan_windows(&trace.t_s, &v, &cfg.windows);
+        let avg = scan_windows(&trace.t_s, &v, &wo);
         if !avg.windows.is_empty() {
             (scan, on_average) = (avg, true);
         }
@@ -655,11 +696,11 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     };
     let usable: Vec<&Window> = scan.windows.iter().filter(|w| w.len() >= 16).collect();
     let non_finite = usable.iter().filter(|w| !finite(w)).count();
-    let mut analyzers = HashMap::new();
+    let mut spectra = WindowSpectra::new();
     let (forced, results): (Vec<WindowResult>, Vec<WindowResult>) = usable
         .iter()
         .filter(|w| finite(w))
-        .map(|w| analyze_window(trace, w, cfg, &mut analyzers))
+        .map(|w| analyze_window(trace, w, cfg, &mut spectra))
         .partition(|r| r.forced || r.not_following);
     let mut rep = summarize(results, trace, cfg);
     if on_average {
@@ -850,6 +891,11 @@ fn summarize(
             "the trace's set-point column".into()
         } else {
             trace.set_velocity_source.clone()
+        },
+        time_base: if trace.time_base.is_empty() {
+            "the trace's time column".into()
+        } else {
+            trace.time_base.clone()
         },
         severity,
         amplitude,

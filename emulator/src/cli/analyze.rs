@@ -34,6 +34,21 @@ lines at most 64 KiB):
   CSV          `drive-emu run --trace`, `drive-emu sim --trace`, a scenario report's samples.csv.
   A last line cut short (a writer killed mid-line) is skipped and reported, not an error.
 
+Time base of a candump log (--time-base): each sample is a SYNC's row, the set-points in force at
+it and the drive's synchronous TPDOs that answered it (taken in order: a drive that falls
+behind answers late, and its answers still go to the SYNCs they answer). A drive on its own
+clock (a real drive, `run`) samples when the SYNC comes: the samples go at the SYNCs' time
+stamps, so late and lost SYNCs are where they happened. A drive clocked by SYNC (`run
+--lockstep`) moves one period per SYNC whatever the wall clock did: sample k goes at k x the
+period. By default the capture tells which: the axis's increments between SYNCs regressed on the
+intervals (slope 1: stamps, 0: count); the report says which and why. On uneven times the
+spectra are weighted least-squares sine fits on the samples' own times (a Lomb-Scargle
+periodogram; even samples: the FFT, which it equals there). Limits: the band stops at the mean
+sample rate / 2.5; a gap longer than half a period of k_v/4 (2/k_v: 67 ms at 30 1/s) ends a
+window; a value answered in a burst after a stall is taken at its SYNC's stamp, not at the
+time the drive sampled it; an uneven capture spreads a line's leakage over the band, so its
+prominence is measured once the line is taken out.
+
 Constant-speed windows: from the set-point in force (CSP 0x607A targets, CSV/PV 0x60FF, in an
 RPDO or written over SDO); where there is none (a PP move, an unknown mode) from the actual
 position (constant speed over 0.5 s); where set-points jitter so that no stretch is exactly
@@ -99,9 +114,36 @@ pub struct AnalyzeArgs {
     #[arg(long)]
     pub preset: Option<String>,
     /// candump log: SYNC period, us (default: 0x1006 if written in the log, else the median
-    /// SYNC interval of the timestamps).
+    /// SYNC interval of the timestamps); places sample k at k x this period.
     #[arg(long)]
     pub sync_period_us: Option<u32>,
+    /// candump log: when each sample was taken: `stamps` (the SYNC's time stamp in the log: a
+    /// drive on its own clock), `sync-count` (k x the SYNC period: a drive clocked by SYNC,
+    /// `run --lockstep`); default: told from the capture (which clock the axis moves on).
+    #[arg(long, value_enum, default_value_t = TimeBaseArg::Auto)]
+    pub time_base: TimeBaseArg,
+}
+
+/// `--time-base`.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TimeBaseArg {
+    /// Told from the capture.
+    #[default]
+    Auto,
+    /// The SYNCs' time stamps.
+    Stamps,
+    /// k x the SYNC period.
+    SyncCount,
+}
+
+impl TimeBaseArg {
+    fn base(self) -> Option<candump::TimeBase> {
+        match self {
+            TimeBaseArg::Auto => None,
+            TimeBaseArg::Stamps => Some(candump::TimeBase::Stamps),
+            TimeBaseArg::SyncCount => Some(candump::TimeBase::SyncCount),
+        }
+    }
 }
 
 impl Default for AnalyzeArgs {
@@ -119,6 +161,7 @@ impl Default for AnalyzeArgs {
             node: 5,
             preset: None,
             sync_period_us: None,
+            time_base: TimeBaseArg::Auto,
         }
     }
 }
@@ -161,6 +204,7 @@ fn trace_from_csv_text(
             current_unit: "permille".into(),
             set_velocity_source: "column target_uu (position demand)".into(),
             set_position: need(&["target_uu"])?.clone(),
+            time_base: String::new(),
         }
     } else {
         let rot = find(&["position_setpoint_deg"]).is_some();
@@ -275,7 +319,7 @@ fn run_inner(args: &AnalyzeArgs) -> anyhow::Result<u8> {
         )?;
         capture = Some(log.summary());
         kv_written = log.kv_written;
-        match log.to_axis_trace(rotary_units || preset_rotary) {
+        match log.to_axis_trace_on(rotary_units || preset_rotary, args.time_base.base()) {
             Ok(t) => Ok(t),
             Err(e) => match e.downcast::<candump::MissingObjects>() {
                 Ok(m) => Err(m.0),
@@ -381,6 +425,7 @@ pub fn render_text(o: &AnalyzeOutput) -> String {
         o.report_dir.display()
     );
     let _ = writeln!(s, "  constant speed from: {}", rep.window_source);
+    let _ = writeln!(s, "  time: {}", rep.time_base);
     for r in &rep.reasons {
         let _ = writeln!(s, "  {r}");
     }
