@@ -4,6 +4,7 @@
 //! ([`figures`]). Offline only: nothing here runs on the real-time path.
 
 pub mod figures;
+pub mod outer_loop;
 pub mod response;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -151,25 +152,34 @@ pub fn run_cases(
     cases: &[(AxisConfig, Case)],
     threads: usize,
 ) -> Vec<Result<CaseRow, ConfigError>> {
+    parallel(cases, threads, |(cfg, case)| run_case(cfg, case))
+}
+
+/// `f` of every item on `threads` worker threads (0 = all cores), results in the items'
+/// order.
+pub fn parallel<T: Sync, R: Send>(
+    items: &[T],
+    threads: usize,
+    f: impl Fn(&T) -> R + Sync,
+) -> Vec<R> {
     let threads = if threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     } else {
         threads
     }
-    .clamp(1, cases.len().max(1));
+    .clamp(1, items.len().max(1));
     let next = AtomicUsize::new(0);
-    let mut out: Vec<Option<Result<CaseRow, ConfigError>>> = vec![None; cases.len()];
-    let parts: Vec<Vec<(usize, Result<CaseRow, ConfigError>)>> = std::thread::scope(|s| {
+    let parts: Vec<Vec<(usize, R)>> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..threads)
             .map(|_| {
                 s.spawn(|| {
                     let mut done = Vec::new();
                     loop {
                         let i = next.fetch_add(1, Ordering::Relaxed);
-                        let Some((cfg, case)) = cases.get(i) else {
+                        let Some(item) = items.get(i) else {
                             break;
                         };
-                        done.push((i, run_case(cfg, case)));
+                        done.push((i, f(item)));
                     }
                     done
                 })
@@ -177,14 +187,15 @@ pub fn run_cases(
             .collect();
         handles
             .into_iter()
-            .map(|h| h.join().expect("sweep worker panicked"))
+            .map(|h| h.join().expect("study worker panicked"))
             .collect()
     });
+    let mut out: Vec<Option<R>> = (0..items.len()).map(|_| None).collect();
     for (i, r) in parts.into_iter().flatten() {
         out[i] = Some(r);
     }
     out.into_iter()
-        .map(|r| r.expect("every case ran"))
+        .map(|r| r.expect("every item ran"))
         .collect()
 }
 
