@@ -43,6 +43,7 @@ struct Rig {
     /// The drive's own values every tick.
     drive_samples: Vec<Sample>,
     position_uu: i32,
+    direct_uu: i32,
 }
 
 impl Rig {
@@ -65,6 +66,7 @@ impl Rig {
             log: String::new(),
             drive_samples: Vec::new(),
             position_uu: 0,
+            direct_uu: 0,
         };
         rig.drain();
         rig
@@ -104,6 +106,9 @@ impl Rig {
             if f.id == 0x280 + u32::from(NODE) && f.len == 6 {
                 self.position_uu = i32::from_le_bytes(f.data[2..6].try_into().unwrap());
             }
+            if f.id == 0x480 + u32::from(NODE) && f.len == 6 {
+                self.direct_uu = i32::from_le_bytes(f.data[2..6].try_into().unwrap());
+            }
         }
     }
 }
@@ -114,6 +119,9 @@ enum Mode {
     Csv,
     /// Profile position: one move over SDO, the drive makes the profile; SYNC only samples.
     Pp,
+    /// CSV with the master's own position loop at 30 1/s on the direct encoder (the last
+    /// TPDO4 it received), as the paper's machines and the python master do.
+    CsvLoop,
 }
 
 /// The run: enable, ramp at 1 m/s², cruise at 10 mm/s for `cruise_s`. SYNC k is due at k x
@@ -131,9 +139,11 @@ fn run(mode: Mode, backlash_mm: f64, cruise_s: f64) -> Rig {
     };
     rig.send(0x000, &[0x01, NODE]); // NMT start
     let op = match mode {
-        Mode::Csv => 9,
+        Mode::Csv | Mode::CsvLoop => 9,
         Mode::Pp => 1,
     };
+    let mut reference: Option<f64> = None;
+    let mut last_sync: Option<u64> = None;
     rig.send(0x600 + n, &sdo(0x6060, 0, op, 1));
     rig.send(0x600 + n, &sdo(0x6081, 0, V_UU_S as u32, 4));
     rig.send(0x600 + n, &sdo(0x6083, 0, ACCEL_UU_S2 as u32, 4));
@@ -169,6 +179,24 @@ fn run(mode: Mode, backlash_mm: f64, cruise_s: f64) -> Rig {
                         d[2..].copy_from_slice(&(v.round() as i32).to_le_bytes());
                         rig.send(0x400 + n, &d);
                     }
+                    Mode::CsvLoop => {
+                        // v = v_ref + k (x_ref - x), x_ref advanced on the master's clock.
+                        let tau = now.saturating_sub(t_start) as f64 * 1e-6;
+                        let v_ref = (ACCEL_UU_S2 * tau).min(V_UU_S);
+                        let x = f64::from(rig.direct_uu);
+                        let v = if cw == 0x0F {
+                            let dt = now.saturating_sub(last_sync.unwrap_or(now)) as f64 * 1e-6;
+                            let r = reference.get_or_insert(x);
+                            *r += v_ref * dt;
+                            v_ref + 30.0 * (*r - x)
+                        } else {
+                            0.0
+                        };
+                        let mut d = [0u8; 6];
+                        d[..2].copy_from_slice(&cw.to_le_bytes());
+                        d[2..].copy_from_slice(&(v.round() as i32).to_le_bytes());
+                        rig.send(0x400 + n, &d);
+                    }
                     Mode::Pp if now >= t_start && !moved => {
                         moved = true;
                         let target = rig.position_uu + (V_UU_S * (t_ramp + cruise_s + 1.0)) as i32;
@@ -180,6 +208,7 @@ fn run(mode: Mode, backlash_mm: f64, cruise_s: f64) -> Rig {
             }
             if !lost {
                 rig.send(0x080, &[]);
+                last_sync = Some(now);
             }
         }
         rig.tick();
@@ -199,6 +228,8 @@ fn opts() -> DecodeOptions {
 fn late_and_lost_syncs_of_a_drive_on_its_own_clock_keep_the_cruise_and_the_limit_cycle() {
     // PP: the drive's own position loop (k_v 30) makes the limit cycle; the SYNCs only sample.
     worn(Mode::Pp);
+    // The paper's set-up as a python master does it: CSV, its own loop on 0x60E4 (30 1/s).
+    worn(Mode::CsvLoop);
 }
 
 fn worn(mode: Mode) {

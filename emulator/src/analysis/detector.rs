@@ -319,6 +319,159 @@ pub struct WindowResult {
     /// set speed by more than half (a drive in fault, disabled, or in another mode). Such a
     /// window measures nothing either.
     pub not_following: bool,
+    /// The set-point follows the axis: the master closes the position loop itself
+    /// ([`fit_master_loop`]). Its motion is then the loop's answer to the axis, not a force
+    /// from outside: the window is measured, against the master's k_v.
+    pub master_loop: Option<LoopFit>,
+}
+
+/// The master's own position loop, fitted from one window: the set velocity (the derivative
+/// of the set position the master sent) against the position it had from the drive,
+/// `v_set(t) = v0 + a t - k x(t - lag)` (`v0 + a t` stands for its reference `k x_ref(t)`
+/// and feed-forward at constant speed).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct LoopFit {
+    /// The master's gain k, 1/s.
+    pub kv_per_s: f64,
+    /// How long before the set-point the position it answers was sampled, s (whole
+    /// set-point periods).
+    pub lag_s: f64,
+    /// "direct" (the direct-encoder column, 0x60E4) or "motor" (0x6064).
+    pub encoder: &'static str,
+    /// Share of the set velocity's variation (beyond its trend) the position explains.
+    pub explained: f64,
+}
+
+/// The master's position loop as the report gives it: the median of the windows' fits.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct MasterLoop {
+    pub kv_per_s: f64,
+    pub lag_s: f64,
+    pub encoder: &'static str,
+    pub explained: f64,
+    /// Windows whose set-point follows the axis, of all windows.
+    pub windows: usize,
+    pub of_windows: usize,
+}
+
+/// Share of the set velocity's variation a fit must explain to say the set-point follows the
+/// axis.
+pub const LOOP_MIN_EXPLAINED: f64 = 0.8;
+/// The set velocity must vary beyond its trend by at least this (rms, position unit per s):
+/// an exactly constant set-point follows nothing.
+pub const LOOP_MIN_RMS: f64 = 1.0;
+/// Longest lag searched, in set-points.
+pub const LOOP_MAX_LAG: usize = 3;
+
+/// Does the set-point follow the axis in window `w`? A master closing the position loop
+/// sends `v_set = v_ref + k (x_ref - x)`: at constant speed its set velocity (the derivative
+/// of the set position it sent: CSV/PV targets, or CSP targets) is a line in time plus `-k`
+/// times the position it last had from the drive. Fitted over the set-points (the samples
+/// where the set velocity changes: every row of a capture, every SYNC in a drive's own
+/// trace, where a set-point holds from one SYNC to the next) by least squares on `[1, t, x]`,
+/// x the direct or the motor position at the set-point `lag` set-points before (0 to
+/// [`LOOP_MAX_LAG`]); the best fit says so when it explains [`LOOP_MIN_EXPLAINED`] or more of
+/// the set velocity's variation beyond its trend, with `0 < k <= 1000 1/s`. A set-point that
+/// jitters by itself (its own timing) or beats with SYNC moves independently of the axis and
+/// explains nothing; an axis that follows a set-point (integrates it) lags it by a quarter
+/// period, orthogonal to a P loop's half period. None when the set-point does not follow the
+/// axis.
+pub fn fit_master_loop(trace: &AxisTrace, w: &Window) -> Option<LoopFit> {
+    let sp = trace.set_position.get(w.start..w.end)?;
+    let t = &trace.t_s[w.start..w.end];
+    let n = sp.len();
+    if n < 16 || sp.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    // The set velocity per sample (sample j >= 1), and the samples where a set-point came.
+    let v: Vec<f64> = (1..n)
+        .map(|j| {
+            let dt = t[j] - t[j - 1];
+            if dt > 0.0 {
+                (sp[j] - sp[j - 1]) / dt
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    if v.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let changes: Vec<usize> = (1..n)
+        .filter(|&j| j == 1 || (v[j - 1] - v[j - 2]).abs() > 1e-9 * v[j - 1].abs().max(1.0))
+        .collect();
+    // A set-point held over several samples (a drive's trace every tick, a new set-point
+    // every SYNC): its changes; else every sample is one (a capture, one row per SYNC, where
+    // a set-point that happens to repeat is still a set-point).
+    let events: Vec<usize> = if 2 * changes.len() < n - 1 {
+        changes
+    } else {
+        (1..n).collect()
+    };
+    if events.len() < 16 {
+        return None;
+    }
+    let columns: [(&'static str, &[f64]); 2] = [
+        ("direct", &trace.direct_position[w.start..w.end]),
+        ("motor", &trace.motor_position[w.start..w.end]),
+    ];
+    // The time between set-points, s (their median).
+    let period = {
+        let mut d: Vec<f64> = events.windows(2).map(|e| t[e[1]] - t[e[0]]).collect();
+        median(&mut d).unwrap_or(0.0)
+    };
+    let mut best: Option<LoopFit> = None;
+    for (c, (name, x)) in columns.iter().enumerate() {
+        if c == 1 && columns[0].1 == *x {
+            continue;
+        }
+        for lag in 0..=LOOP_MAX_LAG {
+            // Set-point i (at sample events[i]) against x where set-point i - lag came.
+            let rows = lag..events.len();
+            let m = rows.len() as f64;
+            let at = |i: usize| (t[events[i]], x[events[i - lag]], v[events[i] - 1]);
+            let (mut st, mut sx, mut sy) = (0.0, 0.0, 0.0);
+            for i in rows.clone() {
+                let (a, b, c) = at(i);
+                st += a;
+                sx += b;
+                sy += c;
+            }
+            let (mt, mx, my) = (st / m, sx / m, sy / m);
+            let (mut tt, mut xx, mut tx, mut ty, mut xy, mut yy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+            for i in rows {
+                let (a, b, c) = at(i);
+                let (a, b, c) = (a - mt, b - mx, c - my);
+                tt += a * a;
+                xx += b * b;
+                tx += a * b;
+                ty += a * c;
+                xy += b * c;
+                yy += c * c;
+            }
+            if tt <= 0.0 {
+                continue;
+            }
+            // Beyond the trend: residuals of v and x on [1, t].
+            let yy_t = yy - ty * ty / tt;
+            let xx_t = xx - tx * tx / tt;
+            let xy_t = xy - tx * ty / tt;
+            if yy_t / m < LOOP_MIN_RMS * LOOP_MIN_RMS || xx_t <= 0.0 {
+                continue;
+            }
+            let coef = xy_t / xx_t;
+            let explained = (xy_t * xy_t / (xx_t * yy_t)).clamp(0.0, 1.0);
+            if best.is_none_or(|b| explained > b.explained) {
+                best = Some(LoopFit {
+                    kv_per_s: -coef,
+                    lag_s: lag as f64 * period,
+                    encoder: name,
+                    explained,
+                });
+            }
+        }
+    }
+    best.filter(|b| b.explained >= LOOP_MIN_EXPLAINED && b.kv_per_s > 0.0 && b.kv_per_s <= 1000.0)
 }
 
 /// Why a trace gave no usable window.
@@ -392,6 +545,9 @@ pub struct DetectorReport {
     /// Windows not measured: their line is the set-point's own motion
     /// ([`WindowResult::forced`]), or the axis did not follow ([`WindowResult::not_following`]).
     pub forced_windows: Vec<WindowResult>,
+    /// The master closes the position loop itself (the set-point follows the axis): its gain,
+    /// which `kv_per_s` and the band then are.
+    pub master_loop: Option<MasterLoop>,
 }
 
 fn median(v: &mut [f64]) -> Option<f64> {
@@ -464,7 +620,11 @@ pub fn analyze_window(
     // The speed shows a line of the size we look for, and the set-point shakes the axis in the
     // band by the suspect level and half that line or more: the line is not the axis's own.
     // (A quiet speed under a moving set-point is no vibration of the axis: ok stays ok.)
-    let forced = displacement_amplitude >= cfg.suspect_um
+    // Unless the set-point follows the axis (the master's own position loop): then its motion
+    // is the loop's answer, and the limit cycle the loop's.
+    let master_loop = fit_master_loop(trace, w);
+    let forced = master_loop.is_none()
+        && displacement_amplitude >= cfg.suspect_um
         && set_point_amplitude >= cfg.suspect_um.max(0.5 * displacement_amplitude);
     let mean_speed = trace.motor_velocity[w.start..w.end].iter().sum::<f64>() / n.max(1) as f64;
     let not_following = (mean_speed - w.velocity).abs() > 0.5 * w.velocity.abs();
@@ -511,6 +671,7 @@ pub fn analyze_window(
         set_point_amplitude,
         forced,
         not_following,
+        master_loop,
     }
 }
 
@@ -675,6 +836,32 @@ pub fn window_options(cfg: &DetectorConfig) -> WindowOptions {
     wo
 }
 
+/// The master's position loop, if the set-point follows the axis in more than half of the
+/// `windows` ([`fit_master_loop`]): the median gain, lag and share explained of those that do.
+fn master_loop(trace: &AxisTrace, windows: &[&Window]) -> Option<MasterLoop> {
+    let fits: Vec<LoopFit> = windows
+        .iter()
+        .filter_map(|w| fit_master_loop(trace, w))
+        .collect();
+    if fits.is_empty() || 2 * fits.len() <= windows.len() {
+        return None;
+    }
+    let med = |f: fn(&LoopFit) -> f64| median(&mut fits.iter().map(f).collect::<Vec<_>>());
+    let direct = fits.iter().filter(|f| f.encoder == "direct").count();
+    Some(MasterLoop {
+        kv_per_s: med(|f| f.kv_per_s)?,
+        lag_s: med(|f| f.lag_s)?,
+        encoder: if 2 * direct >= fits.len() {
+            "direct"
+        } else {
+            "motor"
+        },
+        explained: med(|f| f.explained)?,
+        windows: fits.len(),
+        of_windows: windows.len(),
+    })
+}
+
 /// Run the detector on a trace.
 pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     let wo = window_options(cfg);
@@ -696,6 +883,17 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     };
     let usable: Vec<&Window> = scan.windows.iter().filter(|w| w.len() >= 16).collect();
     let non_finite = usable.iter().filter(|w| !finite(w)).count();
+    // A master that closes the position loop itself: the limit cycle is its loop's, judged
+    // against its gain (fitted from the capture) instead of the drive's.
+    let master_loop = master_loop(trace, &usable);
+    let cfg_in_force = match &master_loop {
+        Some(m) => DetectorConfig {
+            kv_per_s: m.kv_per_s,
+            ..*cfg
+        },
+        None => *cfg,
+    };
+    let cfg = &cfg_in_force;
     let mut spectra = WindowSpectra::new();
     let (forced, results): (Vec<WindowResult>, Vec<WindowResult>) = usable
         .iter()
@@ -703,6 +901,28 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
         .map(|w| analyze_window(trace, w, cfg, &mut spectra))
         .partition(|r| r.forced || r.not_following);
     let mut rep = summarize(results, trace, cfg);
+    if let Some(m) = master_loop {
+        rep.master_loop = Some(m);
+        let at = usize::from(!rep.reasons.is_empty());
+        rep.reasons.insert(
+            at,
+            format!(
+                "the set-point follows the axis: the master closes the position loop itself \
+                 (v_set = v0 + k (x_cmd - x) fits with k = {:.2} 1/s on the {} position, {:.1} \
+                 ms late, explaining {:.0} % of the set velocity's variation, in {} of {} \
+                 windows): the limit cycle is its loop's, judged against its k (band \
+                 {:.2}..{:.2} Hz)",
+                m.kv_per_s,
+                m.encoder,
+                m.lag_s * 1e3,
+                m.explained * 100.0,
+                m.windows,
+                m.of_windows,
+                m.kv_per_s / 4.0,
+                m.kv_per_s
+            ),
+        );
+    }
     if on_average {
         rep.window_source.push_str(&format!(
             "; constant on average over {} s (the set-points jitter: no stretch of exactly \
@@ -909,6 +1129,7 @@ fn summarize(
         position_unit: trace.position_unit.clone(),
         windows: results,
         forced_windows: Vec::new(),
+        master_loop: None,
     }
 }
 
@@ -1154,6 +1375,7 @@ mod tests {
         let f = r.frequency_hz.unwrap();
         assert!((f - 18.0).abs() < 0.5, "{f}");
         assert!(r.forced_windows.is_empty(), "{:#?}", r.forced_windows);
+        assert_eq!(r.master_loop, None, "jitter of its own is no loop");
     }
 
     #[test]
@@ -1171,6 +1393,8 @@ mod tests {
         assert_eq!(r.verdict, Verdict::Inconclusive, "{:#?}", r.reasons);
         assert_eq!(r.inconclusive, Some(Inconclusive::SetPointNotConstant));
         assert!(!r.forced_windows.is_empty());
+        // Its set-point does not follow the axis: no master's loop.
+        assert_eq!(r.master_loop, None);
         assert!(r
             .forced_windows
             .iter()

@@ -49,6 +49,15 @@ window; a value answered in a burst after a stall is taken at its SYNC's stamp, 
 time the drive sampled it; an uneven capture spreads a line's leakage over the band, so its
 prominence is measured once the line is taken out.
 
+A master that closes the position loop itself (the paper's CNCs: position loop in the NC on
+the direct encoder, speed set-points to the drive in CSV): in each window the set velocity is
+fitted as v0 + a t - k x(t - lag), x the direct or motor position the master had from the
+drive (lags of 0-3 set-points); where that explains 80 % or more of the set-point's motion
+in most windows, the set-point follows the axis: its motion is the loop's answer, not a force,
+the windows are measured, and the limit cycle is judged against the master's k (fitted,
+reported, and the band k/4..k), not the drive's k_v. A set-point that does not follow the
+axis (its own jitter, a task that beats with SYNC) stays `set_point_not_constant`.
+
 Constant-speed windows: from the set-point in force (CSP 0x607A targets, CSV/PV 0x60FF, in an
 RPDO or written over SDO); where there is none (a PP move, an unknown mode) from the actual
 position (constant speed over 0.5 s); where set-points jitter so that no stretch is exactly
@@ -378,6 +387,17 @@ fn run_inner(args: &AnalyzeArgs) -> anyhow::Result<u8> {
     };
     crate::report::write_json(&out.join("detector.json"), &rep)?;
     let code = exit_code(rep.verdict, args.fail_on_backlash);
+    // The master closes the position loop itself: the band is its gain, fitted.
+    let (kv, kv_source) = match rep.master_loop {
+        Some(m) => (
+            m.kv_per_s,
+            format!(
+                "the master's own position loop, fitted from the trace; the drive's k_v {kv:.2} \
+                 1/s ({kv_source}) is not in the loop"
+            ),
+        ),
+        None => (kv, kv_source),
+    };
     let output = AnalyzeOutput {
         trace: path.display().to_string(),
         format: if candump { "candump" } else { "csv" },
