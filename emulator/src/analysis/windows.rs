@@ -199,6 +199,47 @@ pub fn set_velocity_from_actual(t: &[f64], position: &[f64]) -> Vec<f64> {
     piecewise_constant_velocity(t, &position, ACTUAL_SPAN_S, 0.02, 20.0)
 }
 
+/// Where the set-point is not in the capture but the measured speed is (0x606C: a PP move):
+/// the paper's criterion applied to the drive's own speed measurement, averaged over
+/// [`ACTUAL_SPAN_S`] (centred), piecewise constant within 2 % or 20 units per span. A speed
+/// needs no clock: unlike positions over time stamps it does not depend on when each sample
+/// was taken (a real-time drive samples within a control tick of its SYNC, and one that
+/// stalled lost time against the bus's clock).
+pub fn set_velocity_from_speed(t: &[f64], speed: &[f64]) -> Vec<f64> {
+    assert_eq!(t.len(), speed.len());
+    let n = t.len();
+    let dt = median_dt(t);
+    if n < 2 || dt <= 0.0 {
+        return vec![0.0; n];
+    }
+    let k = ((0.5 * ACTUAL_SPAN_S / dt).round() as usize).max(1);
+    let mut prefix = vec![0.0; n + 1];
+    for i in 0..n {
+        prefix[i + 1] = prefix[i] + if speed[i].is_finite() { speed[i] } else { 0.0 };
+    }
+    let avg: Vec<f64> = (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(k), (i + k + 1).min(n));
+            (prefix[b] - prefix[a]) / (b - a) as f64
+        })
+        .collect();
+    let abs_tol = 20.0 / ACTUAL_SPAN_S;
+    let mut out = vec![0.0; n];
+    let (mut start, mut sum) = (0usize, avg[0]);
+    for i in 1..=n {
+        let mean = sum / (i - start) as f64;
+        if i < n && (avg[i] - mean).abs() <= (0.02 * mean.abs()).max(abs_tol) {
+            sum += avg[i];
+        } else {
+            out[start..i].fill(mean);
+            if i < n {
+                (start, sum) = (i, avg[i]);
+            }
+        }
+    }
+    out
+}
+
 /// Span of [`set_velocity_on_average`], s: over half a second a set-point that comes a
 /// period late or early, or twice, moves the average by a few per cent at most.
 pub const AVERAGE_SPAN_S: f64 = 0.5;
@@ -278,8 +319,10 @@ fn piecewise_constant_velocity(
         } else {
             // A long segment gets the secant of the demand over its interior (k samples in
             // from each end, where the centred derivative still saw the ramps): exact to one
-            // unit over the segment. A short one (a ramp piece) keeps its mean.
-            let value = if i - start > 2 * k + 1 {
+            // unit over the segment. A short one (a ramp piece), or one whose interior is
+            // shorter than a span (a measured position's noise would dominate the secant),
+            // keeps its mean.
+            let value = if i - start > 4 * k + 1 {
                 let (a, b) = (start + k, i - 1 - k);
                 (demand[b] - demand[a]) / (t[b] - t[a])
             } else {

@@ -4,7 +4,8 @@
 use super::follow::{BusLog, BusSample, DecodeOptions, Object, PdoConfig};
 use crate::analysis::detector::AxisTrace;
 use crate::analysis::windows::{
-    set_velocity_from_actual, set_velocity_from_demand, ACTUAL_SPAN_S, DEMAND_SPAN_S,
+    set_velocity_from_actual, set_velocity_from_demand, set_velocity_from_speed, ACTUAL_SPAN_S,
+    DEMAND_SPAN_S,
 };
 use anyhow::Result;
 
@@ -69,8 +70,9 @@ const MIN_STEP_UU: f64 = 2.0;
 /// Which clock the axis moves on, from the capture itself: at constant speed a drive on its
 /// own clock moves by `v x interval` between two SYNCs, a drive clocked by the SYNC count by
 /// `v x period` however long the interval was. Over the intervals that differ from the median
-/// by [`INFORMATIVE_SPREAD`] or more while the axis moves, the increment over the local
-/// median increment (r) is regressed on the interval over the median interval (s): a slope
+/// by [`INFORMATIVE_SPREAD`] or more while the axis moves steadily (the 17 increments around
+/// agree within half their median), the increment over the local median increment (r) is
+/// regressed on the interval over the median interval (s): a slope
 /// near 1 says the time stamps, near 0 the SYNC count; the base is the nearer of the two
 /// (slope 0.5 or more: the stamps). Returns the base and why.
 pub fn choose_time_base(stamps_s: &[f64], position: &[f64]) -> (TimeBase, String) {
@@ -100,7 +102,14 @@ pub fn choose_time_base(stamps_s: &[f64], position: &[f64]) -> (TimeBase, String
         w.copy_from_slice(&d_x[a..b]);
         w.sort_unstable_by(f64::total_cmp);
         let step = w[w.len() / 2];
-        if step.abs() < MIN_STEP_UU {
+        // Moving steadily: the increments around agree (their median absolute deviation at
+        // most half the step); an axis at rest that hunts in its gap tells nothing.
+        for x in w.iter_mut() {
+            *x = (*x - step).abs();
+        }
+        w.sort_unstable_by(f64::total_cmp);
+        let spread = w[w.len() / 2];
+        if step.abs() < MIN_STEP_UU || spread > 0.5 * step.abs() {
             continue;
         }
         // An answer taken for the wrong SYNC gives a ratio far off either line: clipped.
@@ -259,8 +268,25 @@ impl BusLog {
             })
             .collect();
         let from_targets = set_velocity_from_demand(t, &targets_held, DEMAND_SPAN_S);
-        let actual = self.actual_position_series(rows, t);
-        let from_actual = actual.as_ref().map(|(x, _)| set_velocity_from_actual(t, x));
+        // Without a set-point: the drive's own speed 0x606C where the capture has it (needs no
+        // clock), else the actual position.
+        let actual = if self.seen(Object::Velocity) {
+            Some((
+                rows.iter()
+                    .map(|s| f64::from(s.velocity_uu_s))
+                    .collect::<Vec<_>>(),
+                "0x606C velocity actual, averaged",
+            ))
+        } else {
+            self.actual_position_series(rows, t)
+        };
+        let from_actual = actual.as_ref().map(|(x, what)| {
+            if what.starts_with("0x606C") {
+                set_velocity_from_speed(t, x)
+            } else {
+                set_velocity_from_actual(t, x)
+            }
+        });
         let (mut csp, mut csv, mut act) = (0usize, 0usize, 0usize);
         let mut out = Vec::with_capacity(n);
         for (k, (s, v_csp)) in rows.iter().zip(from_targets).enumerate() {
