@@ -31,6 +31,12 @@ says why; it never skips.
 Options:
   --ifaces N      number of interfaces (vcan0..vcan{N-1}); default 1
   --timeout SECS  kill the command / UML after SECS seconds (default: no limit)
+  --install-uml   (root) make a user-mode Linux that boots on this CPU available, then
+                  exit: the distribution's linux.uml if it boots here, else Debian
+                  testing's kernel and modules with their own C library in
+                  /opt/vcan-uml (apt-get download, patchelf). Older UML kernels (6.1,
+                  6.12) cannot boot on CPUs with AVX-512/AMX state ("ptrace set fp
+                  regs failed, errno = 14"); 7.x can. See docs/vcan.md.
   -q, --quiet     no progress lines on stderr
   -h, --help      this help
 
@@ -42,8 +48,11 @@ Environment:
                   PYENV_ROOT PYENV_VERSION VIRTUAL_ENV PYTHONPATH and every RUST_*,
                   NEXTEST_*, DRIVE_EMU_* variable.
   VCAN_UML_MEM    UML memory (default 2G)
-  VCAN_UML_KERNEL path of linux.uml (default: from PATH)
-  VCAN_UML_MODULES  UML module dir (default: /usr/lib/uml/modules/<linux.uml version>)
+  VCAN_UML_KERNEL path of linux.uml (default: /opt/vcan-uml/linux.uml if --install-uml
+                  put one there, else from PATH)
+  VCAN_UML_MODULES  UML module dir (default: the modules beside that kernel,
+                  /usr/lib/uml/modules/<linux.uml version> for the distribution's)
+  VCAN_UML_SUITE  Debian suite --install-uml takes the kernel from (default: forky)
 
 Examples:
   ./vcan-setup.sh -- sh -c 'ip -details link show vcan0'
@@ -55,6 +64,8 @@ EOF
 NIFACES=1
 TIMEOUT=0
 QUIET=0
+INSTALL_UML=0
+UML_DIR=/opt/vcan-uml
 while [[ $# -gt 0 ]]; do
     case "$1" in
         -h|--help) usage; exit 0 ;;
@@ -65,6 +76,7 @@ while [[ $# -gt 0 ]]; do
                    TIMEOUT=$2; shift 2 ;;
         --timeout=*) TIMEOUT=${1#*=}; shift ;;
         -q|--quiet) QUIET=1; shift ;;
+        --install-uml) INSTALL_UML=1; shift ;;
         --) shift; break ;;
         -*) echo "$PROG: unknown option $1 (see --help)" >&2; exit 2 ;;
         *) break ;;
@@ -132,6 +144,9 @@ run_native() {
 # ---------------------------------------------------------------- UML mode
 find_uml_kernel() {
     local k=${VCAN_UML_KERNEL:-}
+    if [[ -z $k && -x $UML_DIR/linux.uml ]]; then
+        k=$UML_DIR/linux.uml
+    fi
     if [[ -z $k ]]; then
         k=$(command -v linux.uml 2>/dev/null || true)
         [[ -n $k ]] || { [[ -x /usr/bin/linux.uml ]] && k=/usr/bin/linux.uml; }
@@ -145,6 +160,7 @@ find_uml_kernel() {
 find_uml_modules() {
     local kernel=$1 base=/usr/lib/uml/modules ver dirs
     if [[ -n ${VCAN_UML_MODULES:-} ]]; then echo "$VCAN_UML_MODULES"; return; fi
+    [[ $kernel != "$UML_DIR/linux.uml" ]] || base=$UML_DIR/modules
     [[ -d $base ]] || die "UML module directory $base does not exist (package user-mode-linux incomplete?)"
     ver=$(timeout 10 "$kernel" --version </dev/null 2>/dev/null | head -n1 | tr -d '[:space:]' || true)
     if [[ -z $ver || ! -d $base/$ver ]]; then
@@ -289,7 +305,7 @@ run_uml() {
     t0=$(now)
     local -a uml=(env TMPDIR="$memdir" "$kernel" "mem=$mem" root=/dev/root rootfstype=hostfs rootflags=/ rw
                   "init=$tmpdir/init" con=null con0=fd:3,fd:1 con1=fd:4,fd:2 ssl=null
-                  quiet loglevel=0 selinux=0 ubd0=/dev/null)
+                  quiet loglevel=0 selinux=0)
     (( TIMEOUT == 0 )) || uml=(timeout --kill-after=10 "$TIMEOUT" "${uml[@]}")
     # linux.uml puts itself in its own process group, so a Ctrl-C does not reach it:
     # run it in the background and forward INT/TERM/HUP (SIGTERM shuts it down).
@@ -319,6 +335,8 @@ run_uml() {
         fi
         if [[ ! -f $tmpdir/boot-uptime ]]; then
             die "user-mode Linux did not boot or did not start our init (linux.uml exit status $rc, ${total}s).
+  On CPUs with AVX-512/AMX state, UML kernels before 7.x cannot boot (\"ptrace set fp regs
+  failed, errno = 14\"): run  sudo $0 --install-uml  once.
   Try by hand: $kernel mem=$mem root=/dev/root rootfstype=hostfs rootflags=/ rw init=/bin/sh"
         fi
         die "user-mode Linux stopped without reporting the command's status (linux.uml exit status $rc, ${total}s)"
@@ -329,7 +347,69 @@ run_uml() {
     exit "$status"
 }
 
+# ---------------------------------------------------------------- --install-uml
+# Boot `kernel` with a tiny init that only reports back: does it boot on this CPU?
+uml_boots() {
+    local kernel=$1 dir rc=0
+    dir=$(mktemp -d "${TMPDIR:-/tmp}/vcan-uml-probe.XXXXXX")
+    printf '#!/bin/sh\necho booted > %s/booted\nexec /sbin/poweroff -f\n' "$dir" > "$dir/init"
+    chmod +x "$dir/init"
+    # in a subshell: a kernel that aborts is reported by our log, not by bash's job message
+    (timeout --kill-after=5 60 env TMPDIR="$dir" "$kernel" mem=256M root=/dev/root \
+        rootfstype=hostfs rootflags=/ rw "init=$dir/init" con=null ssl=null quiet loglevel=0 \
+        </dev/null >"$dir/log" 2>&1) 2>/dev/null || rc=$?
+    if [[ -f $dir/booted ]]; then rm -rf "$dir"; return 0; fi
+    grep -a -m1 -E 'ptrace|panic|failed' "$dir/log" >&2 || true
+    rm -rf "$dir"
+    return 1
+}
+
+install_uml() {
+    local k suite=${VCAN_UML_SUITE:-forky} tmp apt
+    k=$(command -v linux.uml 2>/dev/null || true)
+    if [[ -x $UML_DIR/linux.uml ]] && uml_boots "$UML_DIR/linux.uml"; then
+        say "user-mode Linux in $UML_DIR boots here"; exit 0
+    fi
+    if [[ -n $k ]] && uml_boots "$k"; then
+        say "the distribution's user-mode Linux ($k) boots here"; exit 0
+    fi
+    say "the distribution's user-mode Linux ${k:+($k) }does not boot on this CPU: installing Debian $suite's in $UML_DIR"
+    (( $(id -u) == 0 )) || die "--install-uml needs root (it writes $UML_DIR)"
+    command -v apt-get >/dev/null && command -v dpkg >/dev/null || die "--install-uml needs apt-get and dpkg (Debian/Ubuntu)"
+    command -v patchelf >/dev/null || die "--install-uml needs patchelf: apt-get install -y patchelf"
+    tmp=$(mktemp -d "${TMPDIR:-/tmp}/vcan-uml-install.XXXXXX")
+    # shellcheck disable=SC2064
+    trap "rm -rf '$tmp'" EXIT
+    mkdir -p "$tmp/lists/partial" "$tmp/archives/partial" "$tmp/x"
+    echo "deb [signed-by=/usr/share/keyrings/debian-archive-keyring.gpg] http://deb.debian.org/debian $suite main" > "$tmp/sources.list"
+    apt=(apt-get -q -o "Dir::Etc::SourceList=$tmp/sources.list" -o Dir::Etc::SourceParts=/nonexistent
+         -o "Dir::State::Lists=$tmp/lists" -o "Dir::Cache::Archives=$tmp/archives"
+         -o APT::Sandbox::User=root)
+    "${apt[@]}" update >/dev/null || die "apt-get update of Debian $suite failed"
+    (cd "$tmp" && "${apt[@]}" download user-mode-linux libc6 >/dev/null) ||
+        die "apt-get download of user-mode-linux and libc6 from Debian $suite failed"
+    dpkg -x "$tmp"/user-mode-linux_*.deb "$tmp/x"
+    dpkg -x "$tmp"/libc6_*.deb "$tmp/x"
+    rm -rf "$UML_DIR.new"
+    mkdir -p "$UML_DIR.new/libc" "$UML_DIR.new/modules"
+    cp "$tmp/x/usr/bin/linux.uml" "$UML_DIR.new/linux.uml"
+    cp -a "$tmp"/x/usr/lib/uml/modules/. "$UML_DIR.new/modules/"
+    cp -a "$tmp"/x/usr/lib/x86_64-linux-gnu/. "$UML_DIR.new/libc/"
+    # the kernel binary runs with its own C library (newer than this system's); the
+    # programs inside UML are this system's, with this system's C library
+    patchelf --set-interpreter "$UML_DIR/libc/ld-linux-x86-64.so.2" --set-rpath "$UML_DIR/libc" \
+        "$UML_DIR.new/linux.uml"
+    rm -rf "$UML_DIR.old"
+    [[ ! -e $UML_DIR ]] || mv "$UML_DIR" "$UML_DIR.old"
+    mv "$UML_DIR.new" "$UML_DIR"
+    rm -rf "$UML_DIR.old"
+    uml_boots "$UML_DIR/linux.uml" || die "Debian $suite's user-mode Linux in $UML_DIR does not boot either"
+    say "installed $(ls "$UML_DIR/modules") in $UML_DIR; it boots here"
+    exit 0
+}
+
 # ---------------------------------------------------------------- main
+(( INSTALL_UML == 0 )) || install_uml
 case "$MODE" in
     native)
         kernel_has_can || die "VCAN_MODE=native but this kernel has no CAN support (socket(AF_CAN) fails)"

@@ -11,7 +11,6 @@ use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::realtime::{self, RealtimeRequest};
 use drive_emu::runtime::{AxisSlot, Runtime};
 use drive_emu::time::{Clock, MonotonicClock};
-use drive_protocol::{Drive, Node};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -24,8 +23,8 @@ fn main() -> anyhow::Result<()> {
     let cfg = AxisConfig::from_preset("cnc1")?.with_override("backlash_mm", "0.05")?;
     let slots = (1..=axes)
         .map(|id| {
-            let drive = AxisDrive::from_config(&cfg).unwrap();
-            let node = Node::new(id, drive.info()).unwrap();
+            let mut drive = AxisDrive::from_config(&cfg).unwrap();
+            let node = drive_emu::drive::node(&mut drive, id).unwrap();
             AxisSlot { node, drive }
         })
         .collect();

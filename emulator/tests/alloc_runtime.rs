@@ -5,12 +5,12 @@
 
 use drive_emu::bus::CanFrame;
 use drive_emu::drive::axis_drive::AxisDrive;
+use drive_emu::drive::AxisParam;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::trace::TraceTap;
 use drive_emu::runtime::{AxisSlot, SimulatedDrive};
 use drive_emu::session::OfflineRun;
-use drive_protocol::{Drive, Node};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
@@ -64,8 +64,8 @@ fn the_runtime_tick_does_not_allocate() {
         .unwrap()
         .with_override("backlash_mm", "0.05")
         .unwrap();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(5, drive.info()).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
     let program = vec![
         Step::Enable { mode: MODE_CSP },
         Step::Cruise {
@@ -121,10 +121,7 @@ fn the_runtime_tick_does_not_allocate() {
         0x27,
         "still enabled"
     );
-    let backlash = run.runtime.axes[0]
-        .drive
-        .param(drive_protocol::AxisParam::Backlash)
-        .unwrap();
+    let backlash = run.runtime.axes[0].drive.param(AxisParam::Backlash);
     assert!(
         (backlash - 0.06e-3).abs() < 1e-9,
         "the SDO write reached the axis: {backlash}"
@@ -145,8 +142,8 @@ fn the_realtime_wake_does_not_allocate() {
     use drive_emu::runtime::RealtimeLoop;
     use drive_emu::time::{Clock, VirtualClock};
     let cfg = AxisConfig::from_preset("cnc1").unwrap();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(5, drive.info()).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
     let program = vec![
         Step::Enable { mode: MODE_CSP },
         Step::Cruise {
@@ -200,9 +197,9 @@ fn the_realtime_wake_does_not_allocate() {
 fn supervision_trip_fault_reset_and_reset_node_do_not_allocate() {
     // A runaway (10 kN on an axis nobody holds) trips overspeed supervision; the master
     // resets the fault, then resets the node: all on the real-time path, none allocating.
-    let drive = AxisDrive::from_config(&AxisConfig::from_preset("cnc1").unwrap()).unwrap();
+    let mut drive = AxisDrive::from_config(&AxisConfig::from_preset("cnc1").unwrap()).unwrap();
     let mut slot = AxisSlot {
-        node: Node::new(5, drive.info()).unwrap(),
+        node: drive_emu::drive::node(&mut drive, 5).unwrap(),
         drive,
     };
     slot.node.boot(0);
@@ -254,10 +251,10 @@ fn i2t_heating_trip_and_cooling_do_not_allocate() {
         .unwrap()
         .with_override("motor_thermal_time_constant_s", "2")
         .unwrap();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
     let force = drive.peak_load_force() * 2.0 * cfg.rated_current_a / cfg.max_current_a;
     let mut slot = AxisSlot {
-        node: Node::new(5, drive.info()).unwrap(),
+        node: drive_emu::drive::node(&mut drive, 5).unwrap(),
         drive,
     };
     slot.node.boot(0);

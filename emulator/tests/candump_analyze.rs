@@ -14,7 +14,6 @@ use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::AxisSlot;
 use drive_emu::samples::{Sample, SampleSource};
 use drive_emu::session::OfflineRun;
-use drive_protocol::{Drive, Node};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::sync::OnceLock;
@@ -95,8 +94,8 @@ fn run_logged(backlash_mm: f64) -> Logged {
         .unwrap()
         .with_override("backlash_mm", &backlash_mm.to_string())
         .unwrap();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(NODE, drive.info()).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node(&mut drive, NODE).unwrap();
     let master = Master::new(MasterConfig::default(), program(6.0));
     let mut run = OfflineRun::new(vec![AxisSlot { node, drive }], 1000, master);
     let mut monitor = run.take_monitor().unwrap();

@@ -113,3 +113,102 @@ fn demo_and_scenario_refuse_nonsense() {
         &["--idle-dwell 0"],
     );
 }
+
+/// LSS (CiA 305) flags: node-ID 255 (non-configured) is taken, other IDs outside 1..=127 are
+/// not; the `--lss-store` file is read (and checked) before the bus is opened, its node-ID
+/// replaces --node; it is one drive's memory (one axis) and not for lock-step.
+#[test]
+fn run_checks_lss_flags_and_the_store_file_before_touching_the_bus() {
+    let dir = std::env::temp_dir().join(format!("cli-lss-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.display().to_string()
+    };
+    refused(
+        &["run", "--iface", "nonexistent0", "--node", "200"],
+        &["node_id", "200", "1..=127", "255"],
+    );
+    let good = file("good.lss", "node_id = 12\nbit_timing_index = 2\n");
+    refused(
+        &[
+            "run",
+            "--iface",
+            "nonexistent0",
+            "--lss-store",
+            &good,
+            "--lockstep",
+        ],
+        &["--lss-store", "--lockstep", "in memory"],
+    );
+    refused(
+        &[
+            "run",
+            "--iface",
+            "nonexistent0",
+            "--lss-store",
+            "/nonexistent-dir-drive-emu/x.lss",
+        ],
+        &["/nonexistent-dir-drive-emu", "does not exist"],
+    );
+    let bad = file("bad.lss", "node_id = 0\nbit_timing_index = 2\n");
+    refused(
+        &["run", "--iface", "nonexistent0", "--lss-store", &bad],
+        &["bad.lss", "`node_id`: 0", "1..=127"],
+    );
+    let machine = file(
+        "two.toml",
+        "[[axis]]\nnode_id = 5\npreset = \"cnc1\"\n[[axis]]\nnode_id = 6\npreset = \"cnc1\"\n",
+    );
+    refused(
+        &[
+            "run",
+            "--iface",
+            "nonexistent0",
+            "--config",
+            &machine,
+            "--lss-store",
+            &good,
+        ],
+        &["--lss-store", "one axis only"],
+    );
+    // accepted: only the missing interface stops them, after the LSS lines
+    refused(
+        &["run", "--iface", "nonexistent0", "--node", "255"],
+        &["node-ID 255: non-configured", "nonexistent0"],
+    );
+    refused(
+        &[
+            "run",
+            "--iface",
+            "nonexistent0",
+            "--node",
+            "255",
+            "--lss-store",
+            &good,
+        ],
+        &[
+            "node-ID 12, bit timing index 2 (500 kbit/s) (instead of --node 255)",
+            "nonexistent0",
+        ],
+    );
+    let fresh = dir.join("fresh.lss").display().to_string();
+    refused(
+        &[
+            "run",
+            "--iface",
+            "nonexistent0",
+            "--node",
+            "255",
+            "--lss-store",
+            &fresh,
+        ],
+        &[
+            "nothing stored yet",
+            "node-ID 255: non-configured",
+            "nonexistent0",
+        ],
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,11 +1,15 @@
-//! Drive supervision as a master sees it over CANopen: parameter writes that would make the
-//! axis unphysical are refused with the CiA 301 abort codes, a runaway faults with the proper
-//! EMCY before any value becomes absurd, and NMT reset node gives back a usable axis.
+//! Drive supervision and the emulator's own objects as a master sees them over CANopen:
+//! parameter writes that would make the axis unphysical are refused with the CiA 301 abort
+//! codes, a runaway faults with the proper EMCY before any value becomes absurd, NMT reset node
+//! gives back a usable axis; the parameter objects convert engineering units to SI, the loop
+//! statistics are published read-only, an injected fault refuses its reset while it lasts,
+//! and the objects move with their base.
 
 use drive_emu::drive::axis_drive::AxisDrive;
+use drive_emu::drive::{build_node, AxisParam, NodeOptions};
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::SimulatedDrive;
-use drive_protocol::{CanFrame, Drive, Node};
+use drive_protocol::{CanFrame, Node};
 
 const NODE: u8 = 5;
 const ABORT_VALUE_HIGH: u32 = 0x0609_0031;
@@ -22,8 +26,12 @@ struct Bench {
 
 impl Bench {
     fn new(preset: &str) -> Self {
-        let drive = AxisDrive::from_config(&AxisConfig::from_preset(preset).unwrap()).unwrap();
-        let mut node = Node::new(NODE, drive.info()).unwrap();
+        Bench::with_options(preset, &NodeOptions::new(NODE))
+    }
+
+    fn with_options(preset: &str, opts: &NodeOptions) -> Self {
+        let mut drive = AxisDrive::from_config(&AxisConfig::from_preset(preset).unwrap()).unwrap();
+        let mut node = build_node(&mut drive, opts).unwrap();
         node.boot(0);
         let mut b = Bench {
             node,
@@ -261,4 +269,123 @@ fn cst_at_full_torque_for_100_s_faults_on_overspeed() {
         b.ticks(5);
         assert!(!is_fault(b.statusword()), "{preset}: fault reset");
     }
+}
+
+/// The parameter objects speak engineering units (mm, N/um, ms) and the drive SI; a value the
+/// axis cannot take is refused with the abort code of its side, NaN as out of range, and a
+/// refused value changes nothing. A rotary axis names and scales them in degrees.
+#[test]
+fn parameter_objects_convert_units_and_refuse_what_the_axis_cannot_take() {
+    let mut b = Bench::new("cnc1");
+    b.write_f32(0x2000, 0.05).unwrap();
+    let si = b.drive.param(AxisParam::Backlash);
+    assert!((si - 5e-5).abs() < 1e-9, "{si}");
+    assert!((b.read_f32(0x2000) - 0.05).abs() < 1e-6);
+    assert_eq!(
+        b.write_f32(0x2000, 20.0),
+        Err(ABORT_VALUE_HIGH),
+        "over 10 mm"
+    );
+    assert_eq!(b.write_f32(0x2000, -1.0), Err(ABORT_VALUE_LOW));
+    assert_eq!(b.write_f32(0x2000, f32::NAN), Err(0x0609_0030));
+    assert!(
+        (b.drive.param(AxisParam::Backlash) - 5e-5).abs() < 1e-9,
+        "refused: unchanged"
+    );
+    b.write_f32(0x2009, 10.0).unwrap();
+    assert!((b.drive.param(AxisParam::SpeedTi) - 0.01).abs() < 1e-9);
+    b.write_f32(0x2001, 200.0).unwrap();
+    assert!((b.drive.param(AxisParam::Stiffness) - 2e8).abs() < 1.0);
+    let mut r = Bench::new("cnc3");
+    r.write_f32(0x2000, 0.01).unwrap();
+    let rad = r.drive.param(AxisParam::Backlash);
+    assert!((rad - 0.01f64.to_radians()).abs() < 1e-9, "{rad}");
+    let od = r.node.od();
+    assert_eq!(od.get(0x2000, 0).unwrap().1.name, "backlash_deg");
+}
+
+/// The runtime's statistics reach the record at base + 0x100, read-only.
+#[test]
+fn loop_statistics_are_published_read_only() {
+    use drive_emu::bus::inproc::InProcBus;
+    use drive_emu::runtime::{AxisSlot, Runtime};
+    let b = Bench::new("cnc1");
+    let bus = InProcBus::endpoints(1, 64).pop().unwrap();
+    let mut rt = Runtime::new(
+        bus,
+        vec![AxisSlot {
+            node: b.node,
+            drive: b.drive,
+        }],
+        1000,
+    );
+    rt.boot();
+    for _ in 0..42 {
+        rt.tick();
+    }
+    rt.stats.ticks = 42;
+    rt.stats.sync_period_us = 1000;
+    rt.publish_stats();
+    let ax = &mut rt.axes[0];
+    let (slot, _) = ax.node.od().get(0x2100, 1).unwrap();
+    assert_eq!(ax.node.value(slot), Some(42));
+    let (slot, _) = ax.node.od().get(0x2100, 10).unwrap();
+    assert_eq!(ax.node.value(slot), Some(1000));
+    let mut b = Bench::new("cnc1");
+    assert_eq!(b.write(0x2100, 1, [0; 4], 4), Err(0x0601_0002));
+}
+
+/// A fault injected through 0x2101 stays while it is injected: the fault reset is refused
+/// (the statusword stays FAULT, no EMCY 0000, no second 0x1003 entry), and accepted once 0 is
+/// written.
+#[test]
+fn an_injected_fault_refuses_its_reset_while_it_lasts() {
+    let mut b = Bench::new("cnc1");
+    b.nmt(0x01);
+    b.enable(8);
+    b.write_u16(0x2101, 0x5441);
+    b.ticks(20);
+    assert!(is_fault(b.statusword()));
+    assert_eq!(b.emcys, vec![0x5441]);
+    let history = u8::from_le_bytes([b.read(0x1003, 0)[0]]);
+    assert_eq!(history, 1);
+    for _ in 0..3 {
+        b.write_u16(0x6040, 0x00);
+        b.ticks(2);
+        b.write_u16(0x6040, 0x80);
+        b.ticks(20);
+        assert!(is_fault(b.statusword()), "reset refused while injected");
+    }
+    assert_eq!(b.emcys, vec![0x5441], "one fault, one EMCY");
+    assert_eq!(
+        u8::from_le_bytes([b.read(0x1003, 0)[0]]),
+        1,
+        "one history entry"
+    );
+    b.write_u16(0x2101, 0);
+    b.write_u16(0x6040, 0x00);
+    b.ticks(2);
+    b.write_u16(0x6040, 0x80);
+    b.ticks(5);
+    assert!(!is_fault(b.statusword()), "accepted once the cause is gone");
+    assert_eq!(b.emcys, vec![0x5441, 0x0000]);
+}
+
+/// The emulator's objects sit at another base when asked (a vendor's EDS has objects at
+/// 0x2000): 0x3000 is the backlash, 0x2000 no object.
+#[test]
+fn the_emulators_objects_move_with_their_base() {
+    let opts = NodeOptions {
+        objects_base: Some(0x3000),
+        ..NodeOptions::new(NODE)
+    };
+    let mut b = Bench::with_options("cnc1", &opts);
+    b.write_f32(0x3000, 0.02).unwrap();
+    assert!((b.drive.param(AxisParam::Backlash) - 2e-5).abs() < 1e-9);
+    assert_eq!(b.write_f32(0x2000, 0.02), Err(0x0602_0000));
+    assert_eq!(
+        u16::from_le_bytes([b.read(0x3100, 0)[0], 0]),
+        13,
+        "statistics record"
+    );
 }

@@ -13,7 +13,7 @@
 use drive_emu::cli::eds::{eds_text, EdsArgs, Real32Arg};
 use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::presets::{preset_names, AxisConfig};
-use drive_protocol::{CanFrame, Drive, Node};
+use drive_protocol::{CanFrame, Node};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -43,6 +43,8 @@ fn args(preset: &str, node: Option<u8>, set: &[&str]) -> EdsArgs {
         set: set.iter().map(|s| s.to_string()).collect(),
         real32: Real32Arg::Bits,
         canopen_monitor: false,
+        from: None,
+        objects_base: None,
     }
 }
 
@@ -125,12 +127,13 @@ fn every_default_in_the_eds_is_what_an_sdo_read_returns() {
             .with_overrides(set.iter().copied())
             .unwrap();
         let mut drive = AxisDrive::from_config(&cfg).unwrap();
-        let mut node = Node::new(node_id, drive.info()).unwrap();
+        let mut node = drive_emu::drive::node(&mut drive, node_id).unwrap();
         node.boot(0);
         while node.pop_tx().is_some() {}
         let mut compared = 0;
         let mut params = 0;
-        for o in drive_protocol::od::OBJECTS {
+        let entries: Vec<_> = node.od().iter().map(|(_, e)| e.clone()).collect();
+        for o in &entries {
             let section = if o.otype == drive_protocol::od::ObjType::Var {
                 format!("{:04X}", o.index)
             } else {
@@ -150,7 +153,7 @@ fn every_default_in_the_eds_is_what_an_sdo_read_returns() {
             let dv = &entry["DefaultValue"];
             let got = sdo_upload(&mut node, &mut drive, o.index, o.sub)
                 .unwrap_or_else(|a| panic!("{preset} {section}: SDO abort {a:#010X}"));
-            let want = eds_default_bytes(dv, o.dtype as u8, got.len(), node_id);
+            let want = eds_default_bytes(dv, o.dtype.code() as u8, got.len(), node_id);
             assert_eq!(
                 got, want,
                 "{preset} {set:?} [{section}] {}: EDS DefaultValue={dv}, SDO read {got:02X?}",
@@ -515,4 +518,36 @@ print(json.dumps({"node_ids": [str(k) for k in configs], "names": names}))
         }
         let _ = std::fs::remove_dir_all(&dir);
     }
+}
+
+/// docs/objects.md is the dictionary of the default drive (cnc1, node 5), generated.
+#[test]
+fn docs_objects_md_is_current() {
+    use drive_protocol::od::{eds::objects_markdown, Backing, Entry};
+    use drive_protocol::Drive;
+    let mut drive = AxisDrive::from_config(&AxisConfig::from_preset("cnc1").unwrap()).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
+    let intro =
+        "Generated from the object dictionary of the default drive (`drive-emu run`: preset \
+                 cnc1, node ID 5): the standard objects of `protocol/src/od/standard.rs` and the \
+                 emulator's own of `emulator/src/drive/objects.rs`. Do not edit; run \
+                 `UPDATE_OBJECTS_MD=1 cargo test -p drive-emu --test eds_truth`.";
+    let mut buf = [0u8; 8];
+    let mut value_of = |e: &Entry| match e.backing {
+        Backing::Handler(tag) if e.access.readable() => drive
+            .read_object(tag, e.index, e.sub, &mut buf)
+            .ok()
+            .map(|n| e.decode(&buf[..n])),
+        _ => None,
+    };
+    let md = objects_markdown(node.od(), intro, &mut value_of);
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/objects.md");
+    if std::env::var_os("UPDATE_OBJECTS_MD").is_some() {
+        std::fs::write(path, &md).unwrap();
+    }
+    let on_disk = std::fs::read_to_string(path).unwrap_or_default();
+    assert!(
+        on_disk == md,
+        "docs/objects.md is stale: run UPDATE_OBJECTS_MD=1 cargo test -p drive-emu --test eds_truth"
+    );
 }

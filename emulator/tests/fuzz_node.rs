@@ -10,9 +10,11 @@
 mod fuzz;
 
 use drive_emu::drive::axis_drive::AxisDrive;
+use drive_emu::drive::{node_config, NodeOptions};
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::SimulatedDrive;
-use fuzz::{case_strategy, Harness};
+use drive_protocol::NodeConfig;
+use fuzz::{case_strategy, Harness, Objects};
 use proptest::prelude::*;
 
 const ID: u8 = 5;
@@ -23,6 +25,17 @@ fn axis() -> AxisDrive {
         .with_override("backlash_mm", "0.05")
         .unwrap();
     AxisDrive::from_config(&cfg).unwrap()
+}
+
+/// The drive and its node's configuration (the drive knows its objects' slots in it).
+fn axis_and_config() -> (AxisDrive, NodeConfig) {
+    let mut drive = axis();
+    let cfg = node_config(&mut drive, &NodeOptions::new(ID)).unwrap();
+    (drive, cfg)
+}
+
+fn objects() -> Objects {
+    Objects::of(&axis_and_config().1.od)
 }
 
 fn advance(d: &mut AxisDrive, dt_us: u64) {
@@ -37,8 +50,9 @@ proptest! {
     })]
 
     #[test]
-    fn a_node_on_the_real_axis_survives_any_sequence((start, ops) in case_strategy(ID, 150)) {
-        let mut h = Harness::new(ID, axis(), advance);
+    fn a_node_on_the_real_axis_survives_any_sequence((start, ops) in case_strategy(ID, &objects(), 150)) {
+        let (drive, cfg) = axis_and_config();
+        let mut h = Harness::new(cfg, drive, advance);
         h.run(start, &ops)?;
     }
 }

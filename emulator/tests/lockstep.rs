@@ -10,7 +10,6 @@ use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP, MODE_PP};
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::{AxisSlot, Runtime};
 use drive_emu::session::OfflineRun;
-use drive_protocol::{Drive, Node};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 const NODE: u8 = 5;
@@ -20,8 +19,8 @@ fn axis() -> AxisSlot<AxisDrive> {
         .unwrap()
         .with_override("backlash_mm", "0.05")
         .unwrap();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(NODE, drive.info()).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node(&mut drive, NODE).unwrap();
     AxisSlot { node, drive }
 }
 
@@ -129,8 +128,10 @@ fn boot_delay_passes_on_the_wall_clock_without_sync() {
     const DELAY_US: u64 = 150_000;
     let mut eps = InProcBus::endpoints(2, 1 << 12);
     let mut peer = eps.pop().unwrap();
-    let mut slot = axis();
-    slot.node.set_boot_delay_us(DELAY_US);
+    let mut drive = axis().drive;
+    let opts = drive_emu::drive::NodeOptions::new(NODE).with_boot_delay_us(DELAY_US);
+    let node = drive_emu::drive::build_node(&mut drive, &opts).unwrap();
+    let slot = AxisSlot { node, drive };
     let mut rt = Runtime::new(eps.pop().unwrap(), vec![slot], 1000);
     rt.boot();
     assert!(

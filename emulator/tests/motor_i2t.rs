@@ -7,9 +7,10 @@
 //! assumed from the load.
 
 use drive_emu::drive::axis_drive::{AxisDrive, ERROR_MOTOR_I2T};
+use drive_emu::drive::AxisParam;
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::SimulatedDrive;
-use drive_protocol::{AxisParam, Drive, DriveCommand, Setpoint};
+use drive_protocol::{Drive, DriveCommand, Setpoint};
 
 fn hold_at_zero() -> DriveCommand {
     DriveCommand {

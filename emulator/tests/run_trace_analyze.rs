@@ -12,7 +12,6 @@ use drive_emu::runtime::trace::{node_sample, Recorder, TraceTap};
 use drive_emu::runtime::AxisSlot;
 use drive_emu::samples::SampleSource;
 use drive_emu::session::OfflineRun;
-use drive_protocol::{Drive, Node};
 use std::sync::Arc;
 
 /// A CNC1 axis with `backlash_mm`: PP move, then 6 s of CSP cruise at 10 mm/s from the
@@ -25,8 +24,8 @@ fn cruise(
         .unwrap()
         .with_override("backlash_mm", &backlash_mm.to_string())
         .unwrap();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(5, drive.info()).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
     let program = vec![
         Step::Enable { mode: MODE_PP },
         Step::MoveTo {

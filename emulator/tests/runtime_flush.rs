@@ -7,7 +7,6 @@ use drive_emu::bus::{CanBus, CanFrame, RecvError, SendError};
 use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::{AxisSlot, Runtime};
-use drive_protocol::{Drive, Node};
 
 /// A bus that takes at most 5 frames per batch and refuses every third batch as full.
 struct Grudging {
@@ -43,8 +42,8 @@ fn flush_sends_every_frame_in_order_across_partial_and_refused_batches() {
     let cfg = AxisConfig::from_preset("cnc1").unwrap();
     let axes = (1..=100u8)
         .map(|id| {
-            let drive = AxisDrive::from_config(&cfg).unwrap();
-            let node = Node::new(id, drive.info()).unwrap();
+            let mut drive = AxisDrive::from_config(&cfg).unwrap();
+            let node = drive_emu::drive::node(&mut drive, id).unwrap();
             AxisSlot { node, drive }
         })
         .collect();

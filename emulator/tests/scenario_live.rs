@@ -7,11 +7,11 @@ use drive_emu::bus::fault::FaultyBus;
 use drive_emu::bus::inproc::InProcBus;
 use drive_emu::bus::CanBus;
 use drive_emu::drive::axis_drive::AxisDrive;
+use drive_emu::drive::AxisParam;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
 use drive_emu::runtime::{AxisSlot, Lockstep, Runtime};
 use drive_emu::scenario::live::{run_timeline, LiveEnd, LiveLink, LoopInjector};
 use drive_emu::time::{Clock, MonotonicClock};
-use drive_protocol::{AxisParam, Drive, Node};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -49,9 +49,9 @@ fn a_live_timeline_changes_the_running_drive_and_its_expectations_are_checked() 
     let s = drive_emu::scenario::parse(SCENARIO, std::path::Path::new("live-test.toml"))
         .unwrap_or_else(|e| panic!("{e}"));
     let cfg = s.machine.configs[0].clone();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
     let snapshot = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(5, drive.info()).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
     let mut eps = InProcBus::endpoints(2, 4096);
     let mut master_bus = eps.pop().unwrap();
     let bus = FaultyBus::new(eps.pop().unwrap(), 1);
@@ -96,7 +96,7 @@ fn a_live_timeline_changes_the_running_drive_and_its_expectations_are_checked() 
             master.handle(&f, rt.sim_time_us);
         }
         if rt.sim_time_us == 1_000_000 {
-            backlash_at_1s = Some(rt.axes[0].drive.param(AxisParam::Backlash).unwrap());
+            backlash_at_1s = Some(rt.axes[0].drive.param(AxisParam::Backlash));
         }
     }
     let outcome = scenario_thread.join().unwrap();
@@ -130,9 +130,9 @@ fn a_lockstep_live_scenario_whose_sync_stops_ends_by_itself_with_the_sync_loss_r
     let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/sync-loss.toml");
     let s = drive_emu::scenario::load(&file).unwrap_or_else(|e| panic!("{e}"));
     let cfg = s.machine.configs[0].clone();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
     let snapshot = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(5, drive.info()).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
     let mut eps = InProcBus::endpoints(2, 4096);
     let mut master_bus = eps.pop().unwrap();
     let bus = FaultyBus::new(eps.pop().unwrap(), 1);
@@ -260,9 +260,9 @@ no_emcy = true
     let s = drive_emu::scenario::parse(text, std::path::Path::new("unfinished.toml"))
         .unwrap_or_else(|e| panic!("{e}"));
     let cfg = s.machine.configs[0].clone();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
     let snapshot = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(5, drive.info()).unwrap();
+    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
     let mut eps = InProcBus::endpoints(2, 4096);
     let _master_bus = eps.pop().unwrap();
     let bus = FaultyBus::new(eps.pop().unwrap(), 1);

@@ -9,7 +9,6 @@ use drive_emu::runtime::trace::{trace_paths, Recorder, TraceTap};
 use drive_emu::runtime::AxisSlot;
 use drive_emu::samples::csv::read_csv;
 use drive_emu::session::OfflineRun;
-use drive_protocol::{Drive, Node};
 use std::sync::Arc;
 
 #[test]
@@ -17,8 +16,9 @@ fn the_recorder_writes_every_tick_of_every_axis_and_flushes_on_finish() {
     let axes = [5u8, 6]
         .iter()
         .map(|&id| {
-            let drive = AxisDrive::from_config(&AxisConfig::from_preset("cnc1").unwrap()).unwrap();
-            let node = Node::new(id, drive.info()).unwrap();
+            let mut drive =
+                AxisDrive::from_config(&AxisConfig::from_preset("cnc1").unwrap()).unwrap();
+            let node = drive_emu::drive::node(&mut drive, id).unwrap();
             AxisSlot { node, drive }
         })
         .collect();

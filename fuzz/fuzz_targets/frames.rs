@@ -1,13 +1,14 @@
 //! Any byte string becomes a sequence of frames and time steps; the node must never panic
-//! and must answer a valid SDO afterwards.
+//! and must answer a valid SDO afterwards (given back its node-ID by LSS if the frames
+//! changed it).
 //!
 //! Run (nightly): cargo +nightly fuzz run frames
 //! Compile check (stable): cargo check --manifest-path fuzz/Cargo.toml
 #![no_main]
 
+use drive_protocol::od::{Access, DataType, DefaultValue, Entry, ObjectDictionary};
 use drive_protocol::{
-    AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, FrameEvent, Node, ParamError,
-    Setpoint,
+    CanFrame, Drive, DriveCommand, DriveInfo, Feedback, FrameEvent, Node, NodeConfig, Setpoint,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -59,15 +60,14 @@ impl Drive for Model {
         }
         self.pos = self.pos.clamp(-1e15, 1e15);
     }
-    fn param(&self, _: AxisParam) -> Result<f64, ParamError> {
-        Ok(1.0)
+    fn read_object(&mut self, _: u16, _: u16, _: u8, out: &mut [u8]) -> Result<usize, u32> {
+        out[..4].copy_from_slice(&1.0f32.to_le_bytes());
+        Ok(4)
     }
-    fn set_param(&mut self, _: AxisParam, v: f64) -> Result<(), ParamError> {
+    fn write_object(&mut self, _: u16, _: u16, _: u8, data: &[u8]) -> Result<(), u32> {
+        let v = f32::from_le_bytes(data.try_into().map_err(|_| 0x0607_0010u32)?);
         if v.abs() > 1e6 {
-            Err(ParamError::OutOfRange {
-                min: -1e6,
-                max: 1e6,
-            })
+            Err(0x0609_0030)
         } else {
             Ok(())
         }
@@ -78,8 +78,31 @@ impl Drive for Model {
     }
 }
 
+/// The standard objects plus one of each kind a vendor dictionary brings: a handler REAL32,
+/// a string with room to grow, a 64-bit and a 24-bit integer (mappable), a DOMAIN.
+fn dictionary(info: &DriveInfo) -> ObjectDictionary {
+    let mut od = ObjectDictionary::standard(info);
+    let entries = [
+        Entry::var(0x2000, "param", DataType::Real32, Access::Rw).with_handler(1),
+        Entry::var(0x2001, "name", DataType::VisibleString, Access::Rw)
+            .with_default(DefaultValue::Bytes(b"axis".to_vec()))
+            .with_capacity(200),
+        Entry::var(0x2002, "counter", DataType::U64, Access::Rw).with_pdo(true),
+        Entry::var(0x2003, "small", DataType::I24, Access::Rw)
+            .with_pdo(true)
+            .with_limits(Some(-1000), Some(1000)),
+        Entry::var(0x2004, "blob", DataType::Domain, Access::Rw).with_capacity(1024),
+    ];
+    for e in entries {
+        od.insert(e).expect("a fresh index");
+    }
+    od
+}
+
 fuzz_target!(|data: &[u8]| {
-    let mut node = Node::new(ID, Model::default().info()).unwrap();
+    let info = Model::default().info();
+    let cfg = NodeConfig::new(ID, info).with_od(dictionary(&info));
+    let mut node = Node::new(cfg).unwrap();
     let mut drive = Model::default();
     let mut now = 0u64;
     node.boot(now);
@@ -108,6 +131,20 @@ fuzz_target!(|data: &[u8]| {
             node.poll(now, &mut drive);
         }
         while node.pop_tx().is_some() {}
+    }
+    // LSS (0x7E5) may have given the node another node-ID or none: the master gives it back
+    // by LSS and resets its communication.
+    if node.node_id() != ID {
+        for d in [
+            [0x04, 1, 0, 0, 0, 0, 0, 0],
+            [0x11, ID, 0, 0, 0, 0, 0, 0],
+            [0x04, 0, 0, 0, 0, 0, 0, 0],
+        ] {
+            node.handle(&CanFrame::new(0x7E5, &d), now, &mut drive);
+        }
+        node.handle(&CanFrame::new(0, &[0x82, 0]), now, &mut drive);
+        node.poll(now, &mut drive);
+        assert_eq!(node.node_id(), ID, "node-ID given back by LSS");
     }
     node.handle(&CanFrame::new(0, &[0x80, ID]), now, &mut drive);
     now += 2_000_000;

@@ -4,9 +4,7 @@
 //! cargo bench -p drive-protocol --bench node -- --warm-up-time 1 --measurement-time 3
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use drive_protocol::{
-    AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, Node, ParamError,
-};
+use drive_protocol::{CanFrame, Drive, DriveCommand, DriveInfo, Feedback, Node, NodeConfig};
 
 const ID: u8 = 3;
 
@@ -31,12 +29,6 @@ impl Drive for Ideal {
             self.pos = position_inc;
         }
     }
-    fn param(&self, _: AxisParam) -> Result<f64, ParamError> {
-        Ok(0.0)
-    }
-    fn set_param(&mut self, _: AxisParam, _: f64) -> Result<(), ParamError> {
-        Ok(())
-    }
     fn reset_fault(&mut self) -> bool {
         true
     }
@@ -57,7 +49,7 @@ fn info() -> DriveInfo {
 }
 
 fn operational(drive: &mut Ideal) -> (Node, u64) {
-    let mut n = Node::new(ID, info()).unwrap();
+    let mut n = Node::new(NodeConfig::new(ID, info())).unwrap();
     n.boot(0);
     let mut now = 0;
     let id = ID as u32;

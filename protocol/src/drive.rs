@@ -110,56 +110,6 @@ pub struct DriveInfo {
     pub rotary: bool,
 }
 
-/// Axis parameters the master may read and write while the axis runs (manufacturer objects
-/// 0x2000 and up), in SI units on this interface. The node converts from the units named in
-/// the objects (mm, um, N/um, 1/s, ...).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum AxisParam {
-    /// Backlash at the load, m (linear) or rad (rotary).
-    Backlash,
-    /// Drive-train stiffness at the load, N/m (linear) or N m/rad (rotary).
-    Stiffness,
-    /// Drive-train damping at the load, N s/m or N m s/rad.
-    Damping,
-    /// Coulomb friction at the load, N or N m.
-    LoadCoulombFriction,
-    /// Viscous friction at the load, N s/m or N m s/rad.
-    LoadViscousFriction,
-    /// Coulomb friction at the motor, N m.
-    MotorCoulombFriction,
-    /// External load force/torque at the load (cutting force), N or N m.
-    ExternalLoad,
-    /// Position-loop gain k_v, 1/s.
-    Kv,
-    /// Speed-loop proportional gain, N m s/rad.
-    SpeedKp,
-    /// Speed-loop integral time, s.
-    SpeedTi,
-    /// Motor-encoder noise, standard deviation in increments.
-    MotorEncoderNoise,
-    /// Direct-encoder noise, standard deviation in m or rad.
-    DirectEncoderNoise,
-    /// Direct-encoder offset (thermal drift of a linear scale), m or rad.
-    DirectEncoderOffset,
-    /// 1.0 = the direct encoder closes the position loop, 0.0 = the motor encoder does.
-    PositionFromDirect,
-}
-
-/// Why the drive refused a parameter value.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ParamError {
-    /// The value is outside what the drive accepts (SDO abort 0x06090030).
-    OutOfRange {
-        /// Smallest accepted value, SI units.
-        min: f64,
-        /// Largest accepted value, SI units.
-        max: f64,
-    },
-    /// The drive does not have this parameter (SDO abort 0x06090011 / 0x06020000).
-    Unsupported,
-}
-
 /// The drive behind a node. The emulator implements this on the simulated axis.
 ///
 /// Every method is called from the real-time path: implementations must not allocate, lock,
@@ -171,10 +121,20 @@ pub trait Drive {
     fn feedback(&self) -> Feedback;
     /// Apply this tick's command. Called once per node tick.
     fn command(&mut self, command: &DriveCommand);
-    /// Read an axis parameter in SI units.
-    fn param(&self, param: AxisParam) -> Result<f64, ParamError>;
-    /// Write an axis parameter in SI units; the new value takes effect at the next step.
-    fn set_param(&mut self, param: AxisParam, value: f64) -> Result<(), ParamError>;
+    /// SDO upload of an object whose value this drive keeps ([`crate::od::Backing::Handler`]
+    /// with `tag`, the tag the application gave the entry): write its little-endian bytes
+    /// into `out` (as many as the entry's type has) and return the length, or an SDO abort
+    /// code (`crate::wire::abort`). The default has no such objects.
+    fn read_object(&mut self, tag: u16, index: u16, sub: u8, out: &mut [u8]) -> Result<usize, u32> {
+        let _ = (tag, index, sub, out);
+        Err(crate::wire::sdo::abort::NO_OBJECT)
+    }
+    /// SDO download to an object this drive keeps: `data` has the entry's size (type and
+    /// limits already checked by the node); Ok, or an SDO abort code. The default has none.
+    fn write_object(&mut self, tag: u16, index: u16, sub: u8, data: &[u8]) -> Result<(), u32> {
+        let _ = (tag, index, sub, data);
+        Err(crate::wire::sdo::abort::NO_OBJECT)
+    }
     /// Clear latched hardware faults on a CiA 402 fault reset. Returns false while the cause
     /// persists (the node then stays in FAULT).
     fn reset_fault(&mut self) -> bool;

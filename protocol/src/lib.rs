@@ -4,14 +4,17 @@
 //! The surface: [`Node`] (frames in with [`Node::handle`], time in with [`Node::poll`], frames
 //! out with [`Node::pop_tx`], events out with [`Node::poll_event`], next deadline from
 //! [`Node::poll_at`]); the [`Drive`] contract the emulator implements ([`DriveCommand`] in,
-//! [`Feedback`] out); [`CanFrame`]; the states [`NmtState`] and [`Cia402State`]. Three modules
-//! are public: [`wire`] (parse and emit of SDO, NMT, EMCY, heartbeat and SYNC frames, for a
-//! master or a capture decoder), [`od`] (the object table that also generates the EDS) and
-//! [`cia402`] (modes of operation, controlword and statusword bits).
+//! [`Feedback`] out); [`CanFrame`]; the states [`NmtState`] and [`Cia402State`]. Four modules
+//! are public: [`wire`] (parse and emit of SDO, NMT, EMCY, heartbeat, SYNC and LSS frames, for
+//! a master or a capture decoder), [`od`] (the object dictionary, its EDS export and parse),
+//! [`cia402`] (modes of operation, controlword and statusword bits) and [`cia305`] (the LSS
+//! slave).
 //!
 //! Inside (private): `cia301` (NMT, SDO server, PDO engine, SYNC, heartbeat, EMCY), the rest
-//! of `cia402` (state machine, one file per mode, factor group, profiles), `params`
-//! (manufacturer objects 0x2000..), `node` (the glue) and `drive`.
+//! of `cia402` (state machine, one file per mode, factor group, profiles), `node` (the glue)
+//! and `drive`. The node is built once from a [`NodeConfig`]; its object dictionary
+//! ([`od::ObjectDictionary`]) is a value: the standard objects plus the application's, or a
+//! vendor's EDS (docs/decisions/0009-object-dictionary.md).
 
 #![warn(missing_docs)]
 
@@ -20,18 +23,21 @@
 // needs), `od` (the object table behind the EDS) and `cia402` (state, modes, control and status
 // bits) as modules. Everything else is the node's inside.
 mod cia301;
+pub mod cia305;
 pub mod cia402;
 mod drive;
 mod event;
 mod frame;
 mod node;
 pub mod od;
-mod params;
 pub mod wire;
 
 pub use cia301::nmt::NmtState;
 pub use cia402::State as Cia402State;
-pub use drive::{AxisParam, Drive, DriveCommand, DriveInfo, Feedback, ParamError, Setpoint};
+pub use drive::{Drive, DriveCommand, DriveInfo, Feedback, Setpoint};
 pub use event::{NodeEvent, SdoDirection, SdoTransfer, EVENT_QUEUE};
 pub use frame::CanFrame;
-pub use node::{ConfigError, FrameEvent, Node, RuntimeStats, TX_QUEUE};
+pub use node::{
+    ConfigError, FrameEvent, LssConfig, LssStore, Node, NodeConfig, DEFAULT_LSS_BIT_TIMING,
+    TX_QUEUE,
+};

@@ -1,6 +1,7 @@
-//! The node: glues the CiA 301 services and the CiA 402 layer to the object table.
+//! The node: glues the CiA 301 services and the CiA 402 layer to the object dictionary.
 //! Sans-IO: `handle` takes a received frame, `poll` runs timers and one CiA 402 tick,
-//! `pop_tx` hands out frames to send. Nothing here allocates after `Node::new`.
+//! `pop_tx` hands out frames to send. Built once from a [`NodeConfig`]; nothing here
+//! allocates after `Node::new`.
 
 use heapless::Deque;
 
@@ -10,15 +11,17 @@ use crate::cia301::heartbeat::{self, Consumer, Producer};
 use crate::cia301::nmt::{self, NmtCommand, NmtState};
 use crate::cia301::pdo::rpdo::RxOutcome;
 use crate::cia301::pdo::PdoEngine;
-use crate::cia301::sdo::{abort, ObjectAccess, SdoServer, BUF};
+use crate::cia301::sdo::{abort, ObjectAccess, SdoServer};
 use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
+use crate::cia305::{LssEvent, LssIdentity, LssSlave, LssState};
 use crate::cia402::factor::Factor;
-use crate::cia402::{mode, objects as o402, Cia402, State};
-use crate::drive::{Drive, DriveInfo, ParamError};
+use crate::cia402::mode::Mode;
+use crate::cia402::{objects as o402, Cia402, State};
+use crate::drive::{Drive, DriveInfo};
 use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
-use crate::od::{self, idx, Lookup, Store, OBJECTS};
-use crate::params;
+use crate::od::{idx, Backing, Entry, Lookup, ObjectDictionary, Slot, Store};
+use crate::wire::lss::{LSS_REQUEST, UNCONFIGURED_NODE_ID};
 use crate::wire::{cob, Heartbeat};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
@@ -42,33 +45,90 @@ const R_1015: usize = idx(0x1015, 0);
 const R_1016: usize = idx(0x1016, 1);
 const R_1017: usize = idx(0x1017, 0);
 const R_1019: usize = idx(0x1019, 0);
-const R_STATS: usize = idx(params::STATS_INDEX, 1);
+const R_6502: usize = idx(0x6502, 0);
+const R_SERIAL: usize = idx(0x1018, 4);
 
-/// Runtime statistics exposed read-only at 0x2100.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct RuntimeStats {
-    /// Loop ticks run (0x2100 sub 1).
-    pub ticks: u32,
-    /// Ticks whose work finished after the next tick's deadline (sub 2).
-    pub overruns: u32,
-    /// Median wake-up lateness of the loop, microseconds (sub 3).
-    pub lateness_p50_us: u32,
-    /// 99th-percentile wake-up lateness, microseconds (sub 4).
-    pub lateness_p99_us: u32,
-    /// Largest wake-up lateness, microseconds (sub 5).
-    pub lateness_max_us: u32,
-    /// Frames the transport refused (full transmit queue, interface down) (sub 6).
-    pub dropped_tx_frames: u32,
-    /// 0 free-running, 1 acquiring, 2 locked to SYNC.
-    pub sync_lock_state: u32,
-    /// Smoothed magnitude of the SYNC's arrival minus the loop's prediction, microseconds (sub 9).
-    pub sync_phase_error_us: u32,
-    /// SYNC period the loop measured, microseconds (sub 10).
-    pub sync_period_us: u32,
-    /// Times the transport's transmit queue was full and the runtime waited for room.
-    pub tx_full_waits: u32,
-    /// Received frames the kernel dropped (receive queue full), cumulative.
-    pub rx_overflows: u32,
+/// The bit timing an LSS slave reports at power-on unless told otherwise: CiA 301 table
+/// index 0, 1 Mbit/s.
+pub const DEFAULT_LSS_BIT_TIMING: u8 = 0;
+
+/// The node's LSS slave (CiA 305): what its non-volatile memory holds at power-on and who
+/// writes a store configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LssConfig {
+    /// Bit timing (CiA 301 table index) at power-on.
+    pub bit_timing_index: u8,
+    /// A store configuration goes to the application ([`Node::take_lss_store`], answered by
+    /// [`Node::lss_store_done`]); else the node keeps the stored values in memory (an NMT
+    /// reset node loads them, a new node does not) and answers at once.
+    pub store_external: bool,
+}
+
+impl Default for LssConfig {
+    fn default() -> Self {
+        LssConfig {
+            bit_timing_index: DEFAULT_LSS_BIT_TIMING,
+            store_external: false,
+        }
+    }
+}
+
+/// A store configuration (LSS) the application is to write to non-volatile memory: the
+/// pending node-ID (`None`: non-configured) and bit timing. See [`Node::take_lss_store`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LssStore {
+    /// Node-ID to store (`None`: non-configured).
+    pub node_id: Option<u8>,
+    /// CiA 301 bit timing table index to store.
+    pub bit_timing_index: u8,
+}
+
+/// Everything a node is built from, once ([`Node::new`]).
+#[derive(Clone, Debug)]
+pub struct NodeConfig {
+    /// Node ID 1..=127; 255 (with LSS): non-configured, silent but for LSS until a master
+    /// gives it one.
+    pub node_id: u8,
+    /// Static facts of the drive (factor-group defaults).
+    pub info: DriveInfo,
+    /// The object dictionary: [`ObjectDictionary::standard`] plus the application's objects,
+    /// or one built from a vendor's EDS.
+    pub od: ObjectDictionary,
+    /// Time from a reset (or power-on) to the boot-up message, us (0: at once). Real drives
+    /// take 100 ms to seconds; a master that sends the reset and then starts waiting for the
+    /// boot-up (python canopen's `wait_for_bootup`) needs some.
+    pub boot_delay_us: u64,
+    /// Timeout of a stalled SDO transfer, us (default 1 s).
+    pub sdo_timeout_us: u64,
+    /// The LSS slave (CiA 305); `None`: the node answers no LSS (and cannot be
+    /// non-configured). Its identity is the dictionary's 0x1018:1-4.
+    pub lss: Option<LssConfig>,
+}
+
+impl NodeConfig {
+    /// A node with the standard objects only, no boot delay, the default SDO timeout.
+    pub fn new(node_id: u8, info: DriveInfo) -> NodeConfig {
+        NodeConfig {
+            node_id,
+            info,
+            od: ObjectDictionary::standard(&info),
+            boot_delay_us: 0,
+            sdo_timeout_us: crate::cia301::sdo::DEFAULT_TIMEOUT_US,
+            lss: Some(LssConfig::default()),
+        }
+    }
+
+    /// The same configuration with a boot delay.
+    pub fn with_boot_delay_us(mut self, delay_us: u64) -> NodeConfig {
+        self.boot_delay_us = delay_us;
+        self
+    }
+
+    /// The same configuration with another object dictionary.
+    pub fn with_od(mut self, od: ObjectDictionary) -> NodeConfig {
+        self.od = od;
+        self
+    }
 }
 
 /// What a received frame was.
@@ -87,19 +147,41 @@ pub enum FrameEvent {
 }
 
 /// Why a node could not be built.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum ConfigError {
-    /// Node IDs are 1..=127.
+    /// Node IDs are 1..=127, or 255 (non-configured) with LSS.
     InvalidNodeId(u8),
     /// A zero in the encoder resolution, gear ratio or feed constant.
     InvalidDriveInfo,
+    /// The LSS bit timing is not a CiA 301 table index the slave supports.
+    InvalidBitTiming(u8),
+    /// The dictionary lacks an object every CiA 301 node has (0x1000, 0x1001, 0x1018:1-4).
+    MissingObject {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+    },
 }
 
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ConfigError::InvalidNodeId(n) => write!(f, "node id {n} outside 1..=127"),
+            ConfigError::InvalidNodeId(n) => {
+                write!(
+                    f,
+                    "node id {n} outside 1..=127 (255: non-configured, with LSS)"
+                )
+            }
             ConfigError::InvalidDriveInfo => write!(f, "drive info has a zero in the factor group"),
+            ConfigError::InvalidBitTiming(i) => write!(
+                f,
+                "LSS bit timing index {i} is not a CiA 301 bit rate (0..=4, 6..=8)"
+            ),
+            ConfigError::MissingObject { index, sub } => write!(
+                f,
+                "the object dictionary has no 0x{index:04X} sub {sub}, which every CiA 301 node has"
+            ),
         }
     }
 }
@@ -118,8 +200,11 @@ fn push(tx: &mut Deque<CanFrame, TX_QUEUE>, overflows: &mut u32, f: CanFrame) {
 struct Core {
     node_id: u8,
     info: DriveInfo,
+    od: ObjectDictionary,
     store: Store,
-    saved: Option<Box<Store>>,
+    /// Parameters saved by 0x1010 (`has_saved`), allocated with the node.
+    saved: Store,
+    has_saved: bool,
     nmt: NmtState,
     pdo: PdoEngine,
     sync: SyncConsumer,
@@ -133,7 +218,6 @@ struct Core {
     /// Synchronous TPDOs not sent because the 0x1007 window had closed.
     sync_window_missed: u32,
     pending_sync: Option<u64>,
-    injected_fault: u16,
     now_us: u64,
     /// Time from a reset (or power-on) to the boot-up message, us (0: at once).
     boot_delay_us: u64,
@@ -144,6 +228,14 @@ struct Core {
     boot_keeps_app: bool,
     events: Deque<NodeEvent, EVENT_QUEUE>,
     events_dropped: u32,
+    /// LSS slave (CiA 305); `node_id` is its active node-ID (0xFF: non-configured).
+    lss: Option<LssSlave>,
+    /// Store configuration is written by the application ([`LssConfig::store_external`]).
+    lss_store_external: bool,
+    /// A store the application has not taken yet.
+    lss_store: Option<LssStore>,
+    /// The last activate bit timing (table index, switch delay ms), not yet taken.
+    lss_bit_timing_activated: Option<(u8, u16)>,
     /// CiA 402 and NMT state as last reported in an event.
     seen_cia: State,
     seen_nmt: NmtState,
@@ -161,110 +253,87 @@ struct Access<'a, D: Drive> {
     drive: &'a mut D,
 }
 
-fn lookup(index: u16, sub: u8) -> Result<usize, u32> {
-    match od::find(index, sub) {
-        Lookup::Found(r) => Ok(r),
+fn lookup(od: &ObjectDictionary, index: u16, sub: u8) -> Result<(usize, &Entry), u32> {
+    match od.find(index, sub) {
+        Lookup::Found(slot) => Ok((slot.get(), od.entry(slot))),
         Lookup::NoObject => Err(abort::NO_OBJECT),
         Lookup::NoSub => Err(abort::NO_SUB),
     }
 }
 
-fn param_error(e: ParamError, value: f64) -> u32 {
-    match e {
-        ParamError::OutOfRange { min, max } => {
-            if value > max {
-                abort::VALUE_HIGH
-            } else if value < min {
-                abort::VALUE_LOW
-            } else {
-                abort::VALUE_RANGE
-            }
-        }
-        ParamError::Unsupported => abort::NO_OBJECT,
-    }
-}
-
 impl<D: Drive> ObjectAccess for Access<'_, D> {
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8; BUF]) -> Result<usize, u32> {
-        let row = lookup(index, sub)?;
-        let obj = &OBJECTS[row];
-        if !obj.access.readable() {
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, u32> {
+        let (slot, e) = lookup(&self.core.od, index, sub)?;
+        if !e.access.readable() {
             return Err(abort::WRITE_ONLY);
         }
-        if let Some(p) = params::param_at(index) {
-            let scale = if self.core.info.rotary {
-                p.rotary_scale
-            } else {
-                p.scale
-            };
-            let v = self.drive.param(p.param).map_err(|e| param_error(e, 0.0))?;
-            buf[..4].copy_from_slice(&((v * scale) as f32).to_le_bytes());
-            return Ok(4);
+        match e.backing {
+            Backing::Handler(tag) => self.drive.read_object(tag, index, sub, buf),
+            Backing::Stored => Ok(self.core.store.read_bytes(slot, e.dtype.size(), buf)),
         }
-        Ok(self.core.store.read_bytes(row, buf))
     }
 
     fn check_write(&mut self, index: u16, sub: u8, size: Option<usize>) -> Result<(), u32> {
-        let row = lookup(index, sub)?;
-        let obj = &OBJECTS[row];
-        if !obj.access.writable() {
+        let (_, e) = lookup(&self.core.od, index, sub)?;
+        if !e.access.writable() {
             return Err(abort::READ_ONLY);
         }
-        let n = obj.dtype.size();
+        let n = e.dtype.size();
         match size {
             Some(s) if n > 0 && s > n => Err(abort::TOO_LONG),
             Some(s) if n > 0 && s < n => Err(abort::TOO_SHORT),
+            Some(s) if n == 0 && s > e.capacity => Err(abort::TOO_LONG),
             _ => Ok(()),
         }
     }
 
     fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), u32> {
         self.check_write(index, sub, Some(data.len()))?;
-        let row = lookup(index, sub)?;
-        let obj = &OBJECTS[row];
-        let raw = obj.decode(data);
-        if let Some(p) = params::param_at(index) {
-            let scale = if self.core.info.rotary {
-                p.rotary_scale
-            } else {
-                p.scale
-            };
-            let v = f32::from_bits(raw) as f64;
-            if !v.is_finite() {
-                return Err(abort::VALUE_RANGE);
+        let (slot, e) = lookup(&self.core.od, index, sub)?;
+        if e.dtype.variable() {
+            if let Backing::Handler(tag) = e.backing {
+                return self.drive.write_object(tag, index, sub, data);
             }
-            let si = v / scale;
-            return self
-                .drive
-                .set_param(p.param, si)
-                .map_err(|e| param_error(e, si));
+            return if self.core.store.write_bytes(slot, data) {
+                Ok(())
+            } else {
+                Err(abort::TOO_LONG)
+            };
         }
-        if let Err(high) = obj.check_limits(raw) {
+        let raw = e.decode(data);
+        if let Err(high) = e.check_limits(raw) {
             return Err(if high {
                 abort::VALUE_HIGH
             } else {
                 abort::VALUE_LOW
             });
         }
-        self.core.write_checked(row, index, sub, raw)
+        if let Backing::Handler(tag) = e.backing {
+            return self.drive.write_object(tag, index, sub, data);
+        }
+        self.core.write_checked(slot, index, sub, raw)
     }
 }
 
-/// Rules on application values beyond the table's limits, the same for an SDO write and an
-/// RPDO: a supported mode of operation, software position limits with min <= max.
-fn value_rule(store: &Store, index: u16, sub: u8, raw: u32) -> Result<(), u32> {
+/// Rules on application values beyond the dictionary's limits, the same for an SDO write and
+/// an RPDO: a mode of operation the drive supports (0x6502), software position limits with
+/// min <= max.
+fn value_rule(store: &Store, index: u16, sub: u8, raw: u64) -> Result<(), u32> {
+    let supported = store.u32(R_6502);
     match (index, sub) {
-        (0x6060, _) if !mode::supported(raw as i32 as i8) => Err(abort::VALUE_RANGE),
+        (0x6060, _) if !Mode::from_value(raw as i8).is_some_and(|m| m.in_mask(supported)) => {
+            Err(abort::VALUE_RANGE)
+        }
         (0x607D, 1) if raw as i32 > store.i32(o402::SW_LIMIT_MAX) => Err(abort::MAX_LT_MIN),
         (0x607D, 2) if (raw as i32) < store.i32(o402::SW_LIMIT_MIN) => Err(abort::MAX_LT_MIN),
         _ => Ok(()),
     }
 }
 
-/// Whether an RPDO may write `raw` to a row: the table's limits and [`value_rule`].
-fn rpdo_accepts(store: &Store, row: usize, raw: u32) -> bool {
-    let o = &OBJECTS[row];
-    o.check_limits(raw).is_ok() && value_rule(store, o.index, o.sub, raw).is_ok()
+/// Whether an RPDO may write `raw` to a slot: the dictionary's limits and [`value_rule`].
+fn rpdo_accepts(od: &ObjectDictionary, store: &Store, slot: usize, raw: u64) -> bool {
+    let e = od.entry(Slot::at(slot));
+    e.check_limits(raw).is_ok() && value_rule(store, e.index, e.sub, raw).is_ok()
 }
 
 impl Core {
@@ -364,11 +433,14 @@ impl Core {
     /// PDO parameters go to the PDO engine's rules (`cia301/pdo/rules.rs`); one arm per
     /// other object with a rule; the `if`s stay inside the arms for readability.
     #[allow(clippy::collapsible_match)]
-    fn write_checked(&mut self, row: usize, index: u16, sub: u8, raw: u32) -> Result<(), u32> {
-        if (0x1400..=0x17FF).contains(&index) {
-            self.rpdo_conditions_reset((index & 0x3) as usize);
+    fn write_checked(&mut self, row: usize, index: u16, sub: u8, raw: u64) -> Result<(), u32> {
+        if let Some(k) = self.pdo.rpdo_of(index) {
+            self.rpdo_conditions_reset(k);
         }
-        if let Some(r) = self.pdo.write(&mut self.store, row, index, sub, raw) {
+        if let Some(r) = self
+            .pdo
+            .write(&self.od, &mut self.store, row, index, sub, raw)
+        {
             return r;
         }
         match (index, sub) {
@@ -383,14 +455,14 @@ impl Core {
             }
             (0x1005, _) => {
                 // bit 30: we do not produce SYNC; bit 31 is "don't care"
-                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw, true) {
+                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw as u32, true) {
                     return Err(abort::VALUE_RANGE);
                 }
             }
             (0x1014, _) => {
                 // bit 31: EMCY not valid (any CAN-ID may be stored then); bit 30 reserved
                 let valid = raw & 0x8000_0000 == 0;
-                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw, valid) {
+                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw as u32, valid) {
                     return Err(abort::VALUE_RANGE);
                 }
             }
@@ -398,14 +470,15 @@ impl Core {
                 if raw != 0x6576_6173 {
                     return Err(abort::CANNOT_STORE);
                 }
-                self.saved = Some(Box::new(self.store.clone()));
+                self.saved.copy_from(&self.store);
+                self.has_saved = true;
                 return Ok(());
             }
             (0x1011, 1) => {
                 if raw != 0x6461_6F6C {
                     return Err(abort::CANNOT_STORE);
                 }
-                self.saved = None;
+                self.has_saved = false;
                 return Ok(());
             }
             (0x1016, s) => {
@@ -414,10 +487,10 @@ impl Core {
                     *e = self.store.u32(R_1016 + i);
                 }
                 let i = s as usize - 1;
-                if heartbeat::conflicts(&entries, i, raw) {
+                if heartbeat::conflicts(&entries, i, raw as u32) {
                     return Err(abort::PARAM_INCOMPATIBLE);
                 }
-                self.hbc.configure(i, raw);
+                self.hbc.configure(i, raw as u32);
             }
             (0x1017, _) => self.hb.restart(self.now_us, raw as u16),
             (0x1019, _) => {
@@ -429,10 +502,6 @@ impl Core {
                 }
             }
             (0x6060, _) | (0x607D, _) => value_rule(&self.store, index, sub, raw)?,
-            (params::INJECT_FAULT_INDEX, _) => {
-                self.injected_fault = raw as u16;
-                return Ok(());
-            }
             _ => {}
         }
         self.store.set(row, raw);
@@ -440,10 +509,10 @@ impl Core {
     }
 
     fn refresh_all(&mut self) {
-        for k in 0..4 {
+        for k in 0..self.pdo.rpdo.len() {
             self.rpdo_conditions_reset(k);
         }
-        self.pdo.refresh_all(&self.store);
+        self.pdo.refresh_all(&self.od, &self.store);
         for i in 0..4 {
             let e = self.store.u32(R_1016 + i);
             self.hbc.configure(i, e);
@@ -478,6 +547,11 @@ impl Core {
     fn boot(&mut self, now_us: u64) {
         self.boot_due_us = None;
         self.boot_keeps_app = false;
+        if self.node_id == UNCONFIGURED_NODE_ID {
+            // CiA 305: no node-ID, no boot-up; the node stays initialising and answers LSS
+            // only (as Lely's NMT does; CANopenNode skips the other services).
+            return;
+        }
         self.nmt = NmtState::PreOperational;
         self.refresh_all();
         self.sync = SyncConsumer::default();
@@ -491,10 +565,28 @@ impl Core {
     }
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
-        match &self.saved {
-            Some(s) => self.store.copy_range(s, lo, hi),
-            None => self.store.reset_range(lo, hi, self.node_id, &self.info),
+        let serial = self.store.raw(R_SERIAL);
+        if self.has_saved {
+            self.store.copy_range(&self.saved, &self.od, lo, hi);
+        } else {
+            self.store.reset_range(&self.od, lo, hi, self.node_id);
         }
+        // The serial number (0x1018:4, $NODEID in the standard dictionary) is part of the
+        // LSS address: it stays what it was at power-on when LSS changes the node-ID.
+        self.store.set(R_SERIAL, serial);
+    }
+
+    /// An NMT reset: the LSS slave's node-ID for the reset (pending at reset communication,
+    /// stored at reset node) becomes the node's.
+    fn take_lss_node_id(&mut self, reset_node: bool) {
+        let Some(lss) = self.lss.as_mut() else { return };
+        if reset_node {
+            lss.reset_node();
+            self.lss_store = None;
+        } else {
+            lss.reset_communication();
+        }
+        self.node_id = lss.active_node_id().unwrap_or(UNCONFIGURED_NODE_ID);
     }
 
     /// A SYNC, handled `late_us` after it arrived (the runtime read it late). Synchronous TPDOs
@@ -516,9 +608,10 @@ impl Core {
         }
         self.pending_sync = Some(now_us);
         if self.nmt == NmtState::Operational {
-            let applied = self.pdo.apply_sync_rpdos(&mut self.store, rpdo_accepts);
-            for (k, ok) in applied.into_iter().enumerate() {
-                if let Some(ok) = ok {
+            for k in 0..self.pdo.rpdo.len() {
+                let od = &self.od;
+                let accept = |st: &Store, slot, raw| rpdo_accepts(od, st, slot, raw);
+                if let Some(ok) = self.pdo.apply_sync_rpdo(k, &mut self.store, accept) {
                     self.rpdo_value_condition(k, ok);
                 }
             }
@@ -536,61 +629,108 @@ impl Core {
 }
 
 impl Node {
-    /// Build a node (state: initialising; call [`Node::boot`]).
-    pub fn new(node_id: u8, info: DriveInfo) -> Result<Node, ConfigError> {
-        if !(1..=127).contains(&node_id) {
+    /// Build a node (state: initialising; call [`Node::boot`]). Every allocation the node
+    /// will ever make happens here.
+    pub fn new(cfg: NodeConfig) -> Result<Node, ConfigError> {
+        let NodeConfig {
+            node_id,
+            info,
+            od,
+            boot_delay_us,
+            sdo_timeout_us,
+            lss,
+        } = cfg;
+        let unconfigured = node_id == UNCONFIGURED_NODE_ID && lss.is_some();
+        if !(1..=127).contains(&node_id) && !unconfigured {
             return Err(ConfigError::InvalidNodeId(node_id));
         }
+        for (index, sub) in [
+            (0x1000, 0),
+            (0x1001, 0),
+            (0x1018, 1),
+            (0x1018, 2),
+            (0x1018, 3),
+            (0x1018, 4),
+        ] {
+            if od.get(index, sub).is_none() {
+                return Err(ConfigError::MissingObject { index, sub });
+            }
+        }
         let factor = Factor::from_info(&info).ok_or(ConfigError::InvalidDriveInfo)?;
-        let store = Store::new(node_id, &info);
+        // the 0x1003 history has the sub-indices the dictionary shows (a vendor's may have 2)
+        let history_len = (1..=8u8)
+            .take_while(|&s| od.get(0x1003, s).is_some())
+            .count();
+        let store = Store::new(&od, node_id);
+        let saved = store.clone();
+        let mut sdo = SdoServer::with_capacity(store.max_capacity());
+        sdo.timeout_us = sdo_timeout_us;
+        let pdo = PdoEngine::new(&od);
+        let lss_slave = match lss {
+            Some(l) => {
+                let identity = LssIdentity {
+                    vendor_id: store.u32(idx(0x1018, 1)),
+                    product_code: store.u32(idx(0x1018, 2)),
+                    revision_number: store.u32(idx(0x1018, 3)),
+                    serial_number: store.u32(R_SERIAL),
+                };
+                let id = (node_id != UNCONFIGURED_NODE_ID).then_some(node_id);
+                Some(
+                    LssSlave::new(identity, id, l.bit_timing_index).map_err(|e| match e {
+                        crate::cia305::LssConfigError::UnsupportedBitTiming(i) => {
+                            ConfigError::InvalidBitTiming(i)
+                        }
+                        crate::cia305::LssConfigError::InvalidNodeId(n) => {
+                            ConfigError::InvalidNodeId(n)
+                        }
+                    })?,
+                )
+            }
+            None => None,
+        };
         let mut core = Core {
             node_id,
             info,
+            od,
             store,
-            saved: None,
+            saved,
+            has_saved: false,
             nmt: NmtState::Initialising,
-            pdo: PdoEngine::default(),
+            pdo,
             sync: SyncConsumer::default(),
             hb: Producer::default(),
             hbc: Consumer::default(),
             hb_lost: false,
-            emcy: Emcy::default(),
+            emcy: Emcy::with_history(history_len),
             cia: Cia402::new(factor),
             tx: Deque::new(),
             tx_overflows: 0,
             sync_window_missed: 0,
             pending_sync: None,
-            injected_fault: 0,
             now_us: 0,
-            boot_delay_us: 0,
+            boot_delay_us,
             boot_due_us: None,
             boot_keeps_app: false,
             events: Deque::new(),
             events_dropped: 0,
+            lss: lss_slave,
+            lss_store_external: lss.is_some_and(|l| l.store_external),
+            lss_store: None,
+            lss_bit_timing_activated: None,
             seen_cia: State::NotReadyToSwitchOn,
             seen_nmt: NmtState::Initialising,
         };
         core.seen_cia = core.cia.state;
         core.refresh_all();
-        Ok(Node {
-            sdo: SdoServer::default(),
-            core,
-        })
+        Ok(Node { sdo, core })
     }
 
     /// Power-on: queue the boot-up message and enter pre-operational, after the boot delay
-    /// ([`Node::set_boot_delay_us`]) if there is one.
+    /// ([`NodeConfig::boot_delay_us`]) if there is one.
     pub fn boot(&mut self, now_us: u64) {
         self.core.now_us = now_us;
         self.core.start_boot(now_us, false);
         self.core.observe();
-    }
-
-    /// Time from power-on or an NMT reset to the boot-up message, us (default 0: at once).
-    /// Real drives take 100 ms to seconds; a master that sends the reset and then starts
-    /// waiting for the boot-up (python canopen's `wait_for_bootup`) needs some.
-    pub fn set_boot_delay_us(&mut self, delay_us: u64) {
-        self.core.boot_delay_us = delay_us;
     }
 
     /// Delay between power-on and the boot-up message, microseconds.
@@ -619,15 +759,16 @@ impl Node {
             NmtCommand::ResetNode => {
                 // The application resets too: the drive re-initialises its axis.
                 drive.reset();
+                c.take_lss_node_id(true);
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
                 c.cia = Cia402::new(f);
                 c.clear_all_emcy();
-                c.injected_fault = 0;
                 self.sdo.reset();
                 c.start_boot(now_us, false);
             }
             NmtCommand::ResetCommunication => {
+                c.take_lss_node_id(false);
                 c.restore_range(0x1000, 0x1FFF);
                 // 0x1001 / 0x1003 keep what the drive is still in FAULT for
                 let before = c.emcy.active_codes();
@@ -693,6 +834,19 @@ impl Node {
         if frame.extended || frame.id > 0x7FF {
             return FrameEvent::Ignored;
         }
+        if frame.id == LSS_REQUEST && self.core.boot_due_us.is_none() && self.core.lss.is_some() {
+            return self.lss_frame(frame, now_us, drive);
+        }
+        if self.lss_unconfigured() {
+            // Non-configured: silent but for LSS; a broadcast NMT reset still resets it.
+            return match nmt::decode(frame, 0) {
+                Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication)) => {
+                    self.nmt_command(cmd, now_us, drive);
+                    FrameEvent::Handled
+                }
+                _ => FrameEvent::Ignored,
+            };
+        }
         if self.core.nmt == NmtState::Initialising {
             // Deaf while booting, but a SYNC still tells a lock-step runtime time goes on.
             let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
@@ -749,7 +903,9 @@ impl Node {
             return FrameEvent::Ignored;
         }
         let c = &mut self.core;
-        match c.pdo.receive(&mut c.store, frame, rpdo_accepts) {
+        let od = &c.od;
+        let accept = |st: &Store, slot, raw| rpdo_accepts(od, st, slot, raw);
+        match c.pdo.receive(&mut c.store, frame, accept) {
             RxOutcome::NotRpdo => {}
             RxOutcome::Received {
                 k,
@@ -771,6 +927,49 @@ impl Node {
             return FrameEvent::Handled;
         }
         FrameEvent::Ignored
+    }
+
+    /// Non-configured (node-ID 0xFF) and not booting: only LSS is served.
+    fn lss_unconfigured(&self) -> bool {
+        self.core.node_id == UNCONFIGURED_NODE_ID && self.core.boot_due_us.is_none()
+    }
+
+    /// An LSS request (COB-ID 0x7E5), in every NMT state once booted (as Lely and
+    /// CANopenNode) and while non-configured.
+    fn lss_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
+        let Some(lss) = self.core.lss.as_mut() else {
+            return FrameEvent::Ignored;
+        };
+        let out = lss.handle(frame);
+        if let Some(f) = out.response {
+            self.core.push(f);
+        }
+        match out.event {
+            Some(LssEvent::ResetCommunication { .. }) => {
+                // CiA 305: a non-configured node given a node-ID boots with it when switched
+                // back to waiting.
+                self.nmt_command(NmtCommand::ResetCommunication, now_us, drive);
+            }
+            Some(LssEvent::StoreRequested {
+                node_id,
+                bit_timing_index,
+            }) => {
+                if self.core.lss_store_external {
+                    self.core.lss_store = Some(LssStore {
+                        node_id,
+                        bit_timing_index,
+                    });
+                } else if let Some(f) = self.core.lss.as_mut().and_then(|l| l.store_done(true)) {
+                    self.core.push(f);
+                }
+            }
+            Some(LssEvent::ActivateBitTiming {
+                table_index,
+                switch_delay_ms,
+            }) => self.core.lss_bit_timing_activated = Some((table_index, switch_delay_ms)),
+            _ => {}
+        }
+        FrameEvent::Handled
     }
 
     fn heartbeat_in(&mut self, id_low: u8, now_us: u64) {
@@ -829,7 +1028,7 @@ impl Node {
         take(c.hbc.deadline_us());
         if c.nmt == NmtState::Operational {
             take(c.sync.deadline_us(c.store.u32(R_1006)));
-            for k in 0..4 {
+            for k in 0..c.pdo.tpdo.len() {
                 take(c.pdo.deadline_us(&c.store, k, c.now_us));
             }
         }
@@ -885,9 +1084,6 @@ impl Node {
             c.raise_emcy(EMCY_SYNC_LOSS, [0; 5], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
         }
-        if c.injected_fault != 0 {
-            c.cia.request_fault(c.injected_fault);
-        }
         // CiA 402
         let period = csp_period_us(&c.store, c.sync.interval_us);
         let sync_at = c.pending_sync.take();
@@ -918,9 +1114,34 @@ impl Node {
         }
     }
 
-    /// Timeout of a stalled SDO transfer (default 1 s).
-    pub fn set_sdo_timeout_us(&mut self, timeout_us: u64) {
-        self.sdo.timeout_us = timeout_us;
+    /// A store configuration to write (once per request, with [`LssConfig::store_external`]);
+    /// then call [`Node::lss_store_done`].
+    pub fn take_lss_store(&mut self) -> Option<LssStore> {
+        self.core.lss_store.take()
+    }
+
+    /// The outcome of the store handed out by [`Node::take_lss_store`]: the LSS answer is
+    /// queued (error 0, or 2 when `stored` is false).
+    pub fn lss_store_done(&mut self, stored: bool) {
+        if let Some(f) = self.core.lss.as_mut().and_then(|l| l.store_done(stored)) {
+            self.core.push(f);
+        }
+    }
+
+    /// The last LSS activate bit timing not yet taken: (CiA 301 table index, switch delay
+    /// ms). A real drive switches its CAN controller; the emulator can only report it.
+    pub fn take_lss_bit_timing_activation(&mut self) -> Option<(u8, u16)> {
+        self.core.lss_bit_timing_activated.take()
+    }
+
+    /// LSS state (waiting or configuration); `None` without LSS.
+    pub fn lss_state(&self) -> Option<LssState> {
+        self.core.lss.as_ref().map(|l| l.state())
+    }
+
+    /// The LSS slave's pending node-ID (active after the next NMT reset communication).
+    pub fn lss_pending_node_id(&self) -> Option<u8> {
+        self.core.lss.as_ref().and_then(|l| l.pending_node_id())
     }
 
     /// The next frame to send.
@@ -928,56 +1149,43 @@ impl Node {
         self.core.tx.pop_front()
     }
 
-    /// Publish the runtime's statistics at 0x2100.
-    pub fn set_runtime_stats(&mut self, s: RuntimeStats) {
-        let v = [
-            s.ticks,
-            s.overruns,
-            s.lateness_p50_us,
-            s.lateness_p99_us,
-            s.lateness_max_us,
-            s.dropped_tx_frames,
-            self.core.tx_overflows,
-            s.sync_lock_state,
-            s.sync_phase_error_us,
-            s.sync_period_us,
-            s.tx_full_waits,
-            self.core.sync_window_missed,
-            s.rx_overflows,
-        ];
-        for (i, x) in v.iter().enumerate() {
-            self.core.store.set(R_STATS + i, *x);
+    /// Set a stored object's value (raw form: signed sign-extended, REAL as bits) from the
+    /// application, e.g. the runtime's statistics or the detector's verdict, for SDO reads
+    /// and TPDOs. No allocation: fit for the real-time path. A `slot` of another dictionary
+    /// is the caller's bug (it panics on an out-of-range slot).
+    pub fn set_value(&mut self, slot: Slot, raw: u64) {
+        self.core.store.set(slot.get(), raw);
+    }
+
+    /// A stored object's value (raw form), `None` for a slot a handler keeps.
+    pub fn value(&self, slot: Slot) -> Option<u64> {
+        match self.core.od.entry(slot).backing {
+            Backing::Stored => Some(self.core.store.raw(slot.get())),
+            Backing::Handler(_) => None,
         }
     }
 
-    /// The EDS (CiA 306) of this node, generated from the object table.
-    pub fn export_eds(&self) -> String {
-        od::eds::export(self.core.node_id, &self.core.info)
+    /// The node's object dictionary.
+    pub fn od(&self) -> &ObjectDictionary {
+        &self.core.od
     }
 
-    /// The EDS of this node and drive: the manufacturer parameters' defaults are the values
-    /// the drive has (what an SDO read returns), the rest as [`od::eds::export_with`].
-    pub fn export_eds_of(&self, drive: &impl Drive, meta: &od::eds::EdsMeta) -> String {
-        let mut values: heapless::Vec<(u16, f32), 32> = heapless::Vec::new();
-        for p in params::PARAMS.iter() {
-            let scale = if self.core.info.rotary {
-                p.rotary_scale
-            } else {
-                p.scale
-            };
-            if let Ok(v) = drive.param(p.param) {
-                let _ = values.push((p.index, (v * scale) as f32));
-            }
-        }
-        let meta = od::eds::EdsMeta {
-            params: &values,
-            ..meta.clone()
+    /// The EDS (CiA 306) of this node: every visible object; the objects a handler keeps
+    /// have the value the drive answers to an SDO read as their DefaultValue.
+    pub fn export_eds(&self, drive: &mut impl Drive, meta: &crate::od::eds::EdsMeta) -> String {
+        let mut buf = [0u8; 8];
+        let mut value_of = |e: &Entry| match e.backing {
+            Backing::Handler(tag) if !e.dtype.variable() && e.access.readable() => drive
+                .read_object(tag, e.index, e.sub, &mut buf)
+                .ok()
+                .map(|n| e.decode(&buf[..n])),
+            _ => None,
         };
-        od::eds::export_with(self.core.node_id, &self.core.info, &meta)
+        crate::od::eds::export(&self.core.od, meta, &mut value_of)
     }
 
     // ----- read-only accessors -----
-    /// Node ID, 1..=127.
+    /// Node ID, 1..=127, or 255 while non-configured (LSS).
     pub fn node_id(&self) -> u8 {
         self.core.node_id
     }
@@ -1023,10 +1231,11 @@ impl Node {
     pub fn tx_pending(&self) -> usize {
         self.core.tx.len()
     }
-    /// Raw value of an object as stored (diagnostics and tests), if it exists.
+    /// Raw value of a stored object (diagnostics and tests), if it exists; truncated to 32
+    /// bits (see [`Node::value`] for 64-bit objects).
     pub fn object_raw(&self, index: u16, sub: u8) -> Option<u32> {
-        match od::find(index, sub) {
-            Lookup::Found(r) => Some(self.core.store.u32(r)),
+        match self.core.od.find(index, sub) {
+            Lookup::Found(slot) => self.value(slot).map(|v| v as u32),
             _ => None,
         }
     }

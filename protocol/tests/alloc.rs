@@ -122,3 +122,65 @@ fn the_counter_counts() {
     drop(v);
     assert!(allocs() >= 1);
 }
+
+/// The LSS services (fastscan, configure, store, inquire, the switch to waiting that boots
+/// the node with its new node-ID) do not allocate either: a master may run them while other
+/// drives on the same loop are in motion.
+#[test]
+fn lss_services_do_not_allocate() {
+    let mut node = Node::new(lss_config(255, 255, 0, 0, false)).unwrap();
+    let mut drive = SimDrive::default();
+    node.boot(0);
+    let mut frames: Vec<[u8; 8]> = vec![[0x51, 0, 0, 0, 0, 0x80, 0, 0]];
+    // python canopen's fastscan frames for this node's address (0, 0x402, 0x10000, 255)
+    for (sub, part) in [0u32, 0x402, 0x0001_0000, 0xFF].into_iter().enumerate() {
+        for bit in (0..32u8).rev() {
+            // the bits above `bit` found so far, 0 from `bit` down
+            let guess = (u64::from(part) >> (bit + 1) << (bit + 1)) as u32;
+            let g = guess.to_le_bytes();
+            frames.push([0x51, g[0], g[1], g[2], g[3], bit, sub as u8, sub as u8]);
+        }
+        let p = part.to_le_bytes();
+        frames.push([
+            0x51,
+            p[0],
+            p[1],
+            p[2],
+            p[3],
+            0,
+            sub as u8,
+            (sub as u8 + 1) & 3,
+        ]);
+    }
+    frames.extend([
+        [0x5A, 0, 0, 0, 0, 0, 0, 0],
+        [0x5E, 0, 0, 0, 0, 0, 0, 0],
+        [0x11, 12, 0, 0, 0, 0, 0, 0],
+        [0x13, 0, 2, 0, 0, 0, 0, 0],
+        [0x17, 0, 0, 0, 0, 0, 0, 0],
+        [0x46, 0, 0, 0, 0, 0, 0, 0],
+        [0x04, 0, 0, 0, 0, 0, 0, 0],
+    ]);
+    let frames: Vec<CanFrame> = frames.iter().map(|b| CanFrame::new(0x7E5, b)).collect();
+    let mut answers = 0;
+    reset();
+    ACTIVE.with(|a| a.set(true));
+    for f in &frames {
+        node.handle(f, 0, &mut drive);
+        while let Some(f) = node.pop_tx() {
+            answers += usize::from(f.id == 0x7E4);
+        }
+    }
+    node.poll(1000, &mut drive);
+    ACTIVE.with(|a| a.set(false));
+    assert_eq!(allocs(), 0, "allocations in LSS services");
+    // every fastscan frame but those probing a 1 bit (silent: the master sets the bit) and
+    // the 5 services with an answer were answered; the node booted
+    let ones: u32 = [0u32, 0x402, 0x0001_0000, 0xFF]
+        .iter()
+        .map(|p| p.count_ones())
+        .sum();
+    assert_eq!(answers, 1 + 4 * 33 - ones as usize + 5, "LSS answers");
+    assert_eq!(node.node_id(), 12);
+    assert_eq!(node.nmt_state(), drive_protocol::NmtState::PreOperational);
+}

@@ -1,20 +1,26 @@
 //! The exported EDS loads in python canopen (pinned in tests/requirements.txt) with every
-//! object's type and access as the object table says. Missing python/canopen FAILS.
-use drive_protocol::od::eds::objects_json;
+//! object's type and access as the dictionary says. Missing python/canopen FAILS.
+use drive_protocol::od::eds::{objects_json, EdsMeta};
+use drive_protocol::od::ObjType;
+use drive_protocol::{Node, NodeConfig};
 use std::process::Command;
 
 mod common;
 
+fn node() -> Node {
+    Node::new(NodeConfig::new(7, common::info()).with_od(common::od_with_handler())).unwrap()
+}
+
 #[test]
 fn python_canopen_loads_the_eds() {
-    let node = drive_protocol::Node::new(7, common::info()).unwrap();
-    let eds = node.export_eds();
+    let node = node();
+    let eds = node.export_eds(&mut common::SimDrive::default(), &EdsMeta::default());
     let dir = std::env::temp_dir().join(format!("drive-protocol-eds-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let eds_path = dir.join("drive.eds");
     let json_path = dir.join("objects.json");
     std::fs::write(&eds_path, &eds).unwrap();
-    std::fs::write(&json_path, objects_json()).unwrap();
+    std::fs::write(&json_path, objects_json(node.od())).unwrap();
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/python/check_eds.py");
     let out = Command::new("python3")
         .arg(script)
@@ -35,37 +41,29 @@ fn python_canopen_loads_the_eds() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Every visible entry is in the EDS, the handler objects with the value the drive answers
+/// (not the dictionary's default), `$NODEID` forms kept; a removed entry is not there.
 #[test]
-fn eds_is_generated_from_the_table() {
-    let node = drive_protocol::Node::new(7, common::info()).unwrap();
-    let eds = node.export_eds();
-    for o in drive_protocol::od::OBJECTS {
-        let section = if o.otype == drive_protocol::od::ObjType::Var {
-            format!("[{:04X}]", o.index)
+fn eds_is_generated_from_the_dictionary() {
+    let mut drive = common::SimDrive::default();
+    drive.params[2] = 0.25;
+    let mut cfg = NodeConfig::new(7, common::info()).with_od(common::od_with_handler());
+    cfg.od.remove(0x60E4, 1);
+    let node = Node::new(cfg).unwrap();
+    let eds = node.export_eds(&mut drive, &EdsMeta::default());
+    for (_, e) in node.od().iter() {
+        let section = if e.otype == ObjType::Var {
+            format!("[{:04X}]", e.index)
         } else {
-            format!("[{:04X}sub{:X}]", o.index, o.sub)
+            format!("[{:04X}sub{:X}]", e.index, e.sub)
         };
         assert!(eds.contains(&section), "{section} missing");
     }
-    assert!(eds.contains("ParameterName=backlash_mm"));
+    assert!(!eds.contains("[60E4sub1]"), "a removed entry stays out");
     assert!(eds.contains("DefaultValue=$NODEID+0x180"));
-    // a rotary axis names its parameters in degrees
-    let mut info = common::info();
-    info.rotary = true;
-    let eds = drive_protocol::Node::new(7, info).unwrap().export_eds();
-    assert!(eds.contains("ParameterName=backlash_deg"));
-}
-
-#[test]
-fn docs_objects_md_is_current() {
-    let md = drive_protocol::od::eds::objects_markdown(common::ID, &common::info());
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/objects.md");
-    if std::env::var_os("UPDATE_OBJECTS_MD").is_some() {
-        std::fs::write(path, &md).unwrap();
-    }
-    let on_disk = std::fs::read_to_string(path).unwrap_or_default();
+    let sub2 = eds.split("[2200sub2]").nth(1).unwrap();
     assert!(
-        on_disk == md,
-        "docs/objects.md is stale: run UPDATE_OBJECTS_MD=1 cargo test -p drive-protocol --test eds"
+        sub2.contains(&format!("DefaultValue=0x{:08X}", 0.25f32.to_bits())),
+        "the handler's value: {sub2}"
     );
 }

@@ -8,8 +8,13 @@ mod common;
 mod fuzz;
 
 use common::*;
-use fuzz::{case_strategy, Harness};
+use drive_protocol::NodeConfig;
+use fuzz::{case_strategy, Harness, Objects};
 use proptest::prelude::*;
+
+fn config() -> NodeConfig {
+    NodeConfig::new(ID, info()).with_od(od_with_handler())
+}
 
 fn advance(d: &mut SimDrive, _dt_us: u64) {
     // SimDrive integrates in `command`, once per poll; nothing to run here.
@@ -24,8 +29,8 @@ proptest! {
     })]
 
     #[test]
-    fn the_node_survives_any_sequence_and_keeps_its_invariants((start, ops) in case_strategy(ID, 200)) {
-        let mut h = Harness::new(ID, SimDrive::default(), advance);
+    fn the_node_survives_any_sequence_and_keeps_its_invariants((start, ops) in case_strategy(ID, &Objects::of(&od_with_handler()), 200)) {
+        let mut h = Harness::new(config(), SimDrive::default(), advance);
         h.run(start, &ops)?;
     }
 }
@@ -40,12 +45,12 @@ fn the_harness_reaches_deep_states() {
         Config::default(),
         TestRng::from_seed(RngAlgorithm::ChaCha, &[7; 32]),
     );
-    let strategy = case_strategy(ID, 200);
+    let strategy = case_strategy(ID, &Objects::of(&od_with_handler()), 200);
     let (mut enabled, mut faulted, mut recoveries, mut operational) = (0, 0, 0, 0);
     let mut st = fuzz::SdoStats::default();
     for _ in 0..60 {
         let (start, ops) = strategy.new_tree(&mut runner).unwrap().current();
-        let mut h = Harness::new(ID, SimDrive::default(), advance);
+        let mut h = Harness::new(config(), SimDrive::default(), advance);
         let id = ID;
         if start {
             h.handle(&drive_protocol::CanFrame::new(0, &[1, id]))

@@ -1,18 +1,18 @@
 //! NMT slave: boot-up, state changes, broadcast, resets.
 mod common;
 use common::*;
-use drive_protocol::{Cia402State, FrameEvent, NmtState};
+use drive_protocol::{Cia402State, FrameEvent, NmtState, NodeConfig};
 
 #[test]
 fn boot_up_message_and_pre_operational() {
-    let mut node = drive_protocol::Node::new(9, info()).unwrap();
+    let mut node = drive_protocol::Node::new(NodeConfig::new(9, info())).unwrap();
     assert_eq!(node.nmt_state(), NmtState::Initialising);
     node.boot(0);
     let f = node.pop_tx().unwrap();
     assert_eq!((f.id, f.len, f.data[0]), (0x709, 1, 0x00));
     assert_eq!(node.nmt_state(), NmtState::PreOperational);
-    assert!(drive_protocol::Node::new(0, info()).is_err());
-    assert!(drive_protocol::Node::new(128, info()).is_err());
+    assert!(drive_protocol::Node::new(NodeConfig::new(0, info())).is_err());
+    assert!(drive_protocol::Node::new(NodeConfig::new(128, info())).is_err());
 }
 
 #[test]
@@ -132,7 +132,7 @@ fn two_nodes_share_a_bus() {
 
 #[test]
 fn full_tx_queue_is_counted_not_fatal() {
-    let mut node = drive_protocol::Node::new(ID, info()).unwrap();
+    let mut node = drive_protocol::Node::new(NodeConfig::new(ID, info())).unwrap();
     let mut drive = SimDrive::default();
     node.boot(0);
     for _ in 0..200 {
@@ -144,11 +144,6 @@ fn full_tx_queue_is_counted_not_fatal() {
     }
     assert_eq!(node.tx_pending(), drive_protocol::TX_QUEUE);
     assert_eq!(node.tx_overflows(), 201 - drive_protocol::TX_QUEUE as u32);
-    node.set_runtime_stats(Default::default());
-    assert_eq!(
-        node.object_raw(0x2100, 7),
-        Some(201 - drive_protocol::TX_QUEUE as u32)
-    );
     while node.pop_tx().is_some() {}
     node.poll(1000, &mut drive);
 }
@@ -159,8 +154,7 @@ fn full_tx_queue_is_counted_not_fatal() {
 #[test]
 fn boot_delay_holds_the_boot_up_after_power_on_and_resets() {
     for delay_us in [1_000u64, 150_000, 300_000] {
-        let mut b = Bench::new();
-        b.node.set_boot_delay_us(delay_us);
+        let mut b = Bench::with_boot_delay(delay_us);
         assert_eq!(b.node.boot_delay_us(), delay_us);
         for (what, cs) in [
             ("power-on", 0u8),
@@ -170,8 +164,8 @@ fn boot_delay_holds_the_boot_up_after_power_on_and_resets() {
             b.take();
             let t0 = b.now;
             if cs == 0 {
-                b.node = drive_protocol::Node::new(ID, info()).unwrap();
-                b.node.set_boot_delay_us(delay_us);
+                let cfg = NodeConfig::new(ID, info()).with_boot_delay_us(delay_us);
+                b.node = drive_protocol::Node::new(cfg).unwrap();
                 b.node.boot(t0);
             } else {
                 b.nmt(cs, ID);
@@ -207,8 +201,7 @@ fn boot_delay_holds_the_boot_up_after_power_on_and_resets() {
 /// delay are reported (time goes on) but not processed.
 #[test]
 fn finish_boot_completes_a_pending_boot_at_once() {
-    let mut b = Bench::new();
-    b.node.set_boot_delay_us(200_000);
+    let mut b = Bench::with_boot_delay(200_000);
     b.take();
     b.nmt(0x82, ID);
     assert_eq!(b.sync(), FrameEvent::Sync { counter: None });
@@ -227,8 +220,7 @@ fn finish_boot_completes_a_pending_boot_at_once() {
 /// boot delay (only the communication restarts), reset node disables it.
 #[test]
 fn reset_communication_keeps_the_drive_enabled_during_the_boot_delay() {
-    let mut b = Bench::new();
-    b.node.set_boot_delay_us(100_000);
+    let mut b = Bench::with_boot_delay(100_000);
     b.start();
     b.enable(1);
     assert_eq!(b.node.cia402_state(), Cia402State::OperationEnabled);

@@ -1,7 +1,6 @@
 //! SDO server: expedited, segmented and block transfers, and every abort code it can give.
 mod common;
 use common::*;
-use drive_protocol::AxisParam;
 
 fn abort_of(r: &[drive_protocol::CanFrame]) -> u32 {
     assert_eq!(r.len(), 1, "one response");
@@ -289,52 +288,50 @@ fn heartbeat_consumer_duplicate_is_incompatible() {
     b.w32(0x1016, 2, (2 << 16) | 200).unwrap();
 }
 
+/// An object the drive keeps itself (a handler): SDO reads and writes reach the drive, which
+/// applies its own range with its own abort codes; a NaN passes the node (no limits) and the
+/// drive refuses it.
 #[test]
-fn manufacturer_parameter_conversion_and_range() {
+fn handler_objects_are_read_and_written_by_the_drive() {
     let mut b = Bench::new();
-    // backlash 0.05 mm -> 5e-5 m in the drive
-    b.w32(0x2000, 0, 0.05f32.to_bits()).unwrap();
-    let si = b.drive.params[param_slot(AxisParam::Backlash)];
-    assert!((si - 5e-5).abs() < 1e-9, "{si}");
-    let back = f32::from_bits(b.r32(0x2000, 0));
-    assert!((back - 0.05).abs() < 1e-6);
-    // the drive refuses 2 mm: value too high
-    assert_eq!(b.w32(0x2000, 0, 2.0f32.to_bits()), Err(0x0609_0031));
-    assert_eq!(b.w32(0x2000, 0, (-1.0f32).to_bits()), Err(0x0609_0032));
-    assert_eq!(b.w32(0x2000, 0, f32::NAN.to_bits()), Err(0x0609_0030));
-    // speed_ti in ms -> s
-    b.w32(0x2009, 0, 10.0f32.to_bits()).unwrap();
-    assert!((b.drive.params[param_slot(AxisParam::SpeedTi)] - 0.01).abs() < 1e-9);
-    // stiffness N/um -> N/m
-    b.w32(0x2001, 0, 200.0f32.to_bits()).unwrap();
-    assert!((b.drive.params[param_slot(AxisParam::Stiffness)] - 2e8).abs() < 1.0);
+    b.w32(HANDLER_INDEX, 1, 0.5f32.to_bits()).unwrap();
+    assert_eq!(b.drive.params[1], 0.5);
+    assert_eq!(f32::from_bits(b.r32(HANDLER_INDEX, 1)), 0.5);
+    b.drive.params[3] = 0.75;
+    assert_eq!(f32::from_bits(b.r32(HANDLER_INDEX, 3)), 0.75);
+    assert_eq!(b.w32(HANDLER_INDEX, 2, 2.0f32.to_bits()), Err(0x0609_0031));
+    assert_eq!(
+        b.w32(HANDLER_INDEX, 2, (-1.0f32).to_bits()),
+        Err(0x0609_0032)
+    );
+    assert_eq!(
+        b.w32(HANDLER_INDEX, 2, f32::NAN.to_bits()),
+        Err(0x0609_0032)
+    );
+    assert_eq!(b.drive.params[2], 0.0, "refused values change nothing");
+    assert_eq!(
+        b.w16(HANDLER_INDEX, 1, 1),
+        Err(0x0607_0013),
+        "the node checks the size"
+    );
+    assert_eq!(b.sdo_read(HANDLER_INDEX, 4), Err(0x0609_0011));
 }
 
+/// A stored read-only object the application sets (as the emulator publishes its loop
+/// statistics): SDO reads see the value, writes are refused.
 #[test]
-fn runtime_statistics_are_read_only() {
-    let mut b = Bench::new();
-    b.node.set_runtime_stats(drive_protocol::RuntimeStats {
-        ticks: 42,
-        overruns: 1,
-        lateness_p50_us: 3,
-        lateness_p99_us: 30,
-        lateness_max_us: 300,
-        dropped_tx_frames: 2,
-        sync_lock_state: 2,
-        sync_phase_error_us: 7,
-        sync_period_us: 1000,
-        tx_full_waits: 4,
-        rx_overflows: 5,
-    });
-    assert_eq!(b.r32(0x2100, 1), 42);
-    assert_eq!(b.r32(0x2100, 8), 2, "lock state");
-    assert_eq!(b.r32(0x2100, 9), 7, "phase error");
-    assert_eq!(b.r32(0x2100, 10), 1000, "SYNC period");
-    assert_eq!(b.r32(0x2100, 11), 4, "transmit waits");
-    assert_eq!(b.r32(0x2100, 13), 5, "kernel receive overflows");
-    assert_eq!(b.r32(0x2100, 4), 30);
-    assert_eq!(b.r32(0x2100, 5), 300);
-    assert_eq!(b.w32(0x2100, 1, 0), Err(0x0601_0002));
+fn application_values_are_set_by_the_application_and_read_only_on_the_bus() {
+    use drive_protocol::od::{Access, DataType, Entry, Lookup};
+    let mut od = od_with_handler();
+    let slot = od
+        .insert(Entry::var(0x2300, "ticks", DataType::U32, Access::Ro).with_pdo(true))
+        .unwrap();
+    let mut b = Bench::with_config(drive_protocol::NodeConfig::new(ID, info()).with_od(od));
+    assert_eq!(b.node.od().find(0x2300, 0), Lookup::Found(slot));
+    b.node.set_value(slot, 42);
+    assert_eq!(b.r32(0x2300, 0), 42);
+    assert_eq!(b.node.value(slot), Some(42));
+    assert_eq!(b.w32(0x2300, 0, 0), Err(0x0601_0002));
 }
 
 #[test]

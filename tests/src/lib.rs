@@ -330,6 +330,27 @@ impl Emu {
         self.stderr.lock().unwrap().join("\n")
     }
 
+    /// Wait for a line of stdout containing `needle` (the `--ready` line, say); the line, or
+    /// `None` after `timeout` or when the process has exited.
+    pub fn wait_stdout(&mut self, needle: &str, timeout: Duration) -> Option<String> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(l) = self
+                .stdout
+                .lock()
+                .unwrap()
+                .iter()
+                .find(|l| l.contains(needle))
+            {
+                return Some(l.clone());
+            }
+            if Instant::now() >= deadline || !self.alive() {
+                return None;
+            }
+            thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// SIGTERM, wait (up to 30 s, then SIGKILL), collect the output.
     pub fn stop(mut self) -> EmuExit {
         let mut child = self.child.take().expect("running");

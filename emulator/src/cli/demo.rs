@@ -19,7 +19,7 @@ use crate::session::OfflineRun;
 use crate::time::MonotonicClock;
 use anyhow::{bail, Result};
 use clap::Args;
-use drive_protocol::{Cia402State, Drive, Node};
+use drive_protocol::Cia402State;
 use std::sync::atomic::AtomicBool;
 
 #[derive(Args, Debug, Clone)]
@@ -201,8 +201,8 @@ fn run_in_process(
     mcfg: MasterConfig,
     program: Vec<Step>,
 ) -> Result<Master> {
-    let drive = AxisDrive::from_config(cfg)?;
-    let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut drive = AxisDrive::from_config(cfg)?;
+    let node = crate::drive::node(&mut drive, args.node)?;
     let mut run = OfflineRun::new(
         vec![AxisSlot { node, drive }],
         1000,

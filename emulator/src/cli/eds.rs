@@ -1,11 +1,12 @@
 //! `drive-emu eds` and `drive-emu presets`: what a master needs to know about the drive.
 
 use crate::drive::axis_drive::AxisDrive;
+use crate::drive::vendor::{self, VendorEds};
+use crate::drive::{node_setup, NodeOptions};
 use crate::presets::{preset_names, AxisConfig};
 use anyhow::Result;
 use clap::Args;
 use drive_protocol::od::eds::{EdsMeta, Real32Notation};
-use drive_protocol::{Drive, Node};
 
 #[derive(Args, Debug, Clone)]
 pub struct EdsArgs {
@@ -32,6 +33,16 @@ pub struct EdsArgs {
     /// the extra section: give this file to canopen-monitor alone.
     #[arg(long, requires = "node")]
     pub canopen_monitor: bool,
+    /// Write the EDS a drive serves with this vendor's EDS or DCF (`run --eds FILE`): the
+    /// vendor's objects, identity and PDO defaults, 0x6502 cut to the modes the emulator
+    /// runs, the emulator's own objects where the file leaves room. On stderr: what became of
+    /// every object (simulated, stored, dropped, added, hidden) and why.
+    #[arg(long, value_name = "FILE")]
+    pub from: Option<std::path::PathBuf>,
+    /// With --from: the first index of the emulator's own objects (default: the first free
+    /// of 0x2000, 0x3000, 0x4000, 0x5000, ...).
+    #[arg(long, value_name = "INDEX", requires = "from", value_parser = crate::cli::run::parse_index)]
+    pub objects_base: Option<u16>,
 }
 
 /// `--real32`: notation of REAL32 defaults in the EDS.
@@ -48,11 +59,33 @@ pub enum Real32Arg {
 /// every default is the value the drive has (manufacturer parameters from the preset and
 /// --set), the FileInfo section complete (time from SOURCE_DATE_EPOCH if set, else now, UTC).
 pub fn eds_text(args: &EdsArgs) -> Result<String> {
+    Ok(eds_and_report(args)?.0)
+}
+
+/// The EDS text and, with `--from`, the build report's text.
+pub fn eds_and_report(args: &EdsArgs) -> Result<(String, Option<String>)> {
     let cfg = AxisConfig::from_preset(&args.preset)?
         .with_overrides(args.set.iter().map(String::as_str))?;
-    let drive = AxisDrive::from_config(&cfg)?;
-    let node =
-        Node::new(args.node.unwrap_or(1), drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let vendor = match &args.from {
+        Some(p) => Some(std::sync::Arc::new(VendorEds::load(p)?)),
+        None => None,
+    };
+    let cfg = match &vendor {
+        Some(v) => v.adapt(cfg)?,
+        None => cfg,
+    };
+    let mut drive = AxisDrive::from_config(&cfg)?;
+    let opts = NodeOptions {
+        objects_base: args.objects_base,
+        eds: vendor.clone(),
+        ..NodeOptions::new(args.node.unwrap_or(1))
+    };
+    let setup = node_setup(&mut drive, &opts)?;
+    let report = match (&vendor, &setup.report) {
+        (Some(v), Some(r)) => Some(vendor::report_text(r, setup.objects_base, &v.path)),
+        _ => None,
+    };
+    let node = drive_protocol::Node::new(setup.config).map_err(|e| anyhow::anyhow!("{e}"))?;
     let secs = std::env::var("SOURCE_DATE_EPOCH")
         .ok()
         .and_then(|v| v.trim().parse::<u64>().ok())
@@ -62,11 +95,24 @@ pub fn eds_text(args: &EdsArgs) -> Result<String> {
                 .map_or(0, |d| d.as_secs())
         });
     let (time, date) = eds_time_date(secs);
-    let file_name = match args.node {
-        Some(n) => format!("drive-emu-{}-node{n}.eds", args.preset),
-        None => format!("drive-emu-{}.eds", args.preset),
+    let stem = match &args.from {
+        Some(p) => p
+            .file_stem()
+            .map_or_else(|| "vendor".into(), |s| s.to_string_lossy().into_owned()),
+        None => args.preset.clone(),
     };
-    let description = if args.set.is_empty() {
+    let file_name = match args.node {
+        Some(n) => format!("drive-emu-{stem}-node{n}.eds"),
+        None => format!("drive-emu-{stem}.eds"),
+    };
+    let description = if let Some(p) = &args.from {
+        format!(
+            "drive-emu serving {} (preset {} behind it)",
+            p.file_name()
+                .map_or_else(String::new, |f| f.to_string_lossy().into_owned()),
+            args.preset
+        )
+    } else if args.set.is_empty() {
         format!("drive-emu CiA 402 servo drive, preset {}", args.preset)
     } else {
         format!(
@@ -84,17 +130,17 @@ pub fn eds_text(args: &EdsArgs) -> Result<String> {
         time: &time,
         date: &date,
         node_id: args.node,
-        params: &[],
         real32: match args.real32 {
             Real32Arg::Bits => Real32Notation::Bits,
             Real32Arg::Decimal => Real32Notation::Decimal,
         },
     };
-    let eds = node.export_eds_of(&drive, &meta);
-    Ok(match args.node.filter(|_| args.canopen_monitor) {
+    let eds = node.export_eds(&mut drive, &meta);
+    let eds = match args.node.filter(|_| args.canopen_monitor) {
         Some(n) => with_canopen_monitor_section(&eds, n),
         None => eds,
-    })
+    };
+    Ok((eds, report))
 }
 
 /// The EDS with canopen-monitor's own commissioning section before the CiA 306 one (no
@@ -140,7 +186,11 @@ pub fn eds_time_date(unix_s: u64) -> (String, String) {
 }
 
 pub fn run_eds(args: &EdsArgs) -> Result<()> {
-    print!("{}", eds_text(args)?);
+    let (eds, report) = eds_and_report(args)?;
+    if let Some(r) = report {
+        eprint!("{r}");
+    }
+    print!("{eds}");
     Ok(())
 }
 

@@ -4,6 +4,7 @@ pub mod analyze;
 pub mod demo;
 pub mod eds;
 pub mod figures;
+pub mod lss_store;
 pub mod run;
 pub mod scenario;
 pub mod sim;

@@ -4,6 +4,8 @@ use crate::bus::fault::FaultyBus;
 use crate::bus::socketcan::SocketCanBus;
 use crate::drive::axis_drive::AxisDrive;
 use crate::drive::machine::{self, AxisEntry, MachineFile};
+use crate::drive::vendor::{self, VendorEds};
+use crate::drive::{node_setup, NodeOptions};
 use crate::presets::AxisConfig;
 use crate::runtime::realtime::{self, RealtimeRequest};
 use crate::runtime::trace::{trace_paths, Recorder, TraceTap};
@@ -13,10 +15,9 @@ use crate::scenario::Scenario;
 use crate::time::MonotonicClock;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use drive_protocol::{Drive, Node};
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, AtomicU8, Ordering};
 use std::sync::Arc;
 
 #[derive(Args, Debug, Clone)]
@@ -24,7 +25,8 @@ pub struct RunArgs {
     /// CAN interface (can0, vcan0, ...).
     #[arg(long, default_value = "vcan0")]
     pub iface: String,
-    /// Node ID of the (single) drive, 1..=127. Ignored with --config.
+    /// Node ID of the (single) drive, 1..=127; 255: non-configured, as a drive out of the box:
+    /// silent but for LSS (CiA 305) until a master gives it a node-ID. Ignored with --config.
     #[arg(long, default_value_t = 5)]
     pub node: u8,
     /// Preset of the (single) axis: cnc1 ... cnc5. Ignored with --config.
@@ -33,9 +35,21 @@ pub struct RunArgs {
     /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
-    /// Machine file with several axes (see README); replaces --node/--preset/--set.
+    /// Machine file with several axes (see README); replaces --node/--preset/--set/--eds.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Serve this vendor's EDS or DCF as the drive's own: its identity, device type, PDO
+    /// defaults and COB-IDs, every object it has (the CiA 301/402 ones simulated, the rest
+    /// stored), the modes of its 0x6502 that the emulator runs; the motor encoder takes its
+    /// 0x608F resolution. The axis behind it is still --preset's. What became of each object:
+    /// `drive-emu eds --from FILE`.
+    #[arg(long, value_name = "FILE")]
+    pub eds: Option<PathBuf>,
+    /// First index of the emulator's own objects (axis parameters at +0x00..0x0D, loop
+    /// statistics at +0x100, fault injection at +0x101), e.g. 0x4000. Default 0x2000, or
+    /// with --eds the first free base of 0x2000, 0x3000, 0x4000, 0x5000, ...
+    #[arg(long, value_name = "INDEX", value_parser = parse_index)]
+    pub objects_base: Option<u16>,
     /// Loop rate, Hz (250..8000).
     #[arg(long, default_value_t = 1000)]
     pub tick_hz: u32,
@@ -82,6 +96,12 @@ pub struct RunArgs {
     /// the wall clock. 0 = at once.
     #[arg(long, default_value_t = DEFAULT_BOOT_DELAY_MS, value_parser = clap::value_parser!(u64).range(0..=60_000))]
     pub boot_delay_ms: u64,
+    /// The drive's non-volatile memory for LSS store configuration (one axis): the node-ID and
+    /// bit timing a master stores by LSS are written to FILE, and a run with the same FILE
+    /// boots with them instead of --node (FILE is created at the first store). Without it a
+    /// store is kept in memory: an NMT reset node loads it, a new run does not.
+    #[arg(long, value_name = "FILE")]
+    pub lss_store: Option<PathBuf>,
     /// Print one JSON line on stdout once every drive has sent its boot-up:
     /// `{"event":"ready","iface":..,"nodes":[{"node_id":5,"preset":"cnc1"}],"pid":..,...}`
     /// (for scripts and test fixtures; with --json the statistics follow at exit).
@@ -122,6 +142,16 @@ pub fn validate_args(args: &RunArgs) -> Result<()> {
             bail!("--cpu {cpu}: this machine has CPUs 0..={}", n - 1);
         }
     }
+    if let (true, Some(p)) = (args.lockstep, &args.lss_store) {
+        // The store is written between ticks, and lock-step runs no tick without SYNC (a
+        // master configuring by LSS sends none): the answer would never come.
+        bail!(
+            "--lss-store {} and --lockstep: not together (in lock-step the loop stands still \
+             without SYNC, and the store is answered from the loop); without --lss-store a \
+             store configuration is kept in memory",
+            p.display()
+        );
+    }
     if let (true, Some(p)) = (args.lockstep, args.sync_period_us) {
         let tick_us = 1_000_000 / u64::from(args.tick_hz.max(1));
         if p == 0 || p > MAX_SYNC_PERIOD_US || !p.is_multiple_of(tick_us) {
@@ -137,24 +167,109 @@ pub fn validate_args(args: &RunArgs) -> Result<()> {
 }
 
 /// Build the nodes and drives of a machine.
-pub fn build_axes(entries: &[AxisEntry]) -> Result<Vec<AxisSlot<AxisDrive>>> {
+/// The LSS slave of a live run's axes: what `--lss-store` holds, and the serial number that
+/// keeps the LSS address when the node-ID changes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LssOptions {
+    /// Power-on bit timing and whether the store goes to the file.
+    pub config: drive_protocol::LssConfig,
+    /// 0x1018:4 (`None`: the node-ID at power-on).
+    pub serial_number: Option<u32>,
+}
+
+/// The axes of a machine, each node with `boot_delay_us` before its boot-up. With a vendor's
+/// EDS, what became of its objects is said on stderr, and the entry's `objects_base` is set
+/// to where the emulator's own objects went.
+pub fn build_axes(
+    entries: &mut [AxisEntry],
+    boot_delay_us: u64,
+    lss: &LssOptions,
+) -> Result<Vec<AxisSlot<AxisDrive>>> {
     entries
-        .iter()
+        .iter_mut()
         .map(|e| {
-            let mut cfg = AxisConfig::from_preset(&e.preset)
+            let cfg = AxisConfig::from_preset(&e.preset)
                 .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+            let mut cfg = cfg;
             for (k, v) in &e.set {
                 cfg = cfg
                     .with_override(k, &machine::value_text(v))
                     .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
             }
-            let drive = AxisDrive::from_config(&cfg)
-                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
-            let node = Node::new(e.node_id, drive.info())
-                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
-            Ok(AxisSlot { node, drive })
+            axis_slot(cfg, e, boot_delay_us, lss)
         })
         .collect()
+}
+
+/// One axis from its configuration and its machine entry (node ID, vendor EDS, objects base),
+/// its LSS slave as `lss` says.
+fn axis_slot(
+    cfg: AxisConfig,
+    e: &mut AxisEntry,
+    boot_delay_us: u64,
+    lss: &LssOptions,
+) -> Result<AxisSlot<AxisDrive>> {
+    let ctx = |err: anyhow::Error| anyhow::anyhow!("axis node {}: {err:#}", e.node_id);
+    let eds = match &e.eds {
+        Some(p) => Some(Arc::new(VendorEds::load(p).map_err(ctx)?)),
+        None => None,
+    };
+    let cfg = match &eds {
+        Some(v) => v.adapt(cfg).map_err(ctx)?,
+        None => cfg,
+    };
+    let mut drive = AxisDrive::from_config(&cfg).map_err(|err| ctx(err.into()))?;
+    let opts = NodeOptions {
+        objects_base: e.objects_base,
+        eds: eds.clone(),
+        lss: lss.config,
+        serial_number: lss.serial_number,
+        ..NodeOptions::new(e.node_id).with_boot_delay_us(boot_delay_us)
+    };
+    let setup = node_setup(&mut drive, &opts).map_err(ctx)?;
+    if let (Some(v), Some(r)) = (&eds, &setup.report) {
+        eprint!(
+            "drive-emu: node {}: {}",
+            e.node_id,
+            report_summary(r, setup.objects_base, &v.path)
+        );
+    }
+    e.objects_base = Some(setup.objects_base);
+    let node = drive_protocol::Node::new(setup.config)
+        .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+    Ok(AxisSlot { node, drive })
+}
+
+/// The first line and the notes of a build report (the whole report: `drive-emu eds --from`).
+fn report_summary(
+    r: &drive_protocol::od::BuildReport,
+    base: u16,
+    path: &std::path::Path,
+) -> String {
+    vendor::report_text(r, base, path)
+        .lines()
+        .filter(|l| !l.starts_with("  0x"))
+        .map(|l| format!("{l}\n"))
+        .collect()
+}
+
+/// An object index as a user writes it: 0x4000, 4000h or 16384.
+pub fn parse_index(s: &str) -> Result<u16, String> {
+    let t = s.trim();
+    let v = if let Some(h) = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        u16::from_str_radix(h, 16)
+    } else if let Some(h) = t.strip_suffix('h').or_else(|| t.strip_suffix('H')) {
+        u16::from_str_radix(h, 16)
+    } else {
+        t.parse::<u16>()
+    };
+    let v = v.map_err(|_| format!("`{s}` is not an object index (0x0000..=0xFFFF)"))?;
+    if !(0x2000..=0x5F00).contains(&v) {
+        return Err(format!(
+            "0x{v:04X} is outside the manufacturer area 0x2000..=0x5F00 (CiA 301)"
+        ));
+    }
+    Ok(v)
 }
 
 /// The machine described by the command line (one axis) or by --config.
@@ -179,6 +294,8 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
             node_id: args.node,
             preset: args.preset.clone(),
             set,
+            eds: args.eds.clone(),
+            objects_base: args.objects_base,
         }],
     };
     machine::validate(&m)?;
@@ -194,6 +311,12 @@ struct AxisStatus {
     mode: AtomicI64,
     position_uu: AtomicI64,
     following_error_uu: AtomicI64,
+    /// LSS store configuration to write: 0 none, else `1 << 32 | node_id << 8 | bit timing`.
+    lss_store_request: AtomicU64,
+    /// Its outcome for the loop: 0 none, 1 written, 2 failed.
+    lss_store_result: AtomicU8,
+    /// LSS activate bit timing to report: 0 none, else `1 << 32 | index << 16 | delay_ms`.
+    lss_activation: AtomicU64,
 }
 
 #[derive(Default)]
@@ -243,6 +366,76 @@ impl Status {
             .store(rt.bus.inner().link_up(), Ordering::Relaxed);
     }
 
+    /// After every tick (loop thread): hand LSS store requests and bit timing activations
+    /// out to the watch thread, and its store outcomes back to the nodes. Atomics only.
+    fn lss_exchange<B: crate::bus::CanBus>(&self, rt: &mut Runtime<B, AxisDrive>) {
+        for (a, st) in rt.axes.iter_mut().zip(&self.axes) {
+            let n = &mut a.node;
+            if let Some(s) = n.take_lss_store() {
+                let id = u64::from(s.node_id.unwrap_or(255));
+                st.lss_store_request.store(
+                    1 << 32 | id << 8 | u64::from(s.bit_timing_index),
+                    Ordering::Release,
+                );
+            }
+            match st.lss_store_result.swap(0, Ordering::Acquire) {
+                1 => n.lss_store_done(true),
+                2 => n.lss_store_done(false),
+                _ => {}
+            }
+            if let Some((index, delay_ms)) = n.take_lss_bit_timing_activation() {
+                st.lss_activation.store(
+                    1 << 32 | u64::from(index) << 16 | u64::from(delay_ms),
+                    Ordering::Release,
+                );
+            }
+        }
+    }
+
+    /// Watch thread: write the LSS stores the loop handed out (to `path`; a node asks only
+    /// when it has one) and say what the masters did.
+    fn lss_service(&self, path: Option<&std::path::Path>) {
+        for st in &self.axes {
+            let node = st.node_id.load(Ordering::Relaxed);
+            let req = st.lss_store_request.swap(0, Ordering::Acquire);
+            if req != 0 {
+                let s = drive_protocol::LssStore {
+                    node_id: Some((req >> 8) as u8).filter(|&n| n != 255),
+                    bit_timing_index: req as u8,
+                };
+                let ok = match path.map(|p| (p, super::lss_store::save(p, &s))) {
+                    Some((p, Ok(()))) => {
+                        eprintln!(
+                            "drive-emu: node {node}: LSS store configuration: node-ID {}, bit \
+                             timing {} written to {}",
+                            (req >> 8) as u8,
+                            super::lss_store::bit_timing_text(s.bit_timing_index),
+                            p.display()
+                        );
+                        true
+                    }
+                    Some((_, Err(e))) => {
+                        eprintln!("drive-emu: node {node}: LSS store configuration failed: {e:#}");
+                        false
+                    }
+                    None => false,
+                };
+                st.lss_store_result
+                    .store(if ok { 1 } else { 2 }, Ordering::Release);
+            }
+            let act = st.lss_activation.swap(0, Ordering::Acquire);
+            if act != 0 {
+                eprintln!(
+                    "drive-emu: node {node}: LSS activate bit timing {} after {} ms: a real \
+                     drive switches its CAN controller then; drive-emu cannot change the \
+                     interface's bit rate (set it with `ip link`), it keeps running as before",
+                    super::lss_store::bit_timing_text((act >> 16) as u8),
+                    act as u16
+                );
+            }
+        }
+    }
+
     fn new(n_axes: usize) -> Self {
         Self {
             axes: (0..n_axes).map(|_| AxisStatus::default()).collect(),
@@ -285,8 +478,11 @@ impl Status {
             format!(
                 "node {:<3} {:<15} {:<21} {:<7} pos {} ferr {} uu",
                 a.node_id.load(Ordering::Relaxed),
-                // The heartbeat's 0x00 is the boot-up; the state before it is initialising.
-                if nmt == 0 {
+                // The heartbeat's 0x00 is the boot-up; the state before it is initialising,
+                // or, without a node-ID, waiting for one by LSS.
+                if nmt == 0 && a.node_id.load(Ordering::Relaxed) == 255 {
+                    "UNCONFIGURED"
+                } else if nmt == 0 {
                     "INITIALISING"
                 } else {
                     crate::master::nmt_name(nmt)
@@ -579,25 +775,77 @@ fn live_axes(
                     node_id: args.node,
                     preset: cfg.name.clone(),
                     set: Default::default(),
+                    eds: args.eds.clone(),
+                    objects_base: args.objects_base,
                 }],
             }
         }
         None => machine_from_args(args)?,
     };
     machine::validate(&machine)?;
+    let mut machine = machine;
+    let lss = lss_options(args, &mut machine)?;
+    let boot_delay_us = args.boot_delay_ms * 1000;
     let axes = match scenario {
-        Some(s) => {
-            let drive = AxisDrive::from_config(&s.machine.configs[0])?;
-            let node = Node::new(args.node, drive.info()).map_err(|e| anyhow::anyhow!("{e}"))?;
-            vec![AxisSlot { node, drive }]
-        }
-        None => build_axes(&machine.axes)?,
+        Some(s) => vec![axis_slot(
+            s.machine.configs[0].clone(),
+            &mut machine.axes[0],
+            boot_delay_us,
+            &lss,
+        )?],
+        None => build_axes(&mut machine.axes, boot_delay_us, &lss)?,
     };
-    let mut axes = axes;
-    for ax in &mut axes {
-        ax.node.set_boot_delay_us(args.boot_delay_ms * 1000);
+    for ax in &axes {
+        if ax.node.node_id() == 255 {
+            eprintln!(
+                "drive-emu: node-ID 255: non-configured, silent but for LSS (CiA 305, COB-ID \
+                 0x7E5) until a master gives it a node-ID"
+            );
+        }
     }
     Ok((machine, axes))
+}
+
+/// `--lss-store FILE`: the drive's non-volatile memory (one axis). What it holds replaces the
+/// node-ID (the serial number stays `--node`'s, so the LSS address does not move), and a
+/// store configuration is written to it.
+fn lss_options(args: &RunArgs, machine: &mut MachineFile) -> Result<LssOptions> {
+    let Some(path) = &args.lss_store else {
+        return Ok(LssOptions::default());
+    };
+    if machine.axes.len() != 1 {
+        bail!(
+            "--lss-store {}: one axis only (the machine has {}): it is one drive's memory",
+            path.display(),
+            machine.axes.len()
+        );
+    }
+    let configured = machine.axes[0].node_id;
+    let mut opts = LssOptions {
+        config: drive_protocol::LssConfig {
+            store_external: true,
+            ..Default::default()
+        },
+        serial_number: Some(u32::from(configured)),
+    };
+    match super::lss_store::load(path)? {
+        Some(s) => {
+            let id = s.node_id.unwrap_or(255);
+            machine.axes[0].node_id = id;
+            opts.config.bit_timing_index = s.bit_timing_index;
+            eprintln!(
+                "drive-emu: LSS store {}: node-ID {id}, bit timing {} (instead of --node {configured})",
+                path.display(),
+                super::lss_store::bit_timing_text(s.bit_timing_index),
+            );
+        }
+        None => eprintln!(
+            "drive-emu: LSS store {}: nothing stored yet (written at the first LSS store \
+             configuration)",
+            path.display()
+        ),
+    }
+    Ok(opts)
 }
 
 /// Set on Ctrl-C / SIGTERM, and (without a scenario) after `--duration` of wall time; with a
@@ -742,6 +990,7 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
                 if let Some(tap) = &tap {
                     tap.on_tick(rt);
                 }
+                status.lss_exchange(rt);
                 status.publish(rt);
             };
             match lockstep {
@@ -765,7 +1014,10 @@ fn watch(
     let tty = std::io::stderr().is_terminal();
     let mut ready_sent = !args.ready;
     let mut drawn = 0;
+    let mut drawn_at = std::time::Instant::now();
     while !stop.load(Ordering::Relaxed) && !loop_thread.is_finished() {
+        // LSS store configuration: the master waits for the answer (python canopen 0.5 s).
+        status.lss_service(args.lss_store.as_deref());
         if !ready_sent && status.booted.load(Ordering::Acquire) {
             ready_sent = true;
             let line = serde_json::json!({
@@ -773,6 +1025,8 @@ fn watch(
                 "iface": args.iface,
                 "nodes": machine.axes.iter().map(|a| serde_json::json!({
                     "node_id": a.node_id, "preset": a.preset,
+                    "eds": a.eds.as_ref().map(|p| p.display().to_string()),
+                    "objects_base": a.objects_base.map(|b| format!("0x{b:04X}")),
                 })).collect::<Vec<_>>(),
                 "tick_hz": machine.tick_hz,
                 "lockstep": args.lockstep,
@@ -784,13 +1038,14 @@ fn watch(
             writeln!(out, "{line}")?;
             out.flush()?;
         }
-        std::thread::sleep(std::time::Duration::from_millis(if ready_sent {
-            200
-        } else {
-            5
-        }));
-        // Nothing to show before the loop's first tick has published the axes.
-        if tty && status.ticks.load(Ordering::Relaxed) > 0 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        // Nothing to show before the loop's first tick has published the axes; redrawn every
+        // 200 ms.
+        if tty
+            && status.ticks.load(Ordering::Relaxed) > 0
+            && drawn_at.elapsed() >= std::time::Duration::from_millis(200)
+        {
+            drawn_at = std::time::Instant::now();
             let lines = status.lines(&args.iface, lockstep.is_some());
             drawn = redraw(
                 &mut std::io::stderr().lock(),
@@ -926,6 +1181,73 @@ mod tests {
         let s = Status::new(1);
         axis(&s.axes[0], 5, 0x05, 0x0637, -2);
         assert!(s.lines("can0", true)[1].contains("manufacturer-specific mode -2"));
+    }
+
+    #[test]
+    fn a_non_configured_axis_is_shown_as_such() {
+        let s = Status::new(1);
+        axis(&s.axes[0], 255, 0x00, 0x0000, 0);
+        let line = &s.lines("can0", false)[1];
+        assert!(line.contains("node 255 UNCONFIGURED"), "{line}");
+        axis(&s.axes[0], 12, 0x00, 0x0000, 0);
+        assert!(s.lines("can0", false)[1].contains("INITIALISING"));
+    }
+
+    /// LSS store configuration from a node on the loop to the file and the answer back:
+    /// the loop hands the request out, the watch thread writes FILE, the loop queues the
+    /// answer (error 0); an unwritable FILE gives error 2.
+    #[test]
+    fn an_lss_store_goes_from_the_loop_to_the_file_and_back() {
+        use crate::bus::inproc::{InProcBus, InProcEndpoint};
+        use drive_protocol::CanFrame;
+        let dir = std::env::temp_dir().join(format!("run-lss-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("drive.lss");
+        let mut drive = AxisDrive::from_config(&AxisConfig::from_preset("cnc1").unwrap()).unwrap();
+        let opts = NodeOptions {
+            lss: drive_protocol::LssConfig {
+                store_external: true,
+                ..Default::default()
+            },
+            ..NodeOptions::new(255)
+        };
+        let mut node = crate::drive::build_node(&mut drive, &opts).unwrap();
+        node.boot(0);
+        let bus = InProcBus::endpoints(1, 16).remove(0);
+        let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
+        let status = Status::new(1);
+        let lss = |rt: &mut Runtime<InProcEndpoint, AxisDrive>, d: [u8; 8]| {
+            let ax = &mut rt.axes[0];
+            ax.node.handle(&CanFrame::new(0x7E5, &d), 0, &mut ax.drive);
+        };
+        let answers = |rt: &mut Runtime<InProcEndpoint, AxisDrive>| {
+            let mut v = Vec::new();
+            while let Some(f) = rt.axes[0].node.pop_tx() {
+                v.push(f.data);
+            }
+            v
+        };
+        lss(&mut rt, [0x04, 1, 0, 0, 0, 0, 0, 0]);
+        lss(&mut rt, [0x11, 12, 0, 0, 0, 0, 0, 0]);
+        lss(&mut rt, [0x13, 0, 3, 0, 0, 0, 0, 0]);
+        answers(&mut rt);
+        for (file, answer) in [(path.clone(), 0u8), (dir.join("no/such/dir/x"), 2)] {
+            lss(&mut rt, [0x17, 0, 0, 0, 0, 0, 0, 0]);
+            assert!(answers(&mut rt).is_empty(), "answered after the write");
+            status.lss_exchange(&mut rt); // loop: hands the request out
+            status.lss_service(Some(&file)); // watch thread: writes
+            assert!(answers(&mut rt).is_empty());
+            status.lss_exchange(&mut rt); // loop: the answer
+            assert_eq!(answers(&mut rt), [[0x17, answer, 0, 0, 0, 0, 0, 0]]);
+        }
+        assert_eq!(
+            crate::cli::lss_store::load(&path).unwrap(),
+            Some(crate::cli::lss_store::Stored {
+                node_id: Some(12),
+                bit_timing_index: 3
+            })
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

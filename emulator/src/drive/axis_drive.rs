@@ -7,9 +7,11 @@
 //! The servo keeps its own control cycle (`position_cycle_us` of the preset) whatever the bus
 //! tick: [`AxisDrive::advance`] runs as many position cycles as the elapsed time holds.
 
+use super::objects::{AxisParam, EmuObjects, ParamError, INJECT_TAG, PARAMS};
 use crate::control::cascade::{Command, Servo, Setpoint as ServoSetpoint};
 use crate::presets::{AxisConfig, AxisKind, ConfigError, Transmission};
-use drive_protocol::{AxisParam, Drive, DriveCommand, DriveInfo, Feedback, ParamError, Setpoint};
+use drive_protocol::wire::sdo::abort;
+use drive_protocol::{Drive, DriveCommand, DriveInfo, Feedback, Setpoint};
 
 use crate::runtime::SimulatedDrive;
 
@@ -97,6 +99,12 @@ pub struct AxisDrive {
     thermal_alpha: f64,
     /// The servo as built from the preset, at rest: what reset node restores.
     initial: Servo,
+    /// A fault injected over the bus (the emulator's fault-injection object), reported until
+    /// 0 is written; a fault reset meanwhile is refused.
+    injected: Option<u16>,
+    /// Where this drive's emulator objects are in its node's dictionary (set when the node
+    /// is built, `drive::node`).
+    pub objects: Option<EmuObjects>,
 }
 
 /// `x` as a fraction n/d with d <= 1000, reduced.
@@ -174,7 +182,124 @@ impl AxisDrive {
             user_unit,
             pending_us: 0.0,
             fault_latched: false,
+            injected: None,
+            objects: None,
         })
+    }
+
+    /// An axis parameter in SI units.
+    pub fn param(&self, param: AxisParam) -> f64 {
+        let s = &self.servo;
+        let m = s.axis.mech.params();
+        match param {
+            AxisParam::Backlash => m.contact.backlash,
+            AxisParam::Stiffness => m.contact.stiffness,
+            AxisParam::Damping => m.contact.damping,
+            AxisParam::LoadCoulombFriction => m.load_friction.coulomb,
+            AxisParam::LoadViscousFriction => m.load_friction.viscous,
+            AxisParam::MotorCoulombFriction => m.motor_friction.coulomb,
+            AxisParam::ExternalLoad => s.axis.external_load(),
+            AxisParam::Kv => s.cascade.params.kv,
+            AxisParam::SpeedKp => s.cascade.params.speed_kp,
+            AxisParam::SpeedTi => s.cascade.params.speed_ti,
+            AxisParam::MotorEncoderNoise => s.axis.motor_encoder.params.noise_counts,
+            AxisParam::DirectEncoderNoise => {
+                s.axis.direct_encoder.params.noise_counts
+                    / s.axis.direct_encoder.params.counts_per_unit
+            }
+            AxisParam::DirectEncoderOffset => s.axis.direct_encoder.params.offset,
+            AxisParam::PositionFromDirect => {
+                f64::from(u8::from(s.cascade.params.position_from_direct))
+            }
+        }
+    }
+
+    /// Write an axis parameter in SI units; the new value takes effect at the next step. A
+    /// value outside what the axis can take (a worn or faulty machine's physical range, what
+    /// the physics step integrates) is refused with the accepted range and changes nothing.
+    pub fn set_param(&mut self, param: AxisParam, value: f64) -> Result<(), ParamError> {
+        let rotary = self.info.rotary;
+        // Ranges: what a worn or faulty machine can physically show, in SI at the load, and
+        // what the physics step can integrate.
+        let max_gap = if rotary {
+            crate::presets::MAX_BACKLASH_RAD
+        } else {
+            crate::presets::MAX_BACKLASH_M
+        };
+        // The motor's peak force (torque) at the load bounds loads and friction: beyond it
+        // the motor could never hold or move the axis.
+        let f_peak = self.peak_load_force();
+        let v_max_load = self.servo.axis.motor.params.max_speed / self.servo.axis.ratio();
+        let s = &mut self.servo;
+        match param {
+            AxisParam::Backlash => s.axis.set_backlash(check(value, 0.0, max_gap)?),
+            AxisParam::Stiffness => {
+                // Softer than this, the motor's peak force deflects the drive train by more
+                // than the largest backlash the drive accepts: no longer a drive train.
+                let min = f_peak / max_gap;
+                let k = check(value, min, f64::MAX)?;
+                s.axis
+                    .set_stiffness(k)
+                    .map_err(|e| ParamError::OutOfRange {
+                        min,
+                        // The stable step scales with 1/sqrt(k).
+                        max: k * (e.max_step / e.step).powi(2),
+                    })?;
+            }
+            AxisParam::Damping => {
+                let m = s.axis.mech.params();
+                let min = MIN_DAMPING_RATIO * 2.0 * (m.contact.stiffness * m.reduced_mass()).sqrt();
+                let c = check(value, min, f64::MAX)?;
+                s.axis.set_damping(c).map_err(|e| ParamError::OutOfRange {
+                    min,
+                    // c h / m_red <= 0.5: the limit scales with 1/h.
+                    max: c * e.max_step / e.step,
+                })?;
+            }
+            AxisParam::LoadCoulombFriction => {
+                let f = s.axis.mech.params().load_friction;
+                s.axis
+                    .set_load_friction(f.with_coulomb(check(value, 0.0, f_peak)?));
+            }
+            AxisParam::LoadViscousFriction => {
+                let mut f = s.axis.mech.params().load_friction;
+                // At the maximum speed the viscous force stays within the motor's force.
+                f.viscous = check(value, 0.0, f_peak / v_max_load)?;
+                s.axis.set_load_friction(f);
+            }
+            AxisParam::MotorCoulombFriction => {
+                let f = s.axis.mech.params().motor_friction;
+                let max = s.axis.motor.torque_limit();
+                s.axis
+                    .set_motor_friction(f.with_coulomb(check(value, 0.0, max)?));
+            }
+            AxisParam::ExternalLoad => s.axis.set_external_load(check(value, -f_peak, f_peak)?),
+            AxisParam::Kv => s.set_kv(check(value, 0.0, 1000.0)?),
+            AxisParam::SpeedKp => {
+                let ti = s.cascade.params.speed_ti;
+                s.set_speed_gains(check(value, 0.0, 1e4)?, ti)
+            }
+            AxisParam::SpeedTi => {
+                let kp = s.cascade.params.speed_kp;
+                s.set_speed_gains(kp, check(value, 1e-4, 10.0)?)
+            }
+            AxisParam::MotorEncoderNoise => s.axis.motor_encoder.set_noise(check(value, 0.0, 1e6)?),
+            AxisParam::DirectEncoderNoise => {
+                let cpu = s.axis.direct_encoder.params.counts_per_unit;
+                s.axis
+                    .direct_encoder
+                    .set_noise(check(value, 0.0, max_gap)? * cpu)
+            }
+            AxisParam::DirectEncoderOffset => {
+                s.axis
+                    .direct_encoder
+                    .set_offset(check(value, -max_gap * 100.0, max_gap * 100.0)?)
+            }
+            AxisParam::PositionFromDirect => {
+                s.set_position_from_direct(check(value, 0.0, 1.0)? >= 0.5)
+            }
+        }
+        Ok(())
     }
 
     /// Increments per load unit (m or rad): the adapter's conversion factor.
@@ -318,7 +443,8 @@ impl Drive for AxisDrive {
             positive_limit_switch: false,
             drive_fault: self
                 .trip
-                .or((self.fault_latched || s.encoder_fault()).then_some(ERROR_SENSOR)),
+                .or((self.fault_latched || s.encoder_fault()).then_some(ERROR_SENSOR))
+                .or(self.injected),
         }
     }
 
@@ -354,121 +480,39 @@ impl Drive for AxisDrive {
         });
     }
 
-    fn param(&self, param: AxisParam) -> Result<f64, ParamError> {
-        let s = &self.servo;
-        let m = s.axis.mech.params();
-        Ok(match param {
-            AxisParam::Backlash => m.contact.backlash,
-            AxisParam::Stiffness => m.contact.stiffness,
-            AxisParam::Damping => m.contact.damping,
-            AxisParam::LoadCoulombFriction => m.load_friction.coulomb,
-            AxisParam::LoadViscousFriction => m.load_friction.viscous,
-            AxisParam::MotorCoulombFriction => m.motor_friction.coulomb,
-            AxisParam::ExternalLoad => s.axis.external_load(),
-            AxisParam::Kv => s.cascade.params.kv,
-            AxisParam::SpeedKp => s.cascade.params.speed_kp,
-            AxisParam::SpeedTi => s.cascade.params.speed_ti,
-            AxisParam::MotorEncoderNoise => s.axis.motor_encoder.params.noise_counts,
-            AxisParam::DirectEncoderNoise => {
-                s.axis.direct_encoder.params.noise_counts
-                    / s.axis.direct_encoder.params.counts_per_unit
-            }
-            AxisParam::DirectEncoderOffset => s.axis.direct_encoder.params.offset,
-            AxisParam::PositionFromDirect => {
-                f64::from(u8::from(s.cascade.params.position_from_direct))
-            }
-            _ => return Err(ParamError::Unsupported),
-        })
+    fn read_object(
+        &mut self,
+        tag: u16,
+        _index: u16,
+        _sub: u8,
+        out: &mut [u8],
+    ) -> Result<usize, u32> {
+        let def = PARAMS.get(tag as usize).ok_or(abort::NO_OBJECT)?;
+        let (_, scale) = def.unit(self.info.rotary);
+        let v = (self.param(def.param) * scale) as f32;
+        out[..4].copy_from_slice(&v.to_le_bytes());
+        Ok(4)
     }
 
-    fn set_param(&mut self, param: AxisParam, value: f64) -> Result<(), ParamError> {
-        let rotary = self.info.rotary;
-        // Ranges: what a worn or faulty machine can physically show, in SI at the load, and
-        // what the physics step can integrate.
-        let max_gap = if rotary {
-            crate::presets::MAX_BACKLASH_RAD
-        } else {
-            crate::presets::MAX_BACKLASH_M
-        };
-        // The motor's peak force (torque) at the load bounds loads and friction: beyond it
-        // the motor could never hold or move the axis.
-        let f_peak = self.peak_load_force();
-        let v_max_load = self.servo.axis.motor.params.max_speed / self.servo.axis.ratio();
-        let s = &mut self.servo;
-        match param {
-            AxisParam::Backlash => s.axis.set_backlash(check(value, 0.0, max_gap)?),
-            AxisParam::Stiffness => {
-                // Softer than this, the motor's peak force deflects the drive train by more
-                // than the largest backlash the drive accepts: no longer a drive train.
-                let min = f_peak / max_gap;
-                let k = check(value, min, f64::MAX)?;
-                s.axis
-                    .set_stiffness(k)
-                    .map_err(|e| ParamError::OutOfRange {
-                        min,
-                        // The stable step scales with 1/sqrt(k).
-                        max: k * (e.max_step / e.step).powi(2),
-                    })?;
-            }
-            AxisParam::Damping => {
-                let m = s.axis.mech.params();
-                let min = MIN_DAMPING_RATIO * 2.0 * (m.contact.stiffness * m.reduced_mass()).sqrt();
-                let c = check(value, min, f64::MAX)?;
-                s.axis.set_damping(c).map_err(|e| ParamError::OutOfRange {
-                    min,
-                    // c h / m_red <= 0.5: the limit scales with 1/h.
-                    max: c * e.max_step / e.step,
-                })?;
-            }
-            AxisParam::LoadCoulombFriction => {
-                let f = s.axis.mech.params().load_friction;
-                s.axis
-                    .set_load_friction(f.with_coulomb(check(value, 0.0, f_peak)?));
-            }
-            AxisParam::LoadViscousFriction => {
-                let mut f = s.axis.mech.params().load_friction;
-                // At the maximum speed the viscous force stays within the motor's force.
-                f.viscous = check(value, 0.0, f_peak / v_max_load)?;
-                s.axis.set_load_friction(f);
-            }
-            AxisParam::MotorCoulombFriction => {
-                let f = s.axis.mech.params().motor_friction;
-                let max = s.axis.motor.torque_limit();
-                s.axis
-                    .set_motor_friction(f.with_coulomb(check(value, 0.0, max)?));
-            }
-            AxisParam::ExternalLoad => s.axis.set_external_load(check(value, -f_peak, f_peak)?),
-            AxisParam::Kv => s.set_kv(check(value, 0.0, 1000.0)?),
-            AxisParam::SpeedKp => {
-                let ti = s.cascade.params.speed_ti;
-                s.set_speed_gains(check(value, 0.0, 1e4)?, ti)
-            }
-            AxisParam::SpeedTi => {
-                let kp = s.cascade.params.speed_kp;
-                s.set_speed_gains(kp, check(value, 1e-4, 10.0)?)
-            }
-            AxisParam::MotorEncoderNoise => s.axis.motor_encoder.set_noise(check(value, 0.0, 1e6)?),
-            AxisParam::DirectEncoderNoise => {
-                let cpu = s.axis.direct_encoder.params.counts_per_unit;
-                s.axis
-                    .direct_encoder
-                    .set_noise(check(value, 0.0, max_gap)? * cpu)
-            }
-            AxisParam::DirectEncoderOffset => {
-                s.axis
-                    .direct_encoder
-                    .set_offset(check(value, -max_gap * 100.0, max_gap * 100.0)?)
-            }
-            AxisParam::PositionFromDirect => {
-                s.set_position_from_direct(check(value, 0.0, 1.0)? >= 0.5)
-            }
-            _ => return Err(ParamError::Unsupported),
+    fn write_object(&mut self, tag: u16, _index: u16, _sub: u8, data: &[u8]) -> Result<(), u32> {
+        if tag == INJECT_TAG {
+            let code = u16::from_le_bytes([data[0], *data.get(1).unwrap_or(&0)]);
+            self.injected = (code != 0).then_some(code);
+            return Ok(());
         }
-        Ok(())
+        let def = PARAMS.get(tag as usize).ok_or(abort::NO_OBJECT)?;
+        let bytes: [u8; 4] = data.try_into().map_err(|_| abort::LENGTH_MISMATCH)?;
+        let v = f32::from_le_bytes(bytes) as f64;
+        if !v.is_finite() {
+            return Err(abort::VALUE_RANGE);
+        }
+        let (_, scale) = def.unit(self.info.rotary);
+        let si = v / scale;
+        self.set_param(def.param, si).map_err(|e| e.abort_code(si))
     }
 
     fn reset_fault(&mut self) -> bool {
-        if self.servo.encoder_fault() {
+        if self.servo.encoder_fault() || self.injected.is_some() {
             return false;
         }
         self.fault_latched = false;
@@ -492,11 +536,18 @@ impl Drive for AxisDrive {
         self.servo.axis.direct_encoder.set_signal_lost(direct_lost);
         self.trip = None;
         self.fault_latched = motor_lost || direct_lost;
+        self.injected = None;
         self.pending_us = 0.0;
     }
 }
 
 impl SimulatedDrive for AxisDrive {
+    fn stats_slots(
+        &self,
+    ) -> Option<&[drive_protocol::od::Slot; crate::runtime::stats::STATS_NAMES.len()]> {
+        self.objects.as_ref().map(|o| &o.stats)
+    }
+
     fn advance(&mut self, dt_us: u64) {
         self.pending_us += dt_us as f64;
         // Half a microsecond of slack absorbs rounding of non-integer cycle times.
@@ -575,15 +626,15 @@ mod tests {
     #[test]
     fn out_of_range_parameters_are_refused_and_change_nothing() {
         let mut d = cnc("cnc1");
-        let before = d.param(AxisParam::Backlash).unwrap();
+        let before = d.param(AxisParam::Backlash);
         assert!(matches!(
             d.set_param(AxisParam::Backlash, -1e-5),
             Err(ParamError::OutOfRange { .. })
         ));
         assert!(d.set_param(AxisParam::Kv, f64::NAN).is_err());
-        assert_eq!(d.param(AxisParam::Backlash).unwrap(), before);
+        assert_eq!(d.param(AxisParam::Backlash), before);
         d.set_param(AxisParam::Backlash, 5e-5).unwrap();
-        assert_eq!(d.param(AxisParam::Backlash).unwrap(), 5e-5);
+        assert_eq!(d.param(AxisParam::Backlash), 5e-5);
         // Too stiff for the physics step: refused with a finite upper bound.
         match d.set_param(AxisParam::Stiffness, 1e15) {
             Err(ParamError::OutOfRange { max, .. }) => assert!(max < 1e15 && max > 1e8, "{max}"),
@@ -693,7 +744,7 @@ mod tests {
                 AxisParam::MotorCoulombFriction,
                 AxisParam::ExternalLoad,
             ] {
-                let v = d.param(p).unwrap();
+                let v = d.param(p);
                 d.set_param(p, v)
                     .unwrap_or_else(|e| panic!("{name}: preset {p:?} = {v} refused: {e:?}"));
             }
@@ -713,12 +764,12 @@ mod tests {
                 (AxisParam::Damping, f64::INFINITY),
                 (AxisParam::Stiffness, f64::NAN),
             ] {
-                let before = d.param(p).unwrap();
+                let before = d.param(p);
                 assert!(
                     matches!(d.set_param(p, v), Err(ParamError::OutOfRange { .. })),
                     "{name}: {p:?} = {v} accepted"
                 );
-                assert_eq!(d.param(p).unwrap(), before, "{name}: refused but changed");
+                assert_eq!(d.param(p), before, "{name}: refused but changed");
             }
             // Loads the motor can hold are accepted.
             d.set_param(AxisParam::ExternalLoad, 0.5 * f).unwrap();
@@ -732,7 +783,7 @@ mod tests {
         // faults on overspeed before anything absurd happens; after reset node the axis is
         // at rest with the preset's parameters and positions normally again.
         let mut d = cnc("cnc1");
-        let k0 = d.param(AxisParam::Stiffness).unwrap();
+        let k0 = d.param(AxisParam::Stiffness);
         assert!(d.set_param(AxisParam::Damping, 0.0).is_err());
         assert!(d.set_param(AxisParam::Stiffness, 1e-30 * 1e6).is_err());
         d.set_param(AxisParam::ExternalLoad, 1e4).unwrap();
@@ -753,7 +804,7 @@ mod tests {
         d.set_param(AxisParam::Stiffness, k0).unwrap();
         d.reset();
         assert_eq!(d.feedback().drive_fault, None);
-        assert_eq!(d.param(AxisParam::ExternalLoad).unwrap(), 0.0);
+        assert_eq!(d.param(AxisParam::ExternalLoad), 0.0);
         // Usable: positions 1 mm further and settles there.
         d.set_param(AxisParam::Backlash, 0.0).unwrap();
         let start = d.feedback().direct_position_inc as f64;

@@ -9,12 +9,14 @@
 //! [[axis]]
 //! node_id = 6
 //! preset = "cnc3"
+//! eds = "vendor/epos4.eds"  # optional: serve this vendor's EDS/DCF (relative to this file)
+//! objects_base = 0x4000     # optional: where the emulator's own objects go
 //! ```
 
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 pub const MIN_TICK_HZ: u32 = 250;
 pub const MAX_TICK_HZ: u32 = 8000;
@@ -36,6 +38,14 @@ pub struct AxisEntry {
     /// Preset overrides, `key = value` with the preset file's keys (units in the names).
     #[serde(default)]
     pub set: BTreeMap<String, toml::Value>,
+    /// A vendor's EDS or DCF the drive serves as its own (`drive/vendor.rs`); in a machine
+    /// file, relative to the file's directory.
+    #[serde(default)]
+    pub eds: Option<PathBuf>,
+    /// First index of the emulator's own objects (default 0x2000, or the first free base
+    /// with `eds`).
+    #[serde(default)]
+    pub objects_base: Option<u16>,
 }
 
 fn default_tick_hz() -> u32 {
@@ -61,9 +71,12 @@ pub fn validate(m: &MachineFile) -> Result<()> {
     }
     let mut seen = std::collections::BTreeSet::new();
     for (i, a) in m.axes.iter().enumerate() {
-        if !(1..=127).contains(&a.node_id) {
+        // 255: non-configured (LSS), for a single drive: two would share one LSS address
+        let lss_single = a.node_id == 255 && m.axes.len() == 1;
+        if !(1..=127).contains(&a.node_id) && !lss_single {
             bail!(
-                "axis {} key `node_id`: {} is outside 1..=127",
+                "axis {} key `node_id`: {} is outside 1..=127 (255, non-configured for LSS, \
+                 only on a machine of one axis)",
                 i + 1,
                 a.node_id
             );
@@ -88,7 +101,17 @@ pub fn parse(text: &str, origin: &str) -> Result<MachineFile> {
 pub fn load(path: &Path) -> Result<MachineFile> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read machine file {}", path.display()))?;
-    parse(&text, &path.display().to_string())
+    let mut m = parse(&text, &path.display().to_string())?;
+    // an EDS path is relative to the machine file, as a user writes it beside it
+    let dir = path.parent().unwrap_or(Path::new("."));
+    for a in &mut m.axes {
+        if let Some(e) = &a.eds {
+            if e.is_relative() {
+                a.eds = Some(dir.join(e));
+            }
+        }
+    }
+    Ok(m)
 }
 
 /// Render an override value as the text a preset's `--set key=value` takes.
@@ -102,6 +125,24 @@ pub fn value_text(v: &toml::Value) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Node-ID 255 (non-configured, LSS) on a machine of one axis; not on two (they would
+    /// share one LSS address).
+    #[test]
+    fn node_id_255_only_on_a_single_axis() {
+        assert!(parse("[[axis]]\nnode_id = 255\npreset = \"cnc1\"\n", "m.toml").is_ok());
+        let e = parse(
+            "[[axis]]\nnode_id = 255\npreset = \"a\"\n[[axis]]\nnode_id = 6\npreset = \"b\"\n",
+            "m.toml",
+        )
+        .unwrap_err();
+        let e = format!("{e:#}");
+        assert!(e.contains("255") && e.contains("one axis"), "{e}");
+        for bad in [0u8, 128, 254] {
+            let text = format!("[[axis]]\nnode_id = {bad}\npreset = \"a\"\n");
+            assert!(parse(&text, "m.toml").is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn parses_axes_and_overrides() {

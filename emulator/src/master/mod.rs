@@ -22,12 +22,10 @@ use drive_protocol::Cia402State;
 use sdo_client::{SdoClient, SdoResult};
 use std::collections::VecDeque;
 
-/// CiA 402 operation modes the master uses (0x6060 values).
-pub const MODE_PP: i8 = 1;
-pub const MODE_PV: i8 = 3;
-pub const MODE_CSP: i8 = 8;
-pub const MODE_CSV: i8 = 9;
-pub const MODE_CST: i8 = 10;
+/// CiA 402 operation modes the master uses (0x6060 values, from the protocol's one registry).
+pub use drive_protocol::cia402::mode::value::{
+    CSP as MODE_CSP, CST as MODE_CST, CSV as MODE_CSV, PP as MODE_PP, PV as MODE_PV,
+};
 
 #[derive(Debug, Clone)]
 pub struct MasterConfig {
@@ -137,23 +135,45 @@ impl std::fmt::Display for Step {
     }
 }
 
-/// "0x2000 sub 0 (Backlash_mm) = 0.05": an SDO value decoded with the object's data type from
-/// the object table (REAL32 as a number, signed as signed), raw when the object is unknown.
+/// The dictionary of our drive as the master names its objects: the standard objects and
+/// the emulator's at their default base (linear names).
+fn reference_dictionary() -> &'static drive_protocol::od::ObjectDictionary {
+    static OD: std::sync::OnceLock<drive_protocol::od::ObjectDictionary> =
+        std::sync::OnceLock::new();
+    OD.get_or_init(|| {
+        let info = drive_protocol::DriveInfo {
+            encoder_increments_per_rev: 1,
+            gear_motor_revs: 1,
+            gear_shaft_revs: 1,
+            feed_user_units: 1,
+            feed_shaft_revs: 1,
+            rated_torque_mnm: 1,
+            rated_current_ma: 1,
+            max_motor_speed_rpm: 1,
+            rotary: false,
+        };
+        let mut od = drive_protocol::od::ObjectDictionary::standard(&info);
+        // the standard dictionary has nothing at the default base: this cannot collide
+        let _ =
+            crate::drive::objects::register(&mut od, crate::drive::objects::DEFAULT_BASE, false);
+        od
+    })
+}
+
+/// "0x2000 sub 0 (backlash_mm) = 0.05": an SDO value decoded with the object's data type from
+/// our drive's dictionary (REAL32 as a number, signed as signed), raw when the object is
+/// unknown.
 pub fn sdo_value_text(index: u16, sub: u8, value: u32, len: u8) -> String {
-    use drive_protocol::od::{self, DataType, Lookup};
-    let (name, shown) = match od::find(index, sub) {
-        Lookup::Found(i) => {
-            let o = &od::OBJECTS[i];
-            let v = match o.dtype {
-                DataType::Real32 => format!("{}", f32::from_bits(value)),
-                DataType::I8 => format!("{}", value as u8 as i8),
-                DataType::I16 => format!("{}", value as u16 as i16),
-                DataType::I32 => format!("{}", value as i32),
-                _ => format!("{value}"),
-            };
-            (format!(" ({})", o.name), v)
+    let od = reference_dictionary();
+    let (name, shown) = match od.get(index, sub) {
+        Some((_, e)) => {
+            let raw = e.decode(&value.to_le_bytes()[..usize::from(len).clamp(1, 4)]);
+            let v = e
+                .number(raw)
+                .map_or_else(|| format!("{value}"), |n| n.to_string());
+            (format!(" ({})", e.name), v)
         }
-        _ => (
+        None => (
             String::new(),
             format!("{value:#0w$X}", w = 2 + 2 * usize::from(len)),
         ),
@@ -213,21 +233,9 @@ struct StepState {
 }
 
 /// A CiA 402 mode of operation (0x6060 / 0x6061) by name, e.g. "CSP (cyclic synchronous
-/// position)".
+/// position)" (the protocol's mode registry says it).
 pub fn mode_name(mode: i8) -> &'static str {
-    match mode {
-        0 => "no mode",
-        1 => "PP (profile position)",
-        3 => "PV (profile velocity)",
-        4 => "PT (profile torque)",
-        6 => "HM (homing)",
-        7 => "IP (interpolated position)",
-        8 => "CSP (cyclic synchronous position)",
-        9 => "CSV (cyclic synchronous velocity)",
-        10 => "CST (cyclic synchronous torque)",
-        m if m < 0 => "manufacturer-specific mode",
-        _ => "reserved mode",
-    }
+    drive_protocol::cia402::mode::describe(mode)
 }
 
 /// The short name of a mode: "CSP", "PP", "no mode"; a mode without a name is said with its

@@ -21,7 +21,8 @@ pub mod trace;
 
 use crate::bus::{CanBus, CanFrame, SendError};
 use crate::time::Clock;
-use drive_protocol::{Drive, FrameEvent, Node, RuntimeStats};
+use drive_protocol::od::Slot;
+use drive_protocol::{Drive, FrameEvent, Node};
 use pll::SyncPll;
 use stats::LoopStats;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -50,6 +51,11 @@ pub const SYNC_LEAD_US: u64 = 150;
 pub trait SimulatedDrive: Drive {
     /// Advance the simulated axis by `dt_us` of simulated time.
     fn advance(&mut self, dt_us: u64);
+    /// Slots of its node's statistics object ([`stats::STATS_NAMES`] order), where the
+    /// runtime publishes the loop statistics; `None`: the node has none.
+    fn stats_slots(&self) -> Option<&[Slot; stats::STATS_NAMES.len()]> {
+        None
+    }
 }
 
 /// One axis: the CANopen node and the simulated drive behind it.
@@ -230,24 +236,32 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         r
     }
 
-    /// Copy the loop statistics into every node's statistics object (0x2100).
+    /// Copy the loop statistics into every node's statistics object (0x2100 by default).
     pub fn publish_stats(&mut self) {
         let s = self.stats.summary();
-        let rs = RuntimeStats {
-            ticks: s.ticks as u32,
-            overruns: s.overruns as u32,
-            lateness_p50_us: s.lateness_p50_us as u32,
-            lateness_p99_us: s.lateness_p99_us as u32,
-            lateness_max_us: s.lateness_max_us as u32,
-            dropped_tx_frames: s.tx_dropped as u32,
-            sync_lock_state: s.sync_lock_state,
-            sync_phase_error_us: s.sync_phase_error_us.min(u64::from(u32::MAX)) as u32,
-            sync_period_us: s.sync_period_us.min(u64::from(u32::MAX)) as u32,
-            tx_full_waits: s.tx_full_waits as u32,
-            rx_overflows: s.rx_overflows.min(u64::from(u32::MAX)) as u32,
-        };
+        let sat = |v: u64| v.min(u64::from(u32::MAX)) as u32;
         for ax in &mut self.axes {
-            ax.node.set_runtime_stats(rs);
+            let Some(slots) = ax.drive.stats_slots() else {
+                continue;
+            };
+            let values: stats::StatsValues = [
+                sat(s.ticks),
+                sat(s.overruns),
+                sat(s.lateness_p50_us),
+                sat(s.lateness_p99_us),
+                sat(s.lateness_max_us),
+                sat(s.tx_dropped),
+                ax.node.tx_overflows(),
+                s.sync_lock_state,
+                sat(s.sync_phase_error_us),
+                sat(s.sync_period_us),
+                sat(s.tx_full_waits),
+                ax.node.sync_window_missed(),
+                sat(s.rx_overflows),
+            ];
+            for (slot, v) in slots.iter().zip(values) {
+                ax.node.set_value(*slot, u64::from(v));
+            }
         }
     }
 

@@ -4,6 +4,25 @@
 use hdrhistogram::Histogram;
 use std::fmt;
 
+/// The statistics a node publishes in its statistics object (the emulator's record at base +
+/// 0x100, `drive::objects`), sub-index 1.. in this order. `sync_lock_state`: 0 free-running,
+/// 1 acquiring, 2 locked to SYNC; `sync_phase_error_us`: smoothed magnitude of the SYNC's
+/// arrival minus the loop's prediction; `sync_period_us`: the SYNC period the loop measured;
+/// `tx_full_waits`: times the transport's transmit queue was full and the loop waited for
+/// room; `sync_window_missed`: synchronous TPDOs not sent because the 0x1007 window had
+/// closed; `rx_overflows`: frames the kernel dropped because the receive queue of the
+/// runtime's socket was full (SO_RXQ_OVFL, cumulative; a lock-step drive that lost SYNCs
+/// there says so here).
+#[rustfmt::skip]
+pub const STATS_NAMES: [&str; 13] = [
+    "ticks", "overruns", "lateness_p50_us", "lateness_p99_us", "lateness_max_us",
+    "dropped_tx_frames", "node_tx_queue_overflows", "sync_lock_state", "sync_phase_error_us",
+    "sync_period_us", "tx_full_waits", "sync_window_missed", "rx_overflows",
+];
+
+/// Values of the statistics object, in [`STATS_NAMES`] order.
+pub type StatsValues = [u32; STATS_NAMES.len()];
+
 /// Largest lateness the histogram resolves; later wake-ups are clamped to it.
 const MAX_TRACKED_US: u64 = 10_000_000;
 

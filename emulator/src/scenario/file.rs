@@ -2,6 +2,7 @@
 //! semantic checks (which keys go together, which are required) live in `validate.rs`.
 
 use super::units::{CobId, EmcyCode, MachineKey, ParamName, Share, StateName, Time};
+use drive_protocol::cia402::mode::Mode;
 use serde::de::{Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use std::fmt;
@@ -108,14 +109,48 @@ pub enum StepKind {
     Repeat,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ModeName {
-    Pp,
-    Pv,
-    Csp,
-    Csv,
-    Cst,
+/// A mode of operation the reference master's motion program runs (`mode = "csp"`): a name
+/// or abbreviation the protocol's mode registry knows, one of [`ModeName::RUNNABLE`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ModeName(pub Mode);
+
+impl ModeName {
+    /// The modes a motion program can run.
+    pub const RUNNABLE: [Mode; 5] = [
+        Mode::ProfilePosition,
+        Mode::ProfileVelocity,
+        Mode::CyclicSyncPosition,
+        Mode::CyclicSyncVelocity,
+        Mode::CyclicSyncTorque,
+    ];
+
+    /// Its 0x6060 value.
+    pub fn value(self) -> i8 {
+        self.0.value()
+    }
+}
+
+impl<'de> Deserialize<'de> for ModeName {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let text = String::deserialize(d)?;
+        match Mode::parse(&text) {
+            Some(m) if ModeName::RUNNABLE.contains(&m) => Ok(ModeName(m)),
+            found => {
+                let names: Vec<String> = ModeName::RUNNABLE
+                    .iter()
+                    .map(|m| format!("`{}`", m.abbrev().to_ascii_lowercase()))
+                    .collect();
+                let what = match found {
+                    Some(m) => format!("{} is not a mode a motion program runs", m.abbrev()),
+                    None => format!("unknown mode `{text}`"),
+                };
+                Err(serde::de::Error::custom(format!(
+                    "{what}, expected one of {}",
+                    names.join(", ")
+                )))
+            }
+        }
+    }
 }
 
 /// One `[[motion]]` step (or an entry of a `repeat` step's `body`).

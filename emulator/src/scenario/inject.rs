@@ -12,7 +12,7 @@ use super::timeline::{Action, CanFault};
 use crate::bus::fault::{FaultRule, FaultyBus, RuleId};
 use crate::bus::CanBus;
 use crate::drive::axis_drive::{AxisDrive, Encoder};
-use drive_protocol::{AxisParam, Drive, ParamError};
+use crate::drive::{AxisParam, ParamError};
 
 /// One change a scenario makes to the drive or the bus. `Copy`: queued without allocation.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -27,7 +27,7 @@ use crate::runtime::trace::node_sample;
 use crate::runtime::Runtime;
 use crate::samples::{Sample, SampleSource};
 use crossbeam::queue::ArrayQueue;
-use drive_protocol::{Cia402State, Drive, NodeEvent};
+use drive_protocol::{Cia402State, NodeEvent};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
@@ -163,7 +163,7 @@ fn initial_values(cfg: &AxisConfig, drive: &AxisDrive) -> Vec<(&'static ParamKey
     super::units::PARAM_KEYS
         .iter()
         .filter(|k| k.axis == kind || k.axis == KeyKind::Any)
-        .filter_map(|k| drive.param(k.param).ok().map(|v| (k, v / k.scale)))
+        .map(|k| (k, drive.param(k.param) / k.scale))
         .collect()
 }
 

@@ -27,7 +27,6 @@ use crate::runtime::AxisSlot;
 use crate::samples::{Sample, SampleSource};
 use crate::session::OfflineRun;
 use drive_protocol::Cia402State;
-use drive_protocol::{Drive, Node};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -156,14 +155,13 @@ pub struct Outcome {
 }
 
 /// Why the drive refused a value, in the file's units (`scale`: file unit -> SI).
-fn param_error_text(e: drive_protocol::ParamError, scale: f64) -> String {
+fn param_error_text(e: crate::drive::ParamError, scale: f64) -> String {
     match e {
-        drive_protocol::ParamError::OutOfRange { min, max } => format!(
+        crate::drive::ParamError::OutOfRange { min, max } => format!(
             "outside what the drive accepts ({} .. {})",
             min / scale,
             max / scale
         ),
-        drive_protocol::ParamError::Unsupported => "this drive has no such parameter".into(),
     }
 }
 
@@ -305,14 +303,7 @@ impl TimelineState {
                     })?;
                 }
                 Action::Ramp { key, .. } | Action::Profile { key, .. } => {
-                    let cur = drive.param(key.param).map_err(|e| {
-                        anyhow::anyhow!(
-                            "line {}: {}: {}",
-                            ev.line,
-                            key.key,
-                            param_error_text(e, key.scale)
-                        )
-                    })? / key.scale;
+                    let cur = drive.param(key.param) / key.scale;
                     self.drivers.start(&ev.action, now, cur);
                 }
                 Action::Sensor { .. } | Action::Can { .. } | Action::CanRestore => {
@@ -402,8 +393,9 @@ fn start_run(
     opts: &RunOptions,
 ) -> anyhow::Result<(OfflineRun<AxisDrive, ScenarioBus>, Vec<u64>)> {
     let mcfg = s.run.master.clone();
-    let drive = AxisDrive::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", cfg.name))?;
-    let node = Node::new(mcfg.node_id, drive.info()).map_err(|e| anyhow::anyhow!("node: {e}"))?;
+    let mut drive =
+        AxisDrive::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", cfg.name))?;
+    let node = crate::drive::node(&mut drive, mcfg.node_id)?;
     let (steps, skip) = s.master_program(opts.idle_dwell_s);
     let master = Master::new(mcfg, steps);
     let seed = s.run.seed;

@@ -2,7 +2,8 @@
 //! CiA 402 state names, EMCY codes. Each type's `Deserialize` rejects bad input with a reason,
 //! and the TOML deserializer attaches the span of the offending value (or key) to the error.
 
-use drive_protocol::{AxisParam, Cia402State};
+use crate::drive::AxisParam;
+use drive_protocol::Cia402State;
 use serde::de::{self, Deserializer, Visitor};
 use std::fmt;
 

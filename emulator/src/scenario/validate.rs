@@ -6,7 +6,7 @@ use super::file::*;
 use super::timeline::{Action, CanFault, Event, Trigger};
 use super::units::AxisKind;
 use super::*;
-use crate::master::{MasterConfig, Step, MODE_CSP, MODE_CST, MODE_CSV, MODE_PP, MODE_PV};
+use crate::master::{MasterConfig, Step};
 use crate::presets::{AxisConfig, AxisKind as PresetKind};
 use std::ops::Range;
 use toml::Spanned;
@@ -119,13 +119,7 @@ fn exactly_one(
 }
 
 fn mode(m: ModeName) -> i8 {
-    match m {
-        ModeName::Pp => MODE_PP,
-        ModeName::Pv => MODE_PV,
-        ModeName::Csp => MODE_CSP,
-        ModeName::Csv => MODE_CSV,
-        ModeName::Cst => MODE_CST,
-    }
+    m.value()
 }
 
 /// Velocity (uu/s) from whichever velocity key is present.

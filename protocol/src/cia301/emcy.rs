@@ -50,7 +50,13 @@ pub struct Emcy {
     last_tx_us: Option<u64>,
     /// EMCYs dropped because the queue was full.
     pub dropped: u32,
+    /// Entries the 0x1003 history has (its sub-indices 1.. in the dictionary, at most 8; 0
+    /// until the node sets it: then sub 0 never counts past what a master can read).
+    history_len: usize,
 }
+
+/// Most entries the 0x1003 history keeps.
+pub const MAX_HISTORY: usize = 8;
 
 /// Error register bits for an error code (bit 0 generic is added whenever any error is active).
 fn register_bits(code: u16) -> u8 {
@@ -66,12 +72,20 @@ fn register_bits(code: u16) -> u8 {
 }
 
 impl Emcy {
+    /// An EMCY producer whose 0x1003 history has `len` entries (capped at [`MAX_HISTORY`]).
+    pub fn with_history(len: usize) -> Emcy {
+        Emcy {
+            history_len: len.min(MAX_HISTORY),
+            ..Emcy::default()
+        }
+    }
+
     /// Forget every error (reset node: the application restarts).
     pub fn reset(&mut self, store: &mut Store) {
         self.queue.clear();
         self.active.clear();
         self.last_tx_us = None;
-        store.set(R_1001, 0);
+        store.set_u32(R_1001, 0);
     }
 
     /// Reset communication: the supervisions restart and the PDOs are configured anew, so
@@ -84,13 +98,13 @@ impl Emcy {
             a.causes &= Cause::Fault as u8;
             a.causes != 0
         });
-        for s in 0..=8 {
-            store.set(R_1003 + s, 0);
+        for s in 0..=MAX_HISTORY {
+            store.set_u32(R_1003 + s, 0);
         }
-        for (n, a) in self.active.iter().rev().enumerate() {
-            store.set(R_1003 + 1 + n, a.entry);
+        for (n, a) in self.active.iter().rev().take(self.history_len).enumerate() {
+            store.set_u32(R_1003 + 1 + n, a.entry);
         }
-        store.set(R_1003, self.active.len() as u32);
+        store.set_u32(R_1003, self.active.len().min(self.history_len) as u32);
         self.update_register(store);
     }
 
@@ -104,7 +118,7 @@ impl Emcy {
     }
 
     fn update_register(&self, store: &mut Store) {
-        store.set(R_1001, self.register() as u32);
+        store.set_u32(R_1001, self.register() as u32);
     }
 
     pub fn is_active(&self, code: u16) -> bool {
@@ -130,15 +144,15 @@ impl Emcy {
             // table full: keep the older errors, still report this one
         }
         let reg = self.register() | 0x01 | register_bits(code);
-        store.set(R_1001, reg as u32);
+        store.set_u32(R_1001, reg as u32);
         // history: shift down, newest in sub 1
-        let n = (store.u32(R_1003) as usize).min(8);
-        for s in (1..8).rev() {
+        let n = (store.u32(R_1003) as usize).min(self.history_len);
+        for s in (1..MAX_HISTORY).rev() {
             let v = store.u32(R_1003 + s);
-            store.set(R_1003 + s + 1, v);
+            store.set_u32(R_1003 + s + 1, v);
         }
-        store.set(R_1003 + 1, entry);
-        store.set(R_1003, (n + 1).min(8) as u32);
+        store.set_u32(R_1003 + 1, entry);
+        store.set_u32(R_1003, (n + 1).min(self.history_len) as u32);
         let msg = EmcyFrame {
             code,
             register: reg,

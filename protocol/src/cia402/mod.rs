@@ -11,6 +11,7 @@ mod cst;
 mod csv;
 pub(crate) mod factor;
 mod hm;
+pub mod mode;
 pub(crate) mod objects;
 mod pp;
 pub(crate) mod profile;
@@ -26,28 +27,6 @@ use objects as o;
 use profile::Axis;
 pub use state_machine::State;
 use statusword as sw;
-
-/// Modes of operation (0x6060 values).
-pub mod mode {
-    /// No mode selected.
-    pub const NONE: i8 = 0;
-    /// Profile position mode.
-    pub const PP: i8 = 1;
-    /// Profile velocity mode.
-    pub const PV: i8 = 3;
-    /// Homing mode.
-    pub const HM: i8 = 6;
-    /// Cyclic synchronous position mode.
-    pub const CSP: i8 = 8;
-    /// Cyclic synchronous velocity mode.
-    pub const CSV: i8 = 9;
-    /// Cyclic synchronous torque mode.
-    pub const CST: i8 = 10;
-    /// Whether the drive supports `m`.
-    pub fn supported(m: i8) -> bool {
-        matches!(m, NONE | PP | PV | HM | CSP | CSV | CST)
-    }
-}
 
 /// EMCY / 0x603F code for a following error.
 pub(crate) const EMCY_FOLLOWING_ERROR: u16 = 0x8611;
@@ -274,16 +253,16 @@ impl Cia402 {
 
     fn enter_mode(&mut self, ctx: &mut Ctx, m: i8) {
         match m {
-            mode::PP => {
+            mode::value::PP => {
                 ctx.axis.vel = 0.0;
                 self.pp.enter(ctx)
             }
-            mode::PV => self.pv.enter(),
-            mode::HM => {
+            mode::value::PV => self.pv.enter(),
+            mode::value::HM => {
                 ctx.axis.vel = 0.0;
                 self.hm.enter()
             }
-            mode::CSP => {
+            mode::value::CSP => {
                 ctx.axis.vel = 0.0;
                 self.csp.enter(ctx)
             }
@@ -392,7 +371,7 @@ impl Cia402 {
             if !matches!(self.state, State::Fault | State::FaultReactionActive) {
                 self.state = State::FaultReactionActive;
                 self.fault_code = code;
-                store.set(o::ERROR_CODE, code as u32);
+                store.set_u32(o::ERROR_CODE, code as u32);
                 out.new_fault = Some(code);
             }
         }
@@ -416,7 +395,7 @@ impl Cia402 {
                     self.state = next;
                     self.fault_code = 0;
                     self.fe_flag = false;
-                    store.set(o::ERROR_CODE, 0);
+                    store.set_u32(o::ERROR_CODE, 0);
                     out.fault_cleared = true;
                 }
             }
@@ -534,15 +513,15 @@ impl Cia402 {
             self.mode_display = requested;
             self.enter_mode(ctx, requested);
         }
-        ctx.halt =
-            ctx.cw & BIT_HALT != 0 && matches!(self.mode_display, mode::PP | mode::PV | mode::HM);
+        ctx.halt = ctx.cw & BIT_HALT != 0
+            && mode::Mode::from_value(self.mode_display).is_some_and(|m| m.halts());
         match self.mode_display {
-            mode::PP => self.pp.step(ctx),
-            mode::PV => self.pv.step(ctx),
-            mode::HM => self.hm.step(ctx),
-            mode::CSP => self.csp.step(ctx, sync_at, csp_period_us),
-            mode::CSV => csv::step(ctx),
-            mode::CST => cst::step(ctx),
+            mode::value::PP => self.pp.step(ctx),
+            mode::value::PV => self.pv.step(ctx),
+            mode::value::HM => self.hm.step(ctx),
+            mode::value::CSP => self.csp.step(ctx, sync_at, csp_period_us),
+            mode::value::CSV => csv::step(ctx),
+            mode::value::CST => cst::step(ctx),
             _ => {
                 let standing = ctx.axis.stop(ctx.acc(o::QS_DEC), ctx.dt);
                 ModeOut {
@@ -623,7 +602,8 @@ impl Cia402 {
             self.fe_flag = true;
             self.state = State::FaultReactionActive;
             self.fault_code = EMCY_FOLLOWING_ERROR;
-            ctx.store.set(o::ERROR_CODE, EMCY_FOLLOWING_ERROR as u32);
+            ctx.store
+                .set_u32(o::ERROR_CODE, EMCY_FOLLOWING_ERROR as u32);
             out.new_fault = Some(EMCY_FOLLOWING_ERROR);
             // hold where the axis is
             ctx.axis = Axis {
@@ -654,7 +634,7 @@ impl Cia402 {
                 s |= sw::BIT_OMS13;
             }
         }
-        if self.fe_flag && matches!(self.mode_display, mode::PP | mode::CSP) {
+        if self.fe_flag && matches!(self.mode_display, mode::value::PP | mode::value::CSP) {
             s |= sw::BIT_OMS13;
         }
         s
@@ -675,7 +655,7 @@ impl Cia402 {
         let to_uu = |inc: f64| f.to_uu(inc - origin);
         let act_vel = input.act_vel;
         self.position_actual_uu = sat_i32(to_uu(input.act_inc));
-        st.set(o::STATUSWORD, self.statusword as u32);
+        st.set_u32(o::STATUSWORD, self.statusword as u32);
         st.set_i32(o::MODE_DISPLAY, self.mode_display as i32);
         st.set_i32(o::POS_DEMAND, sat_i32(to_uu(demand_inc)));
         st.set_i32(o::POS_INTERNAL, fb.motor_position_inc as i32);
@@ -696,7 +676,7 @@ impl Cia402 {
         );
         st.set_i32(o::DIRECT_POS, sat_i32(to_uu(fb.direct_position_inc as f64)));
         st.set_i32(o::FE_ACTUAL, sat_i32(fe_uu));
-        st.set(
+        st.set_u32(
             o::DIGITAL_INPUTS,
             fb.negative_limit_switch as u32
                 | (fb.positive_limit_switch as u32) << 1

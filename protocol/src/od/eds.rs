@@ -1,33 +1,9 @@
-//! EDS export (CiA 306), generated from the object table. Allocates: not for the RT path.
+//! EDS export (CiA 306), generated from an [`ObjectDictionary`]. Allocates: not for the RT
+//! path.
 
 use core::fmt::Write;
 
-use super::{default_value, DataType, Def, Obj, ObjType, OBJECTS};
-use crate::drive::DriveInfo;
-use crate::params::param_at;
-
-fn fmt_value(o: &Obj, raw: u32) -> String {
-    let pdo_map = (0x1600..=0x17FF).contains(&o.index) || (0x1A00..=0x1BFF).contains(&o.index);
-    if pdo_map && o.sub > 0 {
-        // a mapping entry: index, sub-index, length, as CiA 306 writes it
-        format!("0x{raw:08X}")
-    } else if o.dtype.signed() {
-        format!("{}", raw as i32)
-    } else if o.dtype == DataType::Real32 {
-        format!("{}", f32::from_bits(raw))
-    } else {
-        format!("0x{raw:X}")
-    }
-}
-
-fn name_of(o: &Obj, info: &DriveInfo) -> &'static str {
-    if o.otype == ObjType::Var {
-        if let Some(p) = param_at(o.index) {
-            return if info.rotary { p.rotary_name } else { p.name };
-        }
-    }
-    o.name
-}
+use super::{DataType, DefaultValue, Entry, ObjType, ObjectDictionary};
 
 /// How REAL32 DefaultValues are written. EDS readers disagree: Lely's dcf-tools (dcfchk,
 /// dcfgen; what ros2_canopen runs on) read a REAL32 value as the integer of its IEEE 754 bits
@@ -58,11 +34,8 @@ pub struct EdsMeta<'a> {
     /// `[FileInfo]` CreationDate, `MM-DD-YYYY`.
     pub date: &'a str,
     /// Node ID written to `[DeviceComissioning]` (`None`: a generic EDS, no such section);
-    /// LSS_SerialNumber there is the identity's serial number (0x1018:4 = $NODEID).
+    /// LSS_SerialNumber there is the identity's serial number (0x1018:4).
     pub node_id: Option<u8>,
-    /// Manufacturer parameters (0x2000..): the value the drive has, engineering units, as an
-    /// SDO read returns it. Objects not listed keep the table's default.
-    pub params: &'a [(u16, f32)],
     /// Notation of REAL32 DefaultValues.
     pub real32: Real32Notation,
 }
@@ -71,68 +44,109 @@ impl Default for EdsMeta<'_> {
     fn default() -> Self {
         EdsMeta {
             file_name: "drive-emulator.eds",
-            description: "Emulated CiA 402 servo drive (generated from the object table)",
+            description: "Emulated CiA 402 servo drive (generated from the object dictionary)",
             created_by: "drive-protocol",
             time: "12:00AM",
             date: "01-01-2025",
             node_id: None,
-            params: &[],
             real32: Real32Notation::Bits,
         }
     }
 }
 
-fn write_entry(s: &mut String, o: &Obj, node_id: u8, info: &DriveInfo, meta: &EdsMeta) {
-    let params = meta.params;
-    let _ = writeln!(s, "ParameterName={}", name_of(o, info));
-    let _ = writeln!(s, "ObjectType=0x7");
-    let _ = writeln!(s, "DataType=0x{:04X}", o.dtype as u8);
-    let _ = writeln!(s, "AccessType={}", o.access.eds());
-    match o.default {
-        Def::Str(t) => {
-            let _ = writeln!(s, "DefaultValue={t}");
-        }
-        Def::NodeId(b) => {
-            let _ = writeln!(s, "DefaultValue=$NODEID+0x{b:X}");
-        }
-        // REAL32 in the notation asked for (see Real32Notation)
-        _ if o.dtype == DataType::Real32 => {
-            let v = params
-                .iter()
-                .find(|(i, _)| *i == o.index && o.otype == ObjType::Var)
-                .map_or(default_value(o, node_id, info), |p| p.1.to_bits());
-            let _ = match meta.real32 {
-                Real32Notation::Bits => writeln!(s, "DefaultValue=0x{v:08X}"),
-                // Debug: shortest round-trip text, always with a point or an exponent
-                Real32Notation::Decimal => writeln!(s, "DefaultValue={:?}", f32::from_bits(v)),
-            };
-        }
-        _ => {
-            let _ = writeln!(
-                s,
-                "DefaultValue={}",
-                fmt_value(o, default_value(o, node_id, info))
-            );
+/// A mapping entry (index, sub-index, length) is written in hex as CiA 306 shows it.
+fn is_mapping_entry(e: &Entry) -> bool {
+    let pdo_map = (0x1600..=0x17FF).contains(&e.index) || (0x1A00..=0x1BFF).contains(&e.index);
+    pdo_map && e.sub > 0
+}
+
+/// The text of a raw value of `e`'s type.
+fn fmt_raw(e: &Entry, raw: u64, real32: Real32Notation) -> String {
+    match e.dtype {
+        DataType::Real32 => match real32 {
+            Real32Notation::Bits => format!("0x{:08X}", raw as u32),
+            // Debug: shortest round-trip text, always with a point or an exponent
+            Real32Notation::Decimal => format!("{:?}", f32::from_bits(raw as u32)),
+        },
+        DataType::Real64 => match real32 {
+            Real32Notation::Bits => format!("0x{raw:016X}"),
+            Real32Notation::Decimal => format!("{:?}", f64::from_bits(raw)),
+        },
+        _ if is_mapping_entry(e) => format!("0x{:08X}", raw as u32),
+        t if t.signed() => format!("{}", raw as i64),
+        _ => format!("0x{raw:X}"),
+    }
+}
+
+/// Bytes as CiA 306 writes an OCTET_STRING or DOMAIN value: hex digits.
+fn hex_bytes(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02X}")).collect()
+}
+
+/// The DefaultValue text of an entry; `value` overrides a numeric default (a handler
+/// object's current value, as an SDO read returns it).
+fn default_text(e: &Entry, value: Option<u64>, real32: Real32Notation) -> String {
+    match (&e.default, value) {
+        (DefaultValue::NodeId(b), None) => format!("$NODEID+0x{b:X}"),
+        (DefaultValue::Bytes(b), _) => match e.dtype {
+            DataType::VisibleString => String::from_utf8_lossy(b).into_owned(),
+            _ => hex_bytes(b),
+        },
+        (d, v) => {
+            let raw = v.unwrap_or(match d {
+                DefaultValue::Value(x) => *x,
+                _ => 0,
+            });
+            fmt_raw(e, raw, real32)
         }
     }
-    if let Some(l) = o.low {
-        let _ = writeln!(s, "LowLimit={l}");
+}
+
+fn write_entry(s: &mut String, e: &Entry, value: Option<u64>, meta: &EdsMeta) {
+    let _ = writeln!(s, "ParameterName={}", e.name);
+    let _ = writeln!(
+        s,
+        "ObjectType=0x{}",
+        if e.dtype == DataType::Domain && e.otype == ObjType::Var {
+            2
+        } else {
+            7
+        }
+    );
+    let _ = writeln!(s, "DataType=0x{:04X}", e.dtype.code());
+    let _ = writeln!(s, "AccessType={}", e.access.eds());
+    let _ = writeln!(s, "DefaultValue={}", default_text(e, value, meta.real32));
+    if let Some(l) = e.low {
+        let _ = writeln!(s, "LowLimit={}", fmt_limit(e, l, meta.real32));
     }
-    if let Some(h) = o.high {
-        let _ = writeln!(s, "HighLimit={h}");
+    if let Some(h) = e.high {
+        let _ = writeln!(s, "HighLimit={}", fmt_limit(e, h, meta.real32));
     }
-    let _ = writeln!(s, "PDOMapping={}", o.pdo as u8);
+    let _ = writeln!(s, "PDOMapping={}", e.pdo as u8);
     s.push('\n');
 }
 
-/// The EDS text for a node, with the table's defaults and a generic `[FileInfo]`.
-pub fn export(node_id: u8, info: &DriveInfo) -> String {
-    export_with(node_id, info, &EdsMeta::default())
+fn fmt_limit(e: &Entry, raw: u64, real32: Real32Notation) -> String {
+    match e.number(raw) {
+        Some(super::Number::Int(v)) => v.to_string(),
+        _ => fmt_raw(e, raw, real32),
+    }
 }
 
-/// The EDS text for a node: complete `[FileInfo]` from `meta`, `[DeviceComissioning]` when
-/// `meta.node_id` is set, manufacturer parameter defaults from `meta.params`.
-pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
+fn node_identity(od: &ObjectDictionary, sub: u8, node_id: u8) -> u64 {
+    od.get(0x1018, sub)
+        .map_or(0, |(_, e)| e.default_raw(node_id))
+}
+
+/// The EDS text of a dictionary. `value_of` gives the current value of the entries a
+/// handler keeps (their DefaultValue is what the drive answers to an SDO read); entries it
+/// returns `None` for keep the dictionary's default. `node_id` resolves nothing (`$NODEID`
+/// stays in the text); `meta.node_id` adds `[DeviceComissioning]`.
+pub fn export(
+    od: &ObjectDictionary,
+    meta: &EdsMeta,
+    value_of: &mut dyn FnMut(&Entry) -> Option<u64>,
+) -> String {
     let mut s = String::with_capacity(64 * 1024);
     let _ = writeln!(
         s,
@@ -148,29 +162,50 @@ pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
         d = meta.date,
         by = meta.created_by
     );
-    s.push_str("[DeviceInfo]\nVendorName=drive-emulator\nVendorNumber=0\nProductName=drive-emulator CiA402 servo\n");
-    s.push_str("ProductNumber=0x402\nRevisionNumber=0x10000\nOrderCode=-\n");
-    for b in ["10", "20", "50", "125", "250", "500", "800", "1000"] {
-        let _ = writeln!(s, "BaudRate_{b}=1");
-    }
-    s.push_str(
-        "SimpleBootUpMaster=0\nSimpleBootUpSlave=1\nGranularity=8\nDynamicChannelsSupported=0\n",
+    let dev = &od.device;
+    let id_for_info = meta.node_id.unwrap_or(0);
+    let _ = writeln!(
+        s,
+        "[DeviceInfo]\nVendorName={}\nVendorNumber=0x{:X}\nProductName={}\nProductNumber=0x{:X}\n\
+         RevisionNumber=0x{:X}\nOrderCode={}",
+        dev.vendor_name,
+        node_identity(od, 1, id_for_info),
+        dev.product_name,
+        node_identity(od, 2, id_for_info),
+        node_identity(od, 3, id_for_info),
+        dev.order_code
     );
-    s.push_str("GroupMessaging=0\nNrOfRXPDO=4\nNrOfTXPDO=4\nLSS_Supported=0\n\n");
+    for b in [10u16, 20, 50, 125, 250, 500, 800, 1000] {
+        let _ = writeln!(s, "BaudRate_{b}={}", dev.baud_rates_kbit.contains(&b) as u8);
+    }
+    let rx = (0x1400..=0x15FFu16).filter(|&i| od.has_index(i)).count();
+    let tx = (0x1800..=0x19FFu16).filter(|&i| od.has_index(i)).count();
+    let _ = writeln!(
+        s,
+        "SimpleBootUpMaster=0\nSimpleBootUpSlave=1\nGranularity={}\nDynamicChannelsSupported=0\n\
+         GroupMessaging=0\nNrOfRXPDO={rx}\nNrOfTXPDO={tx}\nLSS_Supported={}\n",
+        dev.granularity, dev.lss_supported as u8
+    );
     if let Some(id) = meta.node_id {
         let _ = writeln!(
             s,
             "[DeviceComissioning]\nNodeID={id}\nNodeName=drive-emu node {id}\nBaudrate=1000\n\
              NetNumber=1\nNetworkName=drive-emu\nCANopenManager=0\n\
-             LSS_SerialNumber={id}\n"
+             LSS_SerialNumber={}\n",
+            node_identity(od, 4, id)
         );
     }
-    s.push_str("[DummyUsage]\nDummy0001=0\nDummy0002=0\nDummy0003=0\nDummy0004=0\nDummy0005=0\nDummy0006=0\nDummy0007=0\n\n");
+    s.push_str("[DummyUsage]\n");
+    for t in 1..=7 {
+        let _ = writeln!(s, "Dummy000{t}={}", dev.dummy_usage[t] as u8);
+    }
+    s.push('\n');
 
-    // distinct indices in order
-    let mut indices: Vec<u16> = OBJECTS.iter().map(|o| o.index).collect();
-    indices.dedup();
-    let mandatory = [0x1000u16, 0x1001, 0x1018];
+    let indices = od.indices();
+    let mandatory: Vec<u16> = [0x1000u16, 0x1001, 0x1018]
+        .into_iter()
+        .filter(|i| indices.contains(i))
+        .collect();
     let optional: Vec<u16> = indices
         .iter()
         .copied()
@@ -182,9 +217,9 @@ pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
         .filter(|i| (0x2000..0x6000).contains(i))
         .collect();
     for (section, list) in [
-        ("MandatoryObjects", mandatory.to_vec()),
-        ("OptionalObjects", optional),
-        ("ManufacturerObjects", manufacturer),
+        ("MandatoryObjects", &mandatory),
+        ("OptionalObjects", &optional),
+        ("ManufacturerObjects", &manufacturer),
     ] {
         let _ = writeln!(s, "[{section}]\nSupportedObjects={}", list.len());
         for (i, x) in list.iter().enumerate() {
@@ -193,24 +228,19 @@ pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
         s.push('\n');
     }
     for &index in &indices {
-        let rows: Vec<&Obj> = OBJECTS.iter().filter(|o| o.index == index).collect();
+        let rows: Vec<&Entry> = od.object(index).map(|(_, e)| e).collect();
         let first = rows[0];
+        let _ = writeln!(s, "[{index:04X}]");
         if first.otype == ObjType::Var {
-            let _ = writeln!(s, "[{index:04X}]");
-            write_entry(&mut s, first, node_id, info, meta);
+            write_entry(&mut s, first, value_of(first), meta);
         } else {
-            let _ = writeln!(s, "[{index:04X}]");
             let _ = writeln!(s, "ParameterName={}", first.parent);
-            let _ = writeln!(
-                s,
-                "ObjectType=0x{}",
-                if first.otype == ObjType::Array { 8 } else { 9 }
-            );
+            let _ = writeln!(s, "ObjectType=0x{}", first.otype.code());
             let _ = writeln!(s, "SubNumber={}", rows.len());
             s.push('\n');
-            for o in rows {
-                let _ = writeln!(s, "[{index:04X}sub{:X}]", o.sub);
-                write_entry(&mut s, o, node_id, info, meta);
+            for e in rows {
+                let _ = writeln!(s, "[{index:04X}sub{:X}]", e.sub);
+                write_entry(&mut s, e, value_of(e), meta);
             }
         }
     }
@@ -218,64 +248,71 @@ pub fn export_with(node_id: u8, info: &DriveInfo, meta: &EdsMeta) -> String {
 }
 
 /// The object list as JSON (index, sub, data type, access) for the EDS check.
-pub fn objects_json() -> String {
+pub fn objects_json(od: &ObjectDictionary) -> String {
     let mut s = String::from("[");
-    for (i, o) in OBJECTS.iter().enumerate() {
+    for (i, (_, e)) in od.iter().enumerate() {
         if i > 0 {
             s.push(',');
         }
         let _ = write!(
             s,
             "{{\"index\":{},\"sub\":{},\"otype\":\"{}\",\"data_type\":{},\"access\":\"{}\",\"pdo\":{}}}",
-            o.index,
-            o.sub,
-            match o.otype {
+            e.index,
+            e.sub,
+            match e.otype {
                 ObjType::Var => "var",
                 ObjType::Array => "array",
                 ObjType::Record => "record",
             },
-            o.dtype as u8,
-            o.access.eds(),
-            o.pdo
+            e.dtype.code(),
+            e.access.eds(),
+            e.pdo
         );
     }
     s.push(']');
     s
 }
 
-/// A Markdown list of every object (docs/objects.md is this text; a test keeps it current).
-pub fn objects_markdown(node_id: u8, info: &DriveInfo) -> String {
-    let mut s = String::from(
-        "# Object dictionary\n\nGenerated from `protocol/src/od/table.rs` (do not edit; run \
-         `UPDATE_OBJECTS_MD=1 cargo test -p drive-protocol --test eds`). Defaults shown for the \
-         test drive of `protocol/tests/common` (65536 inc/rev, 10 mm screw, user unit 1 µm) and \
-         node ID 5.\n\n| Index | Sub | Name | Type | Access | PDO | Default | Limits |\n\
-         |---|---|---|---|---|---|---|---|\n",
+/// A Markdown list of every object (docs/objects.md is this text for the emulator's default
+/// drive; a test keeps it current). `value_of` as for [`export`].
+pub fn objects_markdown(
+    od: &ObjectDictionary,
+    intro: &str,
+    value_of: &mut dyn FnMut(&Entry) -> Option<u64>,
+) -> String {
+    let mut s = format!(
+        "# Object dictionary\n\n{intro}\n\n| Index | Sub | Name | Type | Access | PDO | Default | Limits |\n\
+         |---|---|---|---|---|---|---|---|\n"
     );
-    for o in OBJECTS {
-        let name = if o.otype == ObjType::Var {
-            name_of(o, info).to_string()
+    for (_, e) in od.iter() {
+        let name = if e.otype == ObjType::Var {
+            e.name.to_string()
         } else {
-            format!("{}: {}", o.parent, o.name)
+            format!("{}: {}", e.parent, e.name)
         };
-        let default = match o.default {
-            Def::Str(t) => format!("\"{t}\""),
-            Def::NodeId(b) => format!("$NODEID+0x{b:X}"),
-            _ => fmt_value(o, default_value(o, node_id, info)),
+        let default = match &e.default {
+            DefaultValue::Bytes(b) if e.dtype == DataType::VisibleString => {
+                format!("\"{}\"", String::from_utf8_lossy(b))
+            }
+            _ => default_text(e, value_of(e), Real32Notation::Decimal),
         };
-        let limits = match (o.low, o.high) {
-            (Some(l), Some(h)) => format!("{l}..={h}"),
+        let limits = match (e.low, e.high) {
+            (Some(l), Some(h)) => format!(
+                "{}..={}",
+                fmt_limit(e, l, Real32Notation::Decimal),
+                fmt_limit(e, h, Real32Notation::Decimal)
+            ),
             _ => String::new(),
         };
         let _ = writeln!(
             s,
             "| 0x{:04X} | {} | {} | {:?} | {} | {} | {} | {} |",
-            o.index,
-            o.sub,
+            e.index,
+            e.sub,
             name,
-            o.dtype,
-            o.access.eds(),
-            if o.pdo { "yes" } else { "" },
+            e.dtype,
+            e.access.eds(),
+            if e.pdo { "yes" } else { "" },
             default,
             limits
         );

@@ -1,9 +1,9 @@
 //! Shared test fixtures: a simple drive model and a bus-side helper.
 #![allow(dead_code)]
 
+use drive_protocol::od::{Access, DataType, Entry, ObjectDictionary};
 use drive_protocol::{
-    AxisParam, CanFrame, Drive, DriveCommand, DriveInfo, Feedback, FrameEvent, Node, ParamError,
-    Setpoint,
+    CanFrame, Drive, DriveCommand, DriveInfo, Feedback, FrameEvent, Node, NodeConfig, Setpoint,
 };
 
 pub const ID: u8 = 5;
@@ -35,8 +35,11 @@ pub struct SimDrive {
     pub tau: f64,
     pub fault: Option<u16>,
     pub fault_persists: bool,
+    /// A fault injected through 0x2101 (held until 0 is written).
+    pub injected: Option<u16>,
     pub home_switch_above: Option<f64>,
-    pub params: [f64; 14],
+    /// Values of the objects the drive keeps itself (tag [`HANDLER_TAG`], sub-index = slot).
+    pub params: [f32; 4],
     pub last: Option<DriveCommand>,
     pub commands: u64,
     pub direct_offset: f64,
@@ -53,8 +56,9 @@ impl Default for SimDrive {
             tau: 0.002,
             fault: None,
             fault_persists: false,
+            injected: None,
             home_switch_above: None,
-            params: [0.0; 14],
+            params: [0.0; 4],
             last: None,
             commands: 0,
             direct_offset: 0.0,
@@ -63,24 +67,52 @@ impl Default for SimDrive {
     }
 }
 
-pub fn param_slot(p: AxisParam) -> usize {
-    match p {
-        AxisParam::Backlash => 0,
-        AxisParam::Stiffness => 1,
-        AxisParam::Damping => 2,
-        AxisParam::LoadCoulombFriction => 3,
-        AxisParam::LoadViscousFriction => 4,
-        AxisParam::MotorCoulombFriction => 5,
-        AxisParam::ExternalLoad => 6,
-        AxisParam::Kv => 7,
-        AxisParam::SpeedKp => 8,
-        AxisParam::SpeedTi => 9,
-        AxisParam::MotorEncoderNoise => 10,
-        AxisParam::DirectEncoderNoise => 11,
-        AxisParam::DirectEncoderOffset => 12,
-        AxisParam::PositionFromDirect => 13,
-        _ => 13,
+/// Tag of the test drive's own objects.
+pub const HANDLER_TAG: u16 = 7;
+/// Tag of its fault injection (0x2101, write-only U16: a non-zero code is a fault the drive
+/// reports until 0 is written; a fault reset meanwhile is refused).
+pub const INJECT_TAG: u16 = 8;
+/// Index of the test drive's own REAL32 record (subs 1..=3, each limited to 0.0..=1.0 by the
+/// drive itself).
+pub const HANDLER_INDEX: u16 = 0x2200;
+
+/// The standard dictionary plus a REAL32 record the test drive keeps itself (a handler).
+pub fn od_with_handler() -> ObjectDictionary {
+    let mut od = ObjectDictionary::standard(&info());
+    let rec = drive_protocol::od::ObjType::Record;
+    od.insert(
+        Entry::member(
+            HANDLER_INDEX,
+            0,
+            rec,
+            "Drive values",
+            "Highest sub-index supported",
+            DataType::U8,
+            Access::Const,
+        )
+        .with_default(drive_protocol::od::DefaultValue::Value(3)),
+    )
+    .unwrap();
+    for sub in 1..=3u8 {
+        od.insert(
+            Entry::member(
+                HANDLER_INDEX,
+                sub,
+                rec,
+                "Drive values",
+                format!("value {sub}"),
+                DataType::Real32,
+                Access::Rw,
+            )
+            .with_handler(HANDLER_TAG),
+        )
+        .unwrap();
     }
+    od.insert(
+        Entry::var(0x2101, "inject_fault_code", DataType::U16, Access::Wo).with_handler(INJECT_TAG),
+    )
+    .unwrap();
+    od
 }
 
 impl Drive for SimDrive {
@@ -99,7 +131,7 @@ impl Drive for SimDrive {
             home_switch: self.home_switch_above.is_some_and(|h| self.pos >= h),
             negative_limit_switch: false,
             positive_limit_switch: false,
-            drive_fault: self.fault,
+            drive_fault: self.fault.or(self.injected),
         }
     }
     fn command(&mut self, c: &DriveCommand) {
@@ -132,26 +164,65 @@ impl Drive for SimDrive {
             }
         }
     }
-    fn param(&self, p: AxisParam) -> Result<f64, ParamError> {
-        Ok(self.params[param_slot(p)])
+    fn read_object(
+        &mut self,
+        tag: u16,
+        _index: u16,
+        sub: u8,
+        out: &mut [u8],
+    ) -> Result<usize, u32> {
+        assert_eq!(tag, HANDLER_TAG, "a tag the test drive reads");
+        let v = self.params.get(sub as usize).ok_or(0x0609_0011u32)?;
+        out[..4].copy_from_slice(&v.to_le_bytes());
+        Ok(4)
     }
-    fn set_param(&mut self, p: AxisParam, v: f64) -> Result<(), ParamError> {
-        if p == AxisParam::Backlash && !(0.0..=0.001).contains(&v) {
-            return Err(ParamError::OutOfRange {
-                min: 0.0,
-                max: 0.001,
-            });
+    fn write_object(&mut self, tag: u16, _index: u16, sub: u8, data: &[u8]) -> Result<(), u32> {
+        if tag == INJECT_TAG {
+            let code = u16::from_le_bytes([data[0], data[1]]);
+            self.injected = (code != 0).then_some(code);
+            return Ok(());
         }
-        self.params[param_slot(p)] = v;
+        assert_eq!(tag, HANDLER_TAG, "a tag the test drive never registered");
+        let v = f32::from_le_bytes(data.try_into().map_err(|_| 0x0607_0010u32)?);
+        if !(0.0..=1.0).contains(&v) {
+            return Err(if v > 1.0 { 0x0609_0031 } else { 0x0609_0032 });
+        }
+        *self.params.get_mut(sub as usize).ok_or(0x0609_0011u32)? = v;
         Ok(())
     }
     fn reset_fault(&mut self) -> bool {
-        if self.fault_persists {
+        if self.fault_persists || self.injected.is_some() {
             return false;
         }
         self.fault = None;
         true
     }
+}
+
+/// A node with LSS: node-ID `node_id` (255: non-configured), LSS serial number `serial`
+/// (0x1018:4), boot delay, power-on bit timing, store written by the application or not.
+pub fn lss_config(
+    node_id: u8,
+    serial: u32,
+    boot_delay_us: u64,
+    bit_timing_index: u8,
+    store_external: bool,
+) -> NodeConfig {
+    let mut od = od_with_handler();
+    od.set_default(
+        0x1018,
+        4,
+        drive_protocol::od::DefaultValue::Value(serial as u64),
+    )
+    .unwrap();
+    let mut cfg = NodeConfig::new(node_id, info())
+        .with_od(od)
+        .with_boot_delay_us(boot_delay_us);
+    cfg.lss = Some(drive_protocol::LssConfig {
+        bit_timing_index,
+        store_external,
+    });
+    cfg
 }
 
 /// A node, its drive and the bus as the master sees it.
@@ -173,7 +244,23 @@ impl Bench {
     }
 
     pub fn with_id(id: u8) -> Bench {
-        let mut node = Node::new(id, info()).unwrap();
+        Bench::with_config(NodeConfig::new(id, info()).with_od(od_with_handler()))
+    }
+
+    /// A bench whose node has a boot delay for its resets; its power-on boot is complete.
+    pub fn with_boot_delay(delay_us: u64) -> Bench {
+        let cfg = NodeConfig::new(ID, info())
+            .with_od(od_with_handler())
+            .with_boot_delay_us(delay_us);
+        let mut b = Bench::with_config(cfg);
+        b.node.finish_boot(0);
+        b.drain();
+        b
+    }
+
+    /// A bench whose node is built from `cfg` (booted at 0).
+    pub fn with_config(cfg: NodeConfig) -> Bench {
+        let mut node = Node::new(cfg).unwrap();
         node.boot(0);
         let mut b = Bench {
             node,

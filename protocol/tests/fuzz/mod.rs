@@ -19,34 +19,68 @@
 //!   server answers again.
 #![allow(dead_code)]
 
+use drive_protocol::cia402::mode::Mode;
 use drive_protocol::cia402::statusword::decode_state;
-use drive_protocol::cia402::{mode, State};
-use drive_protocol::od::{find, DataType, Lookup, OBJECTS};
-use drive_protocol::{CanFrame, Drive, NmtState, Node, TX_QUEUE};
+use drive_protocol::cia402::State;
+use drive_protocol::od::{Access, DataType, ObjectDictionary};
+use drive_protocol::{CanFrame, Drive, NmtState, Node, NodeConfig, TX_QUEUE};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
 
-/// Bits of the object table the generator picks from.
-fn rows() -> usize {
-    OBJECTS.len()
+/// One object the generator may pick (a row: its position in the dictionary's order).
+#[derive(Clone, Copy, Debug)]
+pub struct Obj {
+    pub index: u16,
+    pub sub: u8,
+    pub dtype: DataType,
+    pub access: Access,
+    pub pdo: bool,
 }
 
-/// Rows mappable into an RPDO (`tx = false`) or a TPDO.
-fn mappable(tx: bool) -> Vec<usize> {
-    OBJECTS
-        .iter()
-        .enumerate()
-        .filter(|(_, o)| {
-            o.pdo
-                && o.dtype.size() > 0
-                && if tx {
-                    o.access.readable()
-                } else {
-                    o.access.writable()
-                }
-        })
-        .map(|(i, _)| i)
-        .collect()
+/// The objects of a dictionary, in its order: what the generator picks rows from.
+#[derive(Clone, Debug)]
+pub struct Objects(pub Vec<Obj>);
+
+impl Objects {
+    pub fn of(od: &ObjectDictionary) -> Objects {
+        Objects(
+            od.iter()
+                .map(|(_, e)| Obj {
+                    index: e.index,
+                    sub: e.sub,
+                    dtype: e.dtype,
+                    access: e.access,
+                    pdo: e.pdo,
+                })
+                .collect(),
+        )
+    }
+
+    fn rows(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Rows mappable into an RPDO (`tx = false`) or a TPDO.
+    fn mappable(&self, tx: bool) -> Vec<usize> {
+        self.0
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| {
+                o.pdo
+                    && o.dtype.size() > 0
+                    && if tx {
+                        o.access.readable()
+                    } else {
+                        o.access.writable()
+                    }
+            })
+            .map(|(i, _)| i)
+            .collect()
+    }
+
+    fn row_of(&self, index: u16, sub: u8) -> Option<usize> {
+        self.0.iter().position(|o| o.index == index && o.sub == sub)
+    }
 }
 
 /// How time moves before a poll.
@@ -188,11 +222,11 @@ fn frame_strategy(id: u8) -> impl Strategy<Value = CanFrame> {
     )
 }
 
-/// One step; `id` is the node's ID.
-pub fn op_strategy(id: u8) -> impl Strategy<Value = Op> {
-    let row = 0..rows();
-    let rx_map = mappable(false);
-    let tx_map = mappable(true);
+/// One step; `id` is the node's ID, `objects` its dictionary's.
+pub fn op_strategy(id: u8, objects: &Objects) -> impl Strategy<Value = Op> {
+    let row = 0..objects.rows();
+    let rx_map = objects.mappable(false);
+    let tx_map = objects.mappable(true);
     let remap = (
         any::<bool>(),
         0u8..4,
@@ -286,10 +320,14 @@ pub fn op_strategy(id: u8) -> impl Strategy<Value = Op> {
 }
 
 /// A case: the node starts operational or not, then the steps.
-pub fn case_strategy(id: u8, max_ops: usize) -> impl Strategy<Value = (bool, Vec<Op>)> {
+pub fn case_strategy(
+    id: u8,
+    objects: &Objects,
+    max_ops: usize,
+) -> impl Strategy<Value = (bool, Vec<Op>)> {
     (
         proptest::bool::weighted(0.8),
-        proptest::collection::vec(op_strategy(id), 1..max_ops),
+        proptest::collection::vec(op_strategy(id, objects), 1..max_ops),
     )
 }
 
@@ -312,6 +350,8 @@ pub fn crc16(data: &[u8]) -> u16 {
 /// The node, its drive, the clock, and a way to move the drive's physics.
 pub struct Harness<D: Drive> {
     pub node: Node,
+    /// The node's objects, as the generator saw them.
+    pub objects: Objects,
     pub drive: D,
     pub now_us: u64,
     /// Advance the drive's physics by this much simulated time (us).
@@ -343,10 +383,13 @@ fn fail(msg: String) -> TestCaseError {
 }
 
 impl<D: Drive> Harness<D> {
-    pub fn new(id: u8, drive: D, advance: fn(&mut D, u64)) -> Self {
-        let mut node = Node::new(id, drive.info()).expect("node");
+    /// A harness on a node built from `cfg`, its objects [`Objects::of`] its dictionary (the
+    /// rows `case_strategy` was given must come from the same dictionary).
+    pub fn new(cfg: NodeConfig, drive: D, advance: fn(&mut D, u64)) -> Self {
+        let mut node = Node::new(cfg).expect("node");
         node.boot(0);
         let mut h = Harness {
+            objects: Objects::of(node.od()),
             node,
             drive,
             now_us: 0,
@@ -374,13 +417,15 @@ impl<D: Drive> Harness<D> {
             if f.extended || f.rtr || f.id > 0x7FF || f.len > 8 {
                 return Err(fail(format!("invalid frame sent: {f:?}")));
             }
-            let allowed = match nmt {
-                NmtState::Stopped => f.id == 0x700 + id,
-                NmtState::PreOperational | NmtState::Initialising => {
-                    f.id == 0x700 + id || f.id == 0x580 + id || f.id == emcy_cob
-                }
-                NmtState::Operational => true,
-            };
+            // LSS (CiA 305) answers on 0x7E4 in every NMT state
+            let allowed = f.id == 0x7E4
+                || match nmt {
+                    NmtState::Stopped => f.id == 0x700 + id,
+                    NmtState::PreOperational | NmtState::Initialising => {
+                        f.id == 0x700 + id || f.id == 0x580 + id || f.id == emcy_cob
+                    }
+                    NmtState::Operational => true,
+                };
             if !allowed {
                 return Err(fail(format!("{nmt:?}: sent {f:?}")));
             }
@@ -441,7 +486,8 @@ impl<D: Drive> Harness<D> {
             )));
         }
         let m = n.mode();
-        if !mode::supported(m) {
+        let supported = n.object_raw(0x6502, 0).unwrap_or(0);
+        if !Mode::from_value(m).is_some_and(|x| x.in_mask(supported)) {
             return Err(fail(format!("mode display {m} is not a supported mode")));
         }
         let shown = n.object_raw(0x6061, 0).map(|r| r as i32 as i8);
@@ -513,7 +559,7 @@ impl<D: Drive> Harness<D> {
     }
 
     fn expedited(&mut self, row: usize, value: u32) -> Result<Vec<[u8; 8]>, TestCaseError> {
-        let o = &OBJECTS[row];
+        let o = self.objects.0[row];
         let n = match o.dtype.size() {
             0 => 4,
             s => s,
@@ -526,9 +572,9 @@ impl<D: Drive> Harness<D> {
 
     /// Expedited download of (index, sub) with the object's own size.
     fn write_entry(&mut self, index: u16, sub: u8, value: u32) -> Result<(), TestCaseError> {
-        match find(index, sub) {
-            Lookup::Found(row) => self.expedited(row, value).map(|_| ()),
-            _ => Err(fail(format!("no object {index:04X}sub{sub}"))),
+        match self.objects.row_of(index, sub) {
+            Some(row) => self.expedited(row, value).map(|_| ()),
+            None => Err(fail(format!("no object {index:04X}sub{sub}"))),
         }
     }
 
@@ -551,7 +597,7 @@ impl<D: Drive> Harness<D> {
                 flip,
                 stop,
             } => {
-                let o = &OBJECTS[*row];
+                let o = self.objects.0[*row];
                 let mut data = data.clone();
                 let mut announce = *announce;
                 if data.first().is_some_and(|b| b & 1 == 0) && o.dtype.size() > 0 {
@@ -589,7 +635,7 @@ impl<D: Drive> Harness<D> {
                 }
             }
             Op::SegUpload { row, steps, flip } => {
-                let o = &OBJECTS[*row];
+                let o = self.objects.0[*row];
                 let i = o.index.to_le_bytes();
                 self.sdo([0x40, i[0], i[1], o.sub, 0, 0, 0, 0])?;
                 let mut t = 0u8;
@@ -608,7 +654,7 @@ impl<D: Drive> Harness<D> {
                 bad_crc,
                 stop,
             } => {
-                let o = &OBJECTS[*row];
+                let o = self.objects.0[*row];
                 // half the time, a value of the object's own size (so transfers complete)
                 let mut data = data.clone();
                 if data.first().is_some_and(|b| b & 1 == 0) && o.dtype.size() > 0 {
@@ -665,7 +711,7 @@ impl<D: Drive> Harness<D> {
                 acks,
                 end,
             } => {
-                let o = &OBJECTS[*row];
+                let o = self.objects.0[*row];
                 let i = o.index.to_le_bytes();
                 self.sdo([
                     0xA0 | (*crc as u8) << 2,
@@ -701,7 +747,7 @@ impl<D: Drive> Harness<D> {
                 self.write_entry(comm, 1, cob | 0x8000_0000)?;
                 self.write_entry(map, 0, 0)?;
                 for (s, row) in entries.iter().enumerate() {
-                    let o = &OBJECTS[*row];
+                    let o = self.objects.0[*row];
                     let e =
                         (o.index as u32) << 16 | (o.sub as u32) << 8 | (o.dtype.size() as u32 * 8);
                     self.write_entry(map, s as u8 + 1, e)?;
@@ -800,9 +846,4 @@ impl<D: Drive> Harness<D> {
         self.tick()?;
         self.abort_then_read()
     }
-}
-
-/// Whether a row is a string (used by callers that want to skip them).
-pub fn is_string(row: usize) -> bool {
-    OBJECTS[row].dtype == DataType::VisibleString
 }

@@ -118,10 +118,10 @@ impl PdoConfig {
     pub fn drive_defaults(node_id: u8, preset: &str) -> Result<(Self, bool)> {
         let cfg = crate::presets::AxisConfig::from_preset(preset)
             .map_err(|e| anyhow::anyhow!("preset {preset}: {e}"))?;
-        let drive = crate::drive::axis_drive::AxisDrive::from_config(&cfg)
+        let mut drive = crate::drive::axis_drive::AxisDrive::from_config(&cfg)
             .map_err(|e| anyhow::anyhow!("preset {preset}: {e}"))?;
         let info = drive.info();
-        let node = Node::new(node_id, info).map_err(|e| anyhow::anyhow!("node {node_id}: {e}"))?;
+        let node = crate::drive::node(&mut drive, node_id)?;
         Ok((Self::from_node(&node)?, info.rotary))
     }
 

@@ -1,57 +1,96 @@
 //! PDO mapping (CiA 301 7.5.2.36): validation of mapping entries and of a whole mapping,
 //! packing and unpacking of the mapped values.
 
+use super::layout::{PdoSlots, MAX_ENTRIES};
 use super::Pdo;
 use crate::cia301::sdo::abort;
-use crate::od::{self, Lookup, Store, OBJECTS};
+use crate::od::{self, Backing, DataType, Lookup, ObjectDictionary, Store};
 
-/// One mapped object: its row in the table and its size.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// One mapped object: its slot (none for a dummy entry) and type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Mapped {
-    /// Row in the object table.
-    pub row: u16,
-    /// Size in bytes.
-    pub bytes: u8,
+    /// Slot in the store; `None` for a dummy entry (an RPDO skips those bytes).
+    pub slot: Option<u32>,
+    /// Type of the value.
+    pub dtype: DataType,
 }
 
-/// Check one mapping entry (index << 16 | sub << 8 | bits) for a TPDO (`tx`) or RPDO.
-pub fn check_entry(entry: u32, tx: bool) -> Result<Mapped, u32> {
+impl Default for Mapped {
+    fn default() -> Self {
+        Mapped {
+            slot: None,
+            dtype: DataType::U8,
+        }
+    }
+}
+
+impl Mapped {
+    /// Size in bytes.
+    pub fn bytes(&self) -> usize {
+        self.dtype.size()
+    }
+}
+
+/// Check one mapping entry (index << 16 | sub << 8 | bits) for a TPDO (`tx`) or RPDO: a
+/// visible, PDO-mappable, stored object of a fixed size whose bits are its size, readable
+/// (TPDO) or writable (RPDO); or, in an RPDO, a dummy entry (a data type index 0x0001..=0x0007
+/// that `[DummyUsage]` allows).
+pub fn check_entry(od: &ObjectDictionary, entry: u32, tx: bool) -> Result<Mapped, u32> {
     let index = (entry >> 16) as u16;
     let sub = (entry >> 8) as u8;
-    let bits = entry as u8;
-    let Lookup::Found(row) = od::find(index, sub) else {
+    let bits = entry as u8 as usize;
+    if (1..=7).contains(&index) {
+        let dtype = DataType::from_code(index).ok_or(abort::NOT_MAPPABLE)?;
+        if tx || !od.device.dummy_usage[index as usize] || bits != dtype.size() * 8 {
+            return Err(abort::NOT_MAPPABLE);
+        }
+        return Ok(Mapped { slot: None, dtype });
+    }
+    let Lookup::Found(slot) = od.find(index, sub) else {
         return Err(abort::NOT_MAPPABLE);
     };
-    let o = &OBJECTS[row];
+    let e = od.entry(slot);
     let access_ok = if tx {
-        o.access.readable()
+        e.access.readable()
     } else {
-        o.access.writable()
+        e.access.writable()
     };
-    if !o.pdo || !access_ok || o.dtype.size() == 0 || bits as usize != o.dtype.size() * 8 {
+    let size = e.dtype.size();
+    if !e.pdo
+        || !access_ok
+        || e.backing != Backing::Stored
+        || size == 0
+        || size > 8
+        || bits != size * 8
+    {
         return Err(abort::NOT_MAPPABLE);
     }
     Ok(Mapped {
-        row: row as u16,
-        bytes: bits / 8,
+        slot: Some(slot.get() as u32),
+        dtype: e.dtype,
     })
 }
 
-/// Build a PDO's mapping from the store (`count` entries starting at row `map_row + 1`).
-/// Fails with 0x06040041 / 0x06040042.
+/// Build a PDO's mapping from the store (`count` entries of `slots`). Fails with 0x06040041 /
+/// 0x06040042.
 pub fn compile(
+    od: &ObjectDictionary,
     store: &Store,
-    map_row: usize,
+    slots: &PdoSlots,
     count: usize,
     tx: bool,
-) -> Result<([Mapped; 8], u8, u8), u32> {
-    let mut map = [Mapped::default(); 8];
+) -> Result<([Mapped; MAX_ENTRIES], u8, u8), u32> {
+    let mut map = [Mapped::default(); MAX_ENTRIES];
+    if count > MAX_ENTRIES {
+        return Err(abort::PDO_LENGTH);
+    }
     let mut len = 0usize;
-    let count = count.min(8);
     for (k, m) in map.iter_mut().enumerate().take(count) {
-        let e = store.u32(map_row + 1 + k);
-        *m = check_entry(e, tx)?;
-        len += m.bytes as usize;
+        let Some(s) = slots.entries[k] else {
+            return Err(abort::NOT_MAPPABLE);
+        };
+        *m = check_entry(od, store.u32(s as usize), tx)?;
+        len += m.bytes();
     }
     if len > 8 {
         return Err(abort::PDO_LENGTH);
@@ -63,9 +102,13 @@ pub fn compile(
 pub fn pack(p: &Pdo, store: &Store, out: &mut [u8; 8]) -> usize {
     let mut pos = 0;
     for m in &p.map[..p.n as usize] {
-        let b = store.u32(m.row as usize).to_le_bytes();
-        let n = m.bytes as usize;
-        out[pos..pos + n].copy_from_slice(&b[..n]);
+        let n = m.bytes();
+        match m.slot {
+            Some(s) => {
+                store.read_bytes(s as usize, n, &mut out[pos..pos + n]);
+            }
+            None => out[pos..pos + n].fill(0),
+        }
         pos += n;
     }
     pos
@@ -73,28 +116,29 @@ pub fn pack(p: &Pdo, store: &Store, out: &mut [u8; 8]) -> usize {
 
 /// Write received data to the objects `p` maps.
 ///
-/// Each value must pass `accept(store, row, raw)` (the checks an SDO write makes); a refused
+/// Each value must pass `accept(store, slot, raw)` (the checks an SDO write makes); a refused
 /// value is not written and the object keeps its value, the others are written (as
-/// CANopenNode does). Returns false if any value was refused.
+/// CANopenNode does). Dummy entries are skipped. Returns false if any value was refused.
 pub fn unpack(
     p: &Pdo,
     store: &mut Store,
     data: &[u8],
-    accept: impl Fn(&Store, usize, u32) -> bool,
+    accept: impl Fn(&Store, usize, u64) -> bool,
 ) -> bool {
     let mut pos = 0;
     let mut all = true;
     for m in &p.map[..p.n as usize] {
-        let n = m.bytes as usize;
-        let row = m.row as usize;
+        let n = m.bytes();
         let Some(bytes) = data.get(pos..pos + n) else {
             return false;
         };
-        let raw = OBJECTS[row].decode(bytes);
-        if accept(store, row, raw) {
-            store.set(row, raw);
-        } else {
-            all = false;
+        if let Some(s) = m.slot {
+            let raw = od::decode(m.dtype, bytes);
+            if accept(store, s as usize, raw) {
+                store.set(s as usize, raw);
+            } else {
+                all = false;
+            }
         }
         pos += n;
     }

@@ -1,14 +1,16 @@
-//! The PDO engine: 4 RPDOs and 4 TPDOs (CiA 301 7.2.2), in one place, as CANopenNode's
-//! CO_PDO.c owns its PDOs:
+//! The PDO engine: the RPDOs and TPDOs the object dictionary has (4 each in the standard one,
+//! up to 512 each from a vendor's EDS; CiA 301 7.2.2), in one place, as CANopenNode's CO_PDO.c
+//! owns its PDOs:
 //!
 //! - [`layout`]: where the communication and mapping parameters (0x1400.., 0x1600..,
-//!   0x1800.., 0x1A00..) sit in the object table, by name;
+//!   0x1800.., 0x1A00..) sit in the store, resolved from the dictionary;
 //! - [`mapping`]: mapping validation (dynamic mapping), packing and unpacking;
 //! - [`rules`]: the SDO write rules of the PDO parameters (the one place to add checks);
 //! - [`rpdo`]: reception (length check, synchronous RPDOs held until SYNC);
 //! - [`tpdo`]: transmission (SYNC, RTR, event-driven with inhibit time and event timer).
 //!
-//! The engine never allocates; frames go out through a callback.
+//! The engine allocates its PDOs when the node is built and never after; frames go out
+//! through a callback.
 
 pub mod layout;
 pub mod mapping;
@@ -19,7 +21,8 @@ pub mod tpdo;
 pub use mapping::{check_entry, compile, Mapped};
 
 use crate::frame::CanFrame;
-use crate::od::Store;
+use crate::od::{ObjectDictionary, Store};
+use layout::{PdoSlots, MAX_ENTRIES};
 
 /// Transmission type (0x14xx / 0x18xx sub 2), CiA 301 table 71/72.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -105,6 +108,10 @@ pub const COB_EXTENDED: u32 = 0x2000_0000;
 /// Runtime state of one PDO.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Pdo {
+    /// PDO number, 0-based (0x1400 + number / 0x1800 + number).
+    pub number: u16,
+    /// Where its parameters are stored.
+    pub slots: PdoSlots,
     /// Valid (COB-ID bit 31 clear and the mapping compiles).
     pub valid: bool,
     /// COB-ID entry (sub 1).
@@ -112,7 +119,7 @@ pub struct Pdo {
     /// Transmission type (sub 2).
     pub ttype: TransmissionType,
     /// Compiled mapping.
-    pub map: [Mapped; 8],
+    pub map: [Mapped; MAX_ENTRIES],
     /// Mapped entries.
     pub n: u8,
     /// Data length in bytes.
@@ -151,7 +158,7 @@ impl Pdo {
         &self,
         store: &mut Store,
         data: &[u8],
-        accept: impl Fn(&Store, usize, u32) -> bool,
+        accept: impl Fn(&Store, usize, u64) -> bool,
     ) -> bool {
         mapping::unpack(self, store, data, accept)
     }
@@ -167,36 +174,81 @@ impl Pdo {
     pub fn id(&self) -> u32 {
         self.cob & 0x7FF
     }
+
+    /// A communication parameter as stored (0 where the dictionary lacks the sub-index).
+    pub fn comm_value(&self, store: &Store, sub: u8) -> u32 {
+        self.slots.comm(sub).map_or(0, |s| store.u32(s))
+    }
 }
 
 /// The node's PDOs.
 #[derive(Clone, Debug, Default)]
 pub struct PdoEngine {
-    /// RPDO 1..=4.
-    pub rpdo: [Pdo; 4],
-    /// TPDO 1..=4.
-    pub tpdo: [Pdo; 4],
+    /// The RPDOs the dictionary has, by number.
+    pub rpdo: Vec<Pdo>,
+    /// The TPDOs the dictionary has, by number.
+    pub tpdo: Vec<Pdo>,
 }
 
 impl PdoEngine {
-    fn pdo_mut(&mut self, k: usize, dir: Direction) -> &mut Pdo {
-        match dir {
-            Direction::Rx => &mut self.rpdo[k],
-            Direction::Tx => &mut self.tpdo[k],
+    /// The PDOs of `od` (a PDO exists where its COB-ID and mapping count do).
+    pub fn new(od: &ObjectDictionary) -> PdoEngine {
+        let list = |dir| {
+            (0..layout::MAX_PDOS)
+                .filter_map(|n| {
+                    PdoSlots::resolve(od, dir, n).map(|slots| Pdo {
+                        number: n,
+                        slots,
+                        ..Pdo::default()
+                    })
+                })
+                .collect()
+        };
+        PdoEngine {
+            rpdo: list(Direction::Rx),
+            tpdo: list(Direction::Tx),
         }
     }
 
-    /// Rebuild PDO `k` from its parameters in the store.
-    pub fn refresh(&mut self, store: &Store, k: usize, dir: Direction) {
-        let c = layout::comm_row(k, dir);
-        let m = layout::map_row(k, dir);
-        let cob = store.u32(c + layout::COB_ID);
-        let ttype = TransmissionType::from_u8(store.u32(c + layout::TRANSMISSION_TYPE) as u8);
-        let count = store.u32(m) as usize;
-        let p = self.pdo_mut(k, dir);
+    fn list_mut(&mut self, dir: Direction) -> &mut Vec<Pdo> {
+        match dir {
+            Direction::Rx => &mut self.rpdo,
+            Direction::Tx => &mut self.tpdo,
+        }
+    }
+
+    fn list(&self, dir: Direction) -> &[Pdo] {
+        match dir {
+            Direction::Rx => &self.rpdo,
+            Direction::Tx => &self.tpdo,
+        }
+    }
+
+    /// Position in its list of the PDO a parameter index belongs to.
+    fn position(&self, param: layout::Param) -> Option<usize> {
+        self.list(param.dir)
+            .iter()
+            .position(|p| p.number == param.number)
+    }
+
+    /// Position of the RPDO whose parameter `index` is (0x1400.. / 0x1600..), if it is one.
+    pub fn rpdo_of(&self, index: u16) -> Option<usize> {
+        let param = layout::Param::of(index)?;
+        if param.dir != Direction::Rx {
+            return None;
+        }
+        self.position(param)
+    }
+
+    /// Rebuild PDO `k` (position in its list) from its parameters in the store.
+    pub fn refresh(&mut self, od: &ObjectDictionary, store: &Store, k: usize, dir: Direction) {
+        let p = &mut self.list_mut(dir)[k];
+        let cob = p.comm_value(store, layout::COB_ID);
+        let ttype = TransmissionType::from_u8(p.comm_value(store, layout::TRANSMISSION_TYPE) as u8);
+        let count = p.slots.count.map_or(0, |s| store.u32(s as usize)) as usize;
         p.cob = cob;
         p.ttype = ttype;
-        match compile(store, m, count, dir == Direction::Tx) {
+        match compile(od, store, &p.slots, count, dir == Direction::Tx) {
             Ok((map, n, len)) => {
                 p.map = map;
                 p.n = n;
@@ -215,10 +267,12 @@ impl PdoEngine {
     }
 
     /// Rebuild every PDO.
-    pub fn refresh_all(&mut self, store: &Store) {
-        for k in 0..4 {
-            self.refresh(store, k, Direction::Rx);
-            self.refresh(store, k, Direction::Tx);
+    pub fn refresh_all(&mut self, od: &ObjectDictionary, store: &Store) {
+        for k in 0..self.rpdo.len() {
+            self.refresh(od, store, k, Direction::Rx);
+        }
+        for k in 0..self.tpdo.len() {
+            self.refresh(od, store, k, Direction::Tx);
         }
     }
 
@@ -232,21 +286,26 @@ impl PdoEngine {
     }
 
     /// An SDO write to a PDO parameter (0x1400..=0x1BFF), after type and limits were
-    /// checked: `None` when `index` is not a PDO parameter, else the outcome (the value is
-    /// stored and the PDO rebuilt when the rules accept it).
+    /// checked: `None` when `index` is not a parameter of a PDO the node has, else the
+    /// outcome (the value is stored and the PDO rebuilt when the rules accept it).
     pub fn write(
         &mut self,
+        od: &ObjectDictionary,
         store: &mut Store,
-        row: usize,
+        slot: usize,
         index: u16,
         sub: u8,
-        raw: u32,
+        raw: u64,
     ) -> Option<Result<(), u32>> {
-        let slot = layout::Slot::of(index)?;
-        Some(rules::check_write(store, slot, sub, raw).map(|()| {
-            store.set(row, raw);
-            self.refresh(store, slot.number, slot.dir);
-        }))
+        let param = layout::Param::of(index)?;
+        let k = self.position(param)?;
+        let pdo = self.list(param.dir)[k];
+        Some(
+            rules::check_write(od, store, &pdo, param, sub, raw).map(|()| {
+                store.set(slot, raw);
+                self.refresh(od, store, k, param.dir);
+            }),
+        )
     }
 }
 

@@ -40,12 +40,12 @@ impl PdoEngine {
         &mut self,
         store: &mut Store,
         frame: &CanFrame,
-        accept: impl Fn(&Store, usize, u32) -> bool,
+        accept: impl Fn(&Store, usize, u64) -> bool,
     ) -> RxOutcome {
         if frame.rtr {
             return RxOutcome::NotRpdo;
         }
-        for k in 0..4 {
+        for k in 0..self.rpdo.len() {
             let p = &mut self.rpdo[k];
             if !p.valid || p.id() != frame.id {
                 continue;
@@ -75,21 +75,20 @@ impl PdoEngine {
         RxOutcome::NotRpdo
     }
 
-    /// At SYNC: apply the synchronous RPDOs received since the last one. Per RPDO: whether
-    /// its values were all accepted (`None`: nothing applied).
-    pub fn apply_sync_rpdos(
+    /// At SYNC: apply synchronous RPDO `k` if it received data since the last SYNC.
+    /// Whether its values were all accepted (`None`: nothing applied).
+    pub fn apply_sync_rpdo(
         &mut self,
+        k: usize,
         store: &mut Store,
-        accept: impl Fn(&Store, usize, u32) -> bool + Copy,
-    ) -> [Option<bool>; 4] {
-        let mut out = [None; 4];
-        for (k, p) in self.rpdo.iter_mut().enumerate() {
-            if p.valid && p.rx_pending && p.ttype.is_sync() {
-                p.rx_pending = false;
-                let data = p.rx;
-                out[k] = Some(p.unpack(store, &data[..p.len as usize], accept));
-            }
+        accept: impl Fn(&Store, usize, u64) -> bool,
+    ) -> Option<bool> {
+        let p = &mut self.rpdo[k];
+        if p.valid && p.rx_pending && p.ttype.is_sync() {
+            p.rx_pending = false;
+            let data = p.rx;
+            return Some(p.unpack(store, &data[..p.len as usize], accept));
         }
-        out
+        None
     }
 }

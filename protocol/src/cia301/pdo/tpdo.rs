@@ -1,7 +1,7 @@
 //! TPDO transmission: at SYNC (types 0, 1..=240, sampling for 252), on RTR (252, 253), and
 //! event-driven (254, 255) limited by the inhibit time and refreshed by the event timer.
 
-use super::{layout, send, Direction, PdoEngine, TransmissionType};
+use super::{layout, send, Pdo, PdoEngine, TransmissionType};
 use crate::frame::CanFrame;
 use crate::od::Store;
 
@@ -77,12 +77,11 @@ impl PdoEngine {
     /// Event-driven TPDOs, every poll in operational: send on change once the inhibit time
     /// has passed, and when the event timer expires.
     pub fn poll_events(&mut self, store: &Store, now_us: u64, out: &mut impl FnMut(CanFrame)) {
-        for k in 0..4 {
-            let p = &mut self.tpdo[k];
+        for p in self.tpdo.iter_mut() {
             if !p.valid || !p.ttype.is_event() {
                 continue;
             }
-            let (inhibit, timer) = timers_us(store, k);
+            let (inhibit, timer) = timers_us(store, p);
             let inhibit_ok = p.last_tx_us.is_none_or(|l| now_us >= l + inhibit);
             let timer_due = timer > 0 && p.last_tx_us.is_none_or(|l| now_us >= l + timer);
             if inhibit_ok && (p.changed(store) || timer_due) {
@@ -101,7 +100,7 @@ impl PdoEngine {
         let Some(last) = p.last_tx_us else {
             return Some(now_us);
         };
-        let (inhibit, timer) = timers_us(store, k);
+        let (inhibit, timer) = timers_us(store, p);
         let mut at = (timer > 0).then(|| (last + timer).max(last + inhibit));
         if p.changed(store) {
             let t = last + inhibit;
@@ -111,11 +110,10 @@ impl PdoEngine {
     }
 }
 
-/// Inhibit time and event timer of TPDO `k`, us.
-fn timers_us(store: &Store, k: usize) -> (u64, u64) {
-    let c = layout::comm_row(k, Direction::Tx);
+/// Inhibit time and event timer of a TPDO, us.
+fn timers_us(store: &Store, p: &Pdo) -> (u64, u64) {
     (
-        store.u32(c + layout::INHIBIT_TIME) as u64 * 100,
-        store.u32(c + layout::EVENT_TIMER) as u64 * 1000,
+        p.comm_value(store, layout::INHIBIT_TIME) as u64 * 100,
+        p.comm_value(store, layout::EVENT_TIMER) as u64 * 1000,
     )
 }

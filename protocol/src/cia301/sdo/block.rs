@@ -1,12 +1,9 @@
 //! SDO block transfer (CiA 301 7.2.4.3.9 ff.), server side, with CRC (the CRC function is
 //! canopen-rs's `sdo::block::crc16`).
 
-use super::{abort, download_size, ObjectAccess, SdoServer, State, BUF};
+use super::{abort, download_size, ObjectAccess, SdoServer, State};
 use crate::wire::sdo::{BlockSegment, SdoRequest, SdoResponse};
 use canopen_rs::sdo::block::crc16;
-
-/// Segments per sub-block the server accepts in a block download.
-pub const DOWN_BLKSIZE: u8 = (BUF / 7) as u8;
 
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct DownState {
@@ -42,7 +39,7 @@ impl SdoServer {
         match (self.state, *req) {
             (State::Idle, SdoRequest::BlockDownloadInitiate { mux, crc, size }) => {
                 self.start(mux, false);
-                let size = match download_size(od, self.index, self.sub, size) {
+                let size = match download_size(od, self.index, self.sub, size, self.buf.len()) {
                     Ok(size) => size,
                     Err(c) => return self.fail(c, out),
                 };
@@ -56,7 +53,7 @@ impl SdoServer {
                 out(SdoResponse::BlockDownloadInitiate {
                     mux,
                     crc: true,
-                    blksize: DOWN_BLKSIZE,
+                    blksize: self.down_blksize(),
                 }
                 .emit());
             }
@@ -70,8 +67,7 @@ impl SdoServer {
                 if st.size.is_some_and(|s| s != total) {
                     return self.fail(abort::LENGTH_MISMATCH, out);
                 }
-                let data = self.buf;
-                match od.write(self.index, self.sub, &data[..total]) {
+                match self.write_received(od, total) {
                     Ok(()) => {
                         out(SdoResponse::BlockDownloadEnd.emit());
                         self.done(None);
@@ -90,29 +86,24 @@ impl SdoServer {
         out: &mut impl FnMut([u8; 8]),
     ) {
         let seq = seg.seqno;
-        let ack = |ackseq| {
-            SdoResponse::BlockDownloadAck {
-                ackseq,
-                blksize: DOWN_BLKSIZE,
-            }
-            .emit()
-        };
-        if seq == 0 || seq > DOWN_BLKSIZE {
+        let blksize = self.down_blksize();
+        let ack = |ackseq| SdoResponse::BlockDownloadAck { ackseq, blksize }.emit();
+        if seq == 0 || seq > blksize {
             return self.fail(abort::SEQUENCE, out);
         }
         if seq == st.expected {
-            if self.len + 7 > BUF {
+            if self.len + 7 > self.buf.len() {
                 return self.fail(abort::OUT_OF_MEMORY, out);
             }
             self.buf[self.len..self.len + 7].copy_from_slice(&seg.data);
             self.len += 7;
             st.expected += 1;
-            if seg.last || seq == DOWN_BLKSIZE {
+            if seg.last || seq == blksize {
                 out(ack(seq));
                 st.expected = 1;
                 st.waiting_end = seg.last;
             }
-        } else if seq == DOWN_BLKSIZE || seg.last {
+        } else if seq == blksize || seg.last {
             // a segment was lost: acknowledge the last good one, the client repeats the rest
             out(ack(st.expected - 1));
             st.expected = 1;
@@ -137,11 +128,9 @@ impl SdoServer {
                 if blksize == 0 || blksize > 127 {
                     return self.fail(abort::BLOCK_SIZE, out);
                 }
-                let mut buf = [0u8; BUF];
-                match od.read(self.index, self.sub, &mut buf) {
+                match self.read_into_buf(od) {
                     Err(c) => self.fail(c, out),
                     Ok(n) => {
-                        self.buf = buf;
                         self.len = n;
                         out(SdoResponse::BlockUploadInitiate {
                             mux,

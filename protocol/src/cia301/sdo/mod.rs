@@ -1,7 +1,8 @@
 //! SDO server: expedited, segmented and (in `block.rs`) block transfer, upload and download,
 //! with the stalled-transfer timeout. Sans-IO: request bytes and a time go in, response bytes
-//! come out through a callback. Values are at most [`BUF`] bytes (our largest object is a
-//! short string), so transfers never allocate.
+//! come out through a callback. The transfer buffer is allocated when the node is built, as
+//! large as the longest value of its dictionary (at least [`MIN_BUF`] bytes), so transfers
+//! never allocate.
 
 pub mod block;
 
@@ -11,8 +12,8 @@ use crate::wire::sdo::{
     self as wire, BlockSegment, Initiate, Mux, SdoRequest, SdoResponse, Segment,
 };
 
-/// Largest value the server moves in one transfer.
-pub const BUF: usize = 64;
+/// Smallest transfer buffer (the standard objects' longest value).
+pub const MIN_BUF: usize = 64;
 /// Default timeout of a stalled segmented / block transfer.
 pub const DEFAULT_TIMEOUT_US: u64 = 1_000_000;
 
@@ -21,7 +22,7 @@ pub use crate::wire::sdo::abort;
 /// What the server needs from the object dictionary. Errors are abort codes.
 pub trait ObjectAccess {
     /// Read the value of (index, sub) into `buf`; returns its length.
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8; BUF]) -> Result<usize, u32>;
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, u32>;
     /// Check, before any data moves, that (index, sub) exists and is writable and that a
     /// value of `size` bytes (if known) can fit.
     fn check_write(&mut self, index: u16, sub: u8, size: Option<usize>) -> Result<(), u32>;
@@ -44,7 +45,7 @@ pub struct SdoServer {
     pub(crate) state: State,
     pub(crate) index: u16,
     pub(crate) sub: u8,
-    pub(crate) buf: [u8; BUF],
+    pub(crate) buf: Box<[u8]>,
     pub(crate) len: usize,
     pub(crate) last_us: u64,
     /// The transfer in progress (or last) is an upload.
@@ -57,17 +58,46 @@ pub struct SdoServer {
 
 impl Default for SdoServer {
     fn default() -> Self {
+        SdoServer::with_capacity(MIN_BUF)
+    }
+}
+
+impl SdoServer {
+    /// A server whose transfers hold values of up to `bytes` (at least [`MIN_BUF`]).
+    pub fn with_capacity(bytes: usize) -> SdoServer {
         SdoServer {
             state: State::Idle,
             index: 0,
             sub: 0,
-            buf: [0; BUF],
+            buf: vec![0; bytes.max(MIN_BUF)].into_boxed_slice(),
             len: 0,
             last_us: 0,
             upload: false,
             finished: None,
             timeout_us: DEFAULT_TIMEOUT_US,
         }
+    }
+
+    /// Segments per block of a block download (at most 127; the buffer holds a block).
+    pub(crate) fn down_blksize(&self) -> u8 {
+        (self.buf.len() / 7).clamp(1, 127) as u8
+    }
+
+    /// Hand the whole received value to `od` (the buffer lent out without a copy).
+    pub(crate) fn write_received(
+        &mut self,
+        od: &mut impl ObjectAccess,
+        len: usize,
+    ) -> Result<(), u32> {
+        let data = core::mem::take(&mut self.buf);
+        let r = od.write(self.index, self.sub, &data[..len]);
+        self.buf = data;
+        r
+    }
+
+    /// Read the object into the buffer; its length.
+    pub(crate) fn read_into_buf(&mut self, od: &mut impl ObjectAccess) -> Result<usize, u32> {
+        od.read(self.index, self.sub, &mut self.buf)
     }
 }
 
@@ -203,7 +233,7 @@ impl SdoServer {
                     let n = match size {
                         Some(n) => n as usize,
                         None => {
-                            let mut probe = [0u8; BUF];
+                            let mut probe = [0u8; 8];
                             od.read(self.index, self.sub, &mut probe)
                                 .map(|l| l.clamp(1, 4))
                                 .unwrap_or(4)
@@ -220,7 +250,7 @@ impl SdoServer {
                 }
             }
             Initiate::Segmented { size } => {
-                let size = match download_size(od, self.index, self.sub, size) {
+                let size = match download_size(od, self.index, self.sub, size, self.buf.len()) {
                     Ok(size) => size,
                     Err(c) => return self.fail(c, out),
                 };
@@ -247,7 +277,7 @@ impl SdoServer {
             return self.fail(abort::TOGGLE, out);
         }
         let n = seg.bytes().len();
-        if self.len + n > BUF {
+        if self.len + n > self.buf.len() {
             return self.fail(abort::OUT_OF_MEMORY, out);
         }
         self.buf[self.len..self.len + n].copy_from_slice(seg.bytes());
@@ -257,8 +287,7 @@ impl SdoServer {
             if size.is_some_and(|s| s != self.len) {
                 return self.fail(abort::LENGTH_MISMATCH, out);
             }
-            let data = self.buf;
-            match od.write(self.index, self.sub, &data[..self.len]) {
+            match self.write_received(od, self.len) {
                 Ok(()) => {
                     out(ack);
                     self.done(None);
@@ -275,11 +304,10 @@ impl SdoServer {
     }
 
     fn upload_initiate(&mut self, od: &mut impl ObjectAccess, out: &mut impl FnMut([u8; 8])) {
-        let mut buf = [0u8; BUF];
-        match od.read(self.index, self.sub, &mut buf) {
+        match self.read_into_buf(od) {
             Err(c) => self.fail(c, out),
             Ok(n) if n <= 4 && n > 0 => {
-                let data = Initiate::expedited(&buf[..n]);
+                let data = Initiate::expedited(&self.buf[..n]);
                 out(SdoResponse::InitiateUpload {
                     mux: self.mux(),
                     data,
@@ -288,7 +316,6 @@ impl SdoServer {
                 self.done(None);
             }
             Ok(n) => {
-                self.buf = buf;
                 self.len = n;
                 let data = Initiate::Segmented {
                     size: Some(n as u32),
@@ -327,16 +354,18 @@ impl SdoServer {
     }
 }
 
-/// The size a segmented or block download announces, checked against the object (access, length) and against our buffer.
+/// The size a segmented or block download announces, checked against the object (access,
+/// length) and against our buffer of `cap` bytes.
 fn download_size(
     od: &mut impl ObjectAccess,
     index: u16,
     sub: u8,
     announced: Option<u32>,
+    cap: usize,
 ) -> Result<Option<usize>, u32> {
     let size = announced.map(|n| n as usize);
     od.check_write(index, sub, size)?;
-    if size.is_some_and(|n| n > BUF) {
+    if size.is_some_and(|n| n > cap) {
         return Err(abort::OUT_OF_MEMORY);
     }
     Ok(size)

@@ -1,0 +1,117 @@
+//! The one place a simulated drive gets its CANopen node: the object dictionary (the
+//! standard CiA 301 / CiA 402 objects, or a vendor's EDS, `vendor.rs`; plus the emulator's
+//! own, `objects.rs`), the node's configuration, and the link from the drive to its objects.
+
+use super::axis_drive::AxisDrive;
+use super::objects;
+use super::vendor::VendorEds;
+use drive_protocol::od::{BuildReport, DefaultValue, ObjectDictionary};
+use drive_protocol::{Drive, LssConfig, Node, NodeConfig};
+use std::sync::Arc;
+
+/// How to build a drive's node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeOptions {
+    /// Node ID 1..=127.
+    pub node_id: u8,
+    /// Time from power-on or an NMT reset to the boot-up message, us.
+    pub boot_delay_us: u64,
+    /// First index of the emulator's own objects (`objects.rs`); `None`: 0x2000, or with a
+    /// vendor's EDS the first free base.
+    pub objects_base: Option<u16>,
+    /// The vendor's EDS or DCF whose dictionary the drive serves (`None`: the standard one).
+    pub eds: Option<Arc<VendorEds>>,
+    /// The LSS slave's power-on bit timing and who writes a store configuration (the slave
+    /// exists where the dictionary says LSS_Supported: always for ours).
+    pub lss: LssConfig,
+    /// The identity's serial number 0x1018:4, part of the LSS address (`None`: the
+    /// dictionary's default; the standard one's is the node-ID). Give it when the node-ID
+    /// may change (LSS, a stored node-ID) so that the address stays.
+    pub serial_number: Option<u32>,
+}
+
+impl NodeOptions {
+    /// Node `node_id`, no boot delay, the standard dictionary, the emulator's objects at
+    /// 0x2000.
+    pub fn new(node_id: u8) -> NodeOptions {
+        NodeOptions {
+            node_id,
+            boot_delay_us: 0,
+            objects_base: None,
+            eds: None,
+            lss: LssConfig::default(),
+            serial_number: None,
+        }
+    }
+
+    /// The same with a boot delay.
+    pub fn with_boot_delay_us(mut self, delay_us: u64) -> NodeOptions {
+        self.boot_delay_us = delay_us;
+        self
+    }
+}
+
+/// A node's configuration and what went into it.
+#[derive(Clone, Debug)]
+pub struct NodeSetup {
+    /// The configuration to build the node from.
+    pub config: NodeConfig,
+    /// Where the emulator's objects are.
+    pub objects_base: u16,
+    /// With a vendor's EDS: what became of its objects.
+    pub report: Option<BuildReport>,
+}
+
+/// The configuration of the node for `drive`: the standard dictionary or the vendor's, plus
+/// the emulator's objects, whose slots `drive` learns (so build the node from this
+/// configuration).
+pub fn node_setup(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<NodeSetup> {
+    let info = drive.info();
+    let (od, objects, report) = match &opts.eds {
+        Some(eds) => {
+            let base = eds.objects_base(opts.objects_base)?;
+            let (od, objects, report) = eds.dictionary(&info, base, info.rotary)?;
+            (od, objects, Some(report))
+        }
+        None => {
+            let mut od = ObjectDictionary::standard(&info);
+            let base = opts.objects_base.unwrap_or(objects::DEFAULT_BASE);
+            let objects = objects::register(&mut od, base, info.rotary)
+                .map_err(|e| anyhow::anyhow!("the emulator's objects: {e}"))?;
+            (od, objects, None)
+        }
+    };
+    let mut od = od;
+    if let Some(serial) = opts.serial_number {
+        od.set_default(0x1018, 4, DefaultValue::Value(u64::from(serial)))
+            .map_err(|e| anyhow::anyhow!("serial number: {e}"))?;
+    }
+    let objects_base = objects.base;
+    drive.objects = Some(objects);
+    let lss = od.device.lss_supported.then_some(opts.lss);
+    let mut config = NodeConfig::new(opts.node_id, info)
+        .with_od(od)
+        .with_boot_delay_us(opts.boot_delay_us);
+    config.lss = lss;
+    Ok(NodeSetup {
+        config,
+        objects_base,
+        report,
+    })
+}
+
+/// [`node_setup`]'s configuration.
+pub fn node_config(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<NodeConfig> {
+    Ok(node_setup(drive, opts)?.config)
+}
+
+/// The node for `drive` (not booted yet), from [`node_setup`].
+pub fn build_node(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<Node> {
+    let cfg = node_config(drive, opts)?;
+    Node::new(cfg).map_err(|e| anyhow::anyhow!("node {}: {e}", opts.node_id))
+}
+
+/// [`build_node`] with node ID `node_id` and nothing else asked for.
+pub fn node(drive: &mut AxisDrive, node_id: u8) -> anyhow::Result<Node> {
+    build_node(drive, &NodeOptions::new(node_id))
+}

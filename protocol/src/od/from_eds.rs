@@ -1,0 +1,472 @@
+//! A dictionary built from a vendor's EDS or DCF ([`ObjectDictionary::from_eds`]): every
+//! object of the file becomes an entry with its type, access, PDO mapping, default and limits.
+//! An (index, sub) the node knows (a CiA 301 / CiA 402 object it simulates) takes the node's
+//! slot with the vendor's attributes; any other is stored. What the file lacks of the
+//! standard objects stays hidden (still simulated with the standard default). A
+//! [`BuildReport`] says what became of every object, and why.
+//!
+//! Rules (each reported):
+//! - 0x1000 must be a CiA 402 drive (device profile 402 in its low 16 bits), else an error.
+//! - Data type definitions (0x0001..=0x025F: DEFTYPE, DEFSTRUCT) and NULL objects are not
+//!   served (dropped).
+//! - The default is the file's DefaultValue; a DCF's ParameterValue is the value a master
+//!   writes (`load_configuration`, a concise DCF), not the drive's out-of-the-box value, and
+//!   is only used where there is no DefaultValue. `$NODEID+k` stays tied to the node ID.
+//! - A standard object whose type the file changes to one of another kind (a string for a
+//!   number, say) cannot be simulated with it: the file's entry is dropped, the standard one
+//!   served.
+//! - 0x6502: the file's modes that the emulator simulates (a mode it lists and we cannot run
+//!   is refused in 0x6060 and reported).
+//! - Every CiA 301 node has 0x1000, 0x1001 and 0x1018:1..4 (LSS needs the whole identity): a
+//!   file without one gets the standard entry (reported as added).
+//! - Strings and DOMAINs keep room to be written: writable ones at least
+//!   [`WRITABLE_STRING_CAPACITY`] / [`WRITABLE_DOMAIN_CAPACITY`] bytes, read-only ones their
+//!   default's length.
+
+use super::eds_parse::{EdsFile, EdsSub, ObjectCode, ValueExpr};
+use super::{decode, standard, DataType, DefaultValue, Entry, ObjType, ObjectDictionary, OdError};
+use crate::cia402::mode::{MODES, SIMULATED_MODES_MASK};
+use crate::drive::DriveInfo;
+
+/// Bytes a writable string keeps (a name a master may write).
+pub const WRITABLE_STRING_CAPACITY: usize = 256;
+/// Bytes a writable DOMAIN keeps (a program or a parameter block); a longer download is
+/// refused with SDO abort 0x06070012.
+pub const WRITABLE_DOMAIN_CAPACITY: usize = 65536;
+
+/// What became of one object (index, sub) of the file, or of one the node simulates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Fate {
+    /// A CiA 301 / CiA 402 object the drive simulates, with the file's attributes.
+    Simulated,
+    /// Served as a stored value: SDO reads what was written, PDOs carry it.
+    Stored,
+    /// In the file, not served.
+    Dropped,
+    /// Simulated by the drive but not in the file: out of reach of SDO and PDO.
+    Hidden,
+    /// Not in the file, added from the standard objects (every node has it).
+    Added,
+}
+
+impl Fate {
+    /// "simulated", "stored", ...
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Fate::Simulated => "simulated",
+            Fate::Stored => "stored",
+            Fate::Dropped => "dropped",
+            Fate::Hidden => "hidden",
+            Fate::Added => "added",
+        }
+    }
+}
+
+/// One line of the report.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ReportLine {
+    /// Index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Its name (the file's, or the standard one).
+    pub name: String,
+    /// What became of it.
+    pub fate: Fate,
+    /// Why, where it is not obvious from the fate (empty otherwise).
+    pub why: String,
+}
+
+/// What the build did with every object.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct BuildReport {
+    /// One line per (index, sub), sorted.
+    pub lines: Vec<ReportLine>,
+    /// Notes on the whole file (modes, identity, PDOs).
+    pub notes: Vec<String>,
+}
+
+impl BuildReport {
+    fn line(&mut self, index: u16, sub: u8, name: &str, fate: Fate, why: impl Into<String>) {
+        self.lines.push(ReportLine {
+            index,
+            sub,
+            name: name.to_string(),
+            fate,
+            why: why.into(),
+        });
+    }
+
+    /// How many lines have this fate.
+    pub fn count(&self, fate: Fate) -> usize {
+        self.lines.iter().filter(|l| l.fate == fate).count()
+    }
+
+    /// The fate of (index, sub), if the report has it.
+    pub fn fate(&self, index: u16, sub: u8) -> Option<Fate> {
+        self.lines
+            .iter()
+            .find(|l| l.index == index && l.sub == sub)
+            .map(|l| l.fate)
+    }
+}
+
+/// Why a file cannot be the drive's dictionary.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EdsBuildError {
+    /// Line of the object in the file (0: the file as a whole).
+    pub line: usize,
+    /// The object, if one is at fault.
+    pub object: Option<(u16, u8)>,
+    /// Why.
+    pub reason: String,
+}
+
+impl core::fmt::Display for EdsBuildError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if self.line > 0 {
+            write!(f, "line {}, ", self.line)?;
+        }
+        match self.object {
+            Some((i, 0)) => write!(f, "[{i:04X}]: {}", self.reason),
+            Some((i, s)) => write!(f, "[{i:04X}sub{s:X}]: {}", self.reason),
+            None => write!(f, "{}", self.reason),
+        }
+    }
+}
+
+impl std::error::Error for EdsBuildError {}
+
+fn err(sub: &EdsSub, index: u16, reason: impl Into<String>) -> EdsBuildError {
+    EdsBuildError {
+        line: sub.line,
+        object: Some((index, sub.sub)),
+        reason: reason.into(),
+    }
+}
+
+/// The kind of value a type holds, for "same kind" checks against the standard objects.
+fn kind(t: DataType) -> u8 {
+    if t.integer() {
+        0
+    } else if t.float() {
+        1
+    } else if t.variable() {
+        2
+    } else {
+        3
+    }
+}
+
+/// The default of an entry of the file (DefaultValue, else ParameterValue).
+fn default_of(
+    s: &EdsSub,
+    index: u16,
+    dtype: DataType,
+) -> Result<Option<DefaultValue>, EdsBuildError> {
+    let Some(expr) = s.default.as_ref().or(s.parameter_value.as_ref()) else {
+        return Ok(None);
+    };
+    if let ValueExpr::NodeIdPlus(off) = expr {
+        if !dtype.integer() {
+            return Err(err(
+                s,
+                index,
+                format!("$NODEID in a {} value", dtype.name()),
+            ));
+        }
+        // checked by the parser at node IDs 1 and 127
+        return Ok(Some(DefaultValue::NodeId(*off as i64 as u64)));
+    }
+    let bytes = expr.resolve(dtype, None).map_err(|e| err(s, index, e))?;
+    Ok(Some(if dtype.variable() {
+        DefaultValue::Bytes(bytes)
+    } else {
+        DefaultValue::Value(decode(dtype, &bytes))
+    }))
+}
+
+fn limit_of(
+    e: Option<&ValueExpr>,
+    s: &EdsSub,
+    index: u16,
+    dtype: DataType,
+) -> Result<Option<u64>, EdsBuildError> {
+    let Some(expr) = e else { return Ok(None) };
+    if dtype.variable() {
+        return Ok(None);
+    }
+    // a limit with $NODEID (rare) is taken at the highest node ID: it never refuses a value
+    // that some node ID allows
+    let bytes = expr
+        .resolve(dtype, Some(127))
+        .map_err(|e| err(s, index, format!("limit: {e}")))?;
+    Ok(Some(decode(dtype, &bytes)))
+}
+
+/// The entry of one sub of the file.
+fn entry_of(s: &EdsSub, index: u16, otype: ObjType, parent: &str) -> Result<Entry, EdsBuildError> {
+    let mut e = Entry::member(
+        index,
+        s.sub,
+        otype,
+        parent.to_string(),
+        s.name.clone(),
+        s.data_type,
+        s.access,
+    )
+    .with_pdo(s.pdo_mapping && !s.data_type.variable());
+    if let Some(d) = default_of(s, index, s.data_type)? {
+        e = e.with_default(d);
+    }
+    e = e.with_raw_limits(
+        limit_of(s.low.as_ref(), s, index, s.data_type)?,
+        limit_of(s.high.as_ref(), s, index, s.data_type)?,
+    );
+    if s.data_type.variable() {
+        let default_len = match &e.default {
+            DefaultValue::Bytes(b) => b.len(),
+            _ => 0,
+        };
+        let room = match (s.access.writable(), s.data_type) {
+            (false, _) => 0,
+            (true, DataType::Domain) => WRITABLE_DOMAIN_CAPACITY,
+            (true, _) => WRITABLE_STRING_CAPACITY,
+        };
+        e = e.with_capacity(default_len.max(room));
+    }
+    Ok(e)
+}
+
+impl ObjectDictionary {
+    /// The dictionary of a vendor's EDS or DCF for a drive with these static facts (the
+    /// hidden standard objects' defaults). Errors: not a CiA 402 drive, a value that does not
+    /// fit its entry.
+    pub fn from_eds(
+        file: &EdsFile,
+        info: &DriveInfo,
+    ) -> Result<(ObjectDictionary, BuildReport), EdsBuildError> {
+        let mut od = ObjectDictionary::standard_hidden(info);
+        let mut report = BuildReport::default();
+        check_device_type(file)?;
+        for obj in &file.objects {
+            if obj.defines_type()
+                || matches!(
+                    obj.code,
+                    ObjectCode::Null | ObjectCode::DefType | ObjectCode::DefStruct
+                )
+            {
+                for s in &obj.subs {
+                    report.line(
+                        obj.index,
+                        s.sub,
+                        &s.name,
+                        Fate::Dropped,
+                        "a data type definition, not an object",
+                    );
+                }
+                continue;
+            }
+            let otype = match obj.code {
+                ObjectCode::Array => ObjType::Array,
+                ObjectCode::Record => ObjType::Record,
+                _ => ObjType::Var,
+            };
+            for s in &obj.subs {
+                let mut e = entry_of(s, obj.index, otype, &obj.name)?;
+                let std_slot = standard::slot_of(obj.index, s.sub);
+                let mut why = String::new();
+                if let Some(slot) = std_slot {
+                    let std_type = od.slots[slot].entry.dtype;
+                    if kind(std_type) != kind(e.dtype) {
+                        report.line(obj.index, s.sub, &s.name, Fate::Dropped, format!(
+                            "the file makes it {}, the drive simulates it as {}: the standard entry is served",
+                            e.dtype.name(),
+                            std_type.name()
+                        ));
+                        od.slots[slot].visible = true;
+                        continue;
+                    }
+                    let no_value = s.default.is_none() && s.parameter_value.is_none();
+                    if no_value && std_type == e.dtype {
+                        // the file leaves the value to the device: the drive's own, not 0
+                        // (a profile velocity of 0 would never move); the device name is the
+                        // file's product name
+                        let product = file.device_info.product_name.as_ref();
+                        let d = match (obj.index, product) {
+                            (0x1008, Some(p)) => DefaultValue::Bytes(p.as_bytes().to_vec()),
+                            _ => od.slots[slot].entry.default.clone(),
+                        };
+                        e = e.with_default(d);
+                        why = "no DefaultValue in the file: the drive's standard value".into();
+                    }
+                    if (obj.index, s.sub) == (0x6502, 0) {
+                        e = supported_modes(e, &mut report);
+                    }
+                }
+                let fate = if std_slot.is_some() {
+                    Fate::Simulated
+                } else {
+                    Fate::Stored
+                };
+                if let DefaultValue::Value(v) = e.default {
+                    if let Err(high) = e.check_limits(v) {
+                        // the file contradicts itself; a master that writes the default back
+                        // (load_configuration, a concise DCF) must not be refused
+                        why = format!(
+                            "the file's default is {} its {}: limits not applied",
+                            if high { "above" } else { "below" },
+                            if high { "HighLimit" } else { "LowLimit" }
+                        );
+                        e.low = None;
+                        e.high = None;
+                    }
+                }
+                match od.insert_unsorted(e) {
+                    Ok(_) => report.line(obj.index, s.sub, &s.name, fate, why),
+                    Err(OdError::Invalid { reason, .. }) => return Err(err(s, obj.index, reason)),
+                    Err(OdError::Duplicate { .. }) => return Err(err(s, obj.index, "given twice")),
+                }
+            }
+        }
+        for (index, sub) in [
+            (0x1000, 0),
+            (0x1001, 0),
+            (0x1018, 0),
+            (0x1018, 1),
+            (0x1018, 2),
+            (0x1018, 3),
+            (0x1018, 4),
+        ] {
+            let slot = standard::slot_of(index, sub).expect("standard object");
+            if !od.slots[slot].visible {
+                od.slots[slot].visible = true;
+                let name = od.slots[slot].entry.name.to_string();
+                report.line(
+                    index,
+                    sub,
+                    &name,
+                    Fate::Added,
+                    "every CiA 301 node has it (LSS needs the whole identity)",
+                );
+            }
+        }
+        for s in &od.slots {
+            if !s.visible {
+                report.line(s.entry.index, s.entry.sub, &s.entry.name, Fate::Hidden, "not in the file: simulated with the standard default, out of reach of SDO and PDO");
+            }
+        }
+        od.resort();
+        od.device = super::DeviceDescription {
+            vendor_name: file.device_info.vendor_name.clone().unwrap_or_default(),
+            product_name: file.device_info.product_name.clone().unwrap_or_default(),
+            order_code: file.device_info.order_code.clone().unwrap_or_default(),
+            baud_rates_kbit: file.device_info.baud_rates_kbit.clone(),
+            granularity: file.device_info.granularity.unwrap_or(8),
+            lss_supported: file.device_info.lss_supported.unwrap_or(false),
+            dummy_usage: file.dummy_usage,
+        };
+        report.lines.sort_by_key(|l| (l.index, l.sub));
+        check_default_mappings(&od, &mut report);
+        Ok((od, report))
+    }
+}
+
+/// 0x1000's default must say device profile 402.
+fn check_device_type(file: &EdsFile) -> Result<(), EdsBuildError> {
+    let Some(obj) = file.object(0x1000) else {
+        return Err(EdsBuildError {
+            line: 0,
+            object: Some((0x1000, 0)),
+            reason: "no device type (0x1000): not a CANopen device description".into(),
+        });
+    };
+    let Some(s) = obj.sub(0) else {
+        return Err(EdsBuildError {
+            line: obj.line,
+            object: Some((0x1000, 0)),
+            reason: "0x1000 has no value".into(),
+        });
+    };
+    let value = s
+        .default
+        .as_ref()
+        .or(s.parameter_value.as_ref())
+        .and_then(|v| v.resolve(DataType::U32, Some(1)).ok())
+        .map(|b| decode(DataType::U32, &b));
+    let drive_objects = [0x6040u16, 0x6041, 0x6060, 0x6061]
+        .iter()
+        .all(|&i| file.object(i).is_some());
+    match value {
+        Some(v) if v & 0xFFFF == 402 => Ok(()),
+        Some(v) => Err(err(s, 0x1000, format!(
+            "device type 0x{v:08X} is device profile {} (low 16 bits), not a CiA 402 drive (402 = 0x0192)",
+            v & 0xFFFF
+        ))),
+        // many files leave 0x1000 to the device; the CiA 402 objects say what it is
+        None if drive_objects => Ok(()),
+        None => Err(err(s, 0x1000, "no device type value and no CiA 402 objects (0x6040, 0x6041, 0x6060, 0x6061): not a drive")),
+    }
+}
+
+/// 0x6502: the file's modes the emulator runs; the others reported.
+fn supported_modes(mut e: Entry, report: &mut BuildReport) -> Entry {
+    let listed = e.default_raw(0) as u32;
+    let kept = listed & SIMULATED_MODES_MASK;
+    let dropped: Vec<&str> = MODES
+        .iter()
+        .filter(|m| m.bit.is_some_and(|b| listed & (1 << b) != 0) && !m.simulated)
+        .map(|m| m.abbrev)
+        .collect();
+    if !dropped.is_empty() {
+        report.notes.push(format!(
+            "0x6502: the file lists {}, which the emulator does not simulate: 0x6060 refuses them",
+            dropped.join(", ")
+        ));
+    }
+    let unknown = listed
+        & !MODES
+            .iter()
+            .filter_map(|m| m.bit)
+            .fold(0u32, |a, b| a | (1 << b));
+    if unknown != 0 {
+        report.notes.push(format!(
+            "0x6502: bits 0x{unknown:08X} (manufacturer-specific modes) are not simulated"
+        ));
+    }
+    e.default = DefaultValue::Value(kept as u64);
+    e
+}
+
+/// A default mapping the dictionary cannot run (an object that is missing, not mappable, or
+/// read-only in an RPDO, which CiA 301 7.5.2.36 does not allow) leaves its PDO invalid until
+/// a master remaps it; say which.
+fn check_default_mappings(od: &ObjectDictionary, report: &mut BuildReport) {
+    for (base, dir, tx) in [(0x1600u16, "RPDO", false), (0x1A00, "TPDO", true)] {
+        for n in 0..512u16 {
+            let index = base + n;
+            let Some((_, count)) = od.get(index, 0) else {
+                continue;
+            };
+            let count = count.default_raw(0) as u8;
+            for sub in 1..=count.min(8) {
+                let Some((_, e)) = od.get(index, sub) else {
+                    report.notes.push(format!(
+                        "{dir}{} (0x{index:04X}): the default mapping counts {count} entries, sub {sub} is missing: the PDO is invalid until remapped",
+                        n + 1
+                    ));
+                    break;
+                };
+                let value = e.default_raw(0) as u32;
+                if let Err(code) = crate::cia301::pdo::check_entry(od, value, tx) {
+                    report.notes.push(format!(
+                        "{dir}{} (0x{index:04X}): default mapping entry 0x{value:08X} cannot be mapped \
+                         (abort 0x{code:08X}: missing, not PDO-mappable, or read-only in an RPDO): \
+                         the PDO is invalid until remapped",
+                        n + 1
+                    ));
+                }
+            }
+        }
+    }
+}
