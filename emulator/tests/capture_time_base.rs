@@ -17,7 +17,6 @@ use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::trace::node_sample;
 use drive_emu::runtime::{AxisSlot, Runtime};
 use drive_emu::samples::{Sample, SampleSource};
-use drive_protocol::{Drive, Node};
 use std::fmt::Write as _;
 
 const NODE: u8 = 5;
@@ -52,8 +51,8 @@ impl Rig {
             .unwrap()
             .with_override("backlash_mm", &backlash_mm.to_string())
             .unwrap();
-        let drive = AxisDrive::from_config(&cfg).unwrap();
-        let node = Node::new(NODE, drive.info()).unwrap();
+        let mut drive = AxisDrive::from_config(&cfg).unwrap();
+        let node = drive_emu::drive::node::node(&mut drive, NODE).unwrap();
         let mut eps = InProcBus::endpoints(3, 4096);
         let monitor = eps.pop().unwrap();
         let master = eps.pop().unwrap();

@@ -17,7 +17,6 @@ use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::trace::node_sample;
 use drive_emu::runtime::AxisSlot;
 use drive_emu::session::OfflineRun;
-use drive_protocol::{Drive, Node};
 use std::fmt::Write as _;
 
 const NODE: u8 = 5;
@@ -34,8 +33,8 @@ fn capture(preset: &str, backlash: f64, kv: f64, sync_us: u32) -> Captured {
     let base = AxisConfig::from_preset(preset).unwrap();
     let key = drive_emu::study::backlash_key(&base);
     let cfg = base.with_override(key, &backlash.to_string()).unwrap();
-    let drive = AxisDrive::from_config(&cfg).unwrap();
-    let node = Node::new(NODE, drive.info()).unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node::node(&mut drive, NODE).unwrap();
     let mcfg = MasterConfig {
         sync_period_us: sync_us,
         position_loop: Some(PositionLoop {

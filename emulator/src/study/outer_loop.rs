@@ -13,7 +13,6 @@ use crate::presets::{AxisConfig, ConfigError};
 use crate::runtime::trace::node_sample;
 use crate::runtime::AxisSlot;
 use crate::session::OfflineRun;
-use drive_protocol::{Drive, Node};
 
 use super::{backlash_key, LIMIT_CYCLE_MIN_RELATIVE_AMPLITUDE};
 
@@ -65,8 +64,8 @@ pub fn run_outer_loop(
     case: &OuterLoopCase,
 ) -> Result<OuterLoopRow, ConfigError> {
     let cfg = base.with_override(backlash_key(base), &format!("{}", case.backlash))?;
-    let drive = AxisDrive::from_config(&cfg)?;
-    let node = Node::new(5, drive.info()).map_err(|e| ConfigError {
+    let mut drive = AxisDrive::from_config(&cfg)?;
+    let node = crate::drive::node::node(&mut drive, 5).map_err(|e| ConfigError {
         key: "node".into(),
         reason: e.to_string(),
     })?;
