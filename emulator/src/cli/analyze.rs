@@ -20,6 +20,7 @@ use crate::analysis::detector::{
 };
 use crate::analysis::windows::{set_velocity_from_demand, DEMAND_SPAN_S};
 use crate::samples::csv::{parse_csv, read_trace_text};
+use crate::samples::{Sample, SampleSource};
 use anyhow::Context;
 use std::path::{Path, PathBuf};
 
@@ -195,7 +196,14 @@ fn trace_from_csv_text(
     let need = |names: &[&str]| -> anyhow::Result<&Vec<f64>> {
         find(names).with_context(|| format!("{}: no column {}", path.display(), names.join(" or ")))
     };
-    let tr = if find(&["t_s"]).is_some() {
+    let tr = if let Some(samples) = sample_rows(&find) {
+        // A sample log (`run --trace`, a scenario's samples.csv): read as the drive's own
+        // samples, as `run --detect` reads them (the set speed from the position demand;
+        // in CSV/PV from the velocity column).
+        let mut tr = AxisTrace::from_sample_log(&samples, SampleSource::Drive, rotary);
+        tr.set_velocity_source = format!("columns of the sample log: {}", tr.set_velocity_source);
+        tr
+    } else if find(&["t_s"]).is_some() {
         AxisTrace {
             t_s: need(&["t_s"])?.clone(),
             // From the position demand: exact for the master's interpolated targets, and
@@ -231,6 +239,54 @@ fn trace_from_csv_text(
     tr.check()
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok((tr, notes))
+}
+
+/// The rows of a sample log with every column of [`Sample::CSV_HEADER`] and whole numbers in
+/// its integer columns, else None.
+fn sample_rows<'a>(find: &impl Fn(&[&str]) -> Option<&'a Vec<f64>>) -> Option<Vec<Sample>> {
+    let col = |n: &str| find(&[n]);
+    let t = col("t_s")?;
+    let (sw, mode, target, sv) = (
+        col("statusword")?,
+        col("mode_display")?,
+        col("target_uu")?,
+        col("setpoint_velocity_uu_s")?,
+    );
+    let (pos, direct, vel) = (
+        col("position_uu")?,
+        col("direct_position_uu")?,
+        col("velocity_uu_s")?,
+    );
+    let (torque, current, ferr) = (
+        col("torque_permille")?,
+        col("current_permille")?,
+        col("following_error_uu")?,
+    );
+    // Whole numbers in the drive's objects; anything else (NaN, a value cut) is read by
+    // columns as it is.
+    let whole = [sw, mode, pos, direct, vel, torque, current, ferr]
+        .iter()
+        .all(|c| c.iter().all(|x| x.is_finite() && x.fract() == 0.0));
+    if !whole {
+        return None;
+    }
+    Some(
+        (0..t.len())
+            .map(|k| Sample {
+                t_s: t[k],
+                statusword: sw[k] as u16,
+                mode_display: mode[k] as i8,
+                target_uu: target[k],
+                setpoint_velocity_uu_s: sv[k],
+                position_uu: pos[k] as i32,
+                direct_position_uu: direct[k] as i32,
+                velocity_uu_s: vel[k] as i32,
+                torque_permille: torque[k] as i16,
+                current_permille: current[k] as i16,
+                following_error_uu: ferr[k] as i32,
+            })
+            .collect(),
+    )
 }
 
 /// Everything `analyze` says, for `--json`.
