@@ -61,11 +61,11 @@ impl std::str::FromStr for TimeBase {
 
 /// An interval counts as telling the time bases apart when it differs from the median SYNC
 /// interval by this share or more.
-const INFORMATIVE_SPREAD: f64 = 0.3;
+pub const INFORMATIVE_SPREAD: f64 = 0.3;
 /// Telling intervals needed to choose by the test.
-const MIN_INFORMATIVE: usize = 5;
+pub const MIN_INFORMATIVE: usize = 5;
 /// Moving: the local median position increment is at least this many user units per SYNC.
-const MIN_STEP_UU: f64 = 2.0;
+pub const MIN_STEP_UU: f64 = 2.0;
 
 /// Which clock the axis moves on, from the capture itself: at constant speed a drive on its
 /// own clock moves by `v x interval` between two SYNCs, a drive clocked by the SYNC count by
