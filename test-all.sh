@@ -6,14 +6,17 @@
 #      (natively where the kernel has CAN, inside user-mode Linux otherwise), followed in
 #      the same vcan run by the python package's pytest tests (python/tests: the drive_emu
 #      fixture and the examples; needs `pip install ./python`; "no tests" fails).
-# Exits non-zero if either phase fails (both always run). See docs/vcan.md.
+#   3. the Python module's tests on the host (python/drive-emu/tests: sim and sweep against the
+#      CLI, Dask, Ctrl-C, the Fig. 11 example; needs `pip install './python/drive-emu[all]'`,
+#      again after a change of the Rust code, and pytest's "no tests" fails).
+# Exits non-zero if any phase fails (all always run). See docs/vcan.md.
 #
 # Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase; the
 # CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
 set -euo pipefail
 
 case "${1:-}" in
-    -h|--help) sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     "") ;;
     *) echo "test-all.sh: no arguments expected (see --help)" >&2; exit 2 ;;
 esac
@@ -76,8 +79,22 @@ else
     echo "test-all.sh: building/archiving the e2e tests failed" >&2
 fi
 
+# ---- 3. the Python module (drive_emu), on the host: compared with the CLI binary built above
+banner "python module tests: pytest python/drive-emu/tests"
+t=$(now); py_rc=0
+if ! python3 -c 'import drive_emu' 2>/dev/null; then
+    echo "test-all.sh: python module drive_emu missing: pip install './python/drive-emu[all]'" >&2
+fi
+if [[ $emu_ok == 1 ]]; then
+    python3 -m pytest -p no:cacheprovider -q python/drive-emu/tests || py_rc=$?
+else
+    echo "test-all.sh: no drive-emu binary to compare the module with" >&2; py_rc=1
+fi
+py_time=$(secs "$t")
+
 banner "summary"
 printf 'host tests: %s (%ss)\n' "$([[ $host_rc == 0 ]] && echo ok || echo "FAILED ($host_rc)")" "$host_time"
 printf 'vcan tests: %s (build+archive %ss, run via vcan-setup.sh %ss)\n' \
     "$([[ $e2e_rc == 0 ]] && echo ok || echo "FAILED ($e2e_rc)")" "$build_time" "$run_time"
-if [[ $host_rc != 0 || $e2e_rc != 0 ]]; then exit 1; fi
+printf 'python module tests: %s (%ss)\n' "$([[ $py_rc == 0 ]] && echo ok || echo "FAILED ($py_rc)")" "$py_time"
+if [[ $host_rc != 0 || $e2e_rc != 0 || $py_rc != 0 ]]; then exit 1; fi

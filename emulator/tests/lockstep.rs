@@ -269,3 +269,56 @@ fn a_lock_step_drive_that_lost_syncs_on_receive_says_so() {
     let line = rt.stats.summary().to_string();
     assert!(line.contains(&format!("rx overflow {lost},")), "{line}");
 }
+
+/// Lock-step times what a master measures on its own clock on the wall clock (issue 22): a
+/// drive whose 0x1017 says 50 ms sends heartbeats while no SYNC comes, its heartbeat consumer
+/// (0x1016) reports a master that went silent (EMCY 0x8130), and TPDO1's event timer sends
+/// the statusword; the simulated time, which moves only with SYNC, stays where it was.
+#[test]
+fn communication_timers_run_on_the_wall_clock_between_syncs() {
+    use std::time::{Duration, Instant};
+    let mut eps = InProcBus::endpoints(2, 1 << 14);
+    let mut peer = eps.pop().unwrap();
+    let mut rt = Runtime::new(eps.pop().unwrap(), vec![axis()], 1000);
+    rt.boot();
+    let stop = std::sync::Arc::new(AtomicBool::new(false));
+    let runner = {
+        let stop = std::sync::Arc::clone(&stop);
+        std::thread::spawn(move || {
+            rt.run_lockstep_with(drive_emu::runtime::Lockstep::default(), &stop, |_| {});
+            rt
+        })
+    };
+    let id = u32::from(NODE);
+    let sdo = |peer: &mut drive_emu::bus::inproc::InProcEndpoint, req: [u8; 8]| {
+        peer.send(&CanFrame::new(0x600 + id, &req)).unwrap();
+    };
+    // the master's heartbeat (node 0x7F) consumed with 200 ms, the drive's own every 50 ms
+    sdo(&mut peer, [0x23, 0x16, 0x10, 1, 200, 0, 0x7F, 0]);
+    sdo(&mut peer, [0x2B, 0x17, 0x10, 0, 50, 0, 0, 0]);
+    peer.send(&CanFrame::new(0, &[0x01, NODE])).unwrap();
+    peer.send(&CanFrame::new(0x77F, &[0x05])).unwrap();
+    let (mut heartbeats, mut emcy, mut tpdo1) = (0, false, 0);
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while (heartbeats < 3 || !emcy || tpdo1 < 2) && Instant::now() < deadline {
+        match peer.recv() {
+            Ok(Some(f)) if f.id == 0x700 + id && f.data[0] == 0x05 => heartbeats += 1,
+            Ok(Some(f)) if f.id == 0x80 + id && f.data[..2] == [0x30, 0x81] => emcy = true,
+            Ok(Some(f)) if f.id == 0x180 + id => tpdo1 += 1,
+            _ => std::thread::sleep(Duration::from_micros(200)),
+        }
+    }
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !runner.is_finished() && Instant::now() < deadline {
+        stop.store(true, Ordering::Relaxed);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let rt = runner.join().unwrap();
+    assert!(heartbeats >= 3, "{heartbeats} heartbeats without SYNC");
+    assert!(
+        emcy,
+        "a silent master is reported without SYNC (EMCY 0x8130)"
+    );
+    assert!(tpdo1 >= 2, "TPDO1's event timer: {tpdo1} without SYNC");
+    assert_eq!(rt.sim_time_us, 0, "no SYNC, no simulated time");
+}

@@ -68,6 +68,16 @@ fn wrong_type_names_the_key() {
 }
 
 #[test]
+fn wrong_type_quoting_the_value_still_names_the_key() {
+    // serde's message quotes the value first: "invalid type: floating point `1.5`, expected u64"
+    let e = err("motor_encoder_counts_per_rev", "1.5");
+    assert_eq!(e.key, "motor_encoder_counts_per_rev");
+    assert!(e.reason.contains("1.5") && e.reason.contains("u64"), "{e}");
+    let e = err("vertical", "0.5");
+    assert_eq!(e.key, "vertical");
+}
+
+#[test]
 fn key_for_the_other_axis_kind_is_rejected() {
     let e = err("backlash_deg", "0.01");
     assert_eq!(e.key, "backlash_deg");

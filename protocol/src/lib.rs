@@ -38,6 +38,6 @@ pub use drive::{Drive, DriveCommand, DriveInfo, Feedback, Setpoint};
 pub use event::{NodeEvent, SdoDirection, SdoTransfer, EVENT_QUEUE};
 pub use frame::CanFrame;
 pub use node::{
-    ConfigError, FrameEvent, LssConfig, LssStore, Node, NodeConfig, DEFAULT_LSS_BIT_TIMING,
+    Clocks, ConfigError, FrameEvent, LssConfig, LssStore, Node, NodeConfig, DEFAULT_LSS_BIT_TIMING,
     TX_QUEUE,
 };

@@ -146,6 +146,32 @@ pub enum FrameEvent {
     },
 }
 
+/// The two clocks a node runs on, us. The application clock times the drive: the CiA 402
+/// cycle, window times, following-error time-outs, the CSP interpolation, SYNC supervision.
+/// The communication clock times what a master measures on its own clock: the heartbeat
+/// producer and consumer, TPDO event timers and inhibit times, the EMCY inhibit time, the SDO
+/// time-out and the boot delay. A runtime in real time gives the same clock twice
+/// ([`Clocks::same`]); a lock-step runtime, whose simulated time advances only with SYNC,
+/// gives the wall clock as the communication clock, so a master's heartbeat supervision
+/// agrees with the drive whatever its SYNC period. The two are never compared.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Clocks {
+    /// Application (simulated) time.
+    pub app_us: u64,
+    /// Communication time.
+    pub comm_us: u64,
+}
+
+impl Clocks {
+    /// One clock for both.
+    pub const fn same(now_us: u64) -> Clocks {
+        Clocks {
+            app_us: now_us,
+            comm_us: now_us,
+        }
+    }
+}
+
 /// Why a node could not be built.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum ConfigError {
@@ -218,7 +244,10 @@ struct Core {
     /// Synchronous TPDOs not sent because the 0x1007 window had closed.
     sync_window_missed: u32,
     pending_sync: Option<u64>,
+    /// Application clock, as last given.
     now_us: u64,
+    /// Communication clock, as last given.
+    comm_us: u64,
     /// Time from a reset (or power-on) to the boot-up message, us (0: at once).
     boot_delay_us: u64,
     /// While initialising after a reset: when the boot-up is due.
@@ -492,7 +521,7 @@ impl Core {
                 }
                 self.hbc.configure(i, raw as u32);
             }
-            (0x1017, _) => self.hb.restart(self.now_us, raw as u16),
+            (0x1017, _) => self.hb.restart(self.comm_us, raw as u16),
             (0x1019, _) => {
                 if self.store.u32(R_1006) != 0 {
                     return Err(abort::DEVICE_STATE);
@@ -516,6 +545,23 @@ impl Core {
         for i in 0..4 {
             let e = self.store.u32(R_1016 + i);
             self.hbc.configure(i, e);
+        }
+    }
+
+    /// Event-driven TPDOs (with the values of the last CiA 402 cycle) and EMCYs held by their
+    /// inhibit time, on the communication clock.
+    fn comm_timers_after(&mut self, comm_us: u64) {
+        if self.nmt == NmtState::Operational {
+            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
+            self.pdo
+                .poll_events(&self.store, comm_us, &mut |f| push(tx, overflows, f));
+        }
+        if self.emcy_allowed() {
+            let inhibit = self.store.u32(R_1015) as u16;
+            while let Some(d) = self.emcy.next(comm_us, inhibit) {
+                let f = CanFrame::new(self.store.u32(R_1014) & 0x7FF, &d);
+                self.push(f);
+            }
         }
     }
 
@@ -592,7 +638,8 @@ impl Core {
     /// A SYNC, handled `late_us` after it arrived (the runtime read it late). Synchronous TPDOs
     /// are sampled and queued now, unless the synchronous window (0x1007, non-zero) has
     /// already closed: then CiA 301 says they are not sent (counted in 0x2100).
-    fn on_sync(&mut self, frame: &CanFrame, now_us: u64, late_us: u64) -> FrameEvent {
+    fn on_sync(&mut self, frame: &CanFrame, clocks: Clocks, late_us: u64) -> FrameEvent {
+        let now_us = clocks.app_us;
         let window_us = u64::from(self.store.u32(R_1007));
         let window_closed = window_us > 0 && late_us > window_us;
         let overflow = self.store.u32(R_1019) as u8;
@@ -618,7 +665,7 @@ impl Core {
             let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
             let missed = self
                 .pdo
-                .on_sync(&self.store, now_us, window_closed, &mut |f| {
+                .on_sync(&self.store, clocks.comm_us, window_closed, &mut |f| {
                     push(tx, overflows, f)
                 });
             self.sync_window_missed = self.sync_window_missed.wrapping_add(missed);
@@ -708,6 +755,7 @@ impl Node {
             sync_window_missed: 0,
             pending_sync: None,
             now_us: 0,
+            comm_us: 0,
             boot_delay_us,
             boot_due_us: None,
             boot_keeps_app: false,
@@ -728,8 +776,14 @@ impl Node {
     /// Power-on: queue the boot-up message and enter pre-operational, after the boot delay
     /// ([`NodeConfig::boot_delay_us`]) if there is one.
     pub fn boot(&mut self, now_us: u64) {
-        self.core.now_us = now_us;
-        self.core.start_boot(now_us, false);
+        self.boot_with(Clocks::same(now_us));
+    }
+
+    /// [`Node::boot`] with two clocks (the boot delay runs on the communication clock).
+    pub fn boot_with(&mut self, clocks: Clocks) {
+        self.core.now_us = clocks.app_us;
+        self.core.comm_us = clocks.comm_us;
+        self.core.start_boot(clocks.comm_us, false);
         self.core.observe();
     }
 
@@ -748,6 +802,7 @@ impl Node {
     pub fn finish_boot(&mut self, now_us: u64) {
         if self.boot_pending() {
             self.core.now_us = now_us;
+            self.core.comm_us = now_us;
             self.core.boot(now_us);
             self.core.observe();
         }
@@ -802,7 +857,7 @@ impl Node {
 
     /// Handle one received frame.
     pub fn handle(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
-        self.handle_late(frame, now_us, 0, drive)
+        self.handle_with(frame, Clocks::same(now_us), 0, drive)
     }
 
     /// Handle one received frame that arrived `late_us` before `now_us` (a runtime that read it
@@ -815,7 +870,19 @@ impl Node {
         late_us: u64,
         drive: &mut impl Drive,
     ) -> FrameEvent {
-        let ev = self.handle_frame(frame, now_us, late_us, drive);
+        self.handle_with(frame, Clocks::same(now_us), late_us, drive)
+    }
+
+    /// [`Node::handle_late`] with two clocks ([`Clocks`]): a lock-step runtime gives the wall
+    /// clock as the communication clock.
+    pub fn handle_with(
+        &mut self,
+        frame: &CanFrame,
+        clocks: Clocks,
+        late_us: u64,
+        drive: &mut impl Drive,
+    ) -> FrameEvent {
+        let ev = self.handle_frame(frame, clocks, late_us, drive);
         if let Some(t) = self.sdo.take_finished() {
             self.core.event(NodeEvent::SdoTransfer(t));
         }
@@ -826,11 +893,15 @@ impl Node {
     fn handle_frame(
         &mut self,
         frame: &CanFrame,
-        now_us: u64,
+        clocks: Clocks,
         late_us: u64,
         drive: &mut impl Drive,
     ) -> FrameEvent {
-        self.core.now_us = now_us;
+        self.core.now_us = clocks.app_us;
+        self.core.comm_us = clocks.comm_us;
+        // everything a frame times here is communication: resets (boot delay), heartbeats,
+        // SDO, RTR answers; a SYNC is the exception (on_sync takes both)
+        let now_us = clocks.comm_us;
         if frame.extended || frame.id > 0x7FF {
             return FrameEvent::Ignored;
         }
@@ -868,7 +939,7 @@ impl Node {
         let nmt = self.core.nmt;
         let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
         if id == sync_cob && !frame.rtr {
-            return self.core.on_sync(frame, now_us, late_us);
+            return self.core.on_sync(frame, clocks, late_us);
         }
         if nmt == NmtState::Stopped {
             if (0x701..=0x77F).contains(&id) && !frame.rtr && frame.len >= 1 {
@@ -986,7 +1057,29 @@ impl Node {
 
     /// Timers, the CiA 402 state machine and mode, and exactly one `drive.command(..)`.
     pub fn poll(&mut self, now_us: u64, drive: &mut impl Drive) {
-        self.poll_timers_and_drive(now_us, drive);
+        self.poll_with(Clocks::same(now_us), drive);
+    }
+
+    /// [`Node::poll`] with two clocks ([`Clocks`]).
+    pub fn poll_with(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+        self.poll_timers_and_drive(clocks, drive);
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+    }
+
+    /// The communication timers alone, at `comm_us` on the communication clock: SDO
+    /// time-out, a boot whose delay is over, the heartbeat producer and consumer, event-driven
+    /// TPDOs, EMCYs held by their inhibit time. No CiA 402 cycle, no command to the drive: a
+    /// lock-step runtime calls it between SYNCs, when [`Node::poll_at_comm`] says.
+    pub fn poll_comm(&mut self, comm_us: u64, drive: &mut impl Drive) {
+        self.core.comm_us = comm_us;
+        self.comm_timers_before(comm_us);
+        if self.core.nmt != NmtState::Initialising {
+            self.core.comm_timers_after(comm_us);
+        }
+        let _ = drive;
         if let Some(t) = self.sdo.take_finished() {
             self.core.event(NodeEvent::SdoTransfer(t));
         }
@@ -1013,6 +1106,26 @@ impl Node {
     /// then needs `poll` only for its CiA 402 cycle, which the caller runs at its own rate.
     pub fn poll_at(&self) -> Option<u64> {
         let c = &self.core;
+        let mut at = self.poll_at_comm();
+        let mut take = |t: Option<u64>| {
+            if let Some(t) = t {
+                at = Some(at.map_or(t, |a| a.min(t)));
+            }
+        };
+        if c.nmt == NmtState::Initialising {
+            return at;
+        }
+        take(c.pending_sync);
+        if c.nmt == NmtState::Operational {
+            take(c.sync.deadline_us(c.store.u32(R_1006)));
+        }
+        at
+    }
+
+    /// The communication deadlines of [`Node::poll_at`] alone (on the communication clock):
+    /// when [`Node::poll_comm`] has something to do.
+    pub fn poll_at_comm(&self) -> Option<u64> {
+        let c = &self.core;
         let mut at = self.sdo.deadline_us();
         let mut take = |t: Option<u64>| {
             if let Some(t) = t {
@@ -1023,13 +1136,11 @@ impl Node {
             take(c.boot_due_us); // the boot-up after the boot delay
             return at;
         }
-        take(c.pending_sync);
         take(c.hb.deadline_us(c.store.u32(R_1017) as u16));
         take(c.hbc.deadline_us());
         if c.nmt == NmtState::Operational {
-            take(c.sync.deadline_us(c.store.u32(R_1006)));
             for k in 0..c.pdo.tpdo.len() {
-                take(c.pdo.deadline_us(&c.store, k, c.now_us));
+                take(c.pdo.deadline_us(&c.store, k, c.comm_us));
             }
         }
         if c.emcy_allowed() {
@@ -1038,13 +1149,11 @@ impl Node {
         at
     }
 
-    fn poll_timers_and_drive(&mut self, now_us: u64, drive: &mut impl Drive) {
-        self.core.now_us = now_us;
-        let fb = drive.feedback();
-        // SDO timeout
+    /// SDO time-out, the boot after its delay, the heartbeat producer and consumer.
+    fn comm_timers_before(&mut self, comm_us: u64) {
         {
             let mut outv: heapless::Vec<[u8; 8], 2> = heapless::Vec::new();
-            self.sdo.poll(now_us, &mut |f| {
+            self.sdo.poll(comm_us, &mut |f| {
                 let _ = outv.push(f);
             });
             let tx_cob = cob::SDO_TX + self.core.node_id as u32;
@@ -1053,38 +1162,48 @@ impl Node {
             }
         }
         let c = &mut self.core;
-        if c.nmt == NmtState::Initialising {
-            if c.boot_due_us.is_some_and(|due| now_us >= due) {
-                c.boot(now_us);
-            } else if !c.boot_keeps_app {
-                drive.command(&crate::drive::DriveCommand {
-                    setpoint: crate::drive::Setpoint::Disabled,
-                    max_torque_permille: 0.0,
-                    max_velocity_inc_per_s: 0.0,
-                });
-                return;
-            }
+        if c.nmt == NmtState::Initialising && c.boot_due_us.is_some_and(|due| comm_us >= due) {
+            c.boot(comm_us);
         }
-        let booting = c.nmt == NmtState::Initialising;
+        if c.nmt == NmtState::Initialising {
+            return;
+        }
         // heartbeat producer
-        if !booting && c.hb.due(now_us, c.store.u32(R_1017) as u16) {
+        if c.hb.due(comm_us, c.store.u32(R_1017) as u16) {
             let hb = Heartbeat { state: c.nmt as u8 };
             let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
             c.push(f);
         }
         // heartbeat consumer
-        let lost = if booting { None } else { c.hbc.poll(now_us) };
-        if let Some(n) = lost {
+        if let Some(n) = c.hbc.poll(comm_us) {
             c.hb_lost = true;
             c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
+        }
+    }
+
+    fn poll_timers_and_drive(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+        let now_us = clocks.app_us;
+        self.core.now_us = now_us;
+        self.core.comm_us = clocks.comm_us;
+        let fb = drive.feedback();
+        self.comm_timers_before(clocks.comm_us);
+        let c = &mut self.core;
+        if c.nmt == NmtState::Initialising && !c.boot_keeps_app {
+            drive.command(&crate::drive::DriveCommand {
+                setpoint: crate::drive::Setpoint::Disabled,
+                max_torque_permille: 0.0,
+                max_velocity_inc_per_s: 0.0,
+            });
+            return;
         }
         // SYNC supervision
         if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
             c.raise_emcy(EMCY_SYNC_LOSS, [0; 5], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
         }
-        // CiA 402
+        // CiA 402 (a lost master or SYNC whose reaction is a fault blocks the fault reset)
+        c.cia.comm_fault_present = (c.hb_lost || c.sync.lost) && c.store.i32(o402::ABORT_CONN) == 1;
         let period = csp_period_us(&c.store, c.sync.interval_us);
         let sync_at = c.pending_sync.take();
         let out = c
@@ -1098,19 +1217,8 @@ impl Node {
             c.clear_cause(Cause::Fault);
         }
         drive.command(&out.command);
-        // event-driven TPDOs
-        if c.nmt == NmtState::Operational {
-            let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
-            c.pdo
-                .poll_events(&c.store, now_us, &mut |f| push(tx, overflows, f));
-        }
-        // EMCY
-        if c.emcy_allowed() {
-            let inhibit = c.store.u32(R_1015) as u16;
-            while let Some(d) = c.emcy.next(now_us, inhibit) {
-                let f = CanFrame::new(c.store.u32(R_1014) & 0x7FF, &d);
-                c.push(f);
-            }
+        if c.nmt != NmtState::Initialising {
+            c.comm_timers_after(clocks.comm_us);
         }
     }
 

@@ -2,6 +2,8 @@
 //! set-point; after the start-up transient, the spectrum of the measured motor speed (and of
 //! the motor current) gives the vibration's fundamental frequency and amplitude.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use crate::control::{Command, Servo, Setpoint, VelocityProfile};
 use crate::presets::{AxisConfig, ConfigError};
 
@@ -76,6 +78,39 @@ impl Trace {
     pub fn is_empty(&self) -> bool {
         self.time_s.is_empty()
     }
+
+    /// Column names, units in them (`u` = "mm" or "deg"), in the order of
+    /// [`Trace::into_columns`]: the header of `sim --trace`'s CSV and the Python module's
+    /// trace.
+    pub fn column_names(u: &str) -> [String; 9] {
+        [
+            "time_s".to_string(),
+            format!("position_setpoint_{u}"),
+            format!("direct_encoder_position_{u}"),
+            format!("motor_encoder_position_{u}"),
+            "motor_velocity_rpm".to_string(),
+            format!("load_velocity_{u}_per_s"),
+            "motor_torque_nm".to_string(),
+            "motor_current_a".to_string(),
+            format!("following_error_{u}"),
+        ]
+    }
+
+    /// The signals with their [`Trace::column_names`].
+    pub fn into_columns(self, u: &str) -> [(String, Vec<f64>); 9] {
+        let [a, b, c, d, e, f, g, h, i] = Self::column_names(u);
+        [
+            (a, self.time_s),
+            (b, self.position_setpoint),
+            (c, self.direct_position),
+            (d, self.motor_position),
+            (e, self.motor_velocity_rpm),
+            (f, self.load_velocity),
+            (g, self.torque_nm),
+            (h, self.current_a),
+            (i, self.following_error),
+        ]
+    }
 }
 
 /// What the experiment found.
@@ -117,11 +152,64 @@ pub struct RunResult {
 /// paper's k_v/4 .. k_v band.
 pub const SEARCH_BAND_HZ: (f64, f64) = (1.0, 200.0);
 
+/// Why [`constant_velocity_run_until`] gave no result.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RunError {
+    /// The configuration was rejected (key and reason).
+    Config(ConfigError),
+    /// The stop flag was set before the run had finished, at this simulated time, s.
+    Stopped { at_s: f64 },
+}
+
+impl std::fmt::Display for RunError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RunError::Config(e) => e.fmt(f),
+            RunError::Stopped { at_s } => write!(f, "the run was stopped at {at_s:.3} s"),
+        }
+    }
+}
+
+impl std::error::Error for RunError {}
+
+impl From<ConfigError> for RunError {
+    fn from(e: ConfigError) -> Self {
+        RunError::Config(e)
+    }
+}
+
+/// Position cycles between two looks at the stop flag of [`constant_velocity_run_until`]
+/// (about 0.1-0.3 ms of wall time).
+const STOP_CHECK_CYCLES: usize = 256;
+
 /// Run the constant-velocity experiment on a configured axis.
 pub fn constant_velocity_run(
     cfg: &AxisConfig,
     opts: &RunOptions,
 ) -> Result<RunResult, ConfigError> {
+    run(cfg, opts, || false).map_err(|e| match e {
+        RunError::Config(e) => e,
+        // `|| false` never stops the run.
+        RunError::Stopped { .. } => ConfigError::new("stop", "stopped"),
+    })
+}
+
+/// [`constant_velocity_run`] that ends early, with [`RunError::Stopped`], once `stop` is set
+/// (from another thread: a Ctrl-C, a cancelled sweep). The flag is read every few hundred
+/// position cycles, so a run stops within a fraction of a millisecond.
+pub fn constant_velocity_run_until(
+    cfg: &AxisConfig,
+    opts: &RunOptions,
+    stop: &AtomicBool,
+) -> Result<RunResult, RunError> {
+    run(cfg, opts, || stop.load(Ordering::Relaxed))
+}
+
+fn run(
+    cfg: &AxisConfig,
+    opts: &RunOptions,
+    stopped: impl Fn() -> bool,
+) -> Result<RunResult, RunError> {
     let built = cfg.build()?;
     let unit = built.display_unit;
     let mut servo = Servo::new(built.axis, built.control).map_err(|e| ConfigError {
@@ -154,6 +242,9 @@ pub fn constant_velocity_run(
     let kick = opts.kick.unwrap_or(0.6 * opts.velocity);
     let kick_force = built.axis.mech.load_mass * kick * unit / (kick_cycles as f64 * dt);
     for i in 0..n {
+        if i % STOP_CHECK_CYCLES == 0 && stopped() {
+            return Err(RunError::Stopped { at_s: servo.time() });
+        }
         if kick != 0.0 {
             let on = i >= kick_start && i < kick_start + kick_cycles;
             servo

@@ -10,5 +10,8 @@ pub mod windows;
 /// The capture reader's old name.
 pub use self::capture as candump;
 
-pub use experiment::{constant_velocity_run, RunOptions, RunResult, RunSummary, Trace};
+pub use experiment::{
+    constant_velocity_run, constant_velocity_run_until, RunError, RunOptions, RunResult,
+    RunSummary, Trace,
+};
 pub use spectrum::{fundamental, half_peak_to_peak, Peak, SpectrumAnalyzer};

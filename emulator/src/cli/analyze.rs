@@ -19,7 +19,7 @@ use crate::analysis::detector::{
     analyze, AxisTrace, DetectorConfig, DetectorReport, Inconclusive, Verdict,
 };
 use crate::analysis::windows::{set_velocity_from_demand, DEMAND_SPAN_S};
-use crate::samples::csv::{parse_csv, read_trace_text};
+use crate::samples::csv::{parse_csv, read_trace_text, Columns};
 use crate::samples::{Sample, SampleSource};
 use anyhow::Context;
 use std::path::{Path, PathBuf};
@@ -188,13 +188,22 @@ fn trace_from_csv_text(
     rotary: bool,
 ) -> anyhow::Result<(AxisTrace, Vec<String>)> {
     let (cols, notes) = parse_csv(path, text)?;
+    Ok((
+        trace_from_columns(&path.display().to_string(), &cols, rotary)?,
+        notes,
+    ))
+}
+
+/// Build the detector's trace from named columns as either CSV layout has them (the
+/// simulator's trace or the sample log; see the module doc); `source` names them in errors.
+pub fn trace_from_columns(source: &str, cols: &Columns, rotary: bool) -> anyhow::Result<AxisTrace> {
     let find = |names: &[&str]| -> Option<&Vec<f64>> {
         cols.iter()
             .find(|(n, _)| names.contains(&n.as_str()))
             .map(|(_, v)| v)
     };
     let need = |names: &[&str]| -> anyhow::Result<&Vec<f64>> {
-        find(names).with_context(|| format!("{}: no column {}", path.display(), names.join(" or ")))
+        find(names).with_context(|| format!("{source}: no column {}", names.join(" or ")))
     };
     let tr = if let Some(samples) = sample_rows(&find) {
         // A sample log (`run --trace`, a scenario's samples.csv): read as the drive's own
@@ -236,9 +245,8 @@ fn trace_from_csv_text(
             rot,
         )
     };
-    tr.check()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok((tr, notes))
+    tr.check().map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    Ok(tr)
 }
 
 /// The rows of a sample log with every column of [`Sample::CSV_HEADER`] and whole numbers in
@@ -293,7 +301,7 @@ fn sample_rows<'a>(find: &impl Fn(&[&str]) -> Option<&'a Vec<f64>>) -> Option<Ve
 #[derive(Debug, serde::Serialize)]
 pub struct AnalyzeOutput {
     pub trace: String,
-    /// "candump" or "csv".
+    /// "candump", "csv" or "columns" (arrays given to the Python module).
     pub format: &'static str,
     pub kv_per_s: f64,
     /// "--kv", "0x2007 written in the capture", "preset cnc1".
@@ -335,7 +343,7 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<std::process::ExitCode> {
 
 /// A usage error (exit 2, as clap's).
 #[derive(Debug)]
-struct UsageError(String);
+pub struct UsageError(pub String);
 impl std::fmt::Display for UsageError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(&self.0)
@@ -349,7 +357,31 @@ fn preset_kv(name: &str) -> anyhow::Result<f64> {
     Ok(cfg.kv_per_s)
 }
 
-fn run_inner(args: &AnalyzeArgs) -> anyhow::Result<u8> {
+/// What [`analyze_input`] takes the trace from.
+#[derive(Clone, Copy, Debug)]
+pub enum AnalyzeInput<'a> {
+    /// The file `args.trace`: a candump log or a CSV trace.
+    File,
+    /// Named columns as a CSV trace has them (the Python module's arrays), named `source` in
+    /// errors.
+    Columns {
+        source: &'a str,
+        columns: &'a Columns,
+    },
+}
+
+/// What `analyze` found, before it writes anything: the output (without plots or report
+/// directory) and the trace the detector ran on (none when the capture lacked objects).
+#[derive(Debug)]
+pub struct Analysis {
+    pub output: AnalyzeOutput,
+    pub trace: Option<AxisTrace>,
+}
+
+/// Read and decode the trace, find k_v and run the detector: everything `analyze` does but
+/// writing the report directory and printing. A usage error (bad flags, no k_v) is an error
+/// whose chain holds [`UsageError`]; the Python module's `drive_emu.analyze` calls this.
+pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Result<Analysis> {
     if let Some(kv) = args.kv {
         if !(kv > 0.0 && kv.is_finite()) {
             return Err(UsageError(format!("--kv {kv}: must be a finite number > 0 (1/s)")).into());
@@ -365,13 +397,19 @@ fn run_inner(args: &AnalyzeArgs) -> anyhow::Result<u8> {
         preset_kv(&preset)?;
     }
     let path = &args.trace;
-    let text = read_trace_text(path)?;
+    let text = match input {
+        AnalyzeInput::File => read_trace_text(path)?,
+        AnalyzeInput::Columns { .. } => String::new(),
+    };
     let mut notes = Vec::new();
     let mut capture = None;
     let mut kv_written = None;
-    let candump = candump::looks_like_candump(&text);
+    let candump = matches!(input, AnalyzeInput::File) && candump::looks_like_candump(&text);
     let rotary_units = args.rotary;
-    let built: Result<AxisTrace, String> = if candump {
+    let built: Result<AxisTrace, String> = if let AnalyzeInput::Columns { source, columns } = input
+    {
+        Ok(trace_from_columns(source, columns, rotary_units)?)
+    } else if candump {
         let (defaults, preset_rotary) = candump::PdoConfig::drive_defaults(args.node, &preset)?;
         let log = candump::decode(
             &text,
@@ -416,33 +454,13 @@ fn run_inner(args: &AnalyzeArgs) -> anyhow::Result<u8> {
     if let Some(a) = args.alarm {
         cfg.alarm_um = a;
     }
-    let out = args.out.clone().unwrap_or_else(|| {
-        let stem = args
-            .trace
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("trace");
-        PathBuf::from("out").join(format!("analyze-{stem}"))
-    });
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let unit = if rotary_units { "mdeg" } else { "um" };
-    let (rep, plots) = match &built {
-        Ok(tr) => {
-            let rep = analyze(tr, &cfg);
-            let plots = if rep.windows.is_empty() {
-                Vec::new()
-            } else {
-                crate::report::detector_plots(&out, "", tr, &rep, None)?
-            };
-            (rep, plots)
+    let rep = match &built {
+        Ok(tr) => analyze(tr, &cfg),
+        Err(why) => {
+            DetectorReport::inconclusive(&cfg, Inconclusive::MissingObjects, why.clone(), unit)
         }
-        Err(why) => (
-            DetectorReport::inconclusive(&cfg, Inconclusive::MissingObjects, why.clone(), unit),
-            Vec::new(),
-        ),
     };
-    crate::report::write_json(&out.join("detector.json"), &rep)?;
-    let code = exit_code(rep.verdict, args.fail_on_backlash);
     // The master closes the position loop itself: the band is its gain, fitted.
     let (kv, kv_source) = match rep.master_loop {
         Some(m) => (
@@ -455,17 +473,58 @@ fn run_inner(args: &AnalyzeArgs) -> anyhow::Result<u8> {
         None => (kv, kv_source),
     };
     let output = AnalyzeOutput {
-        trace: path.display().to_string(),
-        format: if candump { "candump" } else { "csv" },
+        trace: match input {
+            AnalyzeInput::File => path.display().to_string(),
+            AnalyzeInput::Columns { source, .. } => source.to_string(),
+        },
+        format: match input {
+            AnalyzeInput::Columns { .. } => "columns",
+            AnalyzeInput::File if candump => "candump",
+            AnalyzeInput::File => "csv",
+        },
         kv_per_s: kv,
         kv_source,
         notes,
         capture,
+        exit_code: exit_code(rep.verdict, args.fail_on_backlash),
         report: rep,
-        exit_code: code,
-        plots,
-        report_dir: out,
+        plots: Vec::new(),
+        report_dir: PathBuf::new(),
     };
+    Ok(Analysis {
+        output,
+        trace: built.ok(),
+    })
+}
+
+/// Write the report directory of an analysis (`detector.json`, and the plots when windows
+/// were measured) to `out` and record it in the output.
+pub fn write_report(analysis: &mut Analysis, out: &Path) -> anyhow::Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let output = &mut analysis.output;
+    if let Some(tr) = &analysis.trace {
+        if !output.report.windows.is_empty() {
+            output.plots = crate::report::detector_plots(out, "", tr, &output.report, None)?;
+        }
+    }
+    crate::report::write_json(&out.join("detector.json"), &output.report)?;
+    output.report_dir = out.to_path_buf();
+    Ok(())
+}
+
+fn run_inner(args: &AnalyzeArgs) -> anyhow::Result<u8> {
+    let mut analysis = analyze_input(args, AnalyzeInput::File)?;
+    let out = args.out.clone().unwrap_or_else(|| {
+        let stem = args
+            .trace
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("trace");
+        PathBuf::from("out").join(format!("analyze-{stem}"))
+    });
+    write_report(&mut analysis, &out)?;
+    let output = analysis.output;
+    let code = output.exit_code;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&output)?);
     } else {

@@ -3,10 +3,11 @@
 
 use std::io::Write;
 use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
 
 use anyhow::Context;
 
-use crate::analysis::{constant_velocity_run, RunOptions};
+use crate::analysis::{constant_velocity_run_until, RunError, RunOptions, RunResult};
 use crate::presets::AxisConfig;
 
 /// Arguments of `drive-emu sim`.
@@ -59,7 +60,8 @@ fn validate(args: &SimArgs, cycle_s: f64) -> anyhow::Result<()> {
     let v = args.velocity;
     anyhow::ensure!(
         v.is_finite() && v.abs() <= MAX_VELOCITY,
-        "--velocity {v}: must be a finite number within +-{MAX_VELOCITY} axis units/s (mm/s or          deg/s)"
+        "--velocity {v}: must be a finite number within +-{MAX_VELOCITY} axis units/s (mm/s \
+         or deg/s)"
     );
     anyhow::ensure!(
         args.duration.is_finite() && args.duration > 0.0,
@@ -68,7 +70,8 @@ fn validate(args: &SimArgs, cycle_s: f64) -> anyhow::Result<()> {
     );
     anyhow::ensure!(
         args.accel.is_finite() && args.accel >= 0.0,
-        "--accel {}: must be a finite acceleration >= 0 axis units/s^2 (0 = reach the velocity          in 0.1 s)",
+        "--accel {}: must be a finite acceleration >= 0 axis units/s^2 (0 = reach the \
+         velocity in 0.1 s)",
         args.accel
     );
     if let Some(k) = args.kick {
@@ -87,7 +90,9 @@ fn validate(args: &SimArgs, cycle_s: f64) -> anyhow::Result<()> {
     if mb > args.max_memory_mb {
         let max_s = args.max_memory_mb * 1e6 / BYTES_PER_SAMPLE * cycle_s;
         anyhow::bail!(
-            "--duration {} s needs {samples:.0} samples ({mb:.0} MB in memory{}): above the cap              of {} MB (--max-memory-mb); at this preset's {} us position cycle the cap allows              {max_s:.0} s. Shorten --duration or raise --max-memory-mb.",
+            "--duration {} s needs {samples:.0} samples ({mb:.0} MB in memory{}): above the cap \
+             of {} MB (--max-memory-mb); at this preset's {} us position cycle the cap allows \
+             {max_s:.0} s. Shorten --duration or raise --max-memory-mb.",
             args.duration,
             if args.trace.is_some() {
                 format!(", a {:.0} MB trace", samples * CSV_BYTES_PER_SAMPLE / 1e6)
@@ -101,7 +106,11 @@ fn validate(args: &SimArgs, cycle_s: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-pub fn run(args: &SimArgs) -> anyhow::Result<()> {
+/// What `sim` runs, without printing or writing anything: the preset with its `--set`
+/// overrides, the flags checked, the constant-velocity run (the full trace when `record`, else
+/// the analysis window's), ended early with [`RunError::Stopped`] in the error's chain once
+/// `stop` is set. The Python module's `drive_emu.sim` calls this.
+pub fn simulate(args: &SimArgs, record: bool, stop: &AtomicBool) -> anyhow::Result<RunResult> {
     let cfg = AxisConfig::from_preset(&args.preset)
         .and_then(|c| c.with_overrides(args.set.iter().map(String::as_str)))
         .map_err(|e| anyhow::anyhow!("invalid configuration: {e}"))?;
@@ -113,10 +122,17 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         velocity: args.velocity,
         duration: args.duration,
         accel: args.accel,
-        record: args.trace.is_some(),
+        record,
         kick: args.kick,
     };
-    let res = constant_velocity_run(&cfg, &opts).map_err(|e| anyhow::anyhow!("{e}"))?;
+    constant_velocity_run_until(&cfg, &opts, stop).map_err(|e| match e {
+        RunError::Stopped { .. } => anyhow::Error::new(e),
+        RunError::Config(e) => anyhow::anyhow!("{e}"),
+    })
+}
+
+pub fn run(args: &SimArgs) -> anyhow::Result<()> {
+    let res = simulate(args, args.trace.is_some(), &AtomicBool::new(false))?;
     if let Some(path) = &args.trace {
         let u = &res.summary.unit;
         let file = std::fs::File::create(path)
@@ -157,12 +173,7 @@ pub fn write_trace_csv(
     t: &crate::analysis::Trace,
     u: &str,
 ) -> std::io::Result<()> {
-    writeln!(
-        w,
-        "time_s,position_setpoint_{u},direct_encoder_position_{u},motor_encoder_position_{u},\
-         motor_velocity_rpm,load_velocity_{u}_per_s,motor_torque_nm,motor_current_a,\
-         following_error_{u}"
-    )?;
+    writeln!(w, "{}", crate::analysis::Trace::column_names(u).join(","))?;
     for i in 0..t.len() {
         writeln!(
             w,

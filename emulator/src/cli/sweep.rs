@@ -7,7 +7,8 @@ use anyhow::Context;
 
 use crate::presets::{preset_names, AxisConfig};
 use crate::study::{
-    default_velocity, own_backlash, rows_csv, run_cases, Case, ValueSpec, DEFAULT_DURATION_S,
+    default_velocity, own_backlash, rows_csv, run_cases, Case, ValueSpec, CASE_DURATION_S,
+    DEFAULT_DURATION_S,
 };
 
 /// Arguments of `drive-emu sweep`.
@@ -39,8 +40,10 @@ pub struct SweepArgs {
 
 pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     anyhow::ensure!(
-        args.duration >= 2.0 && args.duration <= 600.0 && args.duration.is_finite(),
-        "--duration must be 2..600 s (the FFT window is the cruise after the start-up transient)"
+        CASE_DURATION_S.contains(&args.duration),
+        "--duration must be {}..{} s (the FFT window is the cruise after the start-up transient)",
+        CASE_DURATION_S.start(),
+        CASE_DURATION_S.end()
     );
     if let Some(v) = args.velocity {
         anyhow::ensure!(

@@ -262,11 +262,13 @@ impl AxisConfig {
         // Integer-typed fields accept integers only; let a float like "1e6" through for them.
         table.insert(key.to_string(), parsed);
         let cfg: AxisConfig = table.try_into().map_err(|e: toml::de::Error| {
-            let mut err = parse_error(e);
-            if err.key.is_empty() {
-                err.key = key.to_string();
+            // The table was valid but for this key: the error is about it, whatever the
+            // message quotes first (a wrong type quotes the value: "invalid type: floating
+            // point `1.5`, expected u64").
+            ConfigError {
+                key: key.to_string(),
+                ..parse_error(e)
             }
-            err
         })?;
         cfg.build()?;
         Ok(cfg)

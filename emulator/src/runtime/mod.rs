@@ -22,7 +22,7 @@ pub mod trace;
 use crate::bus::{CanBus, CanFrame, SendError};
 use crate::time::Clock;
 use drive_protocol::od::Slot;
-use drive_protocol::{Drive, FrameEvent, Node};
+use drive_protocol::{Clocks, Drive, FrameEvent, Node};
 use pll::SyncPll;
 use stats::LoopStats;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -78,8 +78,9 @@ pub struct Runtime<B, D> {
     /// Simulated time, microseconds.
     pub sim_time_us: u64,
     pub stats: LoopStats,
-    /// Lock-step: when each node's pending boot started on the wall clock.
-    boot_started: Vec<Option<Instant>>,
+    /// The nodes' communication clock (`drive_protocol::Clocks`): the simulated time, or in
+    /// lock-step the wall clock.
+    comm_clock: CommClock,
     /// Lock-step: the simulated time one SYNC advances, us (0 before the first SYNC and when
     /// not in lock-step).
     pub lockstep_period_us: u64,
@@ -90,14 +91,13 @@ pub struct Runtime<B, D> {
 impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
     pub fn new(bus: B, axes: Vec<AxisSlot<D>>, period_us: u64) -> Self {
         assert!(period_us > 0, "tick period must be positive");
-        let axes_len = axes.len();
         Self {
             bus,
             axes,
             period_us,
             sim_time_us: 0,
             stats: LoopStats::new(period_us),
-            boot_started: vec![None; axes_len],
+            comm_clock: CommClock::Simulated,
             lockstep_period_us: 0,
             lockstep_free_ticks: 0,
         }
@@ -105,11 +105,34 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
 
     /// Boot every node (boot-up messages go out on the first send).
     pub fn boot(&mut self) {
-        let now = self.sim_time_us;
+        let clocks = self.clocks();
         for ax in &mut self.axes {
-            ax.node.boot(now);
+            ax.node.boot_with(clocks);
         }
         self.flush_tx();
+    }
+
+    /// The nodes' clocks now.
+    fn clocks(&self) -> Clocks {
+        match self.comm_clock {
+            CommClock::Simulated => Clocks::same(self.sim_time_us),
+            CommClock::Wall { start } => Clocks {
+                app_us: self.sim_time_us,
+                comm_us: start.elapsed().as_micros() as u64,
+            },
+        }
+    }
+
+    /// From now on the nodes' communication clock is the wall clock (lock-step), continuing
+    /// from the simulated time it has reached.
+    pub fn use_wall_comm_clock(&mut self) {
+        if let CommClock::Simulated = self.comm_clock {
+            let since = std::time::Duration::from_micros(self.sim_time_us);
+            let now = Instant::now();
+            self.comm_clock = CommClock::Wall {
+                start: now.checked_sub(since).unwrap_or(now),
+            };
+        }
     }
 
     /// Complete every pending boot now (sends the boot-ups).
@@ -159,10 +182,11 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
 
     /// Hand a frame read `late_us` after it arrived to every node; true if it was a SYNC.
     fn handle_frame(&mut self, frame: &CanFrame, late_us: u64) -> bool {
-        let now = self.sim_time_us;
+        let clocks = self.clocks();
         let mut sync = false;
         for ax in &mut self.axes {
-            if let FrameEvent::Sync { .. } = ax.node.handle_late(frame, now, late_us, &mut ax.drive)
+            if let FrameEvent::Sync { .. } =
+                ax.node.handle_with(frame, clocks, late_us, &mut ax.drive)
             {
                 sync = true;
             }
@@ -175,9 +199,9 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
 
     /// Let every node act and advance every axis by one period.
     pub fn step(&mut self) {
-        let now = self.sim_time_us;
+        let clocks = self.clocks();
         for ax in &mut self.axes {
-            ax.node.poll(now, &mut ax.drive);
+            ax.node.poll_with(clocks, &mut ax.drive);
             ax.drive.advance(self.period_us);
         }
         self.sim_time_us += self.period_us;
@@ -408,8 +432,11 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         let wait_us = cfg
             .free_run_after_us
             .map_or(10_000, |_| self.period_us.min(10_000));
+        // What a master measures on its own clock (heartbeats, event timers, the boot delay)
+        // runs on the wall clock; the drive's time waits for SYNC.
+        self.use_wall_comm_clock();
         while !stop.load(Ordering::Relaxed) {
-            let wait_us = wait_us.min(self.lockstep_boots());
+            let wait_us = wait_us.min(self.lockstep_comm());
             self.bus.wait_readable(wait_us);
             // Frames in bus order: each SYNC advances time before the frames after it are
             // seen, so a batch read after a stall gives the same run as frames read one by one
@@ -456,26 +483,19 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         self.publish_stats();
     }
 
-    /// Lock-step: simulated time stands still without SYNC, but a master usually waits for
-    /// the boot-up before it sends any, so a pending boot (power-on, NMT reset) completes
-    /// when its delay has passed on the wall clock (or in simulated time, whichever first).
-    /// Returns how long the loop may wait for frames, us.
-    fn lockstep_boots(&mut self) -> u64 {
-        let mut wait_us = 10_000;
-        let now = Instant::now();
-        for (ax, started) in self.axes.iter_mut().zip(self.boot_started.iter_mut()) {
-            if !ax.node.boot_pending() {
-                *started = None;
-                continue;
+    /// Lock-step: simulated time stands still without SYNC, but what a master measures on its
+    /// own clock does not: the nodes' communication timers (the boot delay after power-on or
+    /// an NMT reset, the heartbeat producer and consumer, event-driven TPDOs, SDO time-outs)
+    /// run on the wall clock between SYNCs. Returns how long the loop may wait for frames, us.
+    fn lockstep_comm(&mut self) -> u64 {
+        let mut wait_us = 10_000u64;
+        let now = self.clocks().comm_us;
+        for ax in &mut self.axes {
+            if ax.node.poll_at_comm().is_some_and(|t| t <= now) {
+                ax.node.poll_comm(now, &mut ax.drive);
             }
-            let t0 = *started.get_or_insert(now);
-            let elapsed_us = now.duration_since(t0).as_micros() as u64;
-            let delay_us = ax.node.boot_delay_us();
-            if elapsed_us >= delay_us {
-                ax.node.finish_boot(self.sim_time_us);
-                *started = None;
-            } else {
-                wait_us = wait_us.min(delay_us - elapsed_us);
+            if let Some(t) = ax.node.poll_at_comm() {
+                wait_us = wait_us.min(t.saturating_sub(now));
             }
         }
         self.flush_tx();
@@ -493,6 +513,15 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         }
         hook(self);
     }
+}
+
+/// The nodes' communication clock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum CommClock {
+    /// The simulated time (real-time loop: it is the wall clock; offline: a virtual clock).
+    Simulated,
+    /// The wall clock, us since `start` (lock-step).
+    Wall { start: Instant },
 }
 
 /// How [`Runtime::run_lockstep_with`] turns SYNCs into simulated time.

@@ -7,9 +7,9 @@ pub mod figures;
 pub mod outer_loop;
 pub mod response;
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-use crate::analysis::{constant_velocity_run, RunOptions};
+use crate::analysis::{constant_velocity_run_until, RunError, RunOptions};
 use crate::presets::{AxisConfig, AxisKind, ConfigError};
 
 /// The paper's rotary set-point: 0.026 r/s at the table, in deg/s.
@@ -109,35 +109,66 @@ pub struct CaseRow {
     pub window_end_s: f64,
 }
 
+/// Simulated seconds a sweep case may run: the FFT window is the cruise after the start-up
+/// transient (shorter leaves too little of it), and a case longer than ten minutes belongs in
+/// `sim`.
+pub const CASE_DURATION_S: std::ops::RangeInclusive<f64> = 2.0..=600.0;
+
 /// Run one case.
 pub fn run_case(base: &AxisConfig, case: &Case) -> Result<CaseRow, ConfigError> {
+    run_case_until(base, case, &AtomicBool::new(false)).map_err(|e| match e {
+        RunError::Config(e) => e,
+        RunError::Stopped { .. } => ConfigError::new("stop", "stopped"),
+    })
+}
+
+/// [`run_case`], ended early once `stop` is set.
+pub fn run_case_until(
+    base: &AxisConfig,
+    case: &Case,
+    stop: &AtomicBool,
+) -> Result<CaseRow, RunError> {
     let cfg = base
         .with_override("kv_per_s", &format!("{}", case.kv_per_s))?
         .with_override(backlash_key(base), &format!("{}", case.backlash))?;
+    measure_until(&cfg, case.velocity, case.duration_s, stop)
+}
+
+/// Measure one configured axis as a sweep case does (a constant-velocity run at `velocity`
+/// for `duration_s`, its k_v and backlash those of `cfg`), ended early once `stop` is set.
+/// The Python module's sweep runs each case of its grid (any preset keys) through this.
+pub fn measure_until(
+    cfg: &AxisConfig,
+    velocity: f64,
+    duration_s: f64,
+    stop: &AtomicBool,
+) -> Result<CaseRow, RunError> {
     let built = cfg.build()?;
-    let res = constant_velocity_run(&cfg, &RunOptions::new(case.velocity, case.duration_s))?;
+    let kv_per_s = cfg.kv_per_s;
+    let backlash = own_backlash(cfg);
+    let res = constant_velocity_run_until(cfg, &RunOptions::new(velocity, duration_s), stop)?;
     let s = res.summary;
     // motor rpm -> load velocity in axis units/s
     let rpm_to_load = std::f64::consts::PI / 30.0 / built.axis.mech.ratio / built.display_unit;
     let load_amp = s.motor_velocity_amplitude_rpm * rpm_to_load;
-    let scale = case.kv_per_s * case.backlash;
+    let scale = kv_per_s * backlash;
     let limit_cycle = s.fundamental_hz.is_some()
         && scale > 0.0
         && load_amp >= LIMIT_CYCLE_MIN_RELATIVE_AMPLITUDE * scale;
     let in_band = limit_cycle
         && s.fundamental_hz
-            .is_some_and(|f| f > case.kv_per_s / 4.0 && f < case.kv_per_s);
+            .is_some_and(|f| f > kv_per_s / 4.0 && f < kv_per_s);
     Ok(CaseRow {
         preset: cfg.name.clone(),
         unit: s.unit.clone(),
-        kv_per_s: case.kv_per_s,
-        backlash: case.backlash,
-        velocity: case.velocity,
+        kv_per_s,
+        backlash,
+        velocity,
         fundamental_hz: s.fundamental_hz,
         f_over_kv: s.f_over_kv,
         limit_cycle,
         in_band,
-        drag_number: drag_number(&cfg, case.kv_per_s, case.backlash, case.velocity),
+        drag_number: drag_number(cfg, kv_per_s, backlash, velocity),
         motor_velocity_amplitude_rpm: s.motor_velocity_amplitude_rpm,
         load_velocity_amplitude: load_amp,
         following_error_half_p2p: s.following_error_half_p2p,
@@ -152,16 +183,30 @@ pub fn run_cases(
     cases: &[(AxisConfig, Case)],
     threads: usize,
 ) -> Vec<Result<CaseRow, ConfigError>> {
-    parallel(cases, threads, |(cfg, case)| run_case(cfg, case))
+    let stop = AtomicBool::new(false);
+    run_parallel(
+        cases,
+        threads,
+        &stop,
+        &AtomicUsize::new(0),
+        |(cfg, case)| run_case(cfg, case),
+    )
+    .into_iter()
+    .map(|r| r.expect("nothing sets the stop flag: every case ran"))
+    .collect()
 }
 
-/// `f` of every item on `threads` worker threads (0 = all cores), results in the items'
-/// order.
-pub fn parallel<T: Sync, R: Send>(
+/// Run `work` on every item on `threads` worker threads (0 = all cores), each thread taking
+/// the next item not yet taken; results in the order of `items`. `done` counts the items
+/// finished (for a progress display). Once `stop` is set no further item starts: those are
+/// `None`. A panic in `work` is resumed on the calling thread once every worker has ended.
+pub fn run_parallel<T: Sync, R: Send>(
     items: &[T],
     threads: usize,
-    f: impl Fn(&T) -> R + Sync,
-) -> Vec<R> {
+    stop: &AtomicBool,
+    done: &AtomicUsize,
+    work: impl Fn(&T) -> R + Sync,
+) -> Vec<Option<R>> {
     let threads = if threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     } else {
@@ -169,34 +214,34 @@ pub fn parallel<T: Sync, R: Send>(
     }
     .clamp(1, items.len().max(1));
     let next = AtomicUsize::new(0);
-    let parts: Vec<Vec<(usize, R)>> = std::thread::scope(|s| {
+    let parts = std::thread::scope(|s| {
         let handles: Vec<_> = (0..threads)
             .map(|_| {
                 s.spawn(|| {
-                    let mut done = Vec::new();
-                    loop {
+                    let mut finished = Vec::new();
+                    while !stop.load(Ordering::Relaxed) {
                         let i = next.fetch_add(1, Ordering::Relaxed);
                         let Some(item) = items.get(i) else {
                             break;
                         };
-                        done.push((i, f(item)));
+                        finished.push((i, work(item)));
+                        done.fetch_add(1, Ordering::Relaxed);
                     }
-                    done
+                    finished
                 })
             })
             .collect();
-        handles
+        let joined: Vec<_> = handles.into_iter().map(|h| h.join()).collect();
+        joined
             .into_iter()
-            .map(|h| h.join().expect("study worker panicked"))
-            .collect()
+            .map(|r| r.unwrap_or_else(|panic| std::panic::resume_unwind(panic)))
+            .collect::<Vec<_>>()
     });
-    let mut out: Vec<Option<R>> = (0..items.len()).map(|_| None).collect();
+    let mut out: Vec<Option<R>> = std::iter::repeat_with(|| None).take(items.len()).collect();
     for (i, r) in parts.into_iter().flatten() {
         out[i] = Some(r);
     }
-    out.into_iter()
-        .map(|r| r.expect("every item ran"))
-        .collect()
+    out
 }
 
 /// A list of values written as `A..B:N` (N points, linear), `A,B,C` or `A`; each value may end

@@ -135,7 +135,17 @@ pub fn run_outer_loop(
 pub fn run_outer_loops(
     cases: &[(AxisConfig, OuterLoopCase)],
 ) -> Vec<Result<OuterLoopRow, ConfigError>> {
-    super::parallel(cases, 0, |(cfg, case)| run_outer_loop(cfg, case))
+    use std::sync::atomic::{AtomicBool, AtomicUsize};
+    super::run_parallel(
+        cases,
+        0,
+        &AtomicBool::new(false),
+        &AtomicUsize::new(0),
+        |(cfg, case)| run_outer_loop(cfg, case),
+    )
+    .into_iter()
+    .map(|r| r.expect("nothing sets the stop flag: every case ran"))
+    .collect()
 }
 
 /// The master's gains of the law's sweep, multiples of each preset's own k_v.

@@ -174,6 +174,9 @@ pub(crate) struct Cia402 {
     /// A local quick stop (communication loss) blocks transition 16 until the master has
     /// sent a quick stop itself.
     local_qs: bool,
+    /// A communication loss whose reaction (0x6007 = 1) is a fault is still present (the
+    /// node sets it each tick): a fault reset is refused meanwhile.
+    pub comm_fault_present: bool,
     pub statusword: u16,
     pub following_error_uu: f64,
     pub position_actual_uu: i32,
@@ -198,6 +201,7 @@ impl Cia402 {
             fe_flag: false,
             last_now: None,
             local_qs: false,
+            comm_fault_present: false,
             statusword: 0,
             following_error_uu: 0.0,
             position_actual_uu: 0,
@@ -391,7 +395,10 @@ impl Cia402 {
         let (next, n) = state_machine::transition(self.state, cmd, qs_opt)?;
         match n {
             15 => {
-                if drive.reset_fault() {
+                // CiA 402: fault reset only when no fault is present (a supervised
+                // condition that faulted the drive, or the drive's own); refused, the drive
+                // stays in FAULT with its one error and sends nothing
+                if !self.comm_fault_present && drive.reset_fault() {
                     self.state = next;
                     self.fault_code = 0;
                     self.fe_flag = false;

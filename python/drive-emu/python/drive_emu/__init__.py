@@ -1,0 +1,475 @@
+"""drive-emu for researchers: the simulated worn CNC axis, the backlash detector and
+parameter sweeps, from Python.
+
+    import drive_emu
+    run = drive_emu.sim("cnc1", set={"backlash_mm": 0.05}, velocity=16.7, duration=3)
+    run.summary["fundamental_hz"]           # the limit cycle's frequency, Hz
+    run.trace["motor_velocity_rpm"]         # numpy arrays, one row per position cycle
+    run.to_pandas()                         # a DataFrame (pandas installed)
+    drive_emu.analyze(run).verdict          # the backlash detector on the trace
+    table = drive_emu.sweep({"preset": "cnc1", "kv_per_s": [15, 30, 60],
+                             "backlash_mm": [0.02, 0.05]}, workers=2, out="sweep.parquet")
+
+The same code as `drive-emu sim`, `analyze`, `sweep`, `eds` and `presets` runs underneath
+(the extension module `drive_emu._native`, built from the emulator's library): `sim` gives
+what `drive-emu sim --json` prints for the same inputs. Runs release the GIL; Ctrl-C stops a
+run (KeyboardInterrupt); a bug in the emulator raises `InternalError`, never crashes the
+interpreter; bad arguments raise ValueError or TypeError naming the argument and the reason.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import math
+import numbers
+import os
+from collections.abc import Iterable, Mapping
+from typing import Any, Optional
+
+import numpy as np
+
+from . import _native
+from ._native import InternalError
+
+__all__ = [
+    "sim",
+    "SimResult",
+    "analyze",
+    "Detection",
+    "presets",
+    "eds",
+    "sweep",
+    "InternalError",
+    "DEFAULT_SWEEP_DURATION_S",
+]
+__version__ = _native.__version__
+
+#: Simulated seconds of a sweep case unless the grid says `duration` (as `drive-emu sweep`).
+DEFAULT_SWEEP_DURATION_S: float = _native.DEFAULT_SWEEP_DURATION_S
+
+_PIP_HINT = "pip install './python/drive-emu[table]'"
+
+
+# ---- argument checks: the argument's name and the reason -------------------------------------
+
+def _number(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name}: expected a number, got {type(value).__name__} {value!r}")
+    return float(value)
+
+
+def _opt_number(name: str, value: Any) -> Optional[float]:
+    return None if value is None else _number(name, value)
+
+
+def _text(name: str, value: Any) -> str:
+    if not isinstance(value, str):
+        raise TypeError(f"{name}: expected a string, got {type(value).__name__} {value!r}")
+    return value
+
+
+def _toml_value(key: str, value: Any) -> str:
+    """A preset value as the TOML text `--set key=value` takes."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, numbers.Real):
+        v = float(value)
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(value, str):
+        return value
+    raise TypeError(f"set[{key!r}]: expected a number, bool or string, got "
+                    f"{type(value).__name__} {value!r}")
+
+
+def _sets(set: Any) -> list[str]:
+    """`set={"backlash_mm": 0.05}` (or `["backlash_mm=0.05"]`) as `--set` strings."""
+    if set is None:
+        return []
+    if isinstance(set, Mapping):
+        out = []
+        for k, v in set.items():
+            if not isinstance(k, str):
+                raise TypeError(f"set: keys are preset keys (strings), got {k!r}")
+            out.append(f"{k}={_toml_value(k, v)}")
+        return out
+    if isinstance(set, str):
+        raise TypeError("set: expected a dict {key: value} (or a list of 'key=value'), "
+                        f"got the string {set!r}")
+    if isinstance(set, Iterable):
+        out = []
+        for s in set:
+            if not isinstance(s, str) or "=" not in s:
+                raise ValueError(f"set: {s!r}: an override is written 'key=value'")
+            out.append(s)
+        return out
+    raise TypeError(f"set: expected a dict {{key: value}}, got {type(set).__name__}")
+
+
+# ---- sim --------------------------------------------------------------------------------------
+
+class SimResult:
+    """One constant-velocity run: `summary` (dict, as `drive-emu sim --json`) and `trace`
+    (dict of numpy arrays named as the columns of `sim --trace`, units in the names: time_s,
+    position_setpoint_mm, direct_encoder_position_mm, motor_encoder_position_mm,
+    motor_velocity_rpm, load_velocity_mm_per_s, motor_torque_nm, motor_current_a,
+    following_error_mm; deg on rotary axes)."""
+
+    __slots__ = ("summary", "trace")
+
+    def __init__(self, summary: dict, trace: dict):
+        self.summary = summary
+        self.trace = trace
+
+    def __getitem__(self, column: str) -> np.ndarray:
+        return self.trace[column]
+
+    def __len__(self) -> int:
+        return len(self.trace["time_s"])
+
+    @property
+    def columns(self) -> list[str]:
+        return list(self.trace)
+
+    def to_pandas(self):
+        """The trace as a pandas DataFrame (a copy; one row per position cycle)."""
+        try:
+            import pandas as pd
+        except ImportError as e:
+            raise ImportError(f"SimResult.to_pandas() needs pandas: {_PIP_HINT}") from e
+        return pd.DataFrame(self.trace)
+
+    def __repr__(self) -> str:
+        s = self.summary
+        f = s.get("fundamental_hz")
+        return (f"SimResult({s['preset']}, v={s['velocity']} {s['unit']}/s, "
+                f"k_v={s['kv_per_s']} 1/s, backlash={s['backlash']} {s['unit']}, "
+                f"f={'none' if f is None else f'{f:.2f} Hz'}, {len(self)} samples)")
+
+
+def sim(preset: str = "cnc1", *, velocity: float, set: Any = None, duration: float = 5.0,
+        accel: float = 0.0, kick: Optional[float] = None, trace: str = "full",
+        max_memory_mb: float = _native.DEFAULT_MAX_MEMORY_MB) -> SimResult:
+    """Run a preset axis at constant `velocity` (mm/s, deg/s on rotary axes) for `duration`
+    simulated seconds: `drive-emu sim --preset PRESET --set K=V ... --velocity V --duration D`.
+
+    `set`: preset overrides {key: value} (`drive-emu presets`, docs/physics.md). `accel`: the
+    start ramp (0: reach the velocity in 0.1 s). `kick`: the start disturbance, a load velocity
+    change (default 0.6 x velocity, 0 = none). `trace`: "full" (every position cycle) or
+    "window" (the analysed window only, less memory). Returns a `SimResult`."""
+    if trace not in ("full", "window"):
+        raise ValueError(f"trace: {trace!r}: 'full' or 'window'")
+    summary, columns = _native.sim(
+        _text("preset", preset), _sets(set), _number("velocity", velocity),
+        _number("duration", duration), _number("accel", accel), _opt_number("kick", kick),
+        _number("max_memory_mb", max_memory_mb), trace == "full")
+    return SimResult(json.loads(summary), columns)
+
+
+# ---- analyze ----------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Detection:
+    """The backlash detector's result (`drive-emu analyze --json`): the verdict ("ok",
+    "backlash_suspected", "backlash" or "inconclusive") with its reasons, the limit cycle's
+    frequency and amplitude (position unit: um or mdeg), every measured window, and what was
+    read. `report` is the whole detector report as a dict."""
+
+    verdict: str
+    reasons: list
+    inconclusive: Optional[str]
+    frequency_hz: Optional[float]
+    frequency_over_kv: Optional[float]
+    dominant_hz: Optional[float]
+    amplitude: float
+    severity: float
+    position_unit: str
+    lost_motion: Optional[float]
+    first_suspected_s: Optional[float]
+    first_backlash_s: Optional[float]
+    amplitude_trend_per_h: Optional[float]
+    band_hz: tuple
+    window_source: str
+    windows: list
+    forced_windows: list
+    kv_per_s: float
+    kv_source: str
+    trace: str
+    format: str
+    notes: list
+    capture: Optional[str]
+    exit_code: int
+    report_dir: Optional[str]
+    plots: list
+    report: dict = dataclasses.field(repr=False)
+
+    @property
+    def backlash_found(self) -> bool:
+        return self.verdict in ("backlash", "backlash_suspected")
+
+    @classmethod
+    def _from_json(cls, text: str) -> "Detection":
+        out = json.loads(text)
+        rep = out["report"]
+        keys = {f.name for f in dataclasses.fields(cls)}
+        values = {k: v for k, v in rep.items() if k in keys}
+        values.update({k: v for k, v in out.items() if k in keys and k != "report"})
+        values["band_hz"] = tuple(rep["band_hz"])
+        values["report_dir"] = out.get("report_dir") or None
+        values["capture"] = out.get("capture")
+        values["plots"] = out.get("plots", [])
+        values["report"] = rep
+        return cls(**values)
+
+
+def _columns_of(trace: Any) -> Optional[list]:
+    """Named float64 columns of a mapping or a DataFrame, or None."""
+    if isinstance(trace, Mapping):
+        items = trace.items()
+    elif hasattr(trace, "columns") and hasattr(trace, "__getitem__") and not isinstance(trace, str):
+        items = ((c, trace[c]) for c in trace.columns)
+    else:
+        return None
+    cols = []
+    for name, values in items:
+        if not isinstance(name, str):
+            raise TypeError(f"trace: column names are strings, got {name!r}")
+        try:
+            a = np.ascontiguousarray(values, dtype=np.float64)
+        except (TypeError, ValueError) as e:
+            raise TypeError(f"trace: column {name!r} is not numeric: {e}") from None
+        if a.ndim != 1:
+            raise ValueError(f"trace: column {name!r} must be one-dimensional, has shape {a.shape}")
+        cols.append((name, a))
+    return cols
+
+
+def analyze(trace: Any, *, kv: Optional[float] = None, preset: Optional[str] = None,
+            node: int = 5, rotary: Optional[bool] = None, suspect: Optional[float] = None,
+            alarm: Optional[float] = None, sync_period_us: Optional[int] = None,
+            out: Any = None) -> Detection:
+    """Run the backlash detector (`drive-emu analyze`) on
+    - a `SimResult` (k_v and units from its summary unless given),
+    - a file: a candump log (`candump -L` or `-ta`, plain or gzip; decoded with the PDO mapping
+      of drive `node` / `preset`), or a CSV trace of `run --trace`, `sim --trace` or a scenario
+      report,
+    - named columns (a dict of arrays or a pandas DataFrame) as those CSV files have them.
+
+    k_v: `kv`, else the last 0x2007 written in a capture, else `preset`'s. `suspect` / `alarm`:
+    the thresholds in um (mdeg on rotary axes). `out`: a directory to write the report to
+    (detector.json and plots, as the CLI); by default nothing is written. Returns a
+    `Detection`."""
+    path = None
+    columns = None
+    source = "columns"
+    kv_given_by = None if kv is None else "kv"
+    if isinstance(trace, SimResult):
+        columns = list(trace.trace.items())
+        source = f"sim {trace.summary['preset']}"
+        if kv is None:
+            kv = trace.summary["kv_per_s"]
+            kv_given_by = "the run's kv_per_s"
+        if rotary is None:
+            rotary = trace.summary["unit"] == "deg"
+    elif isinstance(trace, (str, os.PathLike)):
+        path = os.fspath(trace)
+    else:
+        columns = _columns_of(trace)
+        if columns is None:
+            raise TypeError("trace: expected a SimResult, a file path, a dict of arrays or a "
+                            f"DataFrame, got {type(trace).__name__}")
+    if rotary is None:
+        rotary = False
+    if not isinstance(rotary, bool):
+        raise TypeError(f"rotary: expected a bool, got {type(rotary).__name__}")
+    if isinstance(node, bool) or not isinstance(node, numbers.Integral) or not 1 <= node <= 127:
+        raise ValueError(f"node: {node!r}: a node ID 1..127")
+    if sync_period_us is not None and (isinstance(sync_period_us, bool)
+                                       or not isinstance(sync_period_us, numbers.Integral)
+                                       or not 0 < sync_period_us < 2**32):
+        raise ValueError(f"sync_period_us: {sync_period_us!r}: a whole number of us > 0")
+    text = _native.analyze(
+        path, columns, source, _opt_number("kv", kv),
+        None if preset is None else _text("preset", preset), int(node), rotary,
+        _opt_number("suspect", suspect), _opt_number("alarm", alarm),
+        None if sync_period_us is None else int(sync_period_us),
+        None if out is None else os.fspath(out))
+    detection = Detection._from_json(text)
+    if kv_given_by is not None:
+        detection = dataclasses.replace(detection, kv_source=kv_given_by)
+    return detection
+
+
+# ---- presets, eds -------------------------------------------------------------------------------
+
+def presets() -> dict:
+    """The presets by name (`drive-emu presets`): every key of the preset file (units in the
+    names), plus `backlash` in the axis unit, `unit` (mm or deg) and `user_unit` (the unit of
+    positions on the bus)."""
+    return {p["name"]: p for p in json.loads(_native.presets())}
+
+
+def eds(preset: str = "cnc1", *, node: Optional[int] = None, set: Any = None,
+        real32: str = "bits", canopen_monitor: bool = False) -> str:
+    """The drive's EDS (CiA 306) as text: `drive-emu eds --preset PRESET --node N --set K=V
+    --real32 bits|decimal` (decimal: REAL32 defaults python canopen reads)."""
+    if node is not None and (isinstance(node, bool) or not isinstance(node, numbers.Integral)
+                             or not 1 <= node <= 127):
+        raise ValueError(f"node: {node!r}: a node ID 1..127")
+    if canopen_monitor and node is None:
+        raise ValueError("canopen_monitor: needs node")
+    return _native.eds(_text("preset", preset), None if node is None else int(node), _sets(set),
+                       _text("real32", real32), bool(canopen_monitor))
+
+
+# ---- sweep --------------------------------------------------------------------------------------
+
+_RUN_KEYS = ("preset", "velocity", "duration")
+
+
+def _grid_cases(grid: Any) -> list[dict]:
+    """The cases of a grid: a dict of key -> value or list of values (every combination, the
+    first key varying slowest), a list of dicts (one case each) or a DataFrame (one case per
+    row)."""
+    if hasattr(grid, "to_dict") and hasattr(grid, "columns"):
+        return [dict(r) for r in grid.to_dict("records")]
+    if isinstance(grid, Mapping):
+        keys = list(grid)
+        axes = []
+        for k in keys:
+            v = grid[k]
+            if isinstance(v, (str, bytes, numbers.Number)) or v is None:
+                axes.append([v])
+            elif isinstance(v, Iterable):
+                values = list(v.tolist() if isinstance(v, np.ndarray) else v)
+                if not values:
+                    raise ValueError(f"grid[{k!r}]: no values")
+                axes.append(values)
+            else:
+                raise TypeError(f"grid[{k!r}]: expected a value or a list of values, got "
+                                f"{type(v).__name__}")
+        return [dict(zip(keys, combo)) for combo in itertools.product(*axes)]
+    if isinstance(grid, Iterable) and not isinstance(grid, (str, bytes)):
+        cases = list(grid)
+        for i, c in enumerate(cases):
+            if not isinstance(c, Mapping):
+                raise TypeError(f"grid[{i}]: a case is a dict, got {type(c).__name__}")
+        return [dict(c) for c in cases]
+    raise TypeError("grid: expected a dict of lists, a list of dicts or a DataFrame, got "
+                    f"{type(grid).__name__}")
+
+
+def _native_case(i: int, case: dict) -> tuple:
+    for k in case:
+        if not isinstance(k, str):
+            raise TypeError(f"case {i}: keys are strings, got {k!r}")
+    preset = case.get("preset", "cnc1")
+    if not isinstance(preset, str):
+        raise TypeError(f"case {i}: preset: expected a string, got {preset!r}")
+    velocity = case.get("velocity")
+    duration = case.get("duration", DEFAULT_SWEEP_DURATION_S)
+    try:
+        velocity = _opt_number("velocity", velocity)
+        duration = _number("duration", duration)
+        sets = [f"{k}={_toml_value(k, v)}" for k, v in case.items() if k not in _RUN_KEYS]
+    except TypeError as e:
+        raise TypeError(f"case {i}: {e}") from None
+    return (preset, sets, velocity, duration)
+
+
+def _rows(cases: list[dict], rows: list[dict]) -> list[dict]:
+    """Each case's inputs (as given) followed by what it measured (the columns of
+    `drive-emu sweep`)."""
+    out = []
+    for case, row in zip(cases, rows):
+        r = {k: v for k, v in case.items() if k not in ("velocity", "duration")}
+        r["duration_s"] = float(case.get("duration", DEFAULT_SWEEP_DURATION_S))
+        r.update(row)
+        out.append(r)
+    return out
+
+
+def _run_chunk(native_cases: list) -> list:
+    """One chunk of a sweep on a Dask worker (one thread: the worker's own)."""
+    return json.loads(_native.sweep(native_cases, 1, None))
+
+
+def _bar(total: int, progress: bool, desc: str):
+    if not progress:
+        return None
+    from tqdm.auto import tqdm
+    return tqdm(total=total, desc=desc, unit="run", smoothing=0.1)
+
+
+def sweep(grid: Any, *, workers: int = 0, client: Any = None, progress: bool = True,
+          out: Any = None, chunk_size: Optional[int] = None):
+    """Run every case of `grid` as `drive-emu sweep` runs one (a constant-velocity run
+    measured from its motor speed) and return one row per case as a pandas DataFrame: the
+    case's inputs, then fundamental_hz, f_over_kv, limit_cycle, in_band, drag_number,
+    amplitudes, the window (the columns of `drive-emu sweep`).
+
+    `grid`: {key: value or list of values} (every combination), a list of case dicts or a
+    DataFrame. Keys: `preset` (default cnc1), `velocity` (default 20 mm/s, tables 0.026 r/s),
+    `duration` (default 8 s, 2..600), `backlash` (in the preset's unit: backlash_mm or
+    backlash_deg), and any preset key (kv_per_s, load_coulomb_friction_n,
+    motor_encoder_noise_counts, noise_seed, ...).
+
+    Runs on `workers` threads of this machine (0 = all cores), or, given a
+    `dask.distributed.Client` as `client`, on its cluster in chunks of `chunk_size` cases
+    (default: about 8 chunks per worker). `progress`: a tqdm bar. `out`: also write the table
+    to this Parquet file (pyarrow). Ctrl-C stops the sweep (KeyboardInterrupt)."""
+    try:
+        import pandas as pd
+    except ImportError as e:
+        raise ImportError(f"sweep() returns a pandas DataFrame: {_PIP_HINT}") from e
+    if isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 0:
+        raise ValueError(f"workers: {workers!r}: a number of threads >= 0 (0 = all cores)")
+    cases = _grid_cases(grid)
+    native = [_native_case(i, c) for i, c in enumerate(cases)]
+    if client is None:
+        bar = _bar(len(native), progress, "sweep")
+        try:
+            def report(n, bar=bar):
+                bar.update(n - bar.n)
+            rows = json.loads(_native.sweep(native, int(workers), report if bar else None))
+        finally:
+            if bar is not None:
+                bar.close()
+    else:
+        rows = _sweep_dask(client, native, progress, chunk_size)
+    table = pd.DataFrame.from_records(_rows(cases, rows))
+    if out is not None:
+        table.to_parquet(os.fspath(out), engine="pyarrow", index=False)
+    return table
+
+
+def _sweep_dask(client: Any, native: list, progress: bool, chunk_size: Optional[int]) -> list:
+    from distributed import as_completed
+    if chunk_size is None:
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        chunk_size = max(1, math.ceil(len(native) / (8 * n_workers)))
+    if isinstance(chunk_size, bool) or not isinstance(chunk_size, numbers.Integral) or chunk_size < 1:
+        raise ValueError(f"chunk_size: {chunk_size!r}: a number of cases >= 1")
+    chunks = [native[i:i + chunk_size] for i in range(0, len(native), chunk_size)]
+    futures = client.map(_run_chunk, chunks, pure=False)
+    sizes = {f.key: len(c) for f, c in zip(futures, chunks)}
+    bar = _bar(len(native), progress, "sweep (dask)")
+    try:
+        for f in as_completed(futures):
+            if bar is not None:
+                bar.update(sizes[f.key])
+        parts = client.gather(futures)
+    except BaseException:
+        client.cancel(futures)
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+    return [row for part in parts for row in part]

@@ -1,0 +1,463 @@
+//! `drive_emu._native`: the Python binding of the emulator's library (PyO3). Thin on purpose:
+//! every function calls the code `drive-emu sim`, `analyze`, `sweep`, `eds` and `presets`
+//! run, and hands back JSON text (parsed by `python/drive_emu/__init__.py`) and numpy arrays.
+//!
+//! Every run goes through `interruptible`: the work runs on a thread of its own with the GIL
+//! released, while the calling thread wakes every `POLL` (50 ms) to look at Python's signals
+//! (Ctrl-C: the run is stopped through its stop flag and `KeyboardInterrupt` raised) and to
+//! report progress; a panic in the work becomes `drive_emu.InternalError`, never an abort.
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use numpy::{PyArray1, PyReadonlyArray1};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use clap::{Args as _, FromArgMatches as _};
+use drive_emu::analysis::{RunError, Trace};
+use drive_emu::cli::analyze::{analyze_input, write_report, AnalyzeArgs, AnalyzeInput, UsageError};
+use drive_emu::cli::eds::{eds_text, EdsArgs};
+use drive_emu::cli::sim::{simulate, SimArgs};
+use drive_emu::presets::{preset_names, AxisConfig, AxisKind};
+use drive_emu::study::{
+    backlash_key, default_velocity, measure_until, own_backlash, run_parallel, CaseRow,
+    CASE_DURATION_S,
+};
+
+create_exception!(
+    _native,
+    InternalError,
+    PyRuntimeError,
+    "drive-emu panicked: a bug in the emulator (please report it with the arguments that \
+     caused it); the run was abandoned, the interpreter is fine."
+);
+
+/// How often the calling thread looks at Python's signals and reports progress.
+const POLL: Duration = Duration::from_millis(50);
+
+/// Run `work` on a thread of its own with the GIL released; meanwhile look at Python's signals
+/// every [`POLL`] (a pending `KeyboardInterrupt` sets the stop flag, waits for the work to
+/// end and is raised, with the note `stopped(result, done)` says: how far the work got) and
+/// call `progress(done)` when the count of finished items changed. A panic in `work` is
+/// raised as [`InternalError`].
+fn interruptible<T: Send>(
+    py: Python<'_>,
+    progress: Option<Py<PyAny>>,
+    work: impl FnOnce(&AtomicBool, &AtomicUsize) -> T + Send,
+    stopped: impl FnOnce(&T, usize) -> Option<String> + Send,
+) -> PyResult<T> {
+    let stop = AtomicBool::new(false);
+    let done = AtomicUsize::new(0);
+    py.detach(|| {
+        std::thread::scope(|s| {
+            let (tx, rx) = mpsc::channel::<()>();
+            let (stop, done) = (&stop, &done);
+            let worker = s.spawn(move || {
+                let r = catch_unwind(AssertUnwindSafe(|| work(stop, done)));
+                let _ = tx.send(());
+                r
+            });
+            let mut reported = 0;
+            loop {
+                let finished =
+                    !matches!(rx.recv_timeout(POLL), Err(mpsc::RecvTimeoutError::Timeout));
+                let looked = Python::attach(|py| -> PyResult<()> {
+                    py.check_signals()?;
+                    let n = done.load(Ordering::Relaxed);
+                    if let Some(p) = progress.as_ref().filter(|_| n != reported) {
+                        p.call1(py, (n,))?;
+                        reported = n;
+                    }
+                    Ok(())
+                });
+                if let Err(e) = looked {
+                    stop.store(true, Ordering::Relaxed);
+                    // The work ends within a fraction of a millisecond once it sees the flag.
+                    let note = match worker.join() {
+                        Ok(Ok(v)) => stopped(&v, done.load(Ordering::Relaxed)),
+                        _ => None,
+                    };
+                    if let Some(note) = note {
+                        Python::attach(|py| {
+                            // BaseException.add_note: Python 3.11 and later
+                            let _ = e.value(py).call_method1("add_note", (note,));
+                        });
+                    }
+                    return Err(e);
+                }
+                if finished {
+                    break;
+                }
+            }
+            match worker.join() {
+                Ok(Ok(v)) => Ok(v),
+                Ok(Err(panic)) | Err(panic) => Err(InternalError::new_err(format!(
+                    "drive-emu panicked: {}",
+                    panic_text(panic.as_ref())
+                ))),
+            }
+        })
+    })
+}
+
+fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(no message)".into())
+}
+
+/// A CLI message for Python: `--max-memory-mb` becomes `max_memory_mb`, the argument's name.
+fn python_names(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(at) = rest.find("--") {
+        out.push_str(&rest[..at]);
+        let tail = &rest[at + 2..];
+        let end = tail
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+            .unwrap_or(tail.len());
+        if end == 0 {
+            out.push_str("--");
+        } else {
+            out.push_str(&tail[..end].replace('-', "_"));
+        }
+        rest = &tail[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// An error of the library as a Python exception: a file that cannot be read is an
+/// `OSError` (`FileNotFoundError` when missing), anything else the caller gave a `ValueError`.
+fn to_py_err(e: anyhow::Error) -> PyErr {
+    let text = python_names(&format!("{e:#}"));
+    match e.chain().find_map(|c| c.downcast_ref::<std::io::Error>()) {
+        Some(io) if io.kind() == std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(text),
+        Some(_) => PyOSError::new_err(text),
+        None => PyValueError::new_err(text),
+    }
+}
+
+/// `drive-emu sim`: returns the summary (the JSON `sim --json` prints) and the trace as
+/// columns named as in `sim --trace`'s CSV (the analysis window only when `record` is false).
+#[pyfunction]
+#[pyo3(signature = (preset, sets, velocity, duration, accel, kick, max_memory_mb, record))]
+#[allow(clippy::too_many_arguments)]
+fn sim<'py>(
+    py: Python<'py>,
+    preset: String,
+    sets: Vec<String>,
+    velocity: f64,
+    duration: f64,
+    accel: f64,
+    kick: Option<f64>,
+    max_memory_mb: f64,
+    record: bool,
+) -> PyResult<(String, Bound<'py, PyDict>)> {
+    let args = SimArgs {
+        preset,
+        set: sets,
+        velocity,
+        duration,
+        accel,
+        kick,
+        trace: None,
+        json: true,
+        max_memory_mb,
+    };
+    let duration = args.duration;
+    let res = interruptible(
+        py,
+        None,
+        |stop, _| simulate(&args, record, stop),
+        |r, _| match r.as_ref().err()?.downcast_ref::<RunError>()? {
+            RunError::Stopped { at_s } => Some(format!(
+                "drive_emu.sim: stopped at {at_s:.3} of {duration} simulated s"
+            )),
+            RunError::Config(_) => None,
+        },
+    )?;
+    let res = res.map_err(to_py_err)?;
+    let summary = serde_json::to_string(&res.summary)
+        .map_err(|e| InternalError::new_err(format!("summary as JSON: {e}")))?;
+    let trace = PyDict::new(py);
+    for (name, column) in res.trace.into_columns(&res.summary.unit) {
+        trace.set_item(name, PyArray1::from_vec(py, column))?;
+    }
+    Ok((summary, trace))
+}
+
+/// The column names of a simulator trace (`u` = "mm" or "deg").
+#[pyfunction]
+fn trace_columns(u: &str) -> Vec<String> {
+    Trace::column_names(u).to_vec()
+}
+
+/// `drive-emu analyze`: the detector on a file (`path`) or on named columns; the JSON of
+/// `analyze --json` (report directory and plots only when `out` is given).
+#[pyfunction]
+#[pyo3(signature = (path, columns, source, kv, preset, node, rotary, suspect, alarm, sync_period_us, out))]
+#[allow(clippy::too_many_arguments)]
+fn analyze(
+    py: Python<'_>,
+    path: Option<PathBuf>,
+    columns: Option<Vec<(String, PyReadonlyArray1<'_, f64>)>>,
+    source: String,
+    kv: Option<f64>,
+    preset: Option<String>,
+    node: u8,
+    rotary: bool,
+    suspect: Option<f64>,
+    alarm: Option<f64>,
+    sync_period_us: Option<u32>,
+    out: Option<PathBuf>,
+) -> PyResult<String> {
+    let columns: Option<Vec<(String, Vec<f64>)>> = columns
+        .map(|cols| {
+            cols.into_iter()
+                .map(|(name, a)| Ok((name, a.as_slice()?.to_vec())))
+                .collect::<PyResult<_>>()
+        })
+        .transpose()?;
+    let args = AnalyzeArgs {
+        trace: path.unwrap_or_default(),
+        kv,
+        rotary,
+        suspect,
+        alarm,
+        out: out.clone(),
+        node,
+        preset,
+        sync_period_us,
+        json: true,
+        ..AnalyzeArgs::default()
+    };
+    let result = interruptible(
+        py,
+        None,
+        |_, _| -> anyhow::Result<String> {
+            let input = match &columns {
+                Some(columns) => AnalyzeInput::Columns {
+                    source: &source,
+                    columns,
+                },
+                None => AnalyzeInput::File,
+            };
+            let mut analysis = analyze_input(&args, input)?;
+            if let Some(out) = &out {
+                write_report(&mut analysis, out)?;
+            }
+            Ok(serde_json::to_string(&analysis.output)?)
+        },
+        |_, _| None,
+    )?;
+    result.map_err(|e| {
+        if e.chain().any(|c| c.downcast_ref::<UsageError>().is_some()) {
+            PyValueError::new_err(python_names(&format!("{e:#}")))
+        } else {
+            to_py_err(e)
+        }
+    })
+}
+
+/// The presets, as `drive-emu presets` lists them, with every key of the preset file: JSON of
+/// a list of objects (the file's keys plus `backlash` in the axis unit, `unit` and
+/// `user_unit`).
+#[pyfunction]
+fn presets() -> PyResult<String> {
+    let mut all = Vec::new();
+    for name in preset_names() {
+        let cfg =
+            AxisConfig::from_preset(name).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let rotary = cfg.kind == AxisKind::Rotary;
+        let mut v = serde_json::to_value(&cfg)
+            .map_err(|e| InternalError::new_err(format!("preset {name} as JSON: {e}")))?;
+        if let Some(o) = v.as_object_mut() {
+            o.insert("backlash".into(), own_backlash(&cfg).into());
+            o.insert("unit".into(), if rotary { "deg" } else { "mm" }.into());
+            o.insert(
+                "user_unit".into(),
+                drive_emu::report::user_unit(rotary).into(),
+            );
+        }
+        all.push(v);
+    }
+    serde_json::to_string(&all).map_err(|e| InternalError::new_err(e.to_string()))
+}
+
+/// `drive-emu eds`: the EDS text. The arguments go through the command's own parser, so
+/// every flag the module does not set keeps the CLI's default.
+#[pyfunction]
+#[pyo3(signature = (preset, node, sets, real32, canopen_monitor))]
+fn eds(
+    preset: String,
+    node: Option<u8>,
+    sets: Vec<String>,
+    real32: String,
+    canopen_monitor: bool,
+) -> PyResult<String> {
+    let mut argv = vec!["eds".to_string(), "--preset".into(), preset];
+    if let Some(n) = node {
+        argv.extend(["--node".into(), n.to_string()]);
+    }
+    for s in sets {
+        argv.extend(["--set".into(), s]);
+    }
+    argv.extend(["--real32".into(), real32]);
+    if canopen_monitor {
+        argv.push("--canopen-monitor".into());
+    }
+    let parsed = EdsArgs::augment_args(clap::Command::new("eds").no_binary_name(false))
+        .try_get_matches_from(&argv)
+        .and_then(|m| EdsArgs::from_arg_matches(&m))
+        .map_err(|e| PyValueError::new_err(python_names(&e.render().to_string())))?;
+    eds_text(&parsed).map_err(to_py_err)
+}
+
+/// One case of a sweep as Python sends it: preset, `key=value` overrides (`backlash` is the
+/// preset's own backlash key), velocity (None: the preset's default), duration.
+type CaseIn = (String, Vec<String>, Option<f64>, f64);
+
+/// The sweep: every case measured as `drive-emu sweep` measures one, on `threads` threads
+/// (0 = all cores); `progress(done)` is called as cases finish. The JSON of the rows, in the
+/// order of the cases. A bad case is a `ValueError` naming it (and stops the others).
+#[pyfunction]
+#[pyo3(signature = (cases, threads, progress))]
+fn sweep(
+    py: Python<'_>,
+    cases: Vec<CaseIn>,
+    threads: usize,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    // The presets once; each case applies its overrides to a copy.
+    let mut bases: Vec<AxisConfig> = Vec::new();
+    for (preset, ..) in &cases {
+        if !bases.iter().any(|b| b.name.eq_ignore_ascii_case(preset)) {
+            bases.push(
+                AxisConfig::from_preset(preset)
+                    .map_err(|e| PyValueError::new_err(format!("preset: {e}")))?,
+            );
+        }
+    }
+    let total = cases.len();
+    let rows = interruptible(
+        py,
+        progress,
+        |stop, done| {
+            run_parallel(&cases, threads, stop, done, |case| {
+                let r = run_one(&bases, case, stop);
+                if matches!(r, Err(Some(_))) {
+                    stop.store(true, Ordering::Relaxed);
+                }
+                r
+            })
+        },
+        |rows, _| {
+            let finished = rows.iter().filter(|r| matches!(r, Some(Ok(_)))).count();
+            Some(format!(
+                "drive_emu.sweep: stopped after {finished} of {total} runs"
+            ))
+        },
+    )?;
+    let mut out = Vec::with_capacity(rows.len());
+    let mut first_error = None;
+    for (i, r) in rows.into_iter().enumerate() {
+        match r {
+            Some(Ok(row)) => out.push(row),
+            Some(Err(Some(why))) => {
+                let (preset, sets, ..) = &cases[i];
+                first_error.get_or_insert(format!(
+                    "case {i} (preset {preset}{}{}): {why}",
+                    if sets.is_empty() { "" } else { ", " },
+                    sets.join(", ")
+                ));
+            }
+            // Stopped by another case's error.
+            Some(Err(None)) | None => {}
+        }
+    }
+    if let Some(e) = first_error {
+        return Err(PyValueError::new_err(e));
+    }
+    serde_json::to_string(&out).map_err(|e| InternalError::new_err(e.to_string()))
+}
+
+/// One case; `Err(None)`: stopped.
+fn run_one(
+    bases: &[AxisConfig],
+    case: &CaseIn,
+    stop: &AtomicBool,
+) -> Result<CaseRow, Option<String>> {
+    let (preset, sets, velocity, duration) = case;
+    let base = bases
+        .iter()
+        .find(|b| b.name.eq_ignore_ascii_case(preset))
+        .ok_or_else(|| Some(format!("unknown preset `{preset}`")))?;
+    let mut cfg = base.clone();
+    for s in sets {
+        let (k, v) = s
+            .split_once('=')
+            .ok_or_else(|| Some(format!("`{s}`: an override must be written key=value")))?;
+        let k = if k == "backlash" {
+            backlash_key(base)
+        } else {
+            k
+        };
+        cfg = cfg.with_override(k, v).map_err(|e| Some(e.to_string()))?;
+    }
+    if !CASE_DURATION_S.contains(duration) {
+        return Err(Some(format!(
+            "duration {duration}: must be {}..{} s (the FFT window is the cruise after the \
+             start-up transient)",
+            CASE_DURATION_S.start(),
+            CASE_DURATION_S.end()
+        )));
+    }
+    let velocity = velocity.unwrap_or_else(|| default_velocity(&cfg));
+    if !(velocity.is_finite() && velocity != 0.0) {
+        return Err(Some(format!(
+            "velocity {velocity}: must be a finite non-zero number"
+        )));
+    }
+    measure_until(&cfg, velocity, *duration, stop).map_err(|e| match e {
+        RunError::Stopped { .. } => None,
+        RunError::Config(e) => Some(e.to_string()),
+    })
+}
+
+/// Panics on purpose: the test that a panic in the emulator becomes `InternalError` and
+/// leaves the interpreter running (it runs on the worker thread, as real work does).
+#[pyfunction]
+fn _panic_for_test(py: Python<'_>, message: String) -> PyResult<()> {
+    interruptible(py, None, |_, _| -> () { panic!("{message}") }, |_, _| None)
+}
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("InternalError", m.py().get_type::<InternalError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add(
+        "DEFAULT_SWEEP_DURATION_S",
+        drive_emu::study::DEFAULT_DURATION_S,
+    )?;
+    m.add(
+        "DEFAULT_MAX_MEMORY_MB",
+        drive_emu::cli::sim::DEFAULT_MAX_MEMORY_MB,
+    )?;
+    m.add_function(wrap_pyfunction!(sim, m)?)?;
+    m.add_function(wrap_pyfunction!(trace_columns, m)?)?;
+    m.add_function(wrap_pyfunction!(analyze, m)?)?;
+    m.add_function(wrap_pyfunction!(presets, m)?)?;
+    m.add_function(wrap_pyfunction!(eds, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic_for_test, m)?)?;
+    Ok(())
+}
