@@ -28,6 +28,8 @@ pub mod master;
 
 pub mod analysis;
 
+pub mod monitor;
+
 pub mod report;
 
 pub mod session;

@@ -3,10 +3,12 @@
 //! their publication to the node and the trace tap of `run --trace`, while the drive runs CSP
 //! at constant speed with backlash, answers SDO requests and consumes the master's heartbeat.
 
+use drive_emu::analysis::detector::Verdict;
 use drive_emu::bus::CanFrame;
 use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::drive::AxisParam;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
+use drive_emu::monitor::{verdict_code, DetectResult, DetectTap};
 use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::trace::TraceTap;
 use drive_emu::runtime::{AxisSlot, SimulatedDrive};
@@ -93,11 +95,28 @@ fn the_runtime_tick_does_not_allocate() {
     let sdo_write_backlash = CanFrame::new(0x605, &[0x23, 0x00, 0x20, 0, 0, 0, 0, 0]);
     // `run --trace`: the loop also samples every axis into the recorder's queue.
     let tap = TraceTap::new(1);
+    // `run --detect`: and into the detector's queue, and publishes the detector's results in
+    // the drive's objects and as an EMCY (the detector thread's side played here: a result
+    // offered now and then, backlash, then ok, then backlash again).
+    let detect = DetectTap::new(1);
+    let result = |verdict: Verdict, analyses: u32| DetectResult {
+        verdict: verdict_code(verdict),
+        frequency_hz: 18.5,
+        amplitude: 7.2,
+        kv_per_s: 30.0,
+        analyses,
+    };
     ALLOCS.with(|a| a.set(0));
     for k in 0..5000u32 {
         run.master_send();
         if k % 100 == 0 {
             run.inject(&sdo_read);
+        }
+        match k {
+            1000 => detect.offer(0, result(Verdict::Backlash, 1)),
+            2000 => detect.offer(0, result(Verdict::Ok, 2)),
+            3000 => detect.offer(0, result(Verdict::Backlash, 3)),
+            _ => {}
         }
         if k % 1000 == 500 {
             // REAL32 0.06 mm of backlash: wear injected over SDO while the axis runs.
@@ -109,6 +128,7 @@ fn the_runtime_tick_does_not_allocate() {
             run.runtime.tick();
             run.runtime.stats.record_tick(3, 40);
             tap.on_tick(&run.runtime);
+            detect.on_tick(&mut run.runtime);
             if k % 256 == 0 {
                 run.runtime.publish_stats();
             }
@@ -117,6 +137,15 @@ fn the_runtime_tick_does_not_allocate() {
     }
     let allocs = ALLOCS.with(Cell::get);
     assert!(run.master.error().is_none(), "{:?}", run.master.error());
+    // The detector's path ran: published, warned twice (raised, cleared, raised).
+    assert_eq!(detect.published(0), verdict_code(Verdict::Backlash));
+    let warnings = run
+        .master
+        .emcys()
+        .iter()
+        .filter(|e| e.code == drive_emu::drive::objects::EMCY_BACKLASH)
+        .count();
+    assert_eq!(warnings, 2, "{:?}", run.master.emcys());
     assert_eq!(
         run.runtime.axes[0].node.statusword() & 0x6F,
         0x27,

@@ -325,8 +325,13 @@ import canopen, json, sys
 od = canopen.import_od(sys.argv[1], int(sys.argv[2]))
 out = {}
 for obj in od.values():
-    if isinstance(obj, canopen.objectdictionary.ODVariable) and obj.data_type == 0x8:
-        out[f"{obj.index:04X}"] = obj.default
+    if isinstance(obj, canopen.objectdictionary.ODVariable):
+        if obj.data_type == 0x8:
+            out[f"{obj.index:04X}"] = obj.default
+    else:
+        for sub in obj.values():
+            if sub.data_type == 0x8:
+                out[f"{obj.index:04X}sub{sub.subindex:X}"] = sub.default
 print(json.dumps(out))
 "#;
     for preset in preset_names() {

@@ -22,6 +22,7 @@ const LAYERS: &[&str] = &[
     "observe",  // the tick's observation fan-out: per-axis snapshots in a seqlock ring
     "master",   // reference CiA 402 master (sans-IO) and its bus loop
     "analysis", // backlash detector, capture decoding, experiments
+    "monitor",  // the detector on a running drive's own samples (run --detect)
     "report",   // report files and plots
     "session",  // runtime + master on one bus: offline runs
     "scenario", // scenario files, timelines, expectations, runner

@@ -307,3 +307,33 @@ fn multi_line_files_report_line_column_key_and_reason() {
         assert!(e.key.contains(key) && e.reason.contains(why), "{text}");
     }
 }
+
+#[test]
+fn the_masters_position_loop_is_checked() {
+    let with = |table: &str| format!("name = \"t\"\n{table}\n");
+    let ok = GOOD.replacen(
+        "name = \"t\"",
+        &with("[master.position_loop]\nkv_per_s = 30.0\nencoder = \"motor\""),
+        1,
+    );
+    let s = scenario::parse(&ok, Path::new("ok.toml")).unwrap();
+    let p = s.run.master.position_loop.unwrap();
+    assert_eq!(p.kv_per_s, 30.0);
+    assert_eq!(p.encoder, drive_emu::master::outer_loop::LoopEncoder::Motor);
+    // A gain that is no gain, an encoder that is none, a key that does not exist.
+    let e = bad(
+        "name = \"t\"",
+        &with("[master.position_loop]\nkv_per_s = -3.0"),
+    );
+    check(&e, "master.position_loop.kv_per_s", "more than 0");
+    let e = bad(
+        "name = \"t\"",
+        &with("[master.position_loop]\nkv_per_s = 30.0\nencoder = \"scale\""),
+    );
+    assert!(e.to_string().contains("scale"), "{e}");
+    let e = bad(
+        "name = \"t\"",
+        &with("[master.position_loop]\nkv_per_s = 30.0\ngain = 2"),
+    );
+    assert!(e.to_string().contains("unknown field `gain`"), "{e}");
+}

@@ -94,3 +94,15 @@ fn scenario_cutting_load() {
 fn scenario_loose_coupling() {
     run("loose-coupling");
 }
+
+#[test]
+fn scenario_cnc_position_loop() {
+    let out = run("cnc-position-loop");
+    assert_eq!(out.runs.len(), 5);
+    // The detector's band is the master's loop's: k_v 30 1/s on every machine, whatever the
+    // preset's own.
+    for r in &out.runs {
+        let d = r.detector.as_ref().unwrap();
+        assert_eq!(d.kv_per_s, 30.0, "{}", r.preset);
+    }
+}

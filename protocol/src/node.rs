@@ -1287,6 +1287,26 @@ impl Node {
         self.core.tx.pop_front()
     }
 
+    /// The application reports a condition of its own that is not a fault (a warning: a
+    /// condition monitor's finding, e.g. backlash confirmed): EMCY `code` (manufacturer-specific
+    /// 0xFF00..=0xFFFF, say) with `info` in its five manufacturer bytes, sent once, held in
+    /// 0x1001 and 0x1003 until [`Node::clear_condition`]; the CiA 402 state does not change.
+    /// No allocation (real-time safe).
+    pub fn raise_condition(&mut self, code: u16, info: [u8; 5]) {
+        self.core.raise_emcy(code, info, Cause::Condition);
+    }
+
+    /// The condition of [`Node::raise_condition`] is gone: its error clears (EMCY 0x0000 when
+    /// it was the last one).
+    pub fn clear_condition(&mut self, code: u16) {
+        self.core.clear_emcy(code, Cause::Condition);
+    }
+
+    /// Whether error `code` is active (EMCY sent, in 0x1001 / 0x1003).
+    pub fn error_active(&self, code: u16) -> bool {
+        self.core.emcy.is_active(code)
+    }
+
     /// Set a stored object's value (raw form: signed sign-extended, REAL as bits) from the
     /// application, e.g. the runtime's statistics or the detector's verdict, for SDO reads
     /// and TPDOs. No allocation: fit for the real-time path. A `slot` of another dictionary

@@ -8,6 +8,16 @@ Run inside the bus (user-mode Linux where the kernel has no CAN):
     cargo build -p drive-emu --bin drive-emu
     VCAN_UML_MEM=1G ./vcan-setup.sh -- python3 tests/corpus/record.py [NAME ...]
 
+(DRIVE_EMU=path picks the binary, e.g. a release build for the real-time cases; CORPUS_DIR=dir
+writes the captures there instead, to look at them first.)
+
+Issue 19's cases run the drive in real time (SCHED_FIFO 80, its own clock) with SYNC from the
+kernel's broadcast manager (python-can's `send_periodic` on socketcan), the master following
+SYNC and the drive's TPDOs with a python-can listener; and a master that closes the position
+loop itself in CSV on the direct encoder 0x60E4 (`csvloop`, k in `master_kv`), in a 2 ms
+thread of its own or, with a lock-step drive, in a SYNC loop that waits for the drive's
+answer before the next SYNC.
+
 Each case (CASES below) gives: the drive's backlash and mode of time keeping (real-time loop
 or --lockstep), the master's SYNC period, the operating mode and how set-points reach the
 drive (CSP/CSV targets in an RPDO every SYNC, with the python timer's jitter, or set-points
@@ -30,11 +40,14 @@ import sys
 import threading
 import time
 
+import can
 import canopen
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(os.path.dirname(HERE))
-sys.path.insert(0, HERE)
+SCRIPTS = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(SCRIPTS))
+# where the captures go (CORPUS_DIR: elsewhere, to look at them first)
+HERE = os.environ.get("CORPUS_DIR", SCRIPTS)
+sys.path.insert(0, SCRIPTS)
 import truth  # noqa: E402
 
 IFACE = "vcan0"
@@ -74,6 +87,28 @@ CASES = {
     # 4 ms), whose holds and double steps beat at 16.7 Hz, in the k_v band
     "csp-4ms-lock-worn05-beat": dict(gap=0.05, lockstep=True, sync_ms=4, mode="csp",
                                     remap=False, setpoint_every=15 / 8),
+    # Issue 19: the drive in real time (SCHED_FIFO, its own clock) and SYNC from the kernel's
+    # broadcast manager (python-can's send_periodic on socketcan), as a user sets it up.
+    # CSP: each set-point sent when the master hears SYNC k, for SYNC k+1, from its clock.
+    "csp-4ms-rt-bcm-worn05": dict(gap=0.05, lockstep=False, sync_ms=4, mode="csp", remap=True,
+                                 sync="bcm", setpoints="on_sync"),
+    # PP: the drive makes the profile; SYNC only samples.
+    "pp-4ms-rt-bcm-worn05": dict(gap=0.05, lockstep=False, sync_ms=4, mode="pp", remap=True,
+                                sync="bcm"),
+    "pp-2ms-rt-bcm-healthy": dict(gap=0.0, lockstep=False, sync_ms=2, mode="pp", remap=True,
+                                 sync="bcm"),
+    # The paper's set-up: CSV, the master's own P loop on the direct encoder 0x60E4 (k 30 1/s),
+    # in a 2 ms thread of its own (the issue's python master), or on each TPDO it receives.
+    "csvloop-2ms-rt-bcm-worn05": dict(gap=0.05, lockstep=False, sync_ms=2, mode="csvloop",
+                                     remap=True, sync="bcm", setpoints="timer", loop_ms=2,
+                                     master_kv=30.0),
+    # ... and with a lock-step drive, the master's SYNC loop waiting for the drive's answer
+    # before the next SYNC (a loop that cannot run ahead of the drive; with SYNC from the
+    # kernel a slow lock-step drive answers several SYNCs late and the loop goes unstable)
+    "csvloop-2ms-lock-worn05": dict(gap=0.05, lockstep=True, sync_ms=2, mode="csvloop",
+                                   remap=True, setpoints="answer", master_kv=30.0),
+    "csvloop-4ms-lock-healthy": dict(gap=0.0, lockstep=True, sync_ms=4, mode="csvloop",
+                                    remap=True, setpoints="answer", master_kv=30.0),
 }
 SPEED_UU_S = 10_000.0  # 10 mm/s
 ACCEL_UU_S2 = 50_000.0
@@ -102,6 +137,8 @@ class Master:
         self.cruise = None  # (t_start, t_end) master time of the constant-speed part
         self.t0 = None
         self.cw = 0x06
+        self.direct = None  # the last 0x60E4 sub 1 from TPDO4 (csvloop)
+        self.answered = threading.Event()  # TPDO4 came since the last SYNC
         self.rng = random.Random(hash(str(sorted(case.items()))) & 0xFFFF)
 
     def retry(self, f):
@@ -141,8 +178,12 @@ class Master:
                     # a duplicate now and then, as a master retrying a send does
                     if self.rng.random() < 0.01:
                         self.net.send_message(sp[0], sp[1])
+            self.answered.clear()
             self.net.send_message(0x80, b"")
             self.syncs += 1
+            if self.case.get("setpoints") == "answer":
+                # the drive's answer (TPDO4) before the next set-point and SYNC
+                self.answered.wait(timeout=1.0)
 
     def now(self, jitter=False):
         """The master's interpolator time: the wall clock with a real-time drive; with a
@@ -158,11 +199,70 @@ class Master:
     def start_sync(self):
         self.t0 = time.monotonic()
         self.running = True
+        if self.case.get("setpoints") == "answer":
+            self.net.notifier.add_listener(self.on_message_received)
+        if self.case.get("sync") == "bcm":
+            # SYNC from the kernel (CAN_BCM): python-can's send_periodic on socketcan; the
+            # master follows SYNC and the drive's TPDOs as it hears them.
+            self.net.notifier.add_listener(self.on_message_received)
+            self.task = self.net.bus.send_periodic(
+                can.Message(arbitration_id=0x80, data=b"", is_extended_id=False), self.period)
+            if self.case.get("setpoints") == "timer":
+                self.thread = threading.Thread(target=self.timer_loop, daemon=True)
+                self.thread.start()
+            return
         self.thread = threading.Thread(target=self.sync_loop, daemon=True)
         self.thread.start()
 
+    # python-can Listener: SYNC (sent by the BCM, looped back to this socket) and the TPDO
+    # with the direct encoder
+    def on_message_received(self, msg):
+        if msg.is_error_frame or msg.is_remote_frame:
+            return
+        if msg.arbitration_id == 0x80:
+            if self.case.get("sync") == "bcm":
+                self.syncs += 1
+            if self.case.get("setpoints") == "on_sync":
+                self.send_setpoint()
+        elif msg.arbitration_id == 0x480 + NODE and len(msg.data) == 8:
+            self.direct = int.from_bytes(bytes(msg.data[4:8]), "little", signed=True)
+            self.answered.set()
+            if self.case.get("setpoints") == "on_tpdo":
+                self.send_setpoint()
+
+    def on_error(self, exc):
+        log(f"listener: {exc!r}")
+
+    def stop_listening(self):
+        pass
+
+    def timer_loop(self):
+        nxt = time.monotonic()
+        step = self.case.get("loop_ms", self.case["sync_ms"]) / 1000.0
+        while self.running:
+            nxt += step
+            now = time.monotonic()
+            if nxt > now:
+                time.sleep(nxt - now)
+            else:
+                nxt = now
+            self.send_setpoint()
+
+    def send_setpoint(self):
+        """The set-point for the next SYNC: at the SYNC count's time with a lock-step drive (the
+        count already includes the SYNC just heard), one period after the wall clock's now with
+        a real-time one."""
+        if self.setpoint is None:
+            return
+        t = self.now() if self.case["lockstep"] else self.now() + self.period
+        sp = self.setpoint(t)
+        if sp is not None:
+            self.net.send_message(sp[0], sp[1])
+
     def stop(self):
         self.running = False
+        if hasattr(self, "task"):
+            self.task.stop()
         if hasattr(self, "thread"):
             self.thread.join(timeout=5)
         self.net.disconnect()
@@ -200,7 +300,7 @@ def remap(m, mode):
 
     pdo(0x1802, 0x1A02, 0x380 + NODE, [0x606C0020, 0x60780010], 1)
     pdo(0x1803, 0x1A03, 0x480 + NODE, [0x60640020, 0x60E40120], 1)
-    sp = 0x607A0020 if mode == "csp" else 0x60FF0020
+    sp = 0x607A0020 if mode == "csp" else 0x60FF0020  # csv, csvloop: target velocity
     pdo(0x1400, 0x1600, 0x200 + NODE, [0x60400010, sp], 1)
     return n
 
@@ -237,11 +337,13 @@ def profile(t, t_start, v, a, cruise_s):
 def run_case(name, case):
     out_log = f"/tmp/corpus-{name}.log"
     sync_us = case["sync_ms"] * 1000
-    dump = subprocess.Popen(["candump", "-L", IFACE], stdout=open(out_log, "w"))
+    dump = subprocess.Popen(["candump", "-L", "-r", str(64 << 20), IFACE],
+                            stdout=open(out_log, "w"))
     time.sleep(0.3)
     m = Master(case)
+    rt = "80" if case.get("sync") == "bcm" and not case["lockstep"] else "0"
     emu_cmd = [EMU, "run", "--iface", IFACE, "--node", str(NODE), "--preset", "cnc1",
-               "--set", f"backlash_mm={case['gap']}", "--rt-priority", "0", "--no-mlock"]
+               "--set", f"backlash_mm={case['gap']}", "--rt-priority", rt, "--no-mlock"]
     if case["lockstep"]:
         emu_cmd += ["--lockstep", "--sync-period-us", str(sync_us)]
     trace_csv = f"/tmp/corpus-{name}-trace.csv"
@@ -262,7 +364,7 @@ def run_case(name, case):
         if mode == "csp":
             m.w(0x60C2, 1, "<B", case["sync_ms"])
             m.w(0x60C2, 2, "<b", -3)
-        m.w(0x6060, 0, "<b", {"csp": 8, "csv": 9, "pv": 3, "pp": 1}[mode])
+        m.w(0x6060, 0, "<b", {"csp": 8, "csv": 9, "csvloop": 9, "pv": 3, "pp": 1}[mode])
         m.net.nmt.send_command(0x01)  # start
         m.start_sync()
         m.wait_syncs(0.2)
@@ -271,7 +373,7 @@ def run_case(name, case):
         cob = 0x200 + NODE if case["remap"] else (0x300 + NODE if mode == "csp" else 0x400 + NODE)
         if mode == "csp":
             m.setpoint = lambda t: (cob, struct.pack("<Hi", m.cw, int(round(x0))))
-        elif mode == "csv":
+        elif mode in ("csv", "csvloop"):
             m.setpoint = lambda t: (cob, struct.pack("<Hi", m.cw, 0))
         enable(m)
         m.wait_syncs(0.3)
@@ -293,6 +395,20 @@ def run_case(name, case):
         elif mode == "csv":
             m.setpoint = lambda t: (cob, struct.pack(
                 "<Hi", 0x0F, int(round(profile(t, t_start, v, a, CRUISE_S)[1]))))
+            m.wait_syncs(0.1 + CRUISE_S + 2 * t_ramp + 0.3)
+            info["window"] = True
+        elif mode == "csvloop":
+            # v = v_ref + k (x_ref - x): x the direct encoder from the last TPDO4, x_ref the
+            # profile from where the axis stood
+            kv = case["master_kv"]
+            xd0 = float(m.direct if m.direct is not None else x0)
+
+            def loop(t):
+                x_ref, v_ref = profile(t, t_start, v, a, CRUISE_S)
+                x = m.direct
+                cmd = v_ref if x is None else v_ref + kv * (xd0 + x_ref - x)
+                return (cob, struct.pack("<Hi", 0x0F, int(round(cmd))))
+            m.setpoint = loop
             m.wait_syncs(0.1 + CRUISE_S + 2 * t_ramp + 0.3)
             info["window"] = True
         elif mode == "pv":
@@ -339,7 +455,7 @@ def run_case(name, case):
                 os.path.join(HERE, f"{name}.trace.csv.gz"), "wb", compresslevel=9) as dst:
             shutil.copyfileobj(src, dst)
         os.remove(trace_csv)
-    t = truth.measure(gz, NODE, case["mode"], case["remap"])
+    t = truth.measure(gz, NODE, case["mode"], case["remap"], case["lockstep"])
     t["case"] = {k: v for k, v in case.items()}
     t["case"]["window"] = info.get("window", False)
     with open(os.path.join(HERE, f"{name}.json"), "w") as f:

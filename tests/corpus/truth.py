@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Ground truth of a corpus capture, measured independently of drive-emu's decoder.
 
-Usage: truth.py CAPTURE.log.gz NODE MODE REMAPPED   (prints JSON)
+Usage: truth.py CAPTURE.log.gz NODE MODE REMAPPED [LOCKSTEP]   (prints JSON; LOCKSTEP 1/0,
+default 1)
 
 The capture is read with python-can's candump log reader; the velocity actual 0x606C is taken
 from the TPDO where the recording master put it (TPDO3: bytes 0-3 when the master remapped,
@@ -24,6 +25,20 @@ above the median by half of it (or 2 um) is a catch-up; where such are a fifth o
 increments or fewer, they are SYNCs the capture lost (its time base counts SYNCs) and take the
 median increment. Holds (the master sent nothing new) and patterns that beat with SYNC stay. The set position, its linear trend (the cruise) removed, is then analysed as a
 displacement.
+
+Time: with a lock-step drive (its clock is the SYNC count) sample k is at k x the median SYNC
+interval, with the values received last before SYNC k. With a drive on its own clock
+(`lockstep` false: a real-time drive) each synchronous TPDO answers one SYNC, in order (the
+first TPDO3 after a SYNC answers the oldest SYNC it has not answered, at most 32 back), the
+sample is at that SYNC's time stamp, and the samples are interpolated (numpy.interp) onto an
+even grid of the median interval before the FFT; SYNCs never answered are left out.
+
+A master that closes the position loop itself (mode `csvloop`: CSV whose target velocity is
+v_ref + k (x_ref - x) on the direct encoder): its set-point follows the axis. Where the
+target velocity over the cruise is fitted by numpy's least squares as a + b t - k x(t - lag),
+x the direct encoder 0x60E4 sub 1 from TPDO4 0-3 samples earlier, and that explains 80 % or
+more of its variation beyond the trend, `master_kv_fit` is k and the set-point's motion is the
+loop's, not a force (`forced` false).
 """
 import gzip
 import json
@@ -66,26 +81,79 @@ def set_point_um(sp, dt, band):
     return float(np.max(spec[sel])) if np.any(sel) else None
 
 
-def measure(path, node, mode, remapped):
+def master_kv(v, x, dt):
+    """k of v = a + b t - k x(t - lag), lag 0-3 samples, when x explains 80 % or more of v's
+    variation beyond its trend (numpy least squares); else None."""
+    best = None
+    for lag in range(4):
+        vv, xx = v[lag:], x[:len(x) - lag]
+        if len(vv) < 16 or not np.all(np.isfinite(vv)):
+            continue
+        t = np.arange(len(vv)) * dt
+        trend = np.vstack([np.ones_like(t), t]).T
+        r0 = vv - trend @ np.linalg.lstsq(trend, vv, rcond=None)[0]
+        a = np.vstack([np.ones_like(t), t, xx]).T
+        coef = np.linalg.lstsq(a, vv, rcond=None)[0]
+        r1 = vv - a @ coef
+        ss0 = float(np.sum(r0 ** 2))
+        if ss0 / len(vv) < 1.0:
+            continue
+        explained = 1.0 - float(np.sum(r1 ** 2)) / ss0
+        if best is None or explained > best[0]:
+            best = (explained, -coef[2])
+    if best and best[0] >= 0.8 and 0 < best[1] <= 1000:
+        return float(best[1])
+    return None
+
+
+def measure(path, node, mode, remapped, lockstep=True):
     frames = read_frames(path)
     tpdo3 = 0x380 + node
+    tpdo4 = 0x480 + node
     off = 0 if remapped else 2
+    off4 = 4 if remapped else 2  # 0x60E4 sub 1 in TPDO4: after 0x6064, or the statusword
+    vmode = "csv" if mode == "csvloop" else mode
     # the set-point's RPDO (see the docstring); PV and PP set-points go over SDO: constant
-    rpdo = (0x200 if remapped else (0x300 if mode == "csp" else 0x400)) + node
-    vel, t_sync, last, sp_last, sps = [], [], 0, None, []
+    rpdo = (0x200 if remapped else (0x300 if vmode == "csp" else 0x400)) + node
+    vel, t_sync, last, sp_last, sps, xd, xd_last = [], [], 0, None, [], [], 0
+    answers = {}  # SYNC index -> velocity of the TPDO3 that answered it (real-time drive)
+    answers_x = {}
+    next_unanswered = 0
     for msg in frames:
         if msg.is_error_frame or msg.is_remote_frame:
             continue
         if msg.arbitration_id == tpdo3 and len(msg.data) >= off + 4:
             last = int.from_bytes(msg.data[off:off + 4], "little", signed=True)
-        elif mode in ("csp", "csv") and msg.arbitration_id == rpdo and len(msg.data) >= 6:
+            if t_sync:
+                j = max(next_unanswered, len(t_sync) - 32)
+                answers[j] = last
+                next_unanswered = j + 1
+        elif msg.arbitration_id == tpdo4 and len(msg.data) >= off4 + 4:
+            xd_last = int.from_bytes(msg.data[off4:off4 + 4], "little", signed=True)
+            if t_sync:
+                answers_x[max(next_unanswered - 1, 0)] = xd_last
+        elif vmode in ("csp", "csv") and msg.arbitration_id == rpdo and len(msg.data) >= 6:
             sp_last = int.from_bytes(msg.data[2:6], "little", signed=True)
         elif msg.arbitration_id == 0x80:
             vel.append(last)
             sps.append(np.nan if sp_last is None else sp_last)
+            xd.append(xd_last)
             t_sync.append(msg.timestamp)
+    if not lockstep and len(t_sync) > 1:
+        # each SYNC's own answer at its own time, then onto an even grid
+        rows = sorted(answers)
+        ts = np.array([t_sync[j] for j in rows])
+        dt_med = float(np.median(np.diff(t_sync)))
+        grid = np.arange(ts[0], ts[-1], dt_med) if len(ts) > 1 else ts
+        vel = np.interp(grid, ts, [answers[j] for j in rows])
+        sps = np.interp(grid, np.array(t_sync), np.array(sps, dtype=float))
+        xs = sorted(answers_x)
+        xd = np.interp(grid, np.array([t_sync[j] for j in xs]), [answers_x[j] for j in xs]) \
+            if len(xs) > 1 else np.zeros(len(grid))
+        t_sync = list(grid)
     vel = np.array(vel, dtype=float)
     sps = np.array(sps, dtype=float)
+    xd = np.array(xd, dtype=float)
     dt = float(np.median(np.diff(t_sync))) if len(t_sync) > 1 else 0.0
     out = {"syncs": len(vel), "limit_cycle": False, "sync_period_s_measured": round(dt, 6),
            "frequency_hz": None, "speed_amplitude_uu_s": None, "displacement_um": None,
@@ -140,13 +208,16 @@ def measure(path, node, mode, remapped):
     out["limit_cycle"] = bool(out["displacement_um"] >= 1.0 and med > 0 and amp / med >= 8)
     # the set-point's own motion in the band: the axis forced by the master
     sp_seg = sps[a:b]
-    if mode == "csv":
+    if vmode == "csv":
         sp_seg = np.cumsum(np.nan_to_num(sp_seg)) * dt
     band = (3.0, min(60.0, 0.4 / dt))
-    spu = set_point_um(sp_seg, dt, band) if mode in ("csp", "csv") else 0.0
+    spu = set_point_um(sp_seg, dt, band) if vmode in ("csp", "csv") else 0.0
     out["set_point_um"] = None if spu is None else round(spu, 3)
     disp = out["displacement_um"]
-    out["forced"] = bool(spu is not None and disp >= 1.0 and spu >= max(1.0, 0.5 * disp))
+    kv = master_kv(sps[a:b], xd[a:b], dt) if mode == "csvloop" else None
+    out["master_kv_fit"] = None if kv is None else round(kv, 3)
+    out["forced"] = bool(kv is None and spu is not None and disp >= 1.0
+                         and spu >= max(1.0, 0.5 * disp))
     if out["forced"]:
         out["limit_cycle"] = False
     return out
@@ -154,4 +225,5 @@ def measure(path, node, mode, remapped):
 
 if __name__ == "__main__":
     p, node, mode, remapped = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4] == "1"
-    print(json.dumps(measure(p, node, mode, remapped), indent=1, sort_keys=True))
+    lockstep = len(sys.argv) < 6 or sys.argv[5] == "1"
+    print(json.dumps(measure(p, node, mode, remapped, lockstep), indent=1, sort_keys=True))

@@ -6,7 +6,9 @@
 //! Method, per constant-velocity window ([`super::windows`]):
 //! 1. fundamental of the motor speed and of the motor current in a search band wider than the
 //!    paper's (k_v/8 .. 2 k_v, below Nyquist/1.25), so a peak outside the band is seen and
-//!    rejected rather than missed;
+//!    rejected rather than missed; on the samples' own times
+//!    ([`super::spectrum::WindowSpectra`]: the FFT where they are even, a weighted
+//!    least-squares sine fit where SYNCs came late or were lost, with its limits there);
 //! 2. displacement-equivalent amplitude of the speed fluctuation, `x = A_v / (2 pi f)` (um or
 //!    mdeg: the trace's position unit), and the peak's prominence over the band's median;
 //! 3. the window is flagged `backlash_suspected` when the peak is inside k_v/4 .. k_v, prominent,
@@ -19,10 +21,9 @@
 //! level was confirmed, and the difference between motor and direct encoder (mean per window,
 //! fluctuation, and the lost motion between opposite directions when both are present).
 
-use super::spectrum::SpectrumAnalyzer;
-use super::windows::{median_dt, scan_windows, Window, WindowOptions};
+use super::spectrum::{uniform_interval, WindowSpectra};
+use super::windows::{scan_windows, Window, WindowOptions};
 use crate::samples::{Sample, SampleSource};
-use std::collections::HashMap;
 
 /// A trace as the detector needs it. Positions in one unit `u` (um for a linear axis, mdeg for a
 /// rotary one: the master's user units), velocities in u/s, current in any unit (per mille of
@@ -47,6 +48,9 @@ pub struct AxisTrace {
     /// constant speed on average where the set-points jitter, and to tell a line the
     /// set-point forces from the axis's own.
     pub set_position: Vec<f64>,
+    /// How `t_s` was had, for the report (a capture: its SYNC time stamps or the SYNC count,
+    /// and why); empty: the trace's time column.
+    pub time_base: String,
 }
 
 impl AxisTrace {
@@ -139,31 +143,55 @@ impl AxisTrace {
             current_unit: "A".into(),
             set_velocity_source: "derivative of the position set-point".into(),
             set_position,
+            time_base: String::new(),
         }
     }
 
     /// From a sample log (user units, per mille current), read by who wrote it: the set
-    /// velocity is the master's interpolator velocity ([`SampleSource::Master`]); a drive has
-    /// none to report (its 0x606B is the position controller's output, which carries the
-    /// limit cycle), so for [`SampleSource::Drive`] (`run --trace`, live scenarios:
-    /// [`crate::runtime::trace::node_sample`]) it is derived from the position demand
-    /// `target_uu` (0x6062).
+    /// velocity is the master's interpolator velocity ([`SampleSource::Master`]). A drive has
+    /// none to report in a position mode (its 0x606B is the position controller's output,
+    /// which carries the limit cycle), so for [`SampleSource::Drive`] (`run --trace`, live
+    /// scenarios: [`crate::runtime::trace::node_sample`]) it is derived from the position
+    /// demand `target_uu` (0x6062); in a velocity mode (CSV, PV: mode display 9 or 3) 0x606B is
+    /// the commanded velocity itself (0x60FF, or PV's ramp), and the set position its integral.
     pub fn from_sample_log(samples: &[Sample], source: SampleSource, rotary: bool) -> Self {
         let t_s: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
-        let set_position: Vec<f64> = samples.iter().map(|s| s.target_uu).collect();
-        let (set_velocity, set_velocity_source) = match source {
+        let demand: Vec<f64> = samples.iter().map(|s| s.target_uu).collect();
+        let (set_velocity, set_position, set_velocity_source) = match source {
             SampleSource::Master => (
                 samples.iter().map(|s| s.setpoint_velocity_uu_s).collect(),
-                "the master's interpolator velocity",
+                demand,
+                "the master's interpolator velocity".to_string(),
             ),
-            SampleSource::Drive => (
-                super::windows::set_velocity_from_demand(
+            SampleSource::Drive => {
+                let from_demand = super::windows::set_velocity_from_demand(
                     &t_s,
-                    &set_position,
+                    &demand,
                     super::windows::DEMAND_SPAN_S,
-                ),
-                "position demand 0x6062",
-            ),
+                );
+                let velocity_mode = |s: &Sample| matches!(s.mode_display, 3 | 9);
+                let (mut v, mut sp) = (Vec::with_capacity(samples.len()), Vec::new());
+                let mut x = f64::NAN;
+                for (k, s) in samples.iter().enumerate() {
+                    if velocity_mode(s) {
+                        let dt = if k > 0 { t_s[k] - t_s[k - 1] } else { 0.0 };
+                        x = if x.is_finite() { x } else { s.target_uu }
+                            + s.setpoint_velocity_uu_s * dt;
+                        v.push(s.setpoint_velocity_uu_s);
+                        sp.push(x);
+                    } else {
+                        x = f64::NAN;
+                        v.push(from_demand[k]);
+                        sp.push(s.target_uu);
+                    }
+                }
+                let text = if samples.iter().any(velocity_mode) {
+                    "position demand 0x6062; in CSV/PV velocity demand 0x606B"
+                } else {
+                    "position demand 0x6062"
+                };
+                (v, sp, text.to_string())
+            }
         };
         Self {
             t_s,
@@ -180,8 +208,9 @@ impl AxisTrace {
                 .collect(),
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),
-            set_velocity_source: set_velocity_source.into(),
+            set_velocity_source,
             set_position,
+            time_base: String::new(),
         }
     }
 }
@@ -290,6 +319,159 @@ pub struct WindowResult {
     /// set speed by more than half (a drive in fault, disabled, or in another mode). Such a
     /// window measures nothing either.
     pub not_following: bool,
+    /// The set-point follows the axis: the master closes the position loop itself
+    /// ([`fit_master_loop`]). Its motion is then the loop's answer to the axis, not a force
+    /// from outside: the window is measured, against the master's k_v.
+    pub master_loop: Option<LoopFit>,
+}
+
+/// The master's own position loop, fitted from one window: the set velocity (the derivative
+/// of the set position the master sent) against the position it had from the drive,
+/// `v_set(t) = v0 + a t - k x(t - lag)` (`v0 + a t` stands for its reference `k x_ref(t)`
+/// and feed-forward at constant speed).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct LoopFit {
+    /// The master's gain k, 1/s.
+    pub kv_per_s: f64,
+    /// How long before the set-point the position it answers was sampled, s (whole
+    /// set-point periods).
+    pub lag_s: f64,
+    /// "direct" (the direct-encoder column, 0x60E4) or "motor" (0x6064).
+    pub encoder: &'static str,
+    /// Share of the set velocity's variation (beyond its trend) the position explains.
+    pub explained: f64,
+}
+
+/// The master's position loop as the report gives it: the median of the windows' fits.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct MasterLoop {
+    pub kv_per_s: f64,
+    pub lag_s: f64,
+    pub encoder: &'static str,
+    pub explained: f64,
+    /// Windows whose set-point follows the axis, of all windows.
+    pub windows: usize,
+    pub of_windows: usize,
+}
+
+/// Share of the set velocity's variation a fit must explain to say the set-point follows the
+/// axis.
+pub const LOOP_MIN_EXPLAINED: f64 = 0.8;
+/// The set velocity must vary beyond its trend by at least this (rms, position unit per s):
+/// an exactly constant set-point follows nothing.
+pub const LOOP_MIN_RMS: f64 = 1.0;
+/// Longest lag searched, in set-points.
+pub const LOOP_MAX_LAG: usize = 3;
+
+/// Does the set-point follow the axis in window `w`? A master closing the position loop
+/// sends `v_set = v_ref + k (x_ref - x)`: at constant speed its set velocity (the derivative
+/// of the set position it sent: CSV/PV targets, or CSP targets) is a line in time plus `-k`
+/// times the position it last had from the drive. Fitted over the set-points (the samples
+/// where the set velocity changes: every row of a capture, every SYNC in a drive's own
+/// trace, where a set-point holds from one SYNC to the next) by least squares on `[1, t, x]`,
+/// x the direct or the motor position at the set-point `lag` set-points before (0 to
+/// [`LOOP_MAX_LAG`]); the best fit says so when it explains [`LOOP_MIN_EXPLAINED`] or more of
+/// the set velocity's variation beyond its trend, with `0 < k <= 1000 1/s`. A set-point that
+/// jitters by itself (its own timing) or beats with SYNC moves independently of the axis and
+/// explains nothing; an axis that follows a set-point (integrates it) lags it by a quarter
+/// period, orthogonal to a P loop's half period. None when the set-point does not follow the
+/// axis.
+pub fn fit_master_loop(trace: &AxisTrace, w: &Window) -> Option<LoopFit> {
+    let sp = trace.set_position.get(w.start..w.end)?;
+    let t = &trace.t_s[w.start..w.end];
+    let n = sp.len();
+    if n < 16 || sp.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    // The set velocity per sample (sample j >= 1), and the samples where a set-point came.
+    let v: Vec<f64> = (1..n)
+        .map(|j| {
+            let dt = t[j] - t[j - 1];
+            if dt > 0.0 {
+                (sp[j] - sp[j - 1]) / dt
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    if v.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let changes: Vec<usize> = (1..n)
+        .filter(|&j| j == 1 || (v[j - 1] - v[j - 2]).abs() > 1e-9 * v[j - 1].abs().max(1.0))
+        .collect();
+    // A set-point held over several samples (a drive's trace every tick, a new set-point
+    // every SYNC): its changes; else every sample is one (a capture, one row per SYNC, where
+    // a set-point that happens to repeat is still a set-point).
+    let events: Vec<usize> = if 2 * changes.len() < n - 1 {
+        changes
+    } else {
+        (1..n).collect()
+    };
+    if events.len() < 16 {
+        return None;
+    }
+    let columns: [(&'static str, &[f64]); 2] = [
+        ("direct", &trace.direct_position[w.start..w.end]),
+        ("motor", &trace.motor_position[w.start..w.end]),
+    ];
+    // The time between set-points, s (their median).
+    let period = {
+        let mut d: Vec<f64> = events.windows(2).map(|e| t[e[1]] - t[e[0]]).collect();
+        median(&mut d).unwrap_or(0.0)
+    };
+    let mut best: Option<LoopFit> = None;
+    for (c, (name, x)) in columns.iter().enumerate() {
+        if c == 1 && columns[0].1 == *x {
+            continue;
+        }
+        for lag in 0..=LOOP_MAX_LAG {
+            // Set-point i (at sample events[i]) against x where set-point i - lag came.
+            let rows = lag..events.len();
+            let m = rows.len() as f64;
+            let at = |i: usize| (t[events[i]], x[events[i - lag]], v[events[i] - 1]);
+            let (mut st, mut sx, mut sy) = (0.0, 0.0, 0.0);
+            for i in rows.clone() {
+                let (a, b, c) = at(i);
+                st += a;
+                sx += b;
+                sy += c;
+            }
+            let (mt, mx, my) = (st / m, sx / m, sy / m);
+            let (mut tt, mut xx, mut tx, mut ty, mut xy, mut yy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+            for i in rows {
+                let (a, b, c) = at(i);
+                let (a, b, c) = (a - mt, b - mx, c - my);
+                tt += a * a;
+                xx += b * b;
+                tx += a * b;
+                ty += a * c;
+                xy += b * c;
+                yy += c * c;
+            }
+            if tt <= 0.0 {
+                continue;
+            }
+            // Beyond the trend: residuals of v and x on [1, t].
+            let yy_t = yy - ty * ty / tt;
+            let xx_t = xx - tx * tx / tt;
+            let xy_t = xy - tx * ty / tt;
+            if yy_t / m < LOOP_MIN_RMS * LOOP_MIN_RMS || xx_t <= 0.0 {
+                continue;
+            }
+            let coef = xy_t / xx_t;
+            let explained = (xy_t * xy_t / (xx_t * yy_t)).clamp(0.0, 1.0);
+            if best.is_none_or(|b| explained > b.explained) {
+                best = Some(LoopFit {
+                    kv_per_s: -coef,
+                    lag_s: lag as f64 * period,
+                    encoder: name,
+                    explained,
+                });
+            }
+        }
+    }
+    best.filter(|b| b.explained >= LOOP_MIN_EXPLAINED && b.kv_per_s > 0.0 && b.kv_per_s <= 1000.0)
 }
 
 /// Why a trace gave no usable window.
@@ -338,6 +520,8 @@ pub struct DetectorReport {
     pub reasons: Vec<String>,
     /// Where the constant speed came from (set-point object, or the actual values).
     pub window_source: String,
+    /// How the samples' times were had (a capture: its SYNC time stamps or the SYNC count).
+    pub time_base: String,
     /// Displacement amplitude of the deciding windows over `alarm_um` (1.0 = at the alarm).
     pub severity: f64,
     /// Median displacement amplitude of the deciding windows, position unit.
@@ -361,6 +545,9 @@ pub struct DetectorReport {
     /// Windows not measured: their line is the set-point's own motion
     /// ([`WindowResult::forced`]), or the axis did not follow ([`WindowResult::not_following`]).
     pub forced_windows: Vec<WindowResult>,
+    /// The master closes the position loop itself (the set-point follows the axis): its gain,
+    /// which `kv_per_s` and the band then are.
+    pub master_loop: Option<MasterLoop>,
 }
 
 fn median(v: &mut [f64]) -> Option<f64> {
@@ -389,26 +576,33 @@ fn slope(x: &[f64], y: &[f64]) -> Option<f64> {
     (sxx > 0.0).then(|| sxy / sxx)
 }
 
-/// Analyze one window (exposed for tests and plots).
+/// Analyze one window (exposed for tests and plots). Its spectra are taken on the samples'
+/// own times ([`WindowSpectra`]: the FFT where they are even, a least-squares fit where not).
 pub fn analyze_window(
     trace: &AxisTrace,
     w: &Window,
     cfg: &DetectorConfig,
-    analyzers: &mut HashMap<usize, SpectrumAnalyzer>,
+    spectra: &mut WindowSpectra,
 ) -> WindowResult {
-    let dt = median_dt(&trace.t_s[w.start..w.end]);
-    let fs = if dt > 0.0 { 1.0 / dt } else { 1.0 };
-    let band = cfg.search_band_hz(fs);
+    let t = &trace.t_s[w.start..w.end];
     let n = w.len();
-    let an = analyzers
-        .entry(n)
-        .or_insert_with(|| SpectrumAnalyzer::new(n));
-    let speed = an.fundamental(&trace.motor_velocity[w.start..w.end], fs, band);
-    let prominence = speed.map_or(0.0, |p| line_prominence(an, p.amplitude, n, fs, band));
-    let current = an.fundamental(&trace.current[w.start..w.end], fs, band);
+    let (uniform, dt) = uniform_interval(t);
+    let span = t[n - 1] - t[0];
+    let fs = if uniform && dt > 0.0 {
+        1.0 / dt
+    } else if span > 0.0 {
+        (n - 1) as f64 / span
+    } else {
+        1.0
+    };
+    let band = cfg.search_band_hz(fs);
+    let speed_spectrum = spectra.band(t, &trace.motor_velocity[w.start..w.end], band);
+    let speed = speed_spectrum.peak;
+    let prominence = speed.map_or(0.0, |p| line_prominence(p.amplitude, &speed_spectrum.band));
+    let current = spectra.band(t, &trace.current[w.start..w.end], band).peak;
     let (speed_hz, speed_amplitude) =
         speed.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
-    let set_point_amplitude = set_point_line(trace, w, an, fs, band);
+    let set_point_amplitude = set_point_line(trace, w, spectra, band);
     let (current_hz, current_amplitude) =
         current.map_or((None, 0.0), |p| (Some(p.frequency_hz), p.amplitude));
     let displacement_amplitude = match speed_hz {
@@ -426,7 +620,11 @@ pub fn analyze_window(
     // The speed shows a line of the size we look for, and the set-point shakes the axis in the
     // band by the suspect level and half that line or more: the line is not the axis's own.
     // (A quiet speed under a moving set-point is no vibration of the axis: ok stays ok.)
-    let forced = displacement_amplitude >= cfg.suspect_um
+    // Unless the set-point follows the axis (the master's own position loop): then its motion
+    // is the loop's answer, and the limit cycle the loop's.
+    let master_loop = fit_master_loop(trace, w);
+    let forced = master_loop.is_none()
+        && displacement_amplitude >= cfg.suspect_um
         && set_point_amplitude >= cfg.suspect_um.max(0.5 * displacement_amplitude);
     let mean_speed = trace.motor_velocity[w.start..w.end].iter().sum::<f64>() / n.max(1) as f64;
     let not_following = (mean_speed - w.velocity).abs() > 0.5 * w.velocity.abs();
@@ -473,20 +671,15 @@ pub fn analyze_window(
         set_point_amplitude,
         forced,
         not_following,
+        master_loop,
     }
 }
 
-/// The line's amplitude over the median amplitude of the search `band` (Hz) in the last
-/// spectrum `an` computed (`n` samples at rate `fs`): how far the line stands out of the
-/// noise.
-fn line_prominence(
-    an: &SpectrumAnalyzer,
-    amplitude: f64,
-    n: usize,
-    fs: f64,
-    band: (f64, f64),
-) -> f64 {
-    let mut m: Vec<f64> = band_bins(an, n, fs, band).to_vec();
+/// The line's amplitude over the median amplitude of the search band's grid (`band`, the
+/// amplitudes of a [`BandSpectrum`](super::spectrum::BandSpectrum)): how far the line stands
+/// out of the noise.
+fn line_prominence(amplitude: f64, band: &[f64]) -> f64 {
+    let mut m: Vec<f64> = band.to_vec();
     let med = median(&mut m).unwrap_or(0.0);
     if med > 0.0 {
         amplitude / med
@@ -575,75 +768,110 @@ fn judge_line(
 fn set_point_line(
     trace: &AxisTrace,
     w: &Window,
-    an: &mut SpectrumAnalyzer,
-    fs: f64,
+    spectra: &mut WindowSpectra,
     band: (f64, f64),
 ) -> f64 {
     let Some(sp) = trace.set_position.get(w.start..w.end) else {
         return f64::NAN;
     };
-    if sp.iter().any(|x| !x.is_finite()) {
+    if sp.len() < 2 || sp.iter().any(|x| !x.is_finite()) {
         return f64::NAN;
     }
-    // The set position again from its increments. An increment well above the median (by
-    // half of it, or 2 units) is a catch-up: where such are rare (a fifth of the increments
-    // or fewer), they are SYNCs the capture lost (its time base counts SYNCs; the drive saw
-    // them), not a motion of the set-point, and take the median. Holds (increments below it:
-    // the master sent nothing new) are what the drive saw and stay, as does a pattern of
-    // holds and double steps that beats with SYNC (not rare).
-    let mut d: Vec<f64> = sp.windows(2).map(|p| p[1] - p[0]).collect();
-    if d.is_empty() {
-        return f64::NAN;
-    }
-    let mut sorted = d.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let far = (0.5 * median.abs()).max(2.0);
-    let catch_up = |x: f64| (x - median) * median.signum() > far;
-    let catch_ups = d.iter().filter(|x| catch_up(**x)).count();
-    if catch_ups * 5 <= d.len() {
-        for x in d.iter_mut() {
-            if catch_up(*x) {
-                *x = median;
+    let t = &trace.t_s[w.start..w.end];
+    // On an even time base (k x the SYNC period), the set position again from its
+    // increments. An increment well above the median (by half of it, or 2 units) is a
+    // catch-up: where such are rare (a fifth of the increments or fewer), they are SYNCs the
+    // capture lost (its time base counts SYNCs; the drive saw them), not a motion of the
+    // set-point, and take the median. Holds (increments below it: the master sent nothing
+    // new) are what the drive saw and stay, as does a pattern of holds and double steps that
+    // beats with SYNC (not rare). On the samples' own times a lost SYNC is a longer interval
+    // already: the set position is taken as it is.
+    let pos: Vec<f64> = if uniform_interval(t).0 {
+        let mut d: Vec<f64> = sp.windows(2).map(|p| p[1] - p[0]).collect();
+        let mut sorted = d.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        let far = (0.5 * median.abs()).max(2.0);
+        let catch_up = |x: f64| (x - median) * median.signum() > far;
+        let catch_ups = d.iter().filter(|x| catch_up(**x)).count();
+        if catch_ups * 5 <= d.len() {
+            for x in d.iter_mut() {
+                if catch_up(*x) {
+                    *x = median;
+                }
             }
         }
-    }
-    let mut x = 0.0;
-    let pos: Vec<f64> = std::iter::once(0.0)
-        .chain(d.iter().map(|s| {
-            x += s;
-            x
-        }))
-        .collect();
+        let mut x = 0.0;
+        std::iter::once(0.0)
+            .chain(d.iter().map(|s| {
+                x += s;
+                x
+            }))
+            .collect()
+    } else {
+        sp.to_vec()
+    };
     // Its spectrum (trend removed: the cruise itself) is a displacement already.
-    if an.fundamental(&pos, fs, band).is_none() {
+    let s = spectra.band(t, &pos, band);
+    if s.peak.is_none() {
         return 0.0;
     }
-    band_bins(an, sp.len(), fs, band)
-        .iter()
-        .copied()
-        .fold(0.0, f64::max)
+    s.band.iter().copied().fold(0.0, f64::max)
 }
 
-/// The amplitudes of the last spectrum `an` computed (`n` samples at rate `fs`) whose bins
-/// lie in `band` (Hz), DC excluded.
-fn band_bins(an: &SpectrumAnalyzer, n: usize, fs: f64, band: (f64, f64)) -> &[f64] {
-    let m = an.amplitudes();
-    let df = fs / n as f64;
-    let lo = ((band.0 / df).ceil() as usize).max(1);
-    let hi = ((band.1 / df).floor() as usize).min(m.len() - 1);
-    &m[lo..=hi.max(lo)]
+/// Longest gap between two samples bridged inside a window, in periods of the lowest
+/// frequency of the paper's band (k_v/4).
+pub const MAX_GAP_LOW_PERIODS: f64 = 0.5;
+
+/// The window options in force: `cfg.windows`, where no gap limit is set with gaps up to half
+/// the longest period of the paper's band (`0.5 / (k_v/4)` = 2 / k_v, 67 ms at 30 1/s) bridged:
+/// the spectra are fitted on the samples' own times, where a late SYNC or a few lost ones only
+/// cost the samples that are missing; a longer silence (a drive or a capture that stalled)
+/// may hide a change of speed and ends the window.
+pub fn window_options(cfg: &DetectorConfig) -> WindowOptions {
+    let mut wo = cfg.windows;
+    if wo.max_gap_s.is_none() && cfg.kv_per_s > 0.0 {
+        wo.max_gap_s = Some(MAX_GAP_LOW_PERIODS / (cfg.kv_per_s / 4.0));
+    }
+    wo
+}
+
+/// The master's position loop, if the set-point follows the axis in more than half of the
+/// `windows` ([`fit_master_loop`]): the median gain, lag and share explained of those that do.
+fn master_loop(trace: &AxisTrace, windows: &[&Window]) -> Option<MasterLoop> {
+    let fits: Vec<LoopFit> = windows
+        .iter()
+        .filter_map(|w| fit_master_loop(trace, w))
+        .collect();
+    if fits.is_empty() || 2 * fits.len() <= windows.len() {
+        return None;
+    }
+    let med = |f: fn(&LoopFit) -> f64| median(&mut fits.iter().map(f).collect::<Vec<_>>());
+    let direct = fits.iter().filter(|f| f.encoder == "direct").count();
+    Some(MasterLoop {
+        kv_per_s: med(|f| f.kv_per_s)?,
+        lag_s: med(|f| f.lag_s)?,
+        encoder: if 2 * direct >= fits.len() {
+            "direct"
+        } else {
+            "motor"
+        },
+        explained: med(|f| f.explained)?,
+        windows: fits.len(),
+        of_windows: windows.len(),
+    })
 }
 
 /// Run the detector on a trace.
 pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
-    let mut scan = scan_windows(&trace.t_s, &trace.set_velocity, &cfg.windows);
+    let wo = window_options(cfg);
+    let mut scan = scan_windows(&trace.t_s, &trace.set_velocity, &wo);
     // No stretch of exactly constant set speed, but set-points that jitter around one:
     // constant on average.
     let mut on_average = false;
     if scan.windows.is_empty() && !trace.set_position.is_empty() {
         let v = super::windows::set_velocity_on_average(&trace.t_s, &trace.set_position);
-        let avg = scan_windows(&trace.t_s, &v, &cfg.windows);
+        let avg = scan_windows(&trace.t_s, &v, &wo);
         if !avg.windows.is_empty() {
             (scan, on_average) = (avg, true);
         }
@@ -655,13 +883,46 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     };
     let usable: Vec<&Window> = scan.windows.iter().filter(|w| w.len() >= 16).collect();
     let non_finite = usable.iter().filter(|w| !finite(w)).count();
-    let mut analyzers = HashMap::new();
+    // A master that closes the position loop itself: the limit cycle is its loop's, judged
+    // against its gain (fitted from the capture) instead of the drive's.
+    let master_loop = master_loop(trace, &usable);
+    let cfg_in_force = match &master_loop {
+        Some(m) => DetectorConfig {
+            kv_per_s: m.kv_per_s,
+            ..*cfg
+        },
+        None => *cfg,
+    };
+    let cfg = &cfg_in_force;
+    let mut spectra = WindowSpectra::new();
     let (forced, results): (Vec<WindowResult>, Vec<WindowResult>) = usable
         .iter()
         .filter(|w| finite(w))
-        .map(|w| analyze_window(trace, w, cfg, &mut analyzers))
+        .map(|w| analyze_window(trace, w, cfg, &mut spectra))
         .partition(|r| r.forced || r.not_following);
     let mut rep = summarize(results, trace, cfg);
+    if let Some(m) = master_loop {
+        rep.master_loop = Some(m);
+        let at = usize::from(!rep.reasons.is_empty());
+        rep.reasons.insert(
+            at,
+            format!(
+                "the set-point follows the axis: the master closes the position loop itself \
+                 (v_set = v0 + k (x_cmd - x) fits with k = {:.2} 1/s on the {} position, {:.1} \
+                 ms late, explaining {:.0} % of the set velocity's variation, in {} of {} \
+                 windows): the limit cycle is its loop's, judged against its k (band \
+                 {:.2}..{:.2} Hz)",
+                m.kv_per_s,
+                m.encoder,
+                m.lag_s * 1e3,
+                m.explained * 100.0,
+                m.windows,
+                m.of_windows,
+                m.kv_per_s / 4.0,
+                m.kv_per_s
+            ),
+        );
+    }
     if on_average {
         rep.window_source.push_str(&format!(
             "; constant on average over {} s (the set-points jitter: no stretch of exactly \
@@ -851,6 +1112,11 @@ fn summarize(
         } else {
             trace.set_velocity_source.clone()
         },
+        time_base: if trace.time_base.is_empty() {
+            "the trace's time column".into()
+        } else {
+            trace.time_base.clone()
+        },
         severity,
         amplitude,
         frequency_hz,
@@ -863,6 +1129,7 @@ fn summarize(
         position_unit: trace.position_unit.clone(),
         windows: results,
         forced_windows: Vec::new(),
+        master_loop: None,
     }
 }
 
@@ -1108,6 +1375,7 @@ mod tests {
         let f = r.frequency_hz.unwrap();
         assert!((f - 18.0).abs() < 0.5, "{f}");
         assert!(r.forced_windows.is_empty(), "{:#?}", r.forced_windows);
+        assert_eq!(r.master_loop, None, "jitter of its own is no loop");
     }
 
     #[test]
@@ -1125,6 +1393,8 @@ mod tests {
         assert_eq!(r.verdict, Verdict::Inconclusive, "{:#?}", r.reasons);
         assert_eq!(r.inconclusive, Some(Inconclusive::SetPointNotConstant));
         assert!(!r.forced_windows.is_empty());
+        // Its set-point does not follow the axis: no master's loop.
+        assert_eq!(r.master_loop, None);
         assert!(r
             .forced_windows
             .iter()

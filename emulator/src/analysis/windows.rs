@@ -14,6 +14,11 @@ pub struct WindowOptions {
     pub max_len_s: f64,
     /// Relative change of the set speed between samples still counted as constant.
     pub rel_tol: f64,
+    /// A time between two samples longer than this ends a window (lost or late samples of a
+    /// capture on its own time stamps: the spectrum is fitted on the samples' times, so a gap
+    /// only costs what happened in it), s. None: 1.5 median sample intervals (a trace sampled
+    /// evenly, where any gap is lost time).
+    pub max_gap_s: Option<f64>,
 }
 
 impl Default for WindowOptions {
@@ -24,6 +29,7 @@ impl Default for WindowOptions {
             min_len_s: 1.0,
             max_len_s: 4.0,
             rel_tol: 1e-6,
+            max_gap_s: None,
         }
     }
 }
@@ -70,8 +76,8 @@ pub struct WindowScan {
     pub longest_run_s: f64,
 }
 
-/// Find the constant-velocity windows. A time gap larger than 1.5 sample intervals (skipped
-/// idle time, lost samples) ends a window.
+/// Find the constant-velocity windows. A time gap larger than [`WindowOptions::max_gap_s`]
+/// (by default 1.5 sample intervals: skipped idle time, lost samples) ends a window.
 pub fn constant_velocity_windows(
     t: &[f64],
     set_velocity: &[f64],
@@ -89,6 +95,7 @@ pub fn scan_windows(t: &[f64], set_velocity: &[f64], o: &WindowOptions) -> Windo
     if dt <= 0.0 {
         return WindowScan::default();
     }
+    let max_gap = o.max_gap_s.unwrap_or(1.5 * dt).max(1.5 * dt);
     let mut push_run = |a: usize, b: usize| {
         // Run a..b (exclusive) at constant velocity: settle, then cut into windows.
         runs += 1;
@@ -104,7 +111,7 @@ pub fn scan_windows(t: &[f64], set_velocity: &[f64], o: &WindowOptions) -> Windo
             while end < b && t[end] < limit {
                 end += 1;
             }
-            if (end - start) as f64 * dt >= o.min_len_s - 0.5 * dt {
+            if end > start && t[end - 1] - t[start] + dt >= o.min_len_s - 0.5 * dt {
                 out.push(Window {
                     start,
                     end,
@@ -118,7 +125,7 @@ pub fn scan_windows(t: &[f64], set_velocity: &[f64], o: &WindowOptions) -> Windo
         let (v0, v1) = (set_velocity[i - 1], set_velocity[i]);
         (v1 - v0).abs() <= o.rel_tol * v1.abs().max(1.0)
             && v1.abs() >= o.min_speed
-            && t[i] - t[i - 1] <= 1.5 * dt
+            && t[i] - t[i - 1] <= max_gap
     };
     let mut run_start: Option<usize> = None;
     for i in 1..t.len() {
@@ -153,8 +160,23 @@ pub const DEMAND_SPAN_S: f64 = 0.2;
 /// within 0.5 % of their segment's running mean, or within two units per span at low speed,
 /// share that mean), so that constant-speed stretches come out exactly constant for
 /// [`constant_velocity_windows`] and ramps break into short segments that it skips.
+///
+/// On uneven times (a capture on its own time stamps) a lost or late set-point is a longer
+/// interval, not a glitch: the demand is taken as it is.
 pub fn set_velocity_from_demand(t: &[f64], demand: &[f64], span_s: f64) -> Vec<f64> {
-    piecewise_constant_velocity(t, &repair_glitches(demand), span_s, 5e-3, 2.0)
+    let demand = if evenly_sampled(t) {
+        repair_glitches(demand)
+    } else {
+        demand.to_vec()
+    };
+    piecewise_constant_velocity(t, &demand, span_s, 5e-3, 2.0)
+}
+
+/// Whether `t` is evenly sampled ([`super::spectrum::uniform_interval`]): the glitch repairs
+/// here are for a time base that counts samples, where a lost or late one shows as a step of
+/// the wrong size; on a capture's own time stamps it shows as an interval of another length.
+fn evenly_sampled(t: &[f64]) -> bool {
+    super::spectrum::uniform_interval(t).0
 }
 
 /// Span of the derivative in [`set_velocity_from_actual`], s: long against the limit cycle's
@@ -166,8 +188,56 @@ pub const ACTUAL_SPAN_S: f64 = 0.5;
 /// integral of the measured speed). The same piecewise-constant derivative as
 /// [`set_velocity_from_demand`], over [`ACTUAL_SPAN_S`], with a tolerance of 2 % or 20 units
 /// per span (the limit cycle and encoder noise ride on the measured position).
+///
+/// On uneven times (a capture on its own time stamps) the position is taken as it is.
 pub fn set_velocity_from_actual(t: &[f64], position: &[f64]) -> Vec<f64> {
-    piecewise_constant_velocity(t, &despike(position), ACTUAL_SPAN_S, 0.02, 20.0)
+    let position = if evenly_sampled(t) {
+        despike(position)
+    } else {
+        position.to_vec()
+    };
+    piecewise_constant_velocity(t, &position, ACTUAL_SPAN_S, 0.02, 20.0)
+}
+
+/// Where the set-point is not in the capture but the measured speed is (0x606C: a PP move):
+/// the paper's criterion applied to the drive's own speed measurement, averaged over
+/// [`ACTUAL_SPAN_S`] (centred), piecewise constant within 2 % or 20 units per span. A speed
+/// needs no clock: unlike positions over time stamps it does not depend on when each sample
+/// was taken (a real-time drive samples within a control tick of its SYNC, and one that
+/// stalled lost time against the bus's clock).
+pub fn set_velocity_from_speed(t: &[f64], speed: &[f64]) -> Vec<f64> {
+    assert_eq!(t.len(), speed.len());
+    let n = t.len();
+    let dt = median_dt(t);
+    if n < 2 || dt <= 0.0 {
+        return vec![0.0; n];
+    }
+    let k = ((0.5 * ACTUAL_SPAN_S / dt).round() as usize).max(1);
+    let mut prefix = vec![0.0; n + 1];
+    for i in 0..n {
+        prefix[i + 1] = prefix[i] + if speed[i].is_finite() { speed[i] } else { 0.0 };
+    }
+    let avg: Vec<f64> = (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(k), (i + k + 1).min(n));
+            (prefix[b] - prefix[a]) / (b - a) as f64
+        })
+        .collect();
+    let abs_tol = 20.0 / ACTUAL_SPAN_S;
+    let mut out = vec![0.0; n];
+    let (mut start, mut sum) = (0usize, avg[0]);
+    for i in 1..=n {
+        let mean = sum / (i - start) as f64;
+        if i < n && (avg[i] - mean).abs() <= (0.02 * mean.abs()).max(abs_tol) {
+            sum += avg[i];
+        } else {
+            out[start..i].fill(mean);
+            if i < n {
+                (start, sum) = (i, avg[i]);
+            }
+        }
+    }
+    out
 }
 
 /// Span of [`set_velocity_on_average`], s: over half a second a set-point that comes a
@@ -249,8 +319,10 @@ fn piecewise_constant_velocity(
         } else {
             // A long segment gets the secant of the demand over its interior (k samples in
             // from each end, where the centred derivative still saw the ramps): exact to one
-            // unit over the segment. A short one (a ramp piece) keeps its mean.
-            let value = if i - start > 2 * k + 1 {
+            // unit over the segment. A short one (a ramp piece), or one whose interior is
+            // shorter than a span (a measured position's noise would dominate the secant),
+            // keeps its mean.
+            let value = if i - start > 4 * k + 1 {
                 let (a, b) = (start + k, i - 1 - k);
                 (demand[b] - demand[a]) / (t[b] - t[a])
             } else {

@@ -20,6 +20,7 @@ use crate::analysis::detector::{
 };
 use crate::analysis::windows::{set_velocity_from_demand, DEMAND_SPAN_S};
 use crate::samples::csv::{parse_csv, read_trace_text, Columns};
+use crate::samples::{Sample, SampleSource};
 use anyhow::Context;
 use std::path::{Path, PathBuf};
 
@@ -33,6 +34,30 @@ lines at most 64 KiB):
                in the log, and the set-points written over SDO; one sample per SYNC.
   CSV          `drive-emu run --trace`, `drive-emu sim --trace`, a scenario report's samples.csv.
   A last line cut short (a writer killed mid-line) is skipped and reported, not an error.
+
+Time base of a candump log (--time-base): each sample is a SYNC's row, the set-points in force at
+it and the drive's synchronous TPDOs that answered it (taken in order: a drive that falls
+behind answers late, and its answers still go to the SYNCs they answer). A drive on its own
+clock (a real drive, `run`) samples when the SYNC comes: the samples go at the SYNCs' time
+stamps, so late and lost SYNCs are where they happened. A drive clocked by SYNC (`run
+--lockstep`) moves one period per SYNC whatever the wall clock did: sample k goes at k x the
+period. By default the capture tells which: the axis's increments between SYNCs regressed on the
+intervals (slope 1: stamps, 0: count); the report says which and why. On uneven times the
+spectra are weighted least-squares sine fits on the samples' own times (a Lomb-Scargle
+periodogram; even samples: the FFT, which it equals there). Limits: the band stops at the mean
+sample rate / 2.5; a gap longer than half a period of k_v/4 (2/k_v: 67 ms at 30 1/s) ends a
+window; a value answered in a burst after a stall is taken at its SYNC's stamp, not at the
+time the drive sampled it; an uneven capture spreads a line's leakage over the band, so its
+prominence is measured once the line is taken out.
+
+A master that closes the position loop itself (the paper's CNCs: position loop in the NC on
+the direct encoder, speed set-points to the drive in CSV): in each window the set velocity is
+fitted as v0 + a t - k x(t - lag), x the direct or motor position the master had from the
+drive (lags of 0-3 set-points); where that explains 80 % or more of the set-point's motion
+in most windows, the set-point follows the axis: its motion is the loop's answer, not a force,
+the windows are measured, and the limit cycle is judged against the master's k (fitted,
+reported, and the band k/4..k), not the drive's k_v. A set-point that does not follow the
+axis (its own jitter, a task that beats with SYNC) stays `set_point_not_constant`.
 
 Constant-speed windows: from the set-point in force (CSP 0x607A targets, CSV/PV 0x60FF, in an
 RPDO or written over SDO); where there is none (a PP move, an unknown mode) from the actual
@@ -99,9 +124,36 @@ pub struct AnalyzeArgs {
     #[arg(long)]
     pub preset: Option<String>,
     /// candump log: SYNC period, us (default: 0x1006 if written in the log, else the median
-    /// SYNC interval of the timestamps).
+    /// SYNC interval of the timestamps); places sample k at k x this period.
     #[arg(long)]
     pub sync_period_us: Option<u32>,
+    /// candump log: when each sample was taken: `stamps` (the SYNC's time stamp in the log: a
+    /// drive on its own clock), `sync-count` (k x the SYNC period: a drive clocked by SYNC,
+    /// `run --lockstep`); default: told from the capture (which clock the axis moves on).
+    #[arg(long, value_enum, default_value_t = TimeBaseArg::Auto)]
+    pub time_base: TimeBaseArg,
+}
+
+/// `--time-base`.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TimeBaseArg {
+    /// Told from the capture.
+    #[default]
+    Auto,
+    /// The SYNCs' time stamps.
+    Stamps,
+    /// k x the SYNC period.
+    SyncCount,
+}
+
+impl TimeBaseArg {
+    fn base(self) -> Option<candump::TimeBase> {
+        match self {
+            TimeBaseArg::Auto => None,
+            TimeBaseArg::Stamps => Some(candump::TimeBase::Stamps),
+            TimeBaseArg::SyncCount => Some(candump::TimeBase::SyncCount),
+        }
+    }
 }
 
 impl Default for AnalyzeArgs {
@@ -119,6 +171,7 @@ impl Default for AnalyzeArgs {
             node: 5,
             preset: None,
             sync_period_us: None,
+            time_base: TimeBaseArg::Auto,
         }
     }
 }
@@ -152,7 +205,14 @@ pub fn trace_from_columns(source: &str, cols: &Columns, rotary: bool) -> anyhow:
     let need = |names: &[&str]| -> anyhow::Result<&Vec<f64>> {
         find(names).with_context(|| format!("{source}: no column {}", names.join(" or ")))
     };
-    let tr = if find(&["t_s"]).is_some() {
+    let tr = if let Some(samples) = sample_rows(&find) {
+        // A sample log (`run --trace`, a scenario's samples.csv): read as the drive's own
+        // samples, as `run --detect` reads them (the set speed from the position demand;
+        // in CSV/PV from the velocity column).
+        let mut tr = AxisTrace::from_sample_log(&samples, SampleSource::Drive, rotary);
+        tr.set_velocity_source = format!("columns of the sample log: {}", tr.set_velocity_source);
+        tr
+    } else if find(&["t_s"]).is_some() {
         AxisTrace {
             t_s: need(&["t_s"])?.clone(),
             // From the position demand: exact for the master's interpolated targets, and
@@ -170,6 +230,7 @@ pub fn trace_from_columns(source: &str, cols: &Columns, rotary: bool) -> anyhow:
             current_unit: "permille".into(),
             set_velocity_source: "column target_uu (position demand)".into(),
             set_position: need(&["target_uu"])?.clone(),
+            time_base: String::new(),
         }
     } else {
         let rot = find(&["position_setpoint_deg"]).is_some();
@@ -186,6 +247,54 @@ pub fn trace_from_columns(source: &str, cols: &Columns, rotary: bool) -> anyhow:
     };
     tr.check().map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
     Ok(tr)
+}
+
+/// The rows of a sample log with every column of [`Sample::CSV_HEADER`] and whole numbers in
+/// its integer columns, else None.
+fn sample_rows<'a>(find: &impl Fn(&[&str]) -> Option<&'a Vec<f64>>) -> Option<Vec<Sample>> {
+    let col = |n: &str| find(&[n]);
+    let t = col("t_s")?;
+    let (sw, mode, target, sv) = (
+        col("statusword")?,
+        col("mode_display")?,
+        col("target_uu")?,
+        col("setpoint_velocity_uu_s")?,
+    );
+    let (pos, direct, vel) = (
+        col("position_uu")?,
+        col("direct_position_uu")?,
+        col("velocity_uu_s")?,
+    );
+    let (torque, current, ferr) = (
+        col("torque_permille")?,
+        col("current_permille")?,
+        col("following_error_uu")?,
+    );
+    // Whole numbers in the drive's objects; anything else (NaN, a value cut) is read by
+    // columns as it is.
+    let whole = [sw, mode, pos, direct, vel, torque, current, ferr]
+        .iter()
+        .all(|c| c.iter().all(|x| x.is_finite() && x.fract() == 0.0));
+    if !whole {
+        return None;
+    }
+    Some(
+        (0..t.len())
+            .map(|k| Sample {
+                t_s: t[k],
+                statusword: sw[k] as u16,
+                mode_display: mode[k] as i8,
+                target_uu: target[k],
+                setpoint_velocity_uu_s: sv[k],
+                position_uu: pos[k] as i32,
+                direct_position_uu: direct[k] as i32,
+                velocity_uu_s: vel[k] as i32,
+                torque_permille: torque[k] as i16,
+                current_permille: current[k] as i16,
+                following_error_uu: ferr[k] as i32,
+            })
+            .collect(),
+    )
 }
 
 /// Everything `analyze` says, for `--json`.
@@ -313,7 +422,7 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
         )?;
         capture = Some(log.summary());
         kv_written = log.kv_written;
-        match log.to_axis_trace(rotary_units || preset_rotary) {
+        match log.to_axis_trace_on(rotary_units || preset_rotary, args.time_base.base()) {
             Ok(t) => Ok(t),
             Err(e) => match e.downcast::<candump::MissingObjects>() {
                 Ok(m) => Err(m.0),
@@ -351,6 +460,17 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
         Err(why) => {
             DetectorReport::inconclusive(&cfg, Inconclusive::MissingObjects, why.clone(), unit)
         }
+    };
+    // The master closes the position loop itself: the band is its gain, fitted.
+    let (kv, kv_source) = match rep.master_loop {
+        Some(m) => (
+            m.kv_per_s,
+            format!(
+                "the master's own position loop, fitted from the trace; the drive's k_v {kv:.2} \
+                 1/s ({kv_source}) is not in the loop"
+            ),
+        ),
+        None => (kv, kv_source),
     };
     let output = AnalyzeOutput {
         trace: match input {
@@ -440,6 +560,7 @@ pub fn render_text(o: &AnalyzeOutput) -> String {
         o.report_dir.display()
     );
     let _ = writeln!(s, "  constant speed from: {}", rep.window_source);
+    let _ = writeln!(s, "  time: {}", rep.time_base);
     for r in &rep.reasons {
         let _ = writeln!(s, "  {r}");
     }

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::study::figures::{fig10, fig11, fig3, fig_drag};
+use crate::study::figures::{fig10, fig11, fig3, fig_drag, fig_outer_loop};
 
 /// Arguments of `drive-emu figures`.
 #[derive(clap::Args, Debug, Clone)]
@@ -12,9 +12,10 @@ pub struct FiguresArgs {
     /// Output directory (the README's figures live in docs/img).
     #[arg(long, default_value = "out/figures")]
     pub out: PathBuf,
-    /// Which figures: comma-separated from 3, 10, 11 and drag (the limit cycle's drag
-    /// boundary over k_v and the gap, docs/physics.md).
-    #[arg(long, default_value = "3,10,11,drag")]
+    /// Which figures: comma-separated from 3, 10, 11, drag (the limit cycle's drag
+    /// boundary over k_v and the gap, docs/physics.md) and outer (the master closing the
+    /// position loop over the bus in CSV: f against its k_v, and against the SYNC period).
+    #[arg(long, default_value = "3,10,11,drag,outer")]
     pub only: String,
     /// Preset whose speed loop Fig. 3 measures.
     #[arg(long, default_value = "cnc1")]
@@ -31,8 +32,8 @@ pub fn run(args: &FiguresArgs) -> anyhow::Result<()> {
     let mut which = Vec::new();
     for w in args.only.split(',') {
         match w.trim() {
-            "3" | "10" | "11" | "drag" => which.push(w.trim().to_string()),
-            other => anyhow::bail!("--only: unknown figure `{other}` (3, 10, 11, drag)"),
+            "3" | "10" | "11" | "drag" | "outer" => which.push(w.trim().to_string()),
+            other => anyhow::bail!("--only: unknown figure `{other}` (3, 10, 11, drag, outer)"),
         }
     }
     std::fs::create_dir_all(&args.out)
@@ -64,6 +65,37 @@ pub fn run(args: &FiguresArgs) -> anyhow::Result<()> {
                     })
                     .collect();
                 println!("Fig. 10 {}: {}", p.display(), s.join("; "));
+            }
+            "outer" => {
+                let (p, d) = fig_outer_loop(&args.out)?;
+                let held = d
+                    .law
+                    .iter()
+                    .filter(|r| {
+                        r.limit_cycle && r.f_over_kv.is_some_and(|x| (x - 0.6).abs() <= 0.1)
+                    })
+                    .count();
+                let breaks: Vec<String> = d
+                    .breaks
+                    .iter()
+                    .map(|b| {
+                        format!(
+                            "{} {}",
+                            b.preset,
+                            b.breaks_at_ratio.map_or("holds".into(), |r| format!(
+                                "breaks at {} us (T_sync f0 = {r:.3})",
+                                b.breaks_at_us.unwrap_or(0)
+                            ))
+                        )
+                    })
+                    .collect();
+                println!(
+                    "Master position loop {}: {} of {} runs with f/k_v in 0.6 +- 0.1 at 1 ms; {}",
+                    p.display(),
+                    held,
+                    d.law.len(),
+                    breaks.join(", ")
+                );
             }
             "drag" => {
                 let (p, d) = fig_drag(&args.out, args.threads)?;

@@ -6,6 +6,7 @@ use crate::drive::axis_drive::AxisDrive;
 use crate::drive::machine::{self, AxisEntry, MachineFile};
 use crate::drive::vendor::{self, VendorEds};
 use crate::drive::{node_setup, NodeOptions};
+use crate::monitor::{AxisFacts, DetectOptions, DetectTap, Detector};
 use crate::presets::AxisConfig;
 use crate::runtime::realtime::{self, RealtimeRequest};
 use crate::runtime::trace::{trace_paths, Recorder, TraceTap};
@@ -109,6 +110,20 @@ pub struct RunArgs {
     pub ready: bool,
     #[command(flatten)]
     pub panel: crate::panel::PanelArgs,
+    /// Watch the axis: run the backlash detector on the drive's own samples while it runs (a
+    /// thread of its own; the loop hands it the samples through a lock-free queue), publish
+    /// its verdict, frequency and amplitude in the drive's objects (0x2102: 1 verdict U8 0 none
+    /// yet / 1 inconclusive / 2 ok / 3 suspected / 4 backlash, 2 frequency_hz REAL32, 3
+    /// amplitude_um REAL32, 4 kv_per_s REAL32, 5 analyses U32; mappable to a TPDO), and send
+    /// EMCY 0xFF01 (manufacturer-specific warning: the drive keeps running) when backlash is
+    /// confirmed. Each analysis covers the last --detect-history seconds; the last one, over
+    /// the whole history, is printed when the run stops.
+    #[arg(long)]
+    pub detect: bool,
+    /// With --detect: seconds of the drive's own samples each analysis covers (the most
+    /// recent).
+    #[arg(long, value_name = "S", default_value_t = 60.0, value_parser = positive_seconds)]
+    pub detect_history: f64,
 }
 
 /// Default boot delay, ms: within the 100 ms - seconds real drives take, and long enough that
@@ -567,6 +582,8 @@ pub fn run(args: &RunArgs) -> Result<()> {
 /// What `run_live` found: the loop's statistics and, with a scenario, its outcome.
 pub struct LiveRun {
     pub stats: crate::runtime::stats::StatsSummary,
+    /// With --detect: per axis, its node ID and the detector's last analysis.
+    pub detector: Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>,
     /// Lock-step: simulated time per SYNC in force at the end, us.
     pub lockstep_period_us: Option<u64>,
     /// Lock-step: ticks run on the drive's own clock while SYNC was missing.
@@ -575,11 +592,19 @@ pub struct LiveRun {
 }
 
 fn outcome_json_stats(run: &LiveRun) -> serde_json::Value {
-    serde_json::json!({
+    let mut v = serde_json::json!({
         "stats": run.stats,
         "lockstep_sync_period_us": run.lockstep_period_us,
         "free_run_ticks_without_sync": run.free_run_ticks,
-    })
+    });
+    if !run.detector.is_empty() {
+        v["detect"] = serde_json::json!(run
+            .detector
+            .iter()
+            .map(|(node_id, rep)| serde_json::json!({ "node_id": node_id, "report": rep }))
+            .collect::<Vec<_>>());
+    }
+    v
 }
 
 /// The JSON document of `run --scenario --json` and `scenario --iface --json`.
@@ -691,6 +716,26 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
         )?),
         _ => None,
     };
+    // --detect: the detector thread, fed by the loop.
+    let detect = args.detect.then(|| Arc::new(DetectTap::new(n_axes)));
+    let detector = match &detect {
+        Some(tap) => {
+            let facts = rt
+                .axes
+                .iter()
+                .map(|a| AxisFacts {
+                    rotary: drive_protocol::Drive::info(&a.drive).rotary,
+                    kv_per_s: a.drive.param(crate::drive::objects::AxisParam::Kv),
+                })
+                .collect();
+            let opts = DetectOptions {
+                history_s: args.detect_history,
+                ..DetectOptions::default()
+            };
+            Some(Detector::start(Arc::clone(tap), facts, opts)?)
+        }
+        None => None,
+    };
     announce(args, &machine, lockstep.as_ref(), scenario);
 
     // The scenario thread follows the loop's time and feeds it injections.
@@ -722,6 +767,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
         injector,
         tap: tap.clone(),
         panel: panel_loop,
+        detect: detect.clone(),
     })?;
 
     watch(
@@ -765,8 +811,13 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
         ),
         None => None,
     };
+    let detector = match (detector, &detect) {
+        (Some(d), Some(tap)) => finish_detector(d, tap, &node_ids)?,
+        _ => Vec::new(),
+    };
     Ok(LiveRun {
         stats: summary,
+        detector,
         lockstep_period_us,
         free_run_ticks: rt.lockstep_free_ticks,
         scenario,
@@ -970,6 +1021,7 @@ struct LoopParts {
     injector: Option<LoopInjector>,
     tap: Option<Arc<TraceTap>>,
     panel: Option<crate::panel::PanelLoop>,
+    detect: Option<Arc<DetectTap>>,
 }
 
 /// Start the loop thread: real-time setup, boot (the delay on the wall clock), then the loop
@@ -986,6 +1038,7 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
         mut injector,
         tap,
         mut panel,
+        detect,
     } = parts;
     Ok(std::thread::Builder::new()
         .name("drive-emu-loop".into())
@@ -1012,6 +1065,9 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
                 }
                 if let Some(tap) = &tap {
                     tap.on_tick(rt);
+                }
+                if let Some(d) = &detect {
+                    d.on_tick(rt);
                 }
                 status.lss_exchange(rt);
                 status.publish(rt);
@@ -1109,6 +1165,44 @@ fn terminal_width() -> usize {
     } else {
         80
     }
+}
+
+/// The detector's last analysis per axis (`--detect`), said on stderr: verdict, frequency,
+/// amplitude, the k_v judged against.
+fn finish_detector(
+    d: Detector,
+    tap: &DetectTap,
+    node_ids: &[u8],
+) -> Result<Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>> {
+    let reports = d.finish().context("the detector")?;
+    for (n, rep) in node_ids.iter().zip(&reports) {
+        match rep {
+            Some(r) if r.inconclusive.is_some() => {
+                eprintln!("drive-emu: detector: node {n}: {}", inconclusive_text(r))
+            }
+            Some(r) => eprintln!(
+                "drive-emu: detector: node {n}: {} | frequency {} | amplitude {:.2} {} | k_v {:.2} 1/s{}",
+                r.verdict.as_str(),
+                r.frequency_hz.map_or("-".into(), |f| format!("{f:.2} Hz")),
+                r.amplitude,
+                crate::report::unit_text(&r.position_unit),
+                r.kv_per_s,
+                if r.master_loop.is_some() {
+                    " (the master's own position loop)"
+                } else {
+                    ""
+                }
+            ),
+            None => eprintln!("drive-emu: detector: node {n}: no samples"),
+        }
+    }
+    if tap.lost() > 0 {
+        eprintln!(
+            "drive-emu: detector: {} samples lost (the detector thread fell behind)",
+            tap.lost()
+        );
+    }
+    Ok(node_ids.iter().copied().zip(reports).collect())
 }
 
 /// Drain and close the trace files, and say what they hold.

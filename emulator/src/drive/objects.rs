@@ -10,6 +10,15 @@
 //!   named by [`STATS_NAMES`]), stored values the runtime publishes ([`EmuObjects::stats`]).
 //! - base + 0x101: fault injection (U16, write-only): a non-zero value is a drive fault with
 //!   that error code until 0 is written (a fault reset meanwhile is refused).
+//! - base + 0x102: the backlash detector's result (`run --detect`, RECORD, read-only,
+//!   mappable, stored values the detector publishes ([`EmuObjects::detector`]); subs named
+//!   by [`DETECTOR_NAMES`]): 1 verdict (U8: 0 nothing analysed yet, 1 inconclusive, 2 ok, 3
+//!   backlash suspected, 4 backlash), 2 frequency of the limit cycle (REAL32, Hz; 0 when none),
+//!   3 its amplitude (REAL32, displacement-equivalent, um or mdeg), 4 the k_v it was judged
+//!   against (REAL32, 1/s: the drive's, or the master's own position loop where the master
+//!   closes it), 5 analyses done (U32, counts up with each result). With backlash confirmed
+//!   the drive sends EMCY [`EMCY_BACKLASH`] (a warning: no fault) once, held in 0x1001 /
+//!   0x1003 until the verdict drops below backlash.
 //!
 //! [`AxisDrive::param`]: super::axis_drive::AxisDrive::param
 //! [`AxisDrive::set_param`]: super::axis_drive::AxisDrive::set_param
@@ -26,6 +35,20 @@ pub const STATS_OFFSET: u16 = 0x100;
 pub const INJECT_OFFSET: u16 = 0x101;
 /// Handler tag of the fault injection object; parameter `i` of [`PARAMS`] has tag `i`.
 pub const INJECT_TAG: u16 = 0x100;
+/// Offset of the backlash detector's record from the base.
+pub const DETECTOR_OFFSET: u16 = 0x102;
+/// Subs 1.. of the detector's record (names in the EDS).
+pub const DETECTOR_NAMES: [&str; 5] = [
+    "verdict",
+    "frequency_hz",
+    "amplitude_um",
+    "kv_per_s",
+    "analyses",
+];
+/// Manufacturer-specific EMCY the drive sends when its detector confirms backlash (a
+/// warning: the drive keeps running). Its manufacturer bytes: the verdict, the frequency in
+/// 0.01 Hz (U16), the amplitude in 0.1 um or 0.1 mdeg (U16).
+pub const EMCY_BACKLASH: u16 = 0xFF01;
 
 /// Axis parameters the master may read and write while the axis runs, in SI units.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -168,11 +191,13 @@ pub struct EmuObjects {
     pub base: u16,
     /// Slots of the statistics record's subs 1.. (for [`drive_protocol::Node::set_value`]).
     pub stats: [Slot; STATS_NAMES.len()],
+    /// Slots of the detector record's subs 1.. ([`DETECTOR_NAMES`]).
+    pub detector: [Slot; DETECTOR_NAMES.len()],
 }
 
 /// The index range the emulator's objects take at `base`.
 pub fn range(base: u16) -> core::ops::RangeInclusive<u16> {
-    base..=base + INJECT_OFFSET
+    base..=base + DETECTOR_OFFSET
 }
 
 /// The parameter (with its tag) at `index` for objects at `base`.
@@ -186,7 +211,7 @@ pub fn param_at(base: u16, index: u16) -> Option<(u16, &'static ParamDef)> {
 
 /// Add the emulator's objects to `od` at `base` (names for a rotary axis if `rotary`).
 pub fn register(od: &mut ObjectDictionary, base: u16, rotary: bool) -> Result<EmuObjects, OdError> {
-    if base.checked_add(INJECT_OFFSET).is_none() {
+    if base.checked_add(DETECTOR_OFFSET).is_none() {
         return Err(OdError::Invalid {
             index: base,
             sub: 0,
@@ -241,5 +266,59 @@ pub fn register(od: &mut ObjectDictionary, base: u16, rotary: bool) -> Result<Em
         )
         .with_handler(INJECT_TAG),
     )?;
-    Ok(EmuObjects { base, stats })
+    let detector = register_detector(od, base + DETECTOR_OFFSET, rotary)?;
+    Ok(EmuObjects {
+        base,
+        stats,
+        detector,
+    })
+}
+
+/// The detector's record at `index` (see the module doc).
+fn register_detector(
+    od: &mut ObjectDictionary,
+    index: u16,
+    rotary: bool,
+) -> Result<[Slot; DETECTOR_NAMES.len()], OdError> {
+    let name = "Backlash detector";
+    od.insert(
+        Entry::member(
+            index,
+            0,
+            ObjType::Record,
+            name,
+            "Highest sub-index supported",
+            DataType::U8,
+            Access::Const,
+        )
+        .with_default(DefaultValue::Value(DETECTOR_NAMES.len() as u64)),
+    )?;
+    let mut slots = Vec::with_capacity(DETECTOR_NAMES.len());
+    for (s, n) in DETECTOR_NAMES.iter().enumerate() {
+        let dtype = match s {
+            0 => DataType::U8,
+            4 => DataType::U32,
+            _ => DataType::Real32,
+        };
+        let sub_name = if rotary && *n == "amplitude_um" {
+            "amplitude_mdeg"
+        } else {
+            n
+        };
+        slots.push(
+            od.insert(
+                Entry::member(
+                    index,
+                    s as u8 + 1,
+                    ObjType::Record,
+                    name,
+                    sub_name,
+                    dtype,
+                    Access::Ro,
+                )
+                .with_pdo(true),
+            )?,
+        );
+    }
+    Ok(slots.try_into().expect("one slot per name"))
 }

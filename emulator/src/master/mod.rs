@@ -12,6 +12,7 @@
 //! axis, 0.001 deg on a rotary one), velocities in uu/s.
 
 pub mod on_bus;
+pub mod outer_loop;
 pub mod sdo_client;
 
 use crate::bus::CanFrame;
@@ -41,6 +42,9 @@ pub struct MasterConfig {
     pub step_timeout_us: u64,
     /// How long one SDO transfer may wait for the drive's answer.
     pub sdo_timeout_us: u64,
+    /// The master closes the position loop itself in CSV ([`outer_loop`]); None: it sends
+    /// its interpolator's velocity as it is.
+    pub position_loop: Option<outer_loop::PositionLoop>,
 }
 
 impl Default for MasterConfig {
@@ -53,6 +57,7 @@ impl Default for MasterConfig {
             drive_heartbeat_ms: 100,
             step_timeout_us: 2_000_000,
             sdo_timeout_us: 500_000,
+            position_loop: None,
         }
     }
 }
@@ -351,6 +356,8 @@ pub struct Master {
     velocity_uu_s: f64,
     target_torque: i16,
     mode: i8,
+    /// The position loop closed by the master in CSV, if configured.
+    outer: Option<outer_loop::OuterLoop>,
     latest: Sample,
     have_actual: bool,
     samples: Vec<Sample>,
@@ -362,7 +369,9 @@ impl Master {
     pub fn new(cfg: MasterConfig, program: Vec<Step>) -> Self {
         let configuration = pdo_configuration(cfg.node_id, cfg.sync_period_us, &cfg);
         let sdo = SdoClient::new(cfg.node_id, cfg.sdo_timeout_us);
+        let outer = cfg.position_loop.map(outer_loop::OuterLoop::new);
         Self {
+            outer,
             cfg,
             program,
             configuration,
@@ -798,6 +807,22 @@ impl Master {
         s.t_s = now_us as f64 * 1e-6;
         s.target_uu = self.target_uu;
         s.setpoint_velocity_uu_s = self.velocity_uu_s;
+        // The master's own position loop (CSV): the velocity it sends answers the position
+        // the drive reported; its reference is the set position.
+        let mut velocity_cmd = self.velocity_uu_s;
+        if let Some(ol) = self.outer.as_mut() {
+            let x = match ol.config.encoder {
+                outer_loop::LoopEncoder::Direct => self.latest.direct_position_uu,
+                outer_loop::LoopEncoder::Motor => self.latest.position_uu,
+            };
+            let enabled = self.mode == MODE_CSV
+                && Cia402State::from_statusword(self.latest.statusword)
+                    == Some(Cia402State::OperationEnabled);
+            velocity_cmd = ol.command(self.velocity_uu_s, dt, f64::from(x), enabled);
+            if let Some(r) = ol.reference_uu() {
+                s.target_uu = r;
+            }
+        }
         self.samples.push(s);
 
         let pos = (self.target_uu.round() as i64).clamp(i32::MIN as i64, i32::MAX as i64) as i32;
@@ -805,7 +830,7 @@ impl Master {
         r1[..2].copy_from_slice(&self.controlword.to_le_bytes());
         r1[2..].copy_from_slice(&pos.to_le_bytes());
         self.tx.push_back(CanFrame::new(0x200 + n, &r1));
-        let vel = self.velocity_uu_s.round() as i32;
+        let vel = velocity_cmd.round() as i32;
         let mut r2 = [0u8; 6];
         r2[..4].copy_from_slice(&vel.to_le_bytes());
         r2[4..].copy_from_slice(&self.target_torque.to_le_bytes());

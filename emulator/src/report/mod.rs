@@ -15,7 +15,7 @@ pub fn user_unit(rotary: bool) -> &'static str {
 }
 
 use crate::analysis::detector::{AxisTrace, DetectorReport, WindowResult};
-use crate::analysis::spectrum::SpectrumAnalyzer;
+use crate::analysis::spectrum::WindowSpectra;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 use std::path::{Path, PathBuf};
@@ -219,18 +219,18 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
     let n = w.end - w.start;
     let dt = (tr.t_s[w.end - 1] - tr.t_s[w.start]) / (n - 1).max(1) as f64;
     let fs = 1.0 / dt.max(1e-9);
-    let mut an = SpectrumAnalyzer::new(n);
+    // The detector's own spectra: on the samples' times (the FFT where they are even).
+    let mut ws = WindowSpectra::new();
     let fmax = (2.5 * kv).min(fs / 2.0);
     let band = (0.5, fmax);
     let mut spectra = Vec::new();
     for sig in [&tr.motor_velocity, &tr.current] {
-        let _ = an.fundamental(&sig[w.start..w.end], fs, band);
-        let df = fs / n as f64;
-        let pts: Vec<(f64, f64)> = an
-            .amplitudes()
+        let s = ws.band(&tr.t_s[w.start..w.end], &sig[w.start..w.end], band);
+        let pts: Vec<(f64, f64)> = s
+            .band
             .iter()
             .enumerate()
-            .map(|(i, a)| (i as f64 * df, *a))
+            .map(|(i, a)| (s.first_hz + i as f64 * s.resolution_hz, *a))
             .filter(|(f, _)| *f <= fmax)
             .collect();
         spectra.push(pts);

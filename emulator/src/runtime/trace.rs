@@ -71,6 +71,11 @@ impl TraceTap {
         }
     }
 
+    /// The oldest sample of axis `k` not taken yet (for a reader other than the recorder).
+    pub fn pop(&self, k: usize) -> Option<Sample> {
+        self.queues.get(k)?.pop()
+    }
+
     /// Samples dropped because the recorder fell behind.
     pub fn lost(&self) -> u64 {
         self.lost.load(Ordering::Relaxed)

@@ -80,6 +80,17 @@ pub struct RawMaster {
     pub step_timeout: Option<Time>,
     /// Physics tick, us (default: the SYNC period).
     pub tick_us: Option<u32>,
+    /// The master closes the position loop itself, over the bus, with the drive in CSV.
+    pub position_loop: Option<RawPositionLoop>,
+}
+
+/// `[master.position_loop]`: the CNC's own position loop (master::outer_loop).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawPositionLoop {
+    pub kv_per_s: f64,
+    /// `direct` (0x60E4 sub 1, the default) or `motor` (0x6064).
+    pub encoder: Option<crate::master::outer_loop::LoopEncoder>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

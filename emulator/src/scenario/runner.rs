@@ -175,7 +175,13 @@ fn param_error_text(e: crate::drive::ParamError, scale: f64) -> String {
 /// The detector settings of a scenario for one machine.
 pub(crate) fn detector_config(s: &Scenario, cfg: &AxisConfig) -> DetectorConfig {
     let d = &s.detector;
-    let mut dc = DetectorConfig::new(d.kv_per_s.unwrap_or(cfg.kv_per_s));
+    // The loop's gain: the master's own position loop where it closes one, else the drive's.
+    let kv = s
+        .run
+        .master
+        .position_loop
+        .map_or(cfg.kv_per_s, |p| p.kv_per_s);
+    let mut dc = DetectorConfig::new(d.kv_per_s.unwrap_or(kv));
     if let Some(v) = d.suspect_um {
         dc.suspect_um = v;
     }

@@ -1078,7 +1078,25 @@ fn master_timing(ctx: &Ctx, mr: &RawMaster, at: Range<usize>) -> R<(MasterConfig
         drive_heartbeat_ms: mr.drive_heartbeat_ms.unwrap_or(d.drive_heartbeat_ms),
         step_timeout_us: mr.step_timeout.map_or(d.step_timeout_us, |t| t.us()),
         sdo_timeout_us: d.sdo_timeout_us,
+        position_loop: mr
+            .position_loop
+            .as_ref()
+            .map(|p| crate::master::outer_loop::PositionLoop {
+                kv_per_s: p.kv_per_s,
+                encoder: p
+                    .encoder
+                    .unwrap_or(crate::master::outer_loop::LoopEncoder::Direct),
+            }),
     };
+    if let Some(p) = &master.position_loop {
+        if !(p.kv_per_s.is_finite() && p.kv_per_s > 0.0 && p.kv_per_s <= 1000.0) {
+            return Err(ctx.err(
+                at,
+                Some("master.position_loop.kv_per_s"),
+                "a position-loop gain in 1/s, more than 0 and at most 1000",
+            ));
+        }
+    }
     if !(1..=127).contains(&master.node_id) || !(1..=127).contains(&master.master_id) {
         return Err(ctx.err(at, Some("master.node_id"), "node IDs are 1..127"));
     }

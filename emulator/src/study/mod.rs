@@ -4,6 +4,7 @@
 //! ([`figures`]). Offline only: nothing here runs on the real-time path.
 
 pub mod figures;
+pub mod outer_loop;
 pub mod response;
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};

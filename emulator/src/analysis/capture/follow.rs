@@ -14,6 +14,30 @@ pub const SYNC_COB_ID: u32 = 0x080;
 const GAP_PERIODS: f64 = 1.5;
 /// 0x1006 is used unless the measured SYNC interval differs from it by more than this.
 const PERIOD_AGREEMENT: f64 = 0.10;
+/// An answer is taken for a SYNC at most this many SYNCs back.
+const MAX_BEHIND: usize = 32;
+/// After this many answers in a row that came after a later SYNC, the drive is taken to have
+/// lost an answer, not to be behind.
+const RESYNC_AFTER: usize = 8;
+
+/// Put an actual value decoded from a TPDO into a row.
+fn set_actual(r: &mut BusSample, o: Object, v: i64) {
+    match o {
+        Object::Statusword => r.statusword = v as u16,
+        Object::ModeDisplay => {
+            r.mode_display = v as i8;
+            r.mode = Some(v as i8);
+        }
+        Object::Position => r.position_uu = v as i32,
+        Object::Velocity => r.velocity_uu_s = v as i32,
+        Object::Torque => r.torque_permille = v as i16,
+        Object::Current => r.current_permille = v as i16,
+        Object::DirectPosition => r.direct_position_uu = v as i32,
+        Object::FollowingError => r.following_error_uu = v as i32,
+        Object::VelocityDemand => r.velocity_demand_uu_s = v as i32,
+        Object::TargetPosition | Object::TargetVelocity => {}
+    }
+}
 
 // ------------------------------------------------------------------------------------------
 // PDO configuration
@@ -25,6 +49,8 @@ pub struct PdoMapping {
     pub cob_id: u32,
     pub count: u8,
     pub entries: [u32; 8],
+    /// Transmission type (sub 2): 1..=240 synchronous (a TPDO answers every n-th SYNC).
+    pub transmission: u8,
 }
 
 impl PdoMapping {
@@ -34,6 +60,10 @@ impl PdoMapping {
     /// The 11-bit identifier.
     pub fn cob(&self) -> u32 {
         self.cob_id & 0x7FF
+    }
+    /// Sent in answer to SYNC (transmission type 1..=240).
+    pub fn synchronous(&self) -> bool {
+        (1..=240).contains(&self.transmission)
     }
     pub fn mapped(&self) -> &[u32] {
         self.entries
@@ -63,6 +93,7 @@ impl PdoConfig {
                 cob_id: get(comm, 1)?,
                 count: u8::try_from(get(map, 0)?).unwrap_or(0).min(8),
                 entries: [0; 8],
+                transmission: u8::try_from(get(comm, 2)?).unwrap_or(0),
             };
             for (s, e) in m.entries.iter_mut().enumerate() {
                 *e = get(map, s as u8 + 1)?;
@@ -101,6 +132,8 @@ impl PdoConfig {
             (0x1006, 0) => self.cycle_period_us = value,
             (0x1400..=0x1403, 1) => self.rpdo[slot(0x1400)].cob_id = value,
             (0x1800..=0x1803, 1) => self.tpdo[slot(0x1800)].cob_id = value,
+            (0x1400..=0x1403, 2) => self.rpdo[slot(0x1400)].transmission = value as u8,
+            (0x1800..=0x1803, 2) => self.tpdo[slot(0x1800)].transmission = value as u8,
             (0x1600..=0x1603, _) | (0x1A00..=0x1A03, _) => {
                 let m = if index >= 0x1A00 {
                     &mut self.tpdo[slot(0x1A00)]
@@ -252,6 +285,11 @@ pub struct DecodeStats {
     pub sync_gaps: usize,
     /// Frames whose timestamp is earlier than the previous frame's.
     pub timestamps_backwards: usize,
+    /// Answers (the synchronous TPDOs of one SYNC) that came after a later SYNC: the drive
+    /// was behind, and they are taken for the older SYNC they answer.
+    pub answers_late: usize,
+    /// SYNCs the drive's synchronous TPDOs never answered in the capture.
+    pub syncs_unanswered: usize,
 }
 
 /// Where the sample period came from.
@@ -289,8 +327,17 @@ pub struct BusLog {
     /// File name (for messages).
     pub source: String,
     pub node_id: u8,
-    /// One per SYNC; sample k is at `k * period_us`.
+    /// One per SYNC: the latest values when SYNC k was received.
     pub samples: Vec<BusSample>,
+    /// The time stamp of each sample's SYNC in the capture (the kernel time of the frame), us.
+    pub sync_t_us: Vec<i64>,
+    /// One row per SYNC: the set-points in force at it (sent before it) and the values of the
+    /// synchronous TPDOs that answered it, in order (the first answer after SYNC k answers the
+    /// oldest SYNC not yet answered: a drive that falls behind answers late but in order);
+    /// values not answered are held from the row before.
+    pub rows: Vec<BusSample>,
+    /// Whether row k got an answer.
+    pub answered: Vec<bool>,
     pub period_us: u32,
     pub period_source: PeriodSource,
     /// Median SYNC interval of the timestamps, us (None with fewer than two SYNCs).
@@ -324,6 +371,14 @@ struct Decoder<'a> {
     stats: DecodeStats,
     sync_t_us: Vec<i64>,
     samples: Vec<BusSample>,
+    rows: Vec<BusSample>,
+    answered: Vec<bool>,
+    /// The answer being filled: its row and the TPDOs (bits 0..3) already in it.
+    answer: Option<(usize, u8)>,
+    /// The oldest SYNC not answered yet.
+    next_unanswered: usize,
+    /// Answers in a row that came after a later SYNC.
+    behind_in_a_row: usize,
     last_t_us: Option<i64>,
     other_ids: BTreeMap<u32, usize>,
 }
@@ -351,6 +406,11 @@ impl<'a> Decoder<'a> {
             stats: DecodeStats::default(),
             sync_t_us: Vec::new(),
             samples: Vec::new(),
+            rows: Vec::new(),
+            answered: Vec::new(),
+            answer: None,
+            next_unanswered: 0,
+            behind_in_a_row: 0,
             last_t_us: None,
             other_ids: BTreeMap::new(),
         }
@@ -399,6 +459,7 @@ impl<'a> Decoder<'a> {
             self.sync(t_us);
             return;
         }
+        let tpdo = (0..4).find(|&k| self.cfg.tpdo[k].valid() && self.cfg.tpdo[k].cob() == f.id);
         let pdo = self
             .cfg
             .tpdo
@@ -408,7 +469,11 @@ impl<'a> Decoder<'a> {
             .copied();
         if let Some(p) = pdo {
             self.stats.node_frames += 1;
-            self.decode_pdo(&p, f);
+            let row = match tpdo {
+                Some(k) if p.synchronous() => self.answer_row(k),
+                _ => None,
+            };
+            self.decode_pdo(&p, f, row);
         } else if f.id == 0x600 + n {
             self.stats.node_frames += 1;
             self.sdo_request(d);
@@ -459,9 +524,61 @@ impl<'a> Decoder<'a> {
                 .then(|| v(Object::TargetVelocity) as i32),
         };
         self.samples.push(sample);
+        // The row of this SYNC: its set-points now; its actual values held from the row before
+        // until its answer comes.
+        let mut row = match self.rows.last() {
+            Some(prev) => BusSample {
+                target_position_uu: sample.target_position_uu,
+                target_velocity_uu_s: sample.target_velocity_uu_s,
+                ..*prev
+            },
+            None => sample,
+        };
+        row.mode = sample.mode;
+        self.rows.push(row);
+        self.answered.push(false);
+        // A new SYNC closes the answer being filled.
+        self.answer = None;
     }
 
-    fn decode_pdo(&mut self, p: &PdoMapping, f: &CanFrame) {
+    /// The row a frame of synchronous TPDO `k` answers: the row of the answer being filled if
+    /// it does not hold TPDO `k` yet, else a new answer for the oldest SYNC not answered (at
+    /// most [`MAX_BEHIND`] SYNCs back). A drive that lost an answer would leave every later
+    /// one a SYNC behind: after [`RESYNC_AFTER`] answers in a row that came after a later
+    /// SYNC, the oldest unanswered SYNC is given up.
+    fn answer_row(&mut self, k: usize) -> Option<usize> {
+        let latest = self.rows.len().checked_sub(1)?;
+        let bit = 1u8 << k;
+        if let Some((j, mask)) = self.answer {
+            if mask & bit == 0 {
+                self.answer = Some((j, mask | bit));
+                return Some(j);
+            }
+        }
+        let mut j = self
+            .next_unanswered
+            .max(latest.saturating_sub(MAX_BEHIND))
+            .min(latest);
+        if j < latest {
+            self.behind_in_a_row += 1;
+            if self.behind_in_a_row > RESYNC_AFTER {
+                j = latest;
+                self.behind_in_a_row = 0;
+            } else {
+                self.stats.answers_late += 1;
+            }
+        } else {
+            self.behind_in_a_row = 0;
+        }
+        self.next_unanswered = j + 1;
+        self.answer = Some((j, bit));
+        self.answered[j] = true;
+        Some(j)
+    }
+
+    /// Decode a PDO into the latest values and, for a synchronous TPDO, into the row of the
+    /// SYNC it answers (`row`; later rows that hold older values get them too).
+    fn decode_pdo(&mut self, p: &PdoMapping, f: &CanFrame, row: Option<usize>) {
         let total_bits: u32 = p.mapped().iter().map(|e| e & 0xFF).sum();
         if total_bits > 64 || u32::from(f.len) * 8 < total_bits {
             self.stats.pdo_length_errors += 1;
@@ -486,12 +603,29 @@ impl<'a> Decoder<'a> {
                 if matches!(o, Object::TargetPosition | Object::TargetVelocity) {
                     self.stats.pdo_setpoints += 1;
                 }
-                self.latest[o.slot()] = if o.signed() {
+                let value = if o.signed() {
                     sign_extend(v, bits)
                 } else {
                     v as i64
                 };
+                self.latest[o.slot()] = value;
                 self.seen[o.slot()] = true;
+                match row {
+                    Some(j) => {
+                        for r in j..self.rows.len() {
+                            if r == j || !self.answered[r] {
+                                set_actual(&mut self.rows[r], o, value);
+                            }
+                        }
+                    }
+                    // An event-driven TPDO (statusword, mode) holds from now on.
+                    None if !matches!(o, Object::TargetPosition | Object::TargetVelocity) => {
+                        if let Some(r) = self.rows.last_mut() {
+                            set_actual(r, o, value);
+                        }
+                    }
+                    None => {}
+                }
             }
         }
     }
@@ -596,12 +730,16 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
         .windows(2)
         .filter(|w| (w[1] - w[0]) as f64 > gap_us)
         .count();
+    stats.syncs_unanswered = dec.answered.iter().filter(|a| !**a).count();
     note_decoding_losses(&stats, &mut notes);
     note_unmapped_objects(&dec.seen, &mut notes);
     Ok(BusLog {
         source: source.to_string(),
         node_id: opts.node_id,
         samples: dec.samples,
+        sync_t_us: dec.sync_t_us,
+        rows: dec.rows,
+        answered: dec.answered,
         period_us,
         period_source,
         measured_period_us: measured,
@@ -728,9 +866,16 @@ fn sync_period(
 fn note_decoding_losses(stats: &DecodeStats, notes: &mut Vec<String>) {
     if stats.sync_gaps > 0 {
         notes.push(format!(
-            "{} SYNC intervals longer than {GAP_PERIODS} periods (lost SYNCs or a gap in the \
-             log); the time base k * period does not show them",
+            "{} SYNC intervals longer than {GAP_PERIODS} periods (late or lost SYNCs, or a gap \
+             in the log)",
             stats.sync_gaps
+        ));
+    }
+    if stats.answers_late > 0 {
+        notes.push(format!(
+            "{} answers of the drive (its synchronous TPDOs) came after a later SYNC and are \
+             taken for the SYNC they answer",
+            stats.answers_late
         ));
     }
     if stats.timestamps_backwards > 0 {

@@ -26,10 +26,21 @@
 //! following error, 0x606B velocity demand; RPDO (master to drive) 0x607A target position and
 //! 0x60FF target velocity. At every SYNC the latest values form one [`BusSample`].
 //!
-//! Time base: bus timestamps jitter (much inside user-mode Linux) and the spectrum needs uniform
-//! sampling, so sample k is at `t = k * period`. The period is `--sync-period-us` if given, else
-//! a confirmed SDO write to 0x1006 (unless the bus disagrees by more than 10 %), else the median
-//! SYNC interval of the timestamps. Lost SYNCs are counted, not inserted.
+//! Rows: one per SYNC, the set-points in force at it (received before it) and the values of the
+//! drive's synchronous TPDOs that answered it. Answers are taken in order: the first answer
+//! after a SYNC answers the oldest SYNC not yet answered (a drive that falls behind, stalled
+//! inside user-mode Linux or on a busy host, answers late but in order); after 8 late answers
+//! in a row the drive is taken to have lost one, not to be behind.
+//!
+//! Time base ([`trace::TimeBase`]): a drive on its own clock (a real drive, `run`) samples
+//! when a SYNC comes, so row k is at the SYNC's time stamp in the capture (the kernel time of
+//! the frame); late and lost SYNCs stay where they happened and the spectra are taken on
+//! these uneven times ([`crate::analysis::spectrum::WindowSpectra`]). A drive clocked by the
+//! SYNC count (`run --lockstep`) moves one period per SYNC however late it comes: row k is at
+//! `k * period`, the period from `--sync-period-us`, else a confirmed SDO write to 0x1006
+//! (unless the bus disagrees by more than 10 %), else the median SYNC interval. Which one the
+//! capture needs is told from the capture ([`trace::choose_time_base`]: do the axis's
+//! increments grow with the interval between SYNCs?), or given (`analyze --time-base`).
 //!
 //! Set velocity (for the constant-velocity windows): in CSP (mode 8) from the 0x607A targets
 //! ([`super::windows::set_velocity_from_demand`]: a PLC's targets are whole units, so a speed
@@ -52,4 +63,4 @@ pub use follow::{
     decode, BusLog, BusSample, DecodeOptions, DecodeStats, Object, PdoConfig, PdoMapping,
     PeriodSource, SYNC_COB_ID,
 };
-pub use trace::{trace_from_candump, MissingObjects};
+pub use trace::{choose_time_base, trace_from_candump, MissingObjects, TimeBase};

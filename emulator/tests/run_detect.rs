@@ -1,0 +1,161 @@
+//! `run --detect` (issue 19, item 4): the detector on the drive's own samples while it runs,
+//! off the loop thread, its result in the drive's objects (0x2102) and an EMCY warning 0xFF01
+//! when backlash is confirmed; and what it says of a run is what `analyze` says of the same
+//! run's trace. Offline (lock-step, the reference master on the in-process bus), the same loop
+//! hooks `run` uses.
+
+use drive_emu::analysis::detector::{analyze, AxisTrace, DetectorConfig, Verdict};
+use drive_emu::drive::axis_drive::AxisDrive;
+use drive_emu::drive::objects::{DETECTOR_OFFSET, EMCY_BACKLASH};
+use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
+use drive_emu::monitor::{verdict_code, AxisFacts, DetectOptions, DetectTap, Detector};
+use drive_emu::presets::AxisConfig;
+use drive_emu::runtime::trace::TraceTap;
+use drive_emu::runtime::AxisSlot;
+use drive_emu::samples::SampleSource;
+use drive_emu::session::OfflineRun;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+fn run(
+    backlash_mm: f64,
+) -> (
+    OfflineRun<AxisDrive>,
+    Arc<DetectTap>,
+    Detector,
+    Arc<TraceTap>,
+) {
+    let cfg = AxisConfig::from_preset("cnc1")
+        .unwrap()
+        .with_override("backlash_mm", &backlash_mm.to_string())
+        .unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node = drive_emu::drive::node::node(&mut drive, 5).unwrap();
+    let program = vec![
+        Step::Enable { mode: MODE_CSP },
+        Step::Cruise {
+            velocity_uu_s: 10_000.0,
+            accel_uu_s2: 1_000_000.0,
+            duration_s: 60.0,
+        },
+    ];
+    let run = OfflineRun::new(
+        vec![AxisSlot { node, drive }],
+        1000,
+        Master::new(MasterConfig::default(), program),
+    );
+    let tap = Arc::new(DetectTap::new(1));
+    let detector = Detector::start(
+        Arc::clone(&tap),
+        vec![AxisFacts {
+            rotary: false,
+            kv_per_s: cfg.kv_per_s,
+        }],
+        DetectOptions {
+            history_s: 60.0,
+            interval_s: 2.0,
+        },
+    )
+    .unwrap();
+    (run, tap, detector, Arc::new(TraceTap::new(1)))
+}
+
+fn tick(run: &mut OfflineRun<AxisDrive>, tap: &DetectTap, trace: &TraceTap) {
+    run.master_send();
+    run.runtime.tick();
+    tap.on_tick(&mut run.runtime);
+    trace.on_tick(&run.runtime);
+    run.master_receive();
+}
+
+#[test]
+fn a_worn_drive_says_backlash_in_its_objects_and_an_emcy_and_agrees_with_analyze() {
+    let (mut run, tap, detector, trace) = run(0.05);
+    // 6 s of drive time: boot, enable, cruise.
+    while run.now_us() < 6_000_000 {
+        tick(&mut run, &tap, &trace);
+    }
+    // The detector thread analyses as the samples come; the loop publishes what it says.
+    let t0 = Instant::now();
+    while tap.published(0) != verdict_code(Verdict::Backlash) {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "no backlash published (last {})",
+            tap.published(0)
+        );
+        std::thread::sleep(Duration::from_millis(20));
+        for _ in 0..20 {
+            tick(&mut run, &tap, &trace);
+        }
+    }
+    // A few more ticks for the EMCY to go out and reach the master.
+    for _ in 0..20 {
+        tick(&mut run, &tap, &trace);
+    }
+    let node = &run.runtime.axes[0].node;
+    let base = run.runtime.axes[0].drive.objects.unwrap().base;
+    let obj = |sub: u8| node.object_raw(base + DETECTOR_OFFSET, sub).unwrap();
+    assert_eq!(obj(1), u32::from(verdict_code(Verdict::Backlash)));
+    let f_obj = f32::from_bits(obj(2));
+    let a_obj = f32::from_bits(obj(3));
+    assert!((7.5..=30.0).contains(&f_obj), "frequency object {f_obj} Hz");
+    assert!(a_obj >= 3.0, "amplitude object {a_obj} um");
+    assert_eq!(f32::from_bits(obj(4)), 30.0);
+    assert!(obj(5) >= 1);
+    assert!(node.error_active(EMCY_BACKLASH));
+    // The master saw the warning, the drive stayed in OPERATION ENABLED.
+    let e = run
+        .master
+        .emcys()
+        .iter()
+        .find(|e| e.code == EMCY_BACKLASH)
+        .expect("EMCY 0xFF01 on the bus");
+    assert_eq!(e.error_register & 0x80, 0x80, "manufacturer-specific bit");
+    assert_eq!(node.statusword() & 0x6F, 0x27, "still operation enabled");
+    // Stop: the last analysis of the whole run against `analyze` of the run's trace.
+    let reports = detector.finish().unwrap();
+    let live = reports[0].as_ref().unwrap();
+    let mut samples = Vec::new();
+    while let Some(s) = trace.pop(0) {
+        samples.push(s);
+    }
+    let offline = analyze(
+        &AxisTrace::from_sample_log(&samples, SampleSource::Drive, false),
+        &DetectorConfig::new(30.0),
+    );
+    eprintln!(
+        "live: {} {:?} Hz {:.2} um; offline: {} {:?} Hz {:.2} um; {} samples",
+        live.verdict.as_str(),
+        live.frequency_hz,
+        live.amplitude,
+        offline.verdict.as_str(),
+        offline.frequency_hz,
+        offline.amplitude,
+        samples.len()
+    );
+    assert_eq!(tap.lost(), 0);
+    assert_eq!(live.verdict, offline.verdict);
+    assert_eq!(live.frequency_hz, offline.frequency_hz);
+    assert_eq!(live.amplitude, offline.amplitude);
+}
+
+#[test]
+fn a_healthy_drive_stays_ok_without_an_emcy() {
+    let (mut run, tap, detector, trace) = run(0.0);
+    while run.now_us() < 6_000_000 {
+        tick(&mut run, &tap, &trace);
+    }
+    let t0 = Instant::now();
+    while tap.published(0) == 0 {
+        assert!(t0.elapsed() < Duration::from_secs(60), "nothing published");
+        std::thread::sleep(Duration::from_millis(20));
+        for _ in 0..20 {
+            tick(&mut run, &tap, &trace);
+        }
+    }
+    assert_eq!(tap.published(0), verdict_code(Verdict::Ok));
+    assert!(!run.runtime.axes[0].node.error_active(EMCY_BACKLASH));
+    assert!(run.master.emcys().iter().all(|e| e.code != EMCY_BACKLASH));
+    let live = detector.finish().unwrap();
+    assert_eq!(live[0].as_ref().unwrap().verdict, Verdict::Ok);
+}
