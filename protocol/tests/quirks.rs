@@ -820,3 +820,89 @@ fn a_switch_needs_its_objects_and_all_off_is_strict() {
     assert_eq!(q.on().collect::<Vec<_>>(), ["sync_watchdog"]);
     assert_eq!(Quirks::SWITCHES.len(), 16);
 }
+
+// ------------------------------------------------------------- robustness, switches on
+
+use proptest::prelude::*;
+
+/// A frame a bus peer may send: SDO requests (any bytes, and initiates of the listed objects),
+/// RPDOs, SYNC, NMT (resets too), heartbeats, remote frames; with the time since the last one.
+fn peer_frame() -> impl Strategy<Value = (drive_protocol::CanFrame, u32)> {
+    let id = ID as u32;
+    let sdo_any = proptest::array::uniform8(any::<u8>()).prop_map(move |d| f(0x600 + id, &d));
+    let sdo_listed = (
+        prop_oneof![
+            Just(0x40u8),
+            Just(0x2B),
+            Just(0x2F),
+            Just(0x21),
+            Just(0xA0),
+            Just(0xC0)
+        ],
+        prop_oneof![
+            Just((0x6041u16, 0u8)),
+            Just((0x1000, 0)),
+            Just((0x1800, 5)),
+            Just((0x1A00, 1))
+        ],
+        any::<u32>(),
+    )
+        .prop_map(move |(cs, (i, s), v)| {
+            let i = i.to_le_bytes();
+            let v = v.to_le_bytes();
+            f(0x600 + id, &[cs, i[0], i[1], s, v[0], v[1], v[2], v[3]])
+        });
+    let rpdo = (0u32..4, proptest::collection::vec(any::<u8>(), 0..=8))
+        .prop_map(move |(k, d)| f(0x200 + 0x100 * k + id, &d));
+    let nmt = (
+        prop_oneof![Just(1u8), Just(2), Just(0x80), Just(0x81), Just(0x82)],
+        any::<bool>(),
+    )
+        .prop_map(move |(cs, all)| f(0, &[cs, if all { 0 } else { ID }]));
+    let sync = proptest::collection::vec(any::<u8>(), 0..=1).prop_map(|d| f(0x80, &d));
+    let rtr =
+        (0u32..4).prop_map(move |k| drive_protocol::CanFrame::remote(0x180 + 0x100 * k + id, 4));
+    (
+        prop_oneof![4 => sdo_any, 4 => sdo_listed, 3 => rpdo, 1 => nmt, 2 => sync, 1 => rtr],
+        0u32..20_000,
+    )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, .. ProptestConfig::default() })]
+
+    /// Nothing a bus peer sends breaks a node with every switch on: no panic, the transmit
+    /// queue drains, and after a reset and the ready time the node answers SDO again (late).
+    #[test]
+    fn arbitrary_frames_never_break_a_node_with_every_switch_on(
+        frames in proptest::collection::vec(peer_frame(), 1..200)
+    ) {
+        let mut node = Node::new(config(every_switch())).unwrap();
+        let mut drive = SimDrive::default();
+        let mut now = 0u64;
+        node.boot(now);
+        for (fr, dt) in frames {
+            now += u64::from(dt);
+            let _ = node.handle(&fr, now, &mut drive);
+            node.poll(now, &mut drive);
+            while node.pop_tx().is_some() {}
+        }
+        node.handle(&f(0, &[0x82, ID]), now, &mut drive);
+        let mut answer = None;
+        for k in 0..200u64 {
+            now += 1000;
+            node.poll(now, &mut drive);
+            if k == 50 {
+                // ready (20 ms) by now: an upload of an object no switch silences
+                node.handle(&f(0x600 + ID as u32, &upload_req(0x1018, 2)), now, &mut drive);
+            }
+            while let Some(fr) = node.pop_tx() {
+                if fr.id == SDO_TX {
+                    answer = Some(fr.data);
+                }
+            }
+        }
+        let a = answer.expect("SDO answered after the reset");
+        prop_assert_eq!(&a[..4], &[0x43, 0x18, 0x10, 2][..]);
+    }
+}
