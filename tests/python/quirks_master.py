@@ -439,6 +439,9 @@ def run(args, case, on_args, on_value):
         net.connect(interface="socketcan", channel=args.iface)
         node = canopen.BaseNode402(args.node, emu.eds_path)
         net.add_node(node)
+        # the drive has booted (the ready line); python's view of its NMT state starts at
+        # INITIALISING until it hears something: say where it is, as a master does
+        node.nmt.state = "PRE-OPERATIONAL"
         fn, _, _ = CASES[case]
         fn(node, net, on_value)
         ready = emu.ready["nodes"][0]
