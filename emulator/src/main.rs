@@ -17,7 +17,7 @@ enum Command {
     /// vibration seen from the wire.
     Demo(cli::demo::DemoArgs),
     /// Answer on a CAN bus as one or several CiA 402 drives, a simulated axis behind each.
-    Run(cli::run::RunArgs),
+    Run(Box<cli::run::RunArgs>),
     /// Run a preset axis offline at constant velocity and analyse its vibration.
     Sim(cli::sim::SimArgs),
     /// Sweep k_v x backlash x preset on all cores; one CSV/JSON row per case.
@@ -32,6 +32,8 @@ enum Command {
     Eds(cli::eds::EdsArgs),
     /// List the axis presets.
     Presets,
+    /// List the vendor behaviour profiles and switches (docs/quirks.md), or show one.
+    Profiles(cli::profiles::ProfilesArgs),
 }
 
 fn main() -> ExitCode {
@@ -46,6 +48,7 @@ fn main() -> ExitCode {
         Command::Analyze(args) => cli::analyze::run(&args),
         Command::Eds(args) => ok(cli::eds::run_eds(&args)),
         Command::Presets => ok(cli::eds::run_presets()),
+        Command::Profiles(args) => ok(cli::profiles::run(&args)),
     };
     match result {
         Ok(code) => code,

@@ -63,12 +63,49 @@ fn the_counter_sees_an_allocation() {
 
 #[test]
 fn the_runtime_tick_does_not_allocate() {
+    runtime_tick_allocations(None);
+}
+
+/// The same with a vendor profile and more switches on (docs/quirks.md): the switches' hooks
+/// on the tick (controlword hold, SDO delay queue, SYNC watchdog and lateness, the PDO rules)
+/// allocate nothing either.
+#[test]
+fn the_runtime_tick_with_vendor_switches_on_does_not_allocate() {
+    use drive_emu::drive::profile::{Behaviour, Overlay};
+    let switches: Vec<String> = [
+        "enable_requires_mode",
+        "sdo_response_delay.delay_ms=1",
+        "sdo_response_delay.late_every=3",
+        "sdo_response_delay.late_delay_ms=2",
+        // not tpdo_rtr_unsupported: the reference master writes TPDO COB-IDs without bit 30
+        // and trips over it, as python canopen did before its PR 228
+        "late_sync_statusword_bit15",
+        "sync_watchdog.missed_periods=100",
+        "sync_watchdog.period_from=\"0x1006\"",
+        "homing_method_zero.zero=\"ignore\"",
+        "unmappable_objects.objects=[\"0x6063:0\"]",
+        "sdo_silent_objects.objects=[\"0x1800-0x1803:6\"]",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let overlay = Overlay::from_args(&switches, &[]).unwrap();
+    let b = Behaviour::resolve(Some("technosoft-ipos"), None, &[&overlay]).unwrap();
+    assert_eq!(b.quirks.on().count(), 8);
+    runtime_tick_allocations(Some(b));
+}
+
+fn runtime_tick_allocations(behaviour: Option<drive_emu::drive::profile::Behaviour>) {
     let cfg = AxisConfig::from_preset("cnc1")
         .unwrap()
         .with_override("backlash_mm", "0.05")
         .unwrap();
     let mut drive = AxisDrive::from_config(&cfg).unwrap();
-    let node = drive_emu::drive::node(&mut drive, 5).unwrap();
+    let opts = drive_emu::drive::NodeOptions {
+        behaviour: behaviour.map(std::sync::Arc::new),
+        ..drive_emu::drive::NodeOptions::new(5)
+    };
+    let node = drive_emu::drive::build_node(&mut drive, &opts).unwrap();
     let program = vec![
         Step::Enable { mode: MODE_CSP },
         Step::Cruise {
@@ -89,7 +126,8 @@ fn the_runtime_tick_does_not_allocate() {
     assert_eq!(
         run.runtime.axes[0].node.statusword() & 0x6F,
         0x27,
-        "operation enabled"
+        "operation enabled ({:?})",
+        run.master.error()
     );
     let sdo_read = CanFrame::new(0x605, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]);
     let sdo_write_backlash = CanFrame::new(0x605, &[0x23, 0x00, 0x20, 0, 0, 0, 0, 0]);

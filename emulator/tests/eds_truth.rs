@@ -45,6 +45,9 @@ fn args(preset: &str, node: Option<u8>, set: &[&str]) -> EdsArgs {
         canopen_monitor: false,
         from: None,
         objects_base: None,
+        profile: None,
+        quirk: vec![],
+        no_quirk: vec![],
     }
 }
 

@@ -7,8 +7,8 @@
 //! [`Feedback`] out); [`CanFrame`]; the states [`NmtState`] and [`Cia402State`]. Four modules
 //! are public: [`wire`] (parse and emit of SDO, NMT, EMCY, heartbeat, SYNC and LSS frames, for
 //! a master or a capture decoder), [`od`] (the object dictionary, its EDS export and parse),
-//! [`cia402`] (modes of operation, controlword and statusword bits) and [`cia305`] (the LSS
-//! slave).
+//! [`cia402`] (modes of operation, controlword and statusword bits), [`cia305`] (the LSS
+//! slave) and [`quirks`] (the vendor behaviour switches a node is built with).
 //!
 //! Inside (private): `cia301` (NMT, SDO server, PDO engine, SYNC, heartbeat, EMCY), the rest
 //! of `cia402` (state machine, one file per mode, factor group, profiles), `node` (the glue)
@@ -30,6 +30,7 @@ mod event;
 mod frame;
 mod node;
 pub mod od;
+pub mod quirks;
 pub mod wire;
 
 pub use cia301::nmt::NmtState;
@@ -41,3 +42,4 @@ pub use node::{
     Clocks, ConfigError, FrameEvent, LssConfig, LssStore, Node, NodeConfig, DEFAULT_LSS_BIT_TIMING,
     TX_QUEUE,
 };
+pub use quirks::Quirks;

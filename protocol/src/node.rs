@@ -20,7 +20,10 @@ use crate::cia402::{objects as o402, Cia402, State};
 use crate::drive::{Drive, DriveInfo};
 use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
-use crate::od::{idx, Backing, Entry, Lookup, ObjectDictionary, Slot, Store};
+use crate::od::{idx, Backing, DefaultValue, Entry, Lookup, ObjectDictionary, Slot, Store};
+use crate::quirks::{
+    ControlwordLatch, HomingMethodZero, QuirkState, Quirks, SdoAnswer, SdoGate, WatchdogPeriod,
+};
 use crate::wire::lss::{LSS_REQUEST, UNCONFIGURED_NODE_ID};
 use crate::wire::{cob, Heartbeat};
 
@@ -45,6 +48,7 @@ const R_1015: usize = idx(0x1015, 0);
 const R_1016: usize = idx(0x1016, 1);
 const R_1017: usize = idx(0x1017, 0);
 const R_1019: usize = idx(0x1019, 0);
+const R_6098: usize = idx(0x6098, 0);
 const R_6502: usize = idx(0x6502, 0);
 const R_SERIAL: usize = idx(0x1018, 4);
 
@@ -94,15 +98,22 @@ pub struct NodeConfig {
     /// The object dictionary: [`ObjectDictionary::standard`] plus the application's objects,
     /// or one built from a vendor's EDS.
     pub od: ObjectDictionary,
-    /// Time from a reset (or power-on) to the boot-up message, us (0: at once). Real drives
-    /// take 100 ms to seconds; a master that sends the reset and then starts waiting for the
-    /// boot-up (python canopen's `wait_for_bootup`) needs some.
+    /// Time from power-on (and, unless said below, an NMT reset) to the boot-up message, us
+    /// (0: at once). Real drives take 100 ms to seconds; a master that sends the reset and
+    /// then starts waiting for the boot-up (python canopen's `wait_for_bootup`) needs some.
     pub boot_delay_us: u64,
+    /// Time from an NMT reset node to the boot-up, us (`None`: `boot_delay_us`).
+    pub reset_node_boot_delay_us: Option<u64>,
+    /// Time from an NMT reset communication to the boot-up, us (`None`: `boot_delay_us`).
+    /// A real drive restarts its communication in milliseconds (docs/quirks.md 3.5).
+    pub reset_communication_boot_delay_us: Option<u64>,
     /// Timeout of a stalled SDO transfer, us (default 1 s).
     pub sdo_timeout_us: u64,
     /// The LSS slave (CiA 305); `None`: the node answers no LSS (and cannot be
     /// non-configured). Its identity is the dictionary's 0x1018:1-4.
     pub lss: Option<LssConfig>,
+    /// The vendor behaviour switches (docs/quirks.md); all off: the strict drive.
+    pub quirks: Quirks,
 }
 
 impl NodeConfig {
@@ -113,9 +124,18 @@ impl NodeConfig {
             info,
             od: ObjectDictionary::standard(&info),
             boot_delay_us: 0,
+            reset_node_boot_delay_us: None,
+            reset_communication_boot_delay_us: None,
             sdo_timeout_us: crate::cia301::sdo::DEFAULT_TIMEOUT_US,
             lss: Some(LssConfig::default()),
+            quirks: Quirks::default(),
         }
+    }
+
+    /// The same configuration with these vendor switches.
+    pub fn with_quirks(mut self, quirks: Quirks) -> NodeConfig {
+        self.quirks = quirks;
+        self
     }
 
     /// The same configuration with a boot delay.
@@ -188,6 +208,23 @@ pub enum ConfigError {
         /// Sub-index.
         sub: u8,
     },
+    /// A vendor switch needs an object the dictionary lacks (e.g. `sync_watchdog` with its
+    /// period from 0x60C2 on a dictionary without 0x60C2).
+    QuirkNeedsObject {
+        /// The switch.
+        switch: &'static str,
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+    },
+    /// A vendor switch cannot change a default of the dictionary (its limits refuse it).
+    QuirkDefault {
+        /// The switch.
+        switch: &'static str,
+        /// Why.
+        reason: String,
+    },
 }
 
 impl core::fmt::Display for ConfigError {
@@ -208,6 +245,14 @@ impl core::fmt::Display for ConfigError {
                 f,
                 "the object dictionary has no 0x{index:04X} sub {sub}, which every CiA 301 node has"
             ),
+            ConfigError::QuirkNeedsObject { switch, index, sub } => write!(
+                f,
+                "switch {switch} needs object 0x{index:04X} sub {sub}, which the object \
+                 dictionary (the EDS) does not have"
+            ),
+            ConfigError::QuirkDefault { switch, reason } => {
+                write!(f, "switch {switch}: {reason}")
+            }
         }
     }
 }
@@ -248,8 +293,16 @@ struct Core {
     now_us: u64,
     /// Communication clock, as last given.
     comm_us: u64,
-    /// Time from a reset (or power-on) to the boot-up message, us (0: at once).
+    /// Time from power-on to the boot-up message, us (0: at once).
     boot_delay_us: u64,
+    /// From an NMT reset node / reset communication to the boot-up, us.
+    reset_node_delay_us: u64,
+    reset_comm_delay_us: u64,
+    /// The vendor switches and what they keep while the node runs.
+    quirks: Quirks,
+    qs: QuirkState,
+    /// Controlword edges written between ticks (and the hold time's view of it).
+    cw_latch: ControlwordLatch,
     /// While initialising after a reset: when the boot-up is due.
     boot_due_us: Option<u64>,
     /// The pending boot follows a communication reset: the application (CiA 402) keeps
@@ -346,10 +399,13 @@ impl<D: Drive> ObjectAccess for Access<'_, D> {
 
 /// Rules on application values beyond the dictionary's limits, the same for an SDO write and
 /// an RPDO: a mode of operation the drive supports (0x6502), software position limits with
-/// min <= max.
-fn value_rule(store: &Store, index: u16, sub: u8, raw: u64) -> Result<(), u32> {
+/// min <= max, a homing method 0 a vendor refuses (docs/quirks.md 3.4).
+fn value_rule(store: &Store, quirks: &Quirks, index: u16, sub: u8, raw: u64) -> Result<(), u32> {
     let supported = store.u32(R_6502);
     match (index, sub) {
+        (0x6098, 0) if raw as i8 == 0 && quirks.homing_method_zero == HomingMethodZero::Refuse => {
+            Err(abort::VALUE_RANGE)
+        }
         (0x6060, _) if !Mode::from_value(raw as i8).is_some_and(|m| m.in_mask(supported)) => {
             Err(abort::VALUE_RANGE)
         }
@@ -360,9 +416,15 @@ fn value_rule(store: &Store, index: u16, sub: u8, raw: u64) -> Result<(), u32> {
 }
 
 /// Whether an RPDO may write `raw` to a slot: the dictionary's limits and [`value_rule`].
-fn rpdo_accepts(od: &ObjectDictionary, store: &Store, slot: usize, raw: u64) -> bool {
+fn rpdo_accepts(
+    od: &ObjectDictionary,
+    quirks: &Quirks,
+    store: &Store,
+    slot: usize,
+    raw: u64,
+) -> bool {
     let e = od.entry(Slot::at(slot));
-    e.check_limits(raw).is_ok() && value_rule(store, e.index, e.sub, raw).is_ok()
+    e.check_limits(raw).is_ok() && value_rule(store, quirks, e.index, e.sub, raw).is_ok()
 }
 
 impl Core {
@@ -536,11 +598,73 @@ impl Core {
                     return Err(abort::VALUE_RANGE);
                 }
             }
-            (0x6060, _) | (0x607D, _) => value_rule(&self.store, index, sub, raw)?,
+            (0x6060, _) | (0x607D, _) => value_rule(&self.store, &self.quirks, index, sub, raw)?,
+            (0x6098, 0) if raw as i8 == 0 => match self.quirks.homing_method_zero {
+                HomingMethodZero::Store => {}
+                // confirmed, and the method stays (docs/quirks.md 3.4)
+                HomingMethodZero::Ignore => return Ok(()),
+                HomingMethodZero::Refuse => return Err(abort::VALUE_RANGE),
+            },
+            (0x6040, 0) => {
+                let old = self.store.u32(row) as u16;
+                let hold = self.quirks.controlword_min_hold;
+                self.cw_latch.on_write(old, raw as u16, self.comm_us, hold);
+            }
             _ => {}
         }
         self.store.set(row, raw);
         Ok(())
+    }
+
+    /// What an RPDO wrote, seen by the write hooks an SDO write passes (`cw` and `homing`:
+    /// 0x6040 and 0x6098 before it): the controlword latch, a homing method 0 ignored.
+    fn after_rpdo(&mut self, cw: u16, homing: u64) {
+        let now = self.store.u32(o402::CONTROLWORD) as u16;
+        if now != cw {
+            let hold = self.quirks.controlword_min_hold;
+            self.cw_latch.on_write(cw, now, self.comm_us, hold);
+        }
+        if self.quirks.homing_method_zero == HomingMethodZero::Ignore
+            && self.store.raw(R_6098) as i8 == 0
+        {
+            self.store.set(R_6098, homing);
+        }
+    }
+
+    /// 0x6040 and 0x6098 before an RPDO (for [`Core::after_rpdo`]).
+    fn before_rpdo(&self) -> (u16, u64) {
+        (
+            self.store.u32(o402::CONTROLWORD) as u16,
+            self.store.raw(R_6098),
+        )
+    }
+
+    /// An SDO answer to a request at `now_us`: sent now or after the vendor's delay.
+    fn sdo_answer(&mut self, f: CanFrame, now_us: u64) {
+        match self.qs.sdo_answer(&self.quirks, f, now_us) {
+            SdoAnswer::Now(f) => self.push(f),
+            SdoAnswer::Queued => {}
+            SdoAnswer::Dropped => self.tx_overflows = self.tx_overflows.wrapping_add(1),
+        }
+    }
+
+    /// The period `sync_watchdog` watches, us (0: none), and whether the drive is in a
+    /// watched state (OPERATION ENABLED in one of its modes).
+    fn watchdog_period(&self) -> (u64, bool) {
+        let Some(w) = &self.quirks.sync_watchdog else {
+            return (0, false);
+        };
+        let watched =
+            self.cia.state == State::OperationEnabled && w.modes.contains(&self.cia.mode_display);
+        let cycle = u64::from(self.store.u32(R_1006));
+        let period = match w.period_from {
+            WatchdogPeriod::Interpolation => match interpolation_period_us(&self.store) {
+                0 => cycle,
+                p => p,
+            },
+            WatchdogPeriod::CommunicationCycle => cycle,
+        };
+        (period, watched)
     }
 
     fn refresh_all(&mut self) {
@@ -574,6 +698,7 @@ impl Core {
     fn emcy_allowed(&self) -> bool {
         matches!(self.nmt, NmtState::PreOperational | NmtState::Operational)
             && self.store.u32(R_1014) & 0x8000_0000 == 0
+            && !self.qs.not_ready()
     }
 
     /// Report a communication event without keeping it active (history + EMCY frame).
@@ -584,14 +709,16 @@ impl Core {
         }
     }
 
-    /// Begin a boot: at once without a boot delay, else initialising (silent, deaf) until
-    /// the delay has passed ([`Node::poll`] or [`Node::finish_boot`] completes it).
-    fn start_boot(&mut self, now_us: u64, keeps_app: bool) {
-        if self.boot_delay_us == 0 {
+    /// Begin a boot: at once without a boot delay (`delay_us`), else initialising (silent,
+    /// deaf) until the delay has passed ([`Node::poll`] or [`Node::finish_boot`] completes
+    /// it).
+    fn start_boot(&mut self, now_us: u64, keeps_app: bool, delay_us: u64) {
+        self.qs.on_reset();
+        if delay_us == 0 {
             self.boot(now_us);
         } else {
             self.nmt = NmtState::Initialising;
-            self.boot_due_us = Some(now_us.saturating_add(self.boot_delay_us));
+            self.boot_due_us = Some(now_us.saturating_add(delay_us));
             self.boot_keeps_app = keeps_app;
         }
     }
@@ -614,6 +741,7 @@ impl Core {
             cob::HEARTBEAT + self.node_id as u32,
             &Heartbeat::BOOTUP.emit(),
         ));
+        self.qs.on_bootup(&self.quirks, now_us);
     }
 
     fn restore_range(&mut self, lo: u16, hi: u16) {
@@ -649,6 +777,16 @@ impl Core {
         let window_us = u64::from(self.store.u32(R_1007));
         let window_closed = window_us > 0 && late_us > window_us;
         let overflow = self.store.u32(R_1019) as u8;
+        if let Some(l) = self.quirks.late_sync_statusword_bit15 {
+            // a SYNC later than the period 0x1006 allows (docs/quirks.md 3.14)
+            let period = u64::from(self.store.u32(R_1006));
+            self.qs.late_sync = period != 0
+                && self.sync.last_us.is_some_and(|last| {
+                    now_us.saturating_sub(last) > period + u64::from(l.late_tolerance_us)
+                });
+        }
+        let (_, watched) = self.watchdog_period();
+        self.qs.watchdog_sync(now_us, watched);
         let s = self
             .sync
             .on_sync(now_us, frame.len, frame.data[0], overflow);
@@ -662,9 +800,11 @@ impl Core {
         self.pending_sync = Some(now_us);
         if self.nmt == NmtState::Operational {
             for k in 0..self.pdo.rpdo.len() {
-                let od = &self.od;
-                let accept = |st: &Store, slot, raw| rpdo_accepts(od, st, slot, raw);
+                let (od, quirks) = (&self.od, &self.quirks);
+                let accept = |st: &Store, slot, raw| rpdo_accepts(od, quirks, st, slot, raw);
+                let (cw, homing) = self.before_rpdo();
                 if let Some(ok) = self.pdo.apply_sync_rpdo(k, &mut self.store, accept) {
+                    self.after_rpdo(cw, homing);
                     self.rpdo_value_condition(k, ok);
                 }
             }
@@ -690,8 +830,11 @@ impl Node {
             info,
             od,
             boot_delay_us,
+            reset_node_boot_delay_us,
+            reset_communication_boot_delay_us,
             sdo_timeout_us,
             lss,
+            quirks,
         } = cfg;
         let unconfigured = node_id == UNCONFIGURED_NODE_ID && lss.is_some();
         if !(1..=127).contains(&node_id) && !unconfigured {
@@ -710,6 +853,10 @@ impl Node {
             }
         }
         let factor = Factor::from_info(&info).ok_or(ConfigError::InvalidDriveInfo)?;
+        if let Some((switch, index, sub)) = quirks.missing_object(&od) {
+            return Err(ConfigError::QuirkNeedsObject { switch, index, sub });
+        }
+        let od = quirk_defaults(od, &quirks)?;
         // the 0x1003 history has the sub-indices the dictionary shows (a vendor's may have 2)
         let history_len = (1..=8u8)
             .take_while(|&s| od.get(0x1003, s).is_some())
@@ -718,7 +865,9 @@ impl Node {
         let saved = store.clone();
         let mut sdo = SdoServer::with_capacity(store.max_capacity());
         sdo.timeout_us = sdo_timeout_us;
-        let pdo = PdoEngine::new(&od);
+        let mut pdo = PdoEngine::new(&od);
+        pdo.rules = quirks.pdo_rules();
+        let qs = QuirkState::new(&quirks, &od);
         let lss_slave = match lss {
             Some(l) => {
                 let identity = LssIdentity {
@@ -755,7 +904,7 @@ impl Node {
             hbc: Consumer::default(),
             hb_lost: false,
             emcy: Emcy::with_history(history_len),
-            cia: Cia402::new(factor),
+            cia: Cia402::new(factor, quirks.cia402()),
             tx: Deque::new(),
             tx_overflows: 0,
             sync_window_missed: 0,
@@ -763,6 +912,11 @@ impl Node {
             now_us: 0,
             comm_us: 0,
             boot_delay_us,
+            reset_node_delay_us: reset_node_boot_delay_us.unwrap_or(boot_delay_us),
+            reset_comm_delay_us: reset_communication_boot_delay_us.unwrap_or(boot_delay_us),
+            quirks,
+            qs,
+            cw_latch: ControlwordLatch::default(),
             boot_due_us: None,
             boot_keeps_app: false,
             events: Deque::new(),
@@ -789,7 +943,8 @@ impl Node {
     pub fn boot_with(&mut self, clocks: Clocks) {
         self.core.now_us = clocks.app_us;
         self.core.comm_us = clocks.comm_us;
-        self.core.start_boot(clocks.comm_us, false);
+        self.core
+            .start_boot(clocks.comm_us, false, self.core.boot_delay_us);
         self.core.observe();
     }
 
@@ -823,10 +978,12 @@ impl Node {
                 c.take_lss_node_id(true);
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
-                c.cia = Cia402::new(f);
+                c.cia = Cia402::new(f, c.quirks.cia402());
+                c.cw_latch = ControlwordLatch::default();
                 c.clear_all_emcy();
                 self.sdo.reset();
-                c.start_boot(now_us, false);
+                let delay = c.reset_node_delay_us;
+                c.start_boot(now_us, false, delay);
             }
             NmtCommand::ResetCommunication => {
                 c.take_lss_node_id(false);
@@ -840,7 +997,8 @@ impl Node {
                     }
                 }
                 self.sdo.reset();
-                c.start_boot(now_us, true);
+                let delay = c.reset_comm_delay_us;
+                c.start_boot(now_us, true, delay);
             }
             _ => {
                 let next = nmt::next_state(cmd);
@@ -933,6 +1091,19 @@ impl Node {
             return FrameEvent::Ignored;
         }
         let id = frame.id;
+        if self.core.qs.not_ready() {
+            // not_ready_after_bootup (docs/quirks.md 3.6): only a reset is heard; a SYNC still
+            // tells a lock-step runtime that time goes on
+            let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
+            return match nmt::decode(frame, self.core.node_id) {
+                Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication)) if id == 0 => {
+                    self.nmt_command(cmd, now_us, drive);
+                    FrameEvent::Handled
+                }
+                _ if id == sync_cob && !frame.rtr => FrameEvent::Sync { counter: None },
+                _ => FrameEvent::Ignored,
+            };
+        }
         if id == 0 {
             return match nmt::decode(frame, self.core.node_id) {
                 Some(cmd) => {
@@ -958,6 +1129,11 @@ impl Node {
             if frame.rtr || frame.len != 8 {
                 return FrameEvent::Ignored;
             }
+            let in_block = self.sdo.expects_block_segment();
+            let c = &mut self.core;
+            if c.qs.sdo_request(&c.quirks, &frame.data, in_block) == SdoGate::Drop {
+                return FrameEvent::Handled;
+            }
             let mut outv: heapless::Vec<[u8; 8], 16> = heapless::Vec::new();
             let mut acc = Access {
                 core: &mut self.core,
@@ -968,7 +1144,7 @@ impl Node {
             });
             let tx_cob = cob::SDO_TX + self.core.node_id as u32;
             for f in outv {
-                self.core.push(CanFrame::new(tx_cob, &f));
+                self.core.sdo_answer(CanFrame::new(tx_cob, &f), now_us);
             }
             return FrameEvent::Handled;
         }
@@ -980,8 +1156,9 @@ impl Node {
             return FrameEvent::Ignored;
         }
         let c = &mut self.core;
-        let od = &c.od;
-        let accept = |st: &Store, slot, raw| rpdo_accepts(od, st, slot, raw);
+        let (od, quirks) = (&c.od, &c.quirks);
+        let accept = |st: &Store, slot, raw| rpdo_accepts(od, quirks, st, slot, raw);
+        let (cw, homing) = (c.store.u32(o402::CONTROLWORD) as u16, c.store.raw(R_6098));
         match c.pdo.receive(&mut c.store, frame, accept) {
             RxOutcome::NotRpdo => {}
             RxOutcome::Received {
@@ -990,12 +1167,17 @@ impl Node {
                 length_code,
                 values_ok,
             } => {
+                c.after_rpdo(cw, homing);
                 c.rpdo_length_condition(k, length_code, len);
                 if let Some(ok) = values_ok {
                     c.rpdo_value_condition(k, ok);
                 }
                 return FrameEvent::Handled;
             }
+        }
+        if c.quirks.tpdo_rtr_unsupported.is_some() {
+            // no remote frames answered (docs/quirks.md 3.10)
+            return FrameEvent::Ignored;
         }
         let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
         if c.pdo
@@ -1143,6 +1325,7 @@ impl Node {
         if c.nmt == NmtState::Operational {
             take(c.sync.deadline_us(c.store.u32(R_1006)));
         }
+        take(c.qs.watchdog_deadline(&c.quirks, c.watchdog_period().0));
         at
     }
 
@@ -1162,6 +1345,7 @@ impl Node {
             take(c.boot_due_us); // the boot-up after the boot delay
             return at;
         }
+        take(c.qs.deadline_comm()); // the vendor switches' heartbeats, delayed SDO answers
         take(c.hb.deadline_us(c.store.u32(R_1017) as u16));
         take(c.hbc.deadline_us());
         if c.nmt == NmtState::Operational {
@@ -1192,6 +1376,16 @@ impl Node {
             c.boot(comm_us);
         }
         if c.nmt == NmtState::Initialising {
+            return;
+        }
+        // the vendor switches' heartbeats and delayed SDO answers
+        let (qs, quirks, tx, overflows) = (&mut c.qs, &c.quirks, &mut c.tx, &mut c.tx_overflows);
+        if qs.poll_comm(quirks, comm_us, c.node_id, c.nmt as u8, &mut |f| {
+            push(tx, overflows, f)
+        }) {
+            c.hb.restart(comm_us, c.store.u32(R_1017) as u16);
+        }
+        if c.qs.not_ready() {
             return;
         }
         // heartbeat producer
@@ -1232,13 +1426,28 @@ impl Node {
             c.raise_emcy(EMCY_SYNC_LOSS, [0; 5], Cause::Condition);
             c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
         }
+        // the vendor's SYNC watchdog (docs/quirks.md 3.13): a fault whatever 0x6007 says
+        let (wd_period, watched) = c.watchdog_period();
+        if let Some(code) = c.qs.watchdog_poll(&c.quirks, now_us, watched, wd_period) {
+            c.cia.request_fault(code);
+        }
         // CiA 402 (a lost master or SYNC whose reaction is a fault blocks the fault reset)
         c.cia.comm_fault_present = (c.hb_lost || c.sync.lost) && c.store.i32(o402::ABORT_CONN) == 1;
+        c.cia.status_extra = if c.qs.late_sync { 0x8000 } else { 0 };
         let period = csp_period_us(&c.store, c.sync.interval_us);
         let sync_at = c.pending_sync.take();
-        let out = c
-            .cia
-            .step(&mut c.store, &fb, now_us, sync_at, period, drive);
+        let (level, latched) = c.cw_latch.for_tick(
+            c.store.u32(o402::CONTROLWORD) as u16,
+            clocks.comm_us,
+            c.quirks.controlword_min_hold,
+        );
+        let control = crate::cia402::TickControl {
+            sync_at,
+            csp_period_us: period,
+            level,
+            latched,
+        };
+        let out = c.cia.step(&mut c.store, &fb, now_us, control, drive);
         if let Some(code) = out.new_fault {
             c.raise_emcy(code, [0; 5], Cause::Fault);
         }
@@ -1403,8 +1612,8 @@ impl Node {
     }
 }
 
-/// The CSP interpolation period: 0x60C2, else 0x1006, else the measured SYNC interval.
-fn csp_period_us(store: &Store, measured_us: u64) -> u64 {
+/// The interpolation time period 0x60C2 (value x 10^index s), us; 0 when not set.
+fn interpolation_period_us(store: &Store) -> u64 {
     let v = store.u32(o402::IP_VALUE) as u64;
     let i = store.i32(o402::IP_INDEX);
     if v > 0 && (-6..=0).contains(&i) {
@@ -1412,6 +1621,56 @@ fn csp_period_us(store: &Store, measured_us: u64) -> u64 {
         for _ in 0..(i + 6) {
             p *= 10;
         }
+        return p;
+    }
+    0
+}
+
+/// The dictionary with the defaults a vendor switch changes: TPDO COB-IDs with bit 30 (no
+/// RTR, 3.10), the heartbeat producer's period (3.5).
+fn quirk_defaults(
+    mut od: ObjectDictionary,
+    quirks: &Quirks,
+) -> Result<ObjectDictionary, ConfigError> {
+    let fail = |switch: &'static str| {
+        move |e: crate::od::OdError| ConfigError::QuirkDefault {
+            switch,
+            reason: e.to_string(),
+        }
+    };
+    if quirks.tpdo_rtr_unsupported.is_some() {
+        let cob_ids: Vec<(u16, DefaultValue)> = od
+            .iter()
+            .filter(|(_, e)| (0x1800..=0x19FF).contains(&e.index) && e.sub == 1)
+            .map(|(_, e)| (e.index, e.default.clone()))
+            .collect();
+        for (index, d) in cob_ids {
+            let with_bit = match d {
+                DefaultValue::Value(v) => DefaultValue::Value(v | 0x4000_0000),
+                DefaultValue::NodeId(b) => DefaultValue::NodeId(b | 0x4000_0000),
+                other => other,
+            };
+            od.set_default(index, 1, with_bit)
+                .map_err(fail("tpdo_rtr_unsupported"))?;
+        }
+    }
+    if let Some(b) = quirks.bootup_then_heartbeat {
+        if od.get(0x1017, 0).is_some() {
+            od.set_default(
+                0x1017,
+                0,
+                DefaultValue::Value(u64::from(b.heartbeat_ms_default)),
+            )
+            .map_err(fail("bootup_then_heartbeat"))?;
+        }
+    }
+    Ok(od)
+}
+
+/// The CSP interpolation period: 0x60C2, else 0x1006, else the measured SYNC interval.
+fn csp_period_us(store: &Store, measured_us: u64) -> u64 {
+    let p = interpolation_period_us(store);
+    if p > 0 {
         return p;
     }
     let c = store.u32(R_1006) as u64;

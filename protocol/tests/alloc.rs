@@ -184,3 +184,80 @@ fn lss_services_do_not_allocate() {
     assert_eq!(node.node_id(), 12);
     assert_eq!(node.nmt_state(), drive_protocol::NmtState::PreOperational);
 }
+
+#[test]
+fn steady_state_and_a_reset_with_every_switch_on_do_not_allocate() {
+    let cfg = drive_protocol::NodeConfig::new(ID, info())
+        .with_od(od_with_handler())
+        .with_quirks(every_switch());
+    let mut b = Bench::with_config(cfg);
+    b.run_until(30_000); // ready
+    let mut node = b.node;
+    let mut drive = b.drive;
+    let mut now = b.now;
+    let mut sent = 0;
+    let id = ID as u32;
+    // the answers come late: each request, then time for its answer
+    let sdo = |node: &mut Node, drive: &mut SimDrive, now: &mut u64, req: [u8; 8]| {
+        node.handle(&CanFrame::new(0x600 + id, &req), *now, drive);
+        for _ in 0..5 {
+            *now += 1000;
+            node.poll(*now, drive);
+        }
+        while let Some(f) = node.pop_tx() {
+            assert!(f.id != 0x580 + id || f.data[0] != 0x80, "refused: {f:?}");
+        }
+    };
+    for req in [
+        [0x23, 0x06, 0x10, 0, 0xE8, 0x03, 0, 0], // 0x1006 = 1000 us
+        [0x2F, 0xC2, 0x60, 1, 1, 0, 0, 0],       // 0x60C2 = 1 ms
+        [0x2F, 0x60, 0x60, 0, 8, 0, 0, 0],       // CSP
+    ] {
+        sdo(&mut node, &mut drive, &mut now, req);
+    }
+    node.handle(&CanFrame::new(0, &[0x01, ID]), now, &mut drive);
+    // enable in CSP through RPDO1, as a master does (each value held 2 ticks)
+    let rpdo = |node: &mut Node, drive: &mut SimDrive, now: u64, cw: u16| {
+        node.handle(&CanFrame::new(0x200 + id, &cw.to_le_bytes()), now, drive);
+    };
+    for cw in [0x06u16, 0x07, 0x0F] {
+        rpdo(&mut node, &mut drive, now, cw);
+        for _ in 0..2 {
+            now += 1000;
+            node.poll(now, &mut drive);
+        }
+    }
+    for k in 0..100 {
+        cycle(&mut node, &mut drive, &mut now, k, &mut sent);
+    }
+    assert_eq!(
+        node.cia402_state(),
+        drive_protocol::Cia402State::OperationEnabled
+    );
+    reset();
+    sent = 0;
+    ACTIVE.with(|a| a.set(true));
+    for k in 100..2100 {
+        cycle(&mut node, &mut drive, &mut now, k, &mut sent);
+    }
+    // a reset communication: not ready, 0x00 heartbeats, a dropped first upload, ready, the
+    // early heartbeat, delayed answers
+    node.handle(&CanFrame::new(0, &[0x82, ID]), now, &mut drive);
+    for k in 0..60 {
+        now += 1000;
+        node.poll(now, &mut drive);
+        if k % 5 == 0 {
+            node.handle(
+                &CanFrame::new(0x600 + id, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]),
+                now,
+                &mut drive,
+            );
+        }
+        while node.pop_tx().is_some() {
+            sent += 1;
+        }
+    }
+    ACTIVE.with(|a| a.set(false));
+    assert!(sent > 2000 * 2, "the node was busy: {sent} frames");
+    assert_eq!(allocs(), 0, "allocations with every switch on");
+}

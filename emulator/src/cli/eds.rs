@@ -43,6 +43,17 @@ pub struct EdsArgs {
     /// of 0x2000, 0x3000, 0x4000, 0x5000, ...).
     #[arg(long, value_name = "INDEX", requires = "from", value_parser = crate::cli::run::parse_index)]
     pub objects_base: Option<u16>,
+    /// The EDS of a drive run with this vendor behaviour profile (`run --profile`): its
+    /// [identity] and the defaults its switches change (TPDO COB-IDs with bit 30 for
+    /// tpdo_rtr_unsupported, 0x1017 for bootup_then_heartbeat).
+    #[arg(long, value_name = "NAME|PATH")]
+    pub profile: Option<String>,
+    /// As `run --quirk`.
+    #[arg(long = "quirk", value_name = "NAME[.PARAM=VALUE]")]
+    pub quirk: Vec<String>,
+    /// As `run --no-quirk`.
+    #[arg(long = "no-quirk", value_name = "NAME")]
+    pub no_quirk: Vec<String>,
 }
 
 /// `--real32`: notation of REAL32 defaults in the EDS.
@@ -75,9 +86,15 @@ pub fn eds_and_report(args: &EdsArgs) -> Result<(String, Option<String>)> {
         None => cfg,
     };
     let mut drive = AxisDrive::from_config(&cfg)?;
+    let behaviour = crate::drive::profile::Behaviour::from_args(
+        args.profile.as_deref(),
+        &args.quirk,
+        &args.no_quirk,
+    )?;
     let opts = NodeOptions {
         objects_base: args.objects_base,
         eds: vendor.clone(),
+        behaviour: behaviour.map(std::sync::Arc::new),
         ..NodeOptions::new(args.node.unwrap_or(1))
     };
     let setup = node_setup(&mut drive, &opts)?;

@@ -5,6 +5,7 @@ pub mod demo;
 pub mod eds;
 pub mod figures;
 pub mod lss_store;
+pub mod profiles;
 pub mod run;
 pub mod scenario;
 pub mod sim;

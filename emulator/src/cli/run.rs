@@ -51,6 +51,18 @@ pub struct RunArgs {
     /// with --eds the first free base of 0x2000, 0x3000, 0x4000, 0x5000, ...
     #[arg(long, value_name = "INDEX", value_parser = parse_index)]
     pub objects_base: Option<u16>,
+    /// Behave like a vendor's drive (docs/quirks.md): a profile of `drive-emu profiles`
+    /// (nanotec-pd4c, maxon-epos4, ..., strict) or a path to a .toml profile. Sets vendor
+    /// switches, and its [identity] (boot delays; with --eds the EDS is the identity).
+    #[arg(long, value_name = "NAME|PATH")]
+    pub profile: Option<String>,
+    /// Turn a vendor switch on, with a parameter: --quirk sdo_response_delay.delay_ms=30
+    /// (repeatable, applied after --profile; `drive-emu profiles` lists them).
+    #[arg(long = "quirk", value_name = "NAME[.PARAM=VALUE]")]
+    pub quirk: Vec<String>,
+    /// Turn a vendor switch off (repeatable, applied after --profile).
+    #[arg(long = "no-quirk", value_name = "NAME")]
+    pub no_quirk: Vec<String>,
     /// Loop rate, Hz (250..8000).
     #[arg(long, default_value_t = 1000)]
     pub tick_hz: u32,
@@ -243,6 +255,13 @@ fn axis_slot(
         serial_number: lss.serial_number,
         ..NodeOptions::new(e.node_id).with_boot_delay_us(boot_delay_us)
     };
+    let opts = NodeOptions {
+        behaviour: e.behaviour.clone(),
+        ..opts
+    };
+    if let Some(b) = &e.behaviour {
+        eprintln!("{}", b.announce(e.node_id, boot_delay_us / 1000));
+    }
     let setup = node_setup(&mut drive, &opts).map_err(ctx)?;
     if let (Some(v), Some(r)) = (&eds, &setup.report) {
         eprint!(
@@ -291,7 +310,19 @@ pub fn parse_index(s: &str) -> Result<u16, String> {
 
 /// The machine described by the command line (one axis) or by --config.
 pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
+    let behaviour = crate::drive::profile::Behaviour::from_args(
+        args.profile.as_deref(),
+        &args.quirk,
+        &args.no_quirk,
+    )?;
     if let Some(path) = &args.config {
+        if behaviour.is_some() {
+            bail!(
+                "--profile / --quirk / --no-quirk with --config {}: set `profile =` and `quirks \
+                 = {{...}}` per [[axis]] in the machine file",
+                path.display()
+            );
+        }
         return machine::load(path);
     }
     let mut set = std::collections::BTreeMap::new();
@@ -313,6 +344,9 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
             set,
             eds: args.eds.clone(),
             objects_base: args.objects_base,
+            profile: args.profile.clone(),
+            quirks: None,
+            behaviour: behaviour.map(Arc::new),
         }],
     };
     machine::validate(&m)?;
@@ -847,6 +881,14 @@ fn live_axes(
                     set: Default::default(),
                     eds: args.eds.clone(),
                     objects_base: args.objects_base,
+                    profile: args.profile.clone(),
+                    quirks: None,
+                    behaviour: crate::drive::profile::Behaviour::from_args(
+                        args.profile.as_deref(),
+                        &args.quirk,
+                        &args.no_quirk,
+                    )?
+                    .map(Arc::new),
                 }],
             }
         }
@@ -1106,6 +1148,8 @@ fn watch(
                     "node_id": a.node_id, "preset": a.preset,
                     "eds": a.eds.as_ref().map(|p| p.display().to_string()),
                     "objects_base": a.objects_base.map(|b| format!("0x{b:04X}")),
+                    "profile": a.behaviour.as_ref().and_then(|b| b.profile.clone()),
+                    "quirks": a.behaviour.as_ref().map_or(vec![], |b| b.quirks.on().collect()),
                 })).collect::<Vec<_>>(),
                 "tick_hz": machine.tick_hz,
                 "lockstep": args.lockstep,

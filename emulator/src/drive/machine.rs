@@ -11,12 +11,16 @@
 //! preset = "cnc3"
 //! eds = "vendor/epos4.eds"  # optional: serve this vendor's EDS/DCF (relative to this file)
 //! objects_base = 0x4000     # optional: where the emulator's own objects go
+//! profile = "maxon-epos4"   # optional: vendor behaviour (profiles/, or a .toml beside this file)
+//! quirks = { sdo_response_delay = { delay_ms = 30 } }   # optional: switches on top
 //! ```
 
+use super::profile::{Behaviour, Overlay};
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 pub const MIN_TICK_HZ: u32 = 250;
 pub const MAX_TICK_HZ: u32 = 8000;
@@ -46,6 +50,18 @@ pub struct AxisEntry {
     /// with `eds`).
     #[serde(default)]
     pub objects_base: Option<u16>,
+    /// The vendor behaviour profile (docs/quirks.md): a name from `profiles/`, or a path to a
+    /// `.toml` (relative to the machine file).
+    #[serde(default)]
+    pub profile: Option<String>,
+    /// Switches on top of the profile: `{ NAME = { PARAM = VALUE } }`, `{ NAME = {} }` on with
+    /// its defaults, `{ NAME = { enabled = false } }` off.
+    #[serde(default)]
+    pub quirks: Option<toml::Spanned<toml::Table>>,
+    /// `profile` and `quirks` resolved when the file is read (or the command line's
+    /// `--profile` / `--quirk` / `--no-quirk`); `None`: the strict drive.
+    #[serde(skip)]
+    pub behaviour: Option<Arc<Behaviour>>,
 }
 
 fn default_tick_hz() -> u32 {
@@ -90,20 +106,39 @@ pub fn validate(m: &MachineFile) -> Result<()> {
 
 /// Parse machine-file text; `origin` names the file in errors.
 pub fn parse(text: &str, origin: &str) -> Result<MachineFile> {
-    let m: MachineFile = toml::from_str(text).map_err(|e| {
+    parse_in(text, origin, None)
+}
+
+/// [`parse`], with profile paths relative to `dir`.
+fn parse_in(text: &str, origin: &str, dir: Option<&Path>) -> Result<MachineFile> {
+    let mut m: MachineFile = toml::from_str(text).map_err(|e| {
         // toml's message carries the line, column and key; prefix the file.
         anyhow::anyhow!("{origin}: {e}")
     })?;
     validate(&m).with_context(|| origin.to_string())?;
+    for (i, a) in m.axes.iter_mut().enumerate() {
+        let overlay = match &a.quirks {
+            Some(q) => {
+                let line = text[..q.span().start.min(text.len())].matches('\n').count() + 1;
+                Overlay::from_table(q.get_ref(), &format!("{origin} axis {}", i + 1), Some(line))?
+            }
+            None => Overlay::default(),
+        };
+        if a.profile.is_some() || !overlay.is_empty() {
+            let b = Behaviour::resolve(a.profile.as_deref(), dir, &[&overlay])
+                .with_context(|| format!("{origin}: axis {} (node {})", i + 1, a.node_id))?;
+            a.behaviour = Some(Arc::new(b));
+        }
+    }
     Ok(m)
 }
 
 pub fn load(path: &Path) -> Result<MachineFile> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read machine file {}", path.display()))?;
-    let mut m = parse(&text, &path.display().to_string())?;
-    // an EDS path is relative to the machine file, as a user writes it beside it
     let dir = path.parent().unwrap_or(Path::new("."));
+    let mut m = parse_in(&text, &path.display().to_string(), Some(dir))?;
+    // an EDS path is relative to the machine file, as a user writes it beside it
     for a in &mut m.axes {
         if let Some(e) = &a.eds {
             if e.is_relative() {
@@ -192,5 +227,51 @@ mod tests {
             parse("[[axis]]\nnode_id = 0\npreset = \"a\"\n", "m.toml").unwrap_err()
         );
         assert!(e.contains("node_id") && e.contains("1..=127"), "{e}");
+    }
+
+    /// `profile` and `quirks` per axis: resolved when the file is read; a bad switch is an
+    /// error naming the file, its line and the key.
+    #[test]
+    fn profiles_and_quirks_per_axis() {
+        let m = parse(
+            "[[axis]]\nnode_id = 5\npreset = \"cnc1\"\nprofile = \"maxon-epos4\"\n\
+             quirks = { sdo_response_delay = { delay_ms = 30 } }\n\
+             [[axis]]\nnode_id = 6\npreset = \"cnc1\"\n",
+            "m.toml",
+        )
+        .unwrap();
+        let b = m.axes[0].behaviour.as_ref().unwrap();
+        assert_eq!(b.profile.as_deref(), Some("maxon-epos4"));
+        assert_eq!(
+            b.quirks.on().collect::<Vec<_>>(),
+            ["homing_method_zero", "sdo_response_delay"]
+        );
+        assert_eq!(b.quirks.sdo_response_delay.unwrap().delay_ms, 30);
+        assert!(m.axes[1].behaviour.is_none(), "no profile: strict");
+        let e = format!(
+            "{:#}",
+            parse(
+                "[[axis]]\nnode_id = 5\npreset = \"cnc1\"\n\
+                 quirks = { sdo_response_delay = { delay_ms = 9000 } }\n",
+                "m.toml"
+            )
+            .unwrap_err()
+        );
+        assert!(
+            e.contains("m.toml axis 1:4: quirks.sdo_response_delay.delay_ms: 9000 out of range"),
+            "{e}"
+        );
+        let e = format!(
+            "{:#}",
+            parse(
+                "[[axis]]\nnode_id = 5\npreset = \"cnc1\"\nprofile = \"maxon\"\n",
+                "m.toml"
+            )
+            .unwrap_err()
+        );
+        assert!(
+            e.contains("m.toml: axis 1 (node 5)") && e.contains("unknown profile `maxon`"),
+            "{e}"
+        );
     }
 }

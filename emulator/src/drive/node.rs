@@ -1,9 +1,11 @@
 //! The one place a simulated drive gets its CANopen node: the object dictionary (the
 //! standard CiA 301 / CiA 402 objects, or a vendor's EDS, `vendor.rs`; plus the emulator's
-//! own, `objects.rs`), the node's configuration, and the link from the drive to its objects.
+//! own, `objects.rs`), the vendor behaviour (a profile's switches, identity and boot delays,
+//! `profile.rs`), the node's configuration, and the link from the drive to its objects.
 
 use super::axis_drive::AxisDrive;
 use super::objects;
+use super::profile::Behaviour;
 use super::vendor::VendorEds;
 use drive_protocol::od::{BuildReport, DefaultValue, ObjectDictionary};
 use drive_protocol::{Drive, LssConfig, Node, NodeConfig};
@@ -28,6 +30,9 @@ pub struct NodeOptions {
     /// dictionary's default; the standard one's is the node-ID). Give it when the node-ID
     /// may change (LSS, a stored node-ID) so that the address stays.
     pub serial_number: Option<u32>,
+    /// The vendor behaviour (profile, switches, identity, boot delays; `None`: the strict
+    /// drive with the emulator's identity).
+    pub behaviour: Option<Arc<Behaviour>>,
 }
 
 impl NodeOptions {
@@ -41,6 +46,7 @@ impl NodeOptions {
             eds: None,
             lss: LssConfig::default(),
             serial_number: None,
+            behaviour: None,
         }
     }
 
@@ -86,6 +92,9 @@ pub fn node_setup(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<N
         od.set_default(0x1018, 4, DefaultValue::Value(u64::from(serial)))
             .map_err(|e| anyhow::anyhow!("serial number: {e}"))?;
     }
+    if let Some(b) = &opts.behaviour {
+        apply_identity(&mut od, b, opts.eds.as_deref())?;
+    }
     let objects_base = objects.base;
     drive.objects = Some(objects);
     let lss = od.device.lss_supported.then_some(opts.lss);
@@ -93,11 +102,76 @@ pub fn node_setup(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<N
         .with_od(od)
         .with_boot_delay_us(opts.boot_delay_us);
     config.lss = lss;
+    if let Some(b) = &opts.behaviour {
+        let id = &b.identity;
+        let us = |ms: u32| u64::from(ms) * 1000;
+        if let Some(ms) = id.boot_delay_ms {
+            config.boot_delay_us = us(ms);
+        }
+        config.reset_node_boot_delay_us = id.reset_node_boot_delay_ms.map(us);
+        config.reset_communication_boot_delay_us = id.reset_communication_boot_delay_ms.map(us);
+        config.quirks = b.quirks.clone();
+    }
     Ok(NodeSetup {
         config,
         objects_base,
         report,
     })
+}
+
+/// The profile's `[identity]` in the dictionary: without a vendor's EDS its values become the
+/// defaults of 0x1000, 0x1018:1-3 and 0x1008; with one, the EDS is authoritative and a key
+/// that disagrees with it is an error naming both values.
+fn apply_identity(
+    od: &mut ObjectDictionary,
+    b: &Behaviour,
+    eds: Option<&VendorEds>,
+) -> anyhow::Result<()> {
+    let profile = b.profile.as_deref().unwrap_or("the command line");
+    let id = &b.identity;
+    for (index, sub, key, value) in id.objects() {
+        match eds {
+            Some(v) => {
+                let have = od.get(index, sub).map(|(_, e)| e.default_raw(0) as u32);
+                if have != Some(value) {
+                    anyhow::bail!(
+                        "profile {profile}: [identity] {key} = 0x{value:08X}, but the EDS {} \
+                         says 0x{index:04X}:{sub} = {} (the EDS is authoritative for the \
+                         identity: drop the key from the profile, or use the vendor's EDS)",
+                        v.path.display(),
+                        have.map_or("nothing".into(), |h| format!("0x{h:08X}"))
+                    );
+                }
+            }
+            None => od
+                .set_default(index, sub, DefaultValue::Value(u64::from(value)))
+                .map_err(|e| anyhow::anyhow!("profile {profile}: [identity] {key}: {e}"))?,
+        }
+    }
+    if let Some(name) = &id.device_name {
+        let bytes = DefaultValue::Bytes(name.as_bytes().to_vec());
+        match eds {
+            Some(v) => {
+                let have = od.get(0x1008, 0).map(|(_, e)| e.default.clone());
+                if have.as_ref() != Some(&bytes) {
+                    anyhow::bail!(
+                        "profile {profile}: [identity] device_name = \"{name}\", but the EDS {} \
+                         says 0x1008 = {} (the EDS is authoritative for the identity)",
+                        v.path.display(),
+                        match have {
+                            Some(DefaultValue::Bytes(b)) =>
+                                format!("\"{}\"", String::from_utf8_lossy(&b)),
+                            _ => "nothing".into(),
+                        }
+                    );
+                }
+            }
+            None => od
+                .set_default(0x1008, 0, bytes)
+                .map_err(|e| anyhow::anyhow!("profile {profile}: [identity] device_name: {e}"))?,
+        }
+    }
+    Ok(())
 }
 
 /// [`node_setup`]'s configuration.

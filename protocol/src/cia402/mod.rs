@@ -22,7 +22,8 @@ pub mod statusword;
 
 use crate::drive::{Drive, DriveCommand, Feedback, Setpoint};
 use crate::od::Store;
-use controlword::BIT_HALT;
+use crate::quirks::Cia402Quirks;
+use controlword::{BIT_FAULT_RESET, BIT_HALT};
 use factor::{sat_i32, Factor};
 use objects as o;
 use profile::Axis;
@@ -89,7 +90,9 @@ pub(crate) struct Ctx<'a> {
     pub now: u64,
     pub dt: f64,
     pub cw: u16,
-    pub prev_cw: u16,
+    /// Rising edges of the controlword this tick: against the previous tick's, and those
+    /// written and overwritten since (latched when written).
+    pub rising: u16,
     pub halt: bool,
     pub halt_dec: f64,
     pub axis: Axis,
@@ -144,6 +147,22 @@ fn max_motor_inc_per_s(store: &Store) -> f64 {
     store.u32(o::MAX_MOTOR_SPEED) as f64 / 60.0 * store.u32(o::ENC_INC) as f64 / revs
 }
 
+/// What the node hands a tick besides the store and the drive's feedback: the time of the
+/// latest SYNC since the previous tick, the CSP interpolation period (0 = none), and the
+/// controlword to act on: its level and the rising edges written since the last tick
+/// (`quirks::ControlwordLatch`).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct TickControl {
+    /// Time of the latest SYNC since the previous tick.
+    pub sync_at: Option<u64>,
+    /// The CSP interpolation period, us (0 = none).
+    pub csp_period_us: u64,
+    /// The controlword (0x6040, or with a hold time the last value that stood long enough).
+    pub level: u16,
+    /// Rising edges of bits 7 and 4 written since the last tick.
+    pub latched: u16,
+}
+
 /// Results of one tick the node reacts to.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct StepOut {
@@ -179,13 +198,19 @@ pub(crate) struct Cia402 {
     /// A communication loss whose reaction (0x6007 = 1) is a fault is still present (the
     /// node sets it each tick): a fault reset is refused meanwhile.
     pub comm_fault_present: bool,
+    /// The vendor switches of the CiA 402 layer (docs/quirks.md).
+    pub quirks: Cia402Quirks,
+    /// QUICK STOP ACTIVE has been published (in a statusword) since it was entered.
+    qsa_shown: bool,
+    /// Manufacturer-specific statusword bits the node sets (bit 15 after a late SYNC).
+    pub status_extra: u16,
     pub statusword: u16,
     pub following_error_uu: f64,
     pub position_actual_uu: i32,
 }
 
 impl Cia402 {
-    pub fn new(factor: Factor) -> Cia402 {
+    pub fn new(factor: Factor, quirks: Cia402Quirks) -> Cia402 {
         Cia402 {
             state: State::NotReadyToSwitchOn,
             prev_cw: 0,
@@ -205,6 +230,9 @@ impl Cia402 {
             last_now: None,
             local_qs: false,
             comm_fault_present: false,
+            quirks,
+            qsa_shown: false,
+            status_extra: 0,
             statusword: 0,
             following_error_uu: 0.0,
             position_actual_uu: 0,
@@ -284,18 +312,18 @@ impl Cia402 {
     /// One tick, in stages: read the inputs, enter a fault the drive or a reaction raised,
     /// apply the controlword's transition, run what the state does (the mode of operation
     /// in OPERATION ENABLED, the stop ramps elsewhere), monitor the following error, then
-    /// compose the statusword and publish the actual values. `sync_at`: time of the latest
-    /// SYNC since the previous tick; `csp_period_us`: the CSP interpolation period (0 = none).
+    /// compose the statusword and publish the actual values. `control`: the SYNC, the CSP
+    /// period and the controlword of this tick.
     pub fn step(
         &mut self,
         store: &mut Store,
         fb: &Feedback,
         now_us: u64,
-        sync_at: Option<u64>,
-        csp_period_us: u64,
+        control: TickControl,
         drive: &mut impl Drive,
     ) -> StepOut {
-        let input = self.read_inputs(store, fb, now_us);
+        let (sync_at, csp_period_us) = (control.sync_at, control.csp_period_us);
+        let input = self.read_inputs(store, fb, now_us, control);
         let mut out = StepOut {
             command: DriveCommand {
                 setpoint: Setpoint::Disabled,
@@ -311,7 +339,7 @@ impl Cia402 {
             self.state = State::SwitchOnDisabled;
         }
         let was = self.state;
-        let deferred = self.apply_controlword(store, input.cw, drive, &mut out);
+        let deferred = self.apply_controlword(store, &input, drive, &mut out);
 
         let requested = store.i32(o::MODE) as i8;
         let mut ctx = self.context(store, fb, &input, now_us);
@@ -336,7 +364,13 @@ impl Cia402 {
 
     /// Stage 1: the tick's time step, the factor group (0x608F, 0x6091, 0x6092, if valid),
     /// the actual position and speed the loops use, and the controlword 0x6040.
-    fn read_inputs(&mut self, store: &Store, fb: &Feedback, now_us: u64) -> TickInput {
+    fn read_inputs(
+        &mut self,
+        store: &Store,
+        fb: &Feedback,
+        now_us: u64,
+        control: TickControl,
+    ) -> TickInput {
         let dt = match self.last_now {
             Some(l) => (now_us.saturating_sub(l) as f64 * 1e-6).min(0.1),
             None => 0.0,
@@ -362,7 +396,7 @@ impl Cia402 {
         } else {
             0.0
         };
-        let cw = store.u32(o::CONTROLWORD) as u16;
+        let cw = control.level;
         if cw & 0x04 == 0 {
             self.local_qs = false;
         }
@@ -371,6 +405,7 @@ impl Cia402 {
             act_inc,
             act_vel,
             cw,
+            rising: (cw & !self.prev_cw) | control.latched,
         }
     }
 
@@ -388,31 +423,44 @@ impl Cia402 {
         }
     }
 
-    /// Stage 3: the transition the controlword asks for. Returns the state to enter once the axis has stopped when 0x605C / 0x605B ask
-    /// for a ramp before disabling (transitions 5 and 8).
+    /// Stage 3: the transitions the controlword asks for, in the order written: a fault
+    /// reset (a rising edge of bit 7 this tick, or one latched since the last), then the
+    /// command of the controlword's level (0x0080 then 0x0006 written within one tick are
+    /// transitions 15 and 2). Returns the state to enter once the axis has stopped when 0x605C
+    /// / 0x605B ask for a ramp before disabling (transitions 5 and 8).
     fn apply_controlword(
         &mut self,
         store: &mut Store,
-        cw: u16,
+        input: &TickInput,
         drive: &mut impl Drive,
         out: &mut StepOut,
     ) -> Option<State> {
-        let cmd = controlword::decode(cw, self.prev_cw);
-        let qs_opt = store.i32(o::QS_OPTION) as i16;
-        let (next, n) = state_machine::transition(self.state, cmd, qs_opt)?;
-        match n {
-            15 => {
-                // CiA 402: fault reset only when no fault is present (a supervised
-                // condition that faulted the drive, or the drive's own); refused, the drive
-                // stays in FAULT with its one error and sends nothing
-                if !self.comm_fault_present && drive.reset_fault() {
-                    self.state = next;
-                    self.fault_code = 0;
-                    self.fe_flag = false;
-                    store.set_u32(o::ERROR_CODE, 0);
-                    out.fault_cleared = true;
-                }
+        let cw = input.cw;
+        if input.rising & BIT_FAULT_RESET != 0 && self.state == State::Fault {
+            // CiA 402: fault reset only when no fault is present (a supervised condition
+            // that faulted the drive, or the drive's own); refused, the drive stays in FAULT
+            // with its one error and sends nothing
+            if !self.comm_fault_present && drive.reset_fault() {
+                self.state = State::SwitchOnDisabled;
+                self.fault_code = 0;
+                self.fe_flag = false;
+                store.set_u32(o::ERROR_CODE, 0);
+                out.fault_cleared = true;
             }
+        }
+        // the level alone (the edge was handled above)
+        let cmd = controlword::decode(cw, cw | BIT_FAULT_RESET);
+        let qs_opt = store.i32(o::QS_OPTION) as i16;
+        let (mut next, mut n) = state_machine::transition(self.state, cmd, qs_opt)?;
+        if n == 4 && self.quirks.enable_requires_mode && store.i32(o::MODE) == 0 {
+            // enable_requires_mode (docs/quirks.md 3.1): no OPERATION ENABLED without a mode;
+            // from READY TO SWITCH ON, "3+4" does 3 only
+            if self.state != State::ReadyToSwitchOn {
+                return None;
+            }
+            (next, n) = (State::SwitchedOn, 3);
+        }
+        match n {
             5 if store.i32(o::DISABLE_OP_OPTION) == 1 => return Some(next),
             8 if store.i32(o::SHUTDOWN_OPTION) == 1 => return Some(next),
             16 if self.local_qs => {}
@@ -440,7 +488,7 @@ impl Cia402 {
             now: now_us,
             dt: input.dt,
             cw: input.cw,
-            prev_cw: self.prev_cw,
+            rising: input.rising,
             halt: false,
             halt_dec: 0.0,
             axis: self.axis,
@@ -464,14 +512,24 @@ impl Cia402 {
             };
         }
         if self.state == State::OperationEnabled && was != State::OperationEnabled {
-            self.mode_display = requested;
+            self.mode_display = self.mode_to_run(requested, input.cw);
             if was != State::QuickStopActive {
                 ctx.axis = Axis {
                     pos: input.act_inc,
                     vel: 0.0,
                 };
             }
-            self.enter_mode(ctx, requested);
+            self.enter_mode(ctx, self.mode_display);
+        }
+    }
+
+    /// The mode 0x6061 takes when 0x6060 asks for `requested`: it, unless
+    /// `mode_change_blocked_by_halt` keeps the mode in force while bit 8 is set (3.2).
+    fn mode_to_run(&self, requested: i8, cw: u16) -> i8 {
+        if self.quirks.mode_change_blocked_by_halt && cw & BIT_HALT != 0 {
+            self.mode_display
+        } else {
+            requested
         }
     }
 
@@ -494,7 +552,7 @@ impl Cia402 {
             State::QuickStopActive => self.quick_stop(ctx),
             State::FaultReactionActive => self.fault_reaction(ctx),
             _ => {
-                self.mode_display = requested;
+                self.mode_display = self.mode_to_run(requested, ctx.cw);
                 ModeOut::default()
             }
         }
@@ -523,6 +581,7 @@ impl Cia402 {
         sync_at: Option<u64>,
         csp_period_us: u64,
     ) -> ModeOut {
+        let requested = self.mode_to_run(requested, ctx.cw);
         if requested != self.mode_display {
             self.mode_display = requested;
             self.enter_mode(ctx, requested);
@@ -550,22 +609,27 @@ impl Cia402 {
     }
 
     /// QUICK STOP ACTIVE: ramp on 0x6084 or 0x6085 as 0x605A says; options 1..=4 then go to
-    /// SWITCH ON DISABLED, 5..=8 stay and hold; option 0 disables at once.
+    /// SWITCH ON DISABLED, 5..=8 stay and hold; option 0 disables at once. The automatic
+    /// transition 12 waits until a statusword has shown QUICK STOP ACTIVE (CiA 402: it is a
+    /// state with its own statusword), unless `quick_stop_skips_active_state` (3.12).
     fn quick_stop(&mut self, ctx: &mut Ctx) -> ModeOut {
         let qs_opt = ctx.store.i32(o::QS_OPTION) as i16;
+        let may_leave = self.qsa_shown || self.quirks.quick_stop_skips_active_state;
         let dec = match qs_opt {
             1 | 5 => ctx.acc(o::PROFILE_DEC),
             _ => ctx.acc(o::QS_DEC),
         };
         let mut mo = ModeOut::default();
         if qs_opt == 0 {
-            self.state = State::SwitchOnDisabled;
+            if may_leave {
+                self.state = State::SwitchOnDisabled;
+            }
         } else {
             let standing = ctx.axis.stop(dec, ctx.dt);
             mo.setpoint = hold(&ctx.axis);
             mo.position_mode = true;
             mo.target_reached = standing;
-            if standing && (1..=4).contains(&qs_opt) {
+            if standing && (1..=4).contains(&qs_opt) && may_leave {
                 self.state = State::SwitchOnDisabled;
                 mo.setpoint = Setpoint::Disabled;
             }
@@ -631,8 +695,10 @@ impl Cia402 {
         fe_uu
     }
 
-    /// Stage 7: statusword 0x6041 from the state and what the mode reported.
-    fn compose_statusword(&self, mo: &ModeOut) -> u16 {
+    /// Stage 7: statusword 0x6041 from the state and what the mode reported (and the bits a
+    /// vendor switch hides or adds).
+    fn compose_statusword(&mut self, mo: &ModeOut) -> u16 {
+        self.qsa_shown = self.state == State::QuickStopActive;
         let mut s = sw::state_bits(self.state) | sw::BIT_REMOTE;
         let oe = self.state == State::OperationEnabled;
         if (oe || self.state == State::QuickStopActive) && mo.target_reached {
@@ -657,7 +723,10 @@ impl Cia402 {
         {
             s |= sw::BIT_OMS13;
         }
-        s
+        if self.mode_display == mode::value::HM {
+            s &= !self.quirks.homing_hidden_bits;
+        }
+        s | self.status_extra
     }
 
     /// Stage 8: the statusword, mode display and actual values (0x6062..0x6078, 0x60E4,
@@ -713,8 +782,10 @@ struct TickInput {
     act_inc: f64,
     /// Motor speed, increments/s (0 if the drive reported a non-finite value).
     act_vel: f64,
-    /// Controlword 0x6040.
+    /// Controlword (its level this tick).
     cw: u16,
+    /// Its rising edges this tick (against the last tick's, and latched since).
+    rising: u16,
 }
 
 fn hold(a: &Axis) -> Setpoint {

@@ -37,7 +37,7 @@ impl Pp {
 
     pub fn step(&mut self, ctx: &mut Ctx) -> ModeOut {
         let mut out = ModeOut::default();
-        let rising = ctx.cw & BIT_NEW_SETPOINT != 0 && ctx.prev_cw & BIT_NEW_SETPOINT == 0;
+        let rising = ctx.rising & BIT_NEW_SETPOINT != 0;
         if rising {
             let raw = ctx.store.i32(o::TARGET_POSITION) as f64;
             let base = if ctx.cw & BIT_RELATIVE != 0 {
@@ -64,7 +64,8 @@ impl Pp {
                 self.ack = true;
             }
         }
-        if ctx.cw & BIT_NEW_SETPOINT == 0 {
+        // a pulse written within one tick is acknowledged for one statusword
+        if ctx.cw & BIT_NEW_SETPOINT == 0 && !rising {
             self.ack = false;
         }
         let reached_now;

@@ -456,3 +456,53 @@ impl Bench {
             .collect()
     }
 }
+
+/// Every vendor switch on (docs/quirks.md), with parameters that let the cycle run: the
+/// switches' hooks (SDO gate and delay queue, controlword latch and hold, SYNC watchdog and
+/// lateness, the boot's heartbeats and ready deadline) do not allocate either.
+pub fn every_switch() -> drive_protocol::Quirks {
+    use drive_protocol::quirks::*;
+    Quirks {
+        enable_requires_mode: true,
+        mode_change_blocked_by_halt: true,
+        homing_status_bits_missing: Some(HomingBitsMissing {
+            target_reached: true,
+            attained: true,
+        }),
+        homing_method_zero: HomingMethodZero::Ignore,
+        bootup_then_heartbeat: Some(BootupThenHeartbeat {
+            first_heartbeat_after_bootup_us: 100,
+            heartbeat_ms_default: 10,
+        }),
+        not_ready_after_bootup: Some(NotReadyAfterBootup {
+            ready_after_ms: 20,
+            initialising_heartbeat_ms: 5,
+        }),
+        sdo_response_delay: Some(SdoResponseDelay {
+            delay_ms: 1,
+            late_delay_ms: 3,
+            late_every: 4,
+        }),
+        sdo_first_upload_dropped: Some(SdoFirstUploadDropped {
+            objects: ObjectList::parse(&["0x6041:0", "0x1000:0"]).unwrap(),
+            count: 2,
+        }),
+        pdo_remap_lenient: true,
+        tpdo_rtr_unsupported: Some(TpdoRtrUnsupported {
+            abort_code: 0x0609_0030,
+        }),
+        controlword_min_hold: Some(ControlwordMinHold { hold_us: 500 }),
+        quick_stop_skips_active_state: true,
+        sync_watchdog: Some(SyncWatchdog {
+            missed_periods: 100.0,
+            period_from: WatchdogPeriod::Interpolation,
+            modes: [7i8, 8].into_iter().collect(),
+            emcy_code: 0x8100,
+        }),
+        late_sync_statusword_bit15: Some(LateSyncBit15 {
+            late_tolerance_us: 200,
+        }),
+        unmappable_objects: Some(ObjectList::parse(&["0x6077:0"]).unwrap()),
+        sdo_silent_objects: Some(ObjectList::parse(&["0x1800-0x1803:5"]).unwrap()),
+    }
+}

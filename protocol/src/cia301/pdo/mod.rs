@@ -188,6 +188,8 @@ pub struct PdoEngine {
     pub rpdo: Vec<Pdo>,
     /// The TPDOs the dictionary has, by number.
     pub tpdo: Vec<Pdo>,
+    /// The write rules a vendor profile changes (docs/quirks.md 3.9, 3.10, 3.15).
+    pub(crate) rules: crate::quirks::PdoRules,
 }
 
 impl PdoEngine {
@@ -207,6 +209,7 @@ impl PdoEngine {
         PdoEngine {
             rpdo: list(Direction::Rx),
             tpdo: list(Direction::Tx),
+            rules: Default::default(),
         }
     }
 
@@ -301,7 +304,7 @@ impl PdoEngine {
         let k = self.position(param)?;
         let pdo = self.list(param.dir)[k];
         Some(
-            rules::check_write(od, store, &pdo, param, sub, raw).map(|()| {
+            rules::check_write(od, store, &pdo, param, sub, raw, &self.rules).map(|()| {
                 store.set(slot, raw);
                 self.refresh(od, store, k, param.dir);
             }),

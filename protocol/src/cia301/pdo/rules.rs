@@ -1,11 +1,13 @@
 //! The SDO write rules of the PDO parameters (CiA 301 7.5.2.35 ff.), in one place. Types and
 //! limits of the object dictionary are checked before; what is here is what depends on the
-//! PDO's state. Each rule returns the abort code CiA 301 names.
+//! PDO's state. Each rule returns the abort code CiA 301 names. A vendor profile changes three
+//! of them ([`PdoRules`], docs/quirks.md 3.9, 3.10, 3.15).
 
 use super::layout::{self, Param};
 use super::{check_entry, compile, Direction, Pdo, TransmissionType, COB_EXTENDED, COB_INVALID};
 use crate::cia301::sdo::abort;
 use crate::od::{ObjectDictionary, Store};
+use crate::quirks::PdoRules;
 
 /// Whether the PDO is valid (COB-ID bit 31 clear) as stored.
 pub fn is_valid(store: &Store, pdo: &Pdo) -> bool {
@@ -20,16 +22,19 @@ pub fn check_write(
     param: Param,
     sub: u8,
     raw: u64,
+    rules: &PdoRules,
 ) -> Result<(), u32> {
     if param.mapping {
-        check_mapping_write(od, store, pdo, param, sub, raw)
+        check_mapping_write(od, store, pdo, param, sub, raw, rules)
     } else {
-        check_comm_write(store, pdo, param, sub, raw)
+        check_comm_write(store, pdo, param, sub, raw, rules)
     }
 }
 
-/// Mapping record: only while the PDO is invalid; entries only while sub 0 is 0; sub 0 only
-/// to a count whose entries map (0x06040041) and fit in 8 bytes (0x06040042).
+/// Mapping record: only while the PDO is invalid; entries only while sub 0 is 0 (CiA 301
+/// 7.5.2.36; with `lenient_remap` also while it is not, if the mapping with the new entry
+/// still fits); sub 0 only to a count whose entries map (0x06040041) and fit in 8 bytes
+/// (0x06040042). An entry naming an object of `unmappable` is refused (0x06040041).
 fn check_mapping_write(
     od: &ObjectDictionary,
     store: &Store,
@@ -37,6 +42,7 @@ fn check_mapping_write(
     param: Param,
     sub: u8,
     raw: u64,
+    rules: &PdoRules,
 ) -> Result<(), u32> {
     let tx = param.dir == Direction::Tx;
     if is_valid(store, pdo) {
@@ -44,21 +50,76 @@ fn check_mapping_write(
     }
     if sub == 0 {
         compile(od, store, &pdo.slots, raw as usize, tx)?;
-    } else {
-        if pdo.slots.count.is_some_and(|s| store.u32(s as usize) != 0) {
-            return Err(abort::UNSUPPORTED_ACCESS);
+        return Ok(());
+    }
+    let count = pdo
+        .slots
+        .count
+        .map_or(0, |s| store.u32(s as usize) as usize);
+    if count != 0 && !rules.lenient_remap {
+        return Err(abort::UNSUPPORTED_ACCESS);
+    }
+    if raw != 0 {
+        let entry = raw as u32;
+        if rules
+            .unmappable
+            .contains((entry >> 16) as u16, (entry >> 8) as u8)
+        {
+            return Err(abort::NOT_MAPPABLE);
         }
-        if raw != 0 {
-            check_entry(od, raw as u32, tx)?;
-        }
+        check_entry(od, entry, tx)?;
+    }
+    if count != 0 && usize::from(sub) <= count {
+        // lenient: the mapping in force, with this entry in place, must still compile
+        mapped_length_with(od, store, pdo, count, tx, sub, raw as u32)?;
     }
     Ok(())
 }
 
+/// The length of `pdo`'s first `count` entries with entry `sub` replaced by `entry`.
+fn mapped_length_with(
+    od: &ObjectDictionary,
+    store: &Store,
+    pdo: &Pdo,
+    count: usize,
+    tx: bool,
+    sub: u8,
+    entry: u32,
+) -> Result<usize, u32> {
+    let mut len = 0;
+    for k in 0..count {
+        let value = if k + 1 == usize::from(sub) {
+            entry
+        } else {
+            let slot = pdo.slots.entries[k].ok_or(abort::NOT_MAPPABLE)?;
+            store.u32(slot as usize)
+        };
+        len += check_entry(od, value, tx)?.bytes();
+    }
+    if len > 8 {
+        return Err(abort::PDO_LENGTH);
+    }
+    Ok(len)
+}
+
 /// Communication record.
-fn check_comm_write(store: &Store, pdo: &Pdo, param: Param, sub: u8, raw: u64) -> Result<(), u32> {
+fn check_comm_write(
+    store: &Store,
+    pdo: &Pdo,
+    param: Param,
+    sub: u8,
+    raw: u64,
+    rules: &PdoRules,
+) -> Result<(), u32> {
     let valid = is_valid(store, pdo);
     match sub {
+        // a drive without RTR keeps bit 30 in a TPDO's COB-ID (docs/quirks.md 3.10)
+        1 if param.dir == Direction::Tx
+            && raw as u32 & super::COB_NO_RTR == 0
+            && rules.no_rtr_abort.is_some() =>
+        {
+            Err(rules.no_rtr_abort.unwrap_or(abort::VALUE_RANGE))
+        }
         1 => check_cob_id(store, pdo, valid, raw),
         2 => {
             if raw > 0xFF || !TransmissionType::from_u8(raw as u8).allowed(param.dir) {

@@ -112,6 +112,11 @@ impl SdoServer {
         !matches!(self.state, State::Idle)
     }
 
+    /// The next request is a block download segment (which carries no command specifier).
+    pub(crate) fn expects_block_segment(&self) -> bool {
+        matches!(self.state, State::BlockDownload(st) if st.receiving())
+    }
+
     /// Reset to idle without sending anything (NMT reset).
     pub fn reset(&mut self) {
         self.state = State::Idle;

@@ -1,0 +1,1731 @@
+//! Vendor behaviour profiles (docs/quirks.md section 4, schema 1): TOML files that turn the
+//! node's vendor switches ([`drive_protocol::Quirks`]) on and set the drive's identity and
+//! boot delays. The profiles of `profiles/` are embedded in the binary; `--profile PATH.toml`
+//! loads another. On top of a profile: a machine file's `quirks = {...}` per axis and the
+//! command line's `--quirk NAME[.PARAM=VALUE]` / `--no-quirk NAME`, each as one more child.
+//!
+//! Every switch and parameter is described once, in [`SWITCHES`]: validation, defaults and
+//! `drive-emu profiles` read the same table. Errors name the file, line, key and reason
+//! (`profiles/x.toml:7: quirks.sdo_response_delay.delay_ms: 70000 out of range 0..=5000 (ms)`)
+//! and nothing is started with a profile that did not validate.
+
+use drive_protocol::quirks::{
+    BootupThenHeartbeat, ControlwordMinHold, HomingBitsMissing, HomingMethodZero, LateSyncBit15,
+    NotReadyAfterBootup, ObjectList, SdoFirstUploadDropped, SdoResponseDelay, SyncWatchdog,
+    TpdoRtrUnsupported, WatchdogPeriod,
+};
+use drive_protocol::Quirks;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+/// The schema version this drive-emu reads.
+pub const SCHEMA: i64 = 1;
+
+/// The profiles shipped in `profiles/`, embedded at build time: (name, text).
+pub const EMBEDDED: [(&str, &str); 11] = [
+    ("strict", include_str!("../../../profiles/strict.toml")),
+    (
+        "copley-accelnet",
+        include_str!("../../../profiles/copley-accelnet.toml"),
+    ),
+    (
+        "delta-asda-a2",
+        include_str!("../../../profiles/delta-asda-a2.toml"),
+    ),
+    (
+        "engel-hbi",
+        include_str!("../../../profiles/engel-hbi.toml"),
+    ),
+    (
+        "faulhaber-mc5004",
+        include_str!("../../../profiles/faulhaber-mc5004.toml"),
+    ),
+    (
+        "isel-imd20",
+        include_str!("../../../profiles/isel-imd20.toml"),
+    ),
+    ("jvl-mis", include_str!("../../../profiles/jvl-mis.toml")),
+    (
+        "maxon-epos4",
+        include_str!("../../../profiles/maxon-epos4.toml"),
+    ),
+    (
+        "nanotec-pd4c",
+        include_str!("../../../profiles/nanotec-pd4c.toml"),
+    ),
+    (
+        "roboteq-fbl2360",
+        include_str!("../../../profiles/roboteq-fbl2360.toml"),
+    ),
+    (
+        "technosoft-ipos",
+        include_str!("../../../profiles/technosoft-ipos.toml"),
+    ),
+];
+
+// ------------------------------------------------------------------ the schema, as data
+
+/// A parameter's type and range.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ParamType {
+    /// An integer in `min..=max`, with its unit (for messages).
+    Int {
+        /// Lowest value.
+        min: i64,
+        /// Highest value.
+        max: i64,
+        /// Unit word, e.g. `ms` (empty: none).
+        unit: &'static str,
+        /// Written in hex in listings (codes).
+        hex: bool,
+    },
+    /// A number in `min..=max`.
+    Float {
+        /// Lowest value.
+        min: f64,
+        /// Highest value.
+        max: f64,
+    },
+    /// One of these strings.
+    OneOf(&'static [&'static str]),
+    /// A non-empty list of these strings.
+    ListOf(&'static [&'static str]),
+    /// A non-empty list of objects (`"0xIIII:S"`, ranges).
+    Objects,
+    /// A non-empty list of mode of operation values (i8).
+    Modes,
+}
+
+/// A parameter of a switch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamSpec {
+    /// Its key.
+    pub name: &'static str,
+    /// Its type.
+    pub ty: ParamType,
+    /// Its default as TOML text (`None`: required).
+    pub default: Option<&'static str>,
+}
+
+/// A switch of schema 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SwitchSpec {
+    /// Its name.
+    pub name: &'static str,
+    /// Section of docs/quirks.md.
+    pub section: &'static str,
+    /// `quirk` (off by default) or `rule` (a choice the standard leaves open, `strict` its
+    /// default value).
+    pub kind: &'static str,
+    /// What the drive does with it, one line.
+    pub summary: &'static str,
+    /// Its parameters.
+    pub params: &'static [ParamSpec],
+}
+
+const fn int(
+    name: &'static str,
+    min: i64,
+    max: i64,
+    unit: &'static str,
+    d: &'static str,
+) -> ParamSpec {
+    ParamSpec {
+        name,
+        ty: ParamType::Int {
+            min,
+            max,
+            unit,
+            hex: false,
+        },
+        default: Some(d),
+    }
+}
+
+const fn code(name: &'static str, max: i64, d: &'static str) -> ParamSpec {
+    ParamSpec {
+        name,
+        ty: ParamType::Int {
+            min: 0,
+            max,
+            unit: "",
+            hex: true,
+        },
+        default: Some(d),
+    }
+}
+
+const U16: i64 = u16::MAX as i64;
+const U32: i64 = u32::MAX as i64;
+
+/// Every switch of schema 1, in the order of docs/quirks.md.
+pub const SWITCHES: [SwitchSpec; 16] = [
+    SwitchSpec {
+        name: "enable_requires_mode",
+        section: "3.1",
+        kind: "quirk",
+        summary: "no OPERATION ENABLED while 0x6060 is 0: enable stays in SWITCHED ON",
+        params: &[],
+    },
+    SwitchSpec {
+        name: "mode_change_blocked_by_halt",
+        section: "3.2",
+        kind: "quirk",
+        summary: "0x6061 does not follow 0x6060 while controlword bit 8 (halt) is set",
+        params: &[],
+    },
+    SwitchSpec {
+        name: "homing_status_bits_missing",
+        section: "3.3",
+        kind: "quirk",
+        summary: "homing never sets these statusword bits",
+        params: &[ParamSpec {
+            name: "bits",
+            ty: ParamType::ListOf(&["target_reached", "attained"]),
+            default: Some("[\"attained\"]"),
+        }],
+    },
+    SwitchSpec {
+        name: "homing_method_zero",
+        section: "3.4",
+        kind: "rule",
+        summary: "what a write of 0 to 0x6098 does",
+        params: &[ParamSpec {
+            name: "zero",
+            ty: ParamType::OneOf(&["store", "ignore", "refuse"]),
+            default: Some("\"store\""),
+        }],
+    },
+    SwitchSpec {
+        name: "bootup_then_heartbeat",
+        section: "3.5",
+        kind: "quirk",
+        summary: "a heartbeat right after the boot-up hides it from a master watching the last state",
+        params: &[
+            int("first_heartbeat_after_bootup_us", 0, 1_000_000, "us", "100"),
+            int("heartbeat_ms_default", 0, U16, "ms", "100"),
+        ],
+    },
+    SwitchSpec {
+        name: "not_ready_after_bootup",
+        section: "3.6",
+        kind: "quirk",
+        summary: "after the boot-up, heartbeat 0x00 and no SDO or NMT answer until ready",
+        params: &[
+            int("ready_after_ms", 1, 600_000, "ms", "3000"),
+            int("initialising_heartbeat_ms", 0, U16, "ms", "100"),
+        ],
+    },
+    SwitchSpec {
+        name: "sdo_response_delay",
+        section: "3.7",
+        kind: "quirk",
+        summary: "SDO answers leave late (every late_every-th service later still)",
+        params: &[
+            int("delay_ms", 0, 5000, "ms", "10"),
+            int("late_delay_ms", 0, 5000, "ms", "0"),
+            int("late_every", 0, U32, "", "0"),
+        ],
+    },
+    SwitchSpec {
+        name: "sdo_first_upload_dropped",
+        section: "3.8",
+        kind: "quirk",
+        summary: "the first uploads of these objects after each boot get no answer",
+        params: &[
+            ParamSpec {
+                name: "objects",
+                ty: ParamType::Objects,
+                default: Some("[\"0x6061:0\"]"),
+            },
+            int("count", 1, 255, "", "1"),
+        ],
+    },
+    SwitchSpec {
+        name: "pdo_remap_lenient",
+        section: "3.9",
+        kind: "rule",
+        summary: "mapping entries accepted while sub 0 != 0 (strict, Copley: abort 0x06010000)",
+        params: &[],
+    },
+    SwitchSpec {
+        name: "tpdo_rtr_unsupported",
+        section: "3.10",
+        kind: "quirk",
+        summary: "TPDO COB-IDs keep bit 30 (no RTR); a write clearing it is aborted",
+        params: &[code("abort_code", U32, "0x06090030")],
+    },
+    SwitchSpec {
+        name: "controlword_min_hold",
+        section: "3.11",
+        kind: "quirk",
+        summary: "a controlword value replaced within hold_us is never acted on",
+        params: &[int("hold_us", 1, 100_000, "us", "1000")],
+    },
+    SwitchSpec {
+        name: "quick_stop_skips_active_state",
+        section: "3.12",
+        kind: "quirk",
+        summary: "a quick stop at standstill goes to SWITCH ON DISABLED without showing QUICK STOP ACTIVE",
+        params: &[],
+    },
+    SwitchSpec {
+        name: "sync_watchdog",
+        section: "3.13",
+        kind: "quirk",
+        summary: "a fault when SYNC is missing for missed_periods in OPERATION ENABLED in modes",
+        params: &[
+            ParamSpec {
+                name: "missed_periods",
+                ty: ParamType::Float {
+                    min: 1.0,
+                    max: 100.0,
+                },
+                default: Some("2.0"),
+            },
+            ParamSpec {
+                name: "period_from",
+                ty: ParamType::OneOf(&["0x60C2", "0x1006"]),
+                default: Some("\"0x60C2\""),
+            },
+            ParamSpec {
+                name: "modes",
+                ty: ParamType::Modes,
+                default: Some("[7, 8]"),
+            },
+            code("emcy_code", U16, "0x8100"),
+        ],
+    },
+    SwitchSpec {
+        name: "late_sync_statusword_bit15",
+        section: "3.14",
+        kind: "quirk",
+        summary: "statusword bit 15 after a SYNC later than 0x1006 + late_tolerance_us",
+        params: &[int("late_tolerance_us", 0, U32, "us", "200")],
+    },
+    SwitchSpec {
+        name: "unmappable_objects",
+        section: "3.15",
+        kind: "quirk",
+        summary: "mapping entries naming these objects are aborted 0x06040041",
+        params: &[ParamSpec {
+            name: "objects",
+            ty: ParamType::Objects,
+            default: None,
+        }],
+    },
+    SwitchSpec {
+        name: "sdo_silent_objects",
+        section: "3.16",
+        kind: "quirk",
+        summary: "SDO requests for these objects get no answer at all",
+        params: &[ParamSpec {
+            name: "objects",
+            ty: ParamType::Objects,
+            default: None,
+        }],
+    },
+];
+
+/// The `[identity]` keys: (key, what it sets).
+pub const IDENTITY_KEYS: [(&str, &str); 8] = [
+    ("boot_delay_ms", "power-on to boot-up, ms (0..=600000)"),
+    (
+        "reset_node_boot_delay_ms",
+        "NMT reset node to boot-up, ms [boot_delay_ms]",
+    ),
+    (
+        "reset_communication_boot_delay_ms",
+        "NMT reset communication to boot-up, ms [boot_delay_ms]",
+    ),
+    ("device_type", "0x1000"),
+    ("vendor_id", "0x1018:1"),
+    ("product_code", "0x1018:2"),
+    ("revision_number", "0x1018:3"),
+    ("device_name", "0x1008 (at most 64 bytes)"),
+];
+
+const TOP_KEYS: [&str; 6] = [
+    "schema",
+    "name",
+    "description",
+    "extends",
+    "identity",
+    "quirks",
+];
+
+/// Most bytes of `device_name`.
+const DEVICE_NAME_MAX: usize = 64;
+/// Longest boot delay, ms.
+const BOOT_DELAY_MAX_MS: i64 = 600_000;
+
+// ----------------------------------------------------------------------------- errors
+
+/// A profile that cannot be used: where (file and line, when known), which key, why.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ProfileError {
+    /// The file, or the option (`--quirk ...`), the error is in.
+    pub origin: String,
+    /// 1-based line, when known.
+    pub line: Option<usize>,
+    /// The key at fault (`quirks.sdo_response_delay.delay_ms`), empty for the whole file.
+    pub key: String,
+    /// Why.
+    pub reason: String,
+}
+
+impl std::fmt::Display for ProfileError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.origin)?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        if self.key.is_empty() {
+            write!(f, ": {}", self.reason)
+        } else {
+            write!(f, ": {}: {}", self.key, self.reason)
+        }
+    }
+}
+
+impl std::error::Error for ProfileError {}
+
+/// Where a value was written: the file or option and the line.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Loc {
+    origin: String,
+    line: Option<usize>,
+}
+
+impl Loc {
+    fn err(&self, key: impl Into<String>, reason: impl Into<String>) -> ProfileError {
+        ProfileError {
+            origin: self.origin.clone(),
+            line: self.line,
+            key: key.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+fn line_of(src: &str, offset: usize) -> usize {
+    src[..offset.min(src.len())].matches('\n').count() + 1
+}
+
+/// The known name nearest to `name` (edit distance at most 3), for "did you mean".
+fn nearest<'a>(name: &str, known: impl Iterator<Item = &'a str>) -> Option<&'a str> {
+    fn distance(a: &str, b: &str) -> usize {
+        let b: Vec<char> = b.chars().collect();
+        let mut prev: Vec<usize> = (0..=b.len()).collect();
+        for (i, ca) in a.chars().enumerate() {
+            let mut cur = vec![i + 1];
+            for (j, cb) in b.iter().enumerate() {
+                let sub = prev[j] + usize::from(ca != *cb);
+                cur.push(sub.min(prev[j + 1] + 1).min(cur[j] + 1));
+            }
+            prev = cur;
+        }
+        prev[b.len()]
+    }
+    known
+        .map(|k| (distance(name, k), k))
+        .filter(|(d, _)| *d <= 3)
+        .min()
+        .map(|(_, k)| k)
+}
+
+fn unknown(what: &str, name: &str, known: &[&str]) -> String {
+    let hint = nearest(name, known.iter().copied())
+        .map(|n| format!("did you mean `{n}`? "))
+        .unwrap_or_default();
+    format!(
+        "unknown {what} `{name}` ({hint}known: {})",
+        known.join(", ")
+    )
+}
+
+// ------------------------------------------------------------- a switch table, validated
+
+/// One switch's table as written: its keys with their values and where each was written.
+type RawTable = BTreeMap<String, (toml::Value, Loc)>;
+
+/// A validated parameter value.
+#[derive(Clone, Debug, PartialEq)]
+enum Val {
+    Int(i64),
+    Float(f64),
+    Str(&'static str),
+    Strs(Vec<&'static str>),
+    Objects(ObjectList),
+    Modes(Vec<i8>),
+}
+
+fn spec_of(name: &str) -> Option<&'static SwitchSpec> {
+    SWITCHES.iter().find(|s| s.name == name)
+}
+
+fn check_value(spec: &ParamSpec, v: &toml::Value) -> Result<Val, String> {
+    let type_err = |want: &str| format!("{v} is not {want}");
+    match spec.ty {
+        ParamType::Int {
+            min,
+            max,
+            unit,
+            hex,
+        } => {
+            let n = v.as_integer().ok_or_else(|| type_err("an integer"))?;
+            if !(min..=max).contains(&n) {
+                let range = if hex {
+                    format!("{min:#x}..={max:#x}")
+                } else {
+                    format!("{min}..={max}")
+                };
+                let unit = if unit.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({unit})")
+                };
+                return Err(format!("{n} out of range {range}{unit}"));
+            }
+            Ok(Val::Int(n))
+        }
+        ParamType::Float { min, max } => {
+            let x = v
+                .as_float()
+                .or_else(|| v.as_integer().map(|i| i as f64))
+                .ok_or_else(|| type_err("a number"))?;
+            if !(min..=max).contains(&x) {
+                return Err(format!("{x} out of range {min:?}..={max:?}"));
+            }
+            Ok(Val::Float(x))
+        }
+        ParamType::OneOf(words) => {
+            let s = v.as_str().ok_or_else(|| type_err("a string"))?;
+            let quoted: Vec<String> = words.iter().map(|w| format!("\"{w}\"")).collect();
+            words
+                .iter()
+                .find(|w| **w == s)
+                .map(|w| Val::Str(w))
+                .ok_or_else(|| format!("\"{s}\" is not one of {}", quoted.join(", ")))
+        }
+        ParamType::ListOf(words) => {
+            let items = v.as_array().ok_or_else(|| type_err("a list"))?;
+            if items.is_empty() {
+                return Err("an empty list (turn the switch off with enabled = false)".into());
+            }
+            let quoted: Vec<String> = words.iter().map(|w| format!("\"{w}\"")).collect();
+            let mut out = Vec::new();
+            for it in items {
+                let s = it.as_str().ok_or_else(|| format!("{it} is not a string"))?;
+                let w = words
+                    .iter()
+                    .find(|w| **w == s)
+                    .ok_or_else(|| format!("\"{s}\" is not one of {}", quoted.join(", ")))?;
+                out.push(*w);
+            }
+            Ok(Val::Strs(out))
+        }
+        ParamType::Objects => {
+            let items = v.as_array().ok_or_else(|| type_err("a list of objects"))?;
+            if items.is_empty() {
+                return Err("an empty list of objects".into());
+            }
+            let mut texts = Vec::new();
+            for it in items {
+                texts.push(
+                    it.as_str()
+                        .ok_or_else(|| format!("{it} is not a string like \"0x6061:0\""))?
+                        .to_string(),
+                );
+            }
+            ObjectList::parse(&texts).map(Val::Objects)
+        }
+        ParamType::Modes => {
+            let items = v.as_array().ok_or_else(|| type_err("a list of modes"))?;
+            if items.is_empty() {
+                return Err("an empty list of modes".into());
+            }
+            let mut out = Vec::new();
+            for it in items {
+                let n = it
+                    .as_integer()
+                    .filter(|n| (-128..=127).contains(n))
+                    .ok_or_else(|| format!("{it} is not a mode of operation (-128..=127)"))?;
+                out.push(n as i8);
+            }
+            if out.len() > drive_protocol::quirks::MAX_WATCHED_MODES {
+                return Err(format!(
+                    "more than {} modes",
+                    drive_protocol::quirks::MAX_WATCHED_MODES
+                ));
+            }
+            Ok(Val::Modes(out))
+        }
+    }
+}
+
+/// A switch's setting: off, or on with every parameter (defaults filled in).
+#[derive(Clone, Debug, PartialEq)]
+struct Setting {
+    switch: &'static SwitchSpec,
+    /// `None`: `enabled = false`.
+    params: Option<BTreeMap<&'static str, Val>>,
+    /// Where the table was written.
+    loc: Loc,
+}
+
+/// Validate one `[quirks.NAME]` table.
+fn setting(name: &str, table: &RawTable, loc: &Loc) -> Result<Setting, ProfileError> {
+    let names: Vec<&str> = SWITCHES.iter().map(|s| s.name).collect();
+    let spec = spec_of(name)
+        .ok_or_else(|| loc.err(format!("quirks.{name}"), unknown("switch", name, &names)))?;
+    let key = |p: &str| format!("quirks.{name}.{p}");
+    let mut enabled = true;
+    let mut params = BTreeMap::new();
+    for (k, (v, at)) in table {
+        if k == "enabled" {
+            enabled = v
+                .as_bool()
+                .ok_or_else(|| at.err(key(k), format!("{v} is not true or false")))?;
+            continue;
+        }
+        let Some(p) = spec.params.iter().find(|p| p.name == k) else {
+            let mut known: Vec<&str> = spec.params.iter().map(|p| p.name).collect();
+            known.push("enabled");
+            return Err(at.err(key(k), unknown(&format!("parameter of {name}"), k, &known)));
+        };
+        let val = check_value(p, v).map_err(|r| at.err(key(k), r))?;
+        params.insert(p.name, val);
+    }
+    if !enabled {
+        return Ok(Setting {
+            switch: spec,
+            params: None,
+            loc: loc.clone(),
+        });
+    }
+    for p in spec.params {
+        if params.contains_key(p.name) {
+            continue;
+        }
+        let Some(d) = p.default else {
+            return Err(loc.err(
+                format!("quirks.{name}"),
+                format!("parameter `{}` is required", p.name),
+            ));
+        };
+        let v: toml::Value = toml::from_str::<toml::Table>(&format!("v = {d}"))
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or(toml::Value::Boolean(false));
+        let val = check_value(p, &v).map_err(|r| loc.err(key(p.name), format!("default: {r}")))?;
+        params.insert(p.name, val);
+    }
+    Ok(Setting {
+        switch: spec,
+        params: Some(params),
+        loc: loc.clone(),
+    })
+}
+
+impl Setting {
+    /// Set this switch in `q` (its whole setting: on with these parameters, or off).
+    fn apply(&self, q: &mut Quirks) {
+        let int = |k: &str| match self.params.as_ref().and_then(|p| p.get(k)) {
+            Some(Val::Int(n)) => *n,
+            _ => 0,
+        };
+        let p = self.params.as_ref();
+        let on = p.is_some();
+        let get = |k: &str| p.and_then(|p| p.get(k));
+        let objects = |k: &str| match get(k) {
+            Some(Val::Objects(l)) => l.clone(),
+            _ => ObjectList::default(),
+        };
+        match self.switch.name {
+            "enable_requires_mode" => q.enable_requires_mode = on,
+            "mode_change_blocked_by_halt" => q.mode_change_blocked_by_halt = on,
+            "homing_status_bits_missing" => {
+                q.homing_status_bits_missing = match get("bits") {
+                    Some(Val::Strs(b)) => Some(HomingBitsMissing {
+                        target_reached: b.contains(&"target_reached"),
+                        attained: b.contains(&"attained"),
+                    }),
+                    _ => None,
+                }
+            }
+            "homing_method_zero" => {
+                q.homing_method_zero = match get("zero") {
+                    Some(Val::Str("ignore")) => HomingMethodZero::Ignore,
+                    Some(Val::Str("refuse")) => HomingMethodZero::Refuse,
+                    _ => HomingMethodZero::Store,
+                }
+            }
+            "bootup_then_heartbeat" => {
+                q.bootup_then_heartbeat = on.then(|| BootupThenHeartbeat {
+                    first_heartbeat_after_bootup_us: int("first_heartbeat_after_bootup_us") as u32,
+                    heartbeat_ms_default: int("heartbeat_ms_default") as u16,
+                })
+            }
+            "not_ready_after_bootup" => {
+                q.not_ready_after_bootup = on.then(|| NotReadyAfterBootup {
+                    ready_after_ms: int("ready_after_ms") as u32,
+                    initialising_heartbeat_ms: int("initialising_heartbeat_ms") as u16,
+                })
+            }
+            "sdo_response_delay" => {
+                q.sdo_response_delay = on.then(|| SdoResponseDelay {
+                    delay_ms: int("delay_ms") as u32,
+                    late_delay_ms: int("late_delay_ms") as u32,
+                    late_every: int("late_every") as u32,
+                })
+            }
+            "sdo_first_upload_dropped" => {
+                q.sdo_first_upload_dropped = on.then(|| SdoFirstUploadDropped {
+                    objects: objects("objects"),
+                    count: int("count") as u8,
+                })
+            }
+            "pdo_remap_lenient" => q.pdo_remap_lenient = on,
+            "tpdo_rtr_unsupported" => {
+                q.tpdo_rtr_unsupported = on.then(|| TpdoRtrUnsupported {
+                    abort_code: int("abort_code") as u32,
+                })
+            }
+            "controlword_min_hold" => {
+                q.controlword_min_hold = on.then(|| ControlwordMinHold {
+                    hold_us: int("hold_us") as u32,
+                })
+            }
+            "quick_stop_skips_active_state" => q.quick_stop_skips_active_state = on,
+            "sync_watchdog" => {
+                q.sync_watchdog = on.then(|| SyncWatchdog {
+                    missed_periods: match get("missed_periods") {
+                        Some(Val::Float(x)) => *x as f32,
+                        _ => 2.0,
+                    },
+                    period_from: match get("period_from") {
+                        Some(Val::Str("0x1006")) => WatchdogPeriod::CommunicationCycle,
+                        _ => WatchdogPeriod::Interpolation,
+                    },
+                    modes: match get("modes") {
+                        Some(Val::Modes(m)) => m.iter().copied().collect(),
+                        _ => Default::default(),
+                    },
+                    emcy_code: int("emcy_code") as u16,
+                })
+            }
+            "late_sync_statusword_bit15" => {
+                q.late_sync_statusword_bit15 = on.then(|| LateSyncBit15 {
+                    late_tolerance_us: int("late_tolerance_us") as u32,
+                })
+            }
+            "unmappable_objects" => q.unmappable_objects = on.then(|| objects("objects")),
+            "sdo_silent_objects" => q.sdo_silent_objects = on.then(|| objects("objects")),
+            _ => {}
+        }
+    }
+}
+
+// ------------------------------------------------------------------------- a profile file
+
+/// The `[identity]` of a profile: each key optional; a child's keys override one by one.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Identity {
+    /// Power-on to boot-up, ms.
+    pub boot_delay_ms: Option<u32>,
+    /// NMT reset node to boot-up, ms.
+    pub reset_node_boot_delay_ms: Option<u32>,
+    /// NMT reset communication to boot-up, ms.
+    pub reset_communication_boot_delay_ms: Option<u32>,
+    /// 0x1000.
+    pub device_type: Option<u32>,
+    /// 0x1018:1.
+    pub vendor_id: Option<u32>,
+    /// 0x1018:2.
+    pub product_code: Option<u32>,
+    /// 0x1018:3.
+    pub revision_number: Option<u32>,
+    /// 0x1008.
+    pub device_name: Option<String>,
+}
+
+impl Identity {
+    fn merge(&mut self, child: &Identity) {
+        macro_rules! take {
+            ($($f:ident),*) => { $( if child.$f.is_some() { self.$f = child.$f.clone(); } )* };
+        }
+        take!(
+            boot_delay_ms,
+            reset_node_boot_delay_ms,
+            reset_communication_boot_delay_ms,
+            device_type,
+            vendor_id,
+            product_code,
+            revision_number,
+            device_name
+        );
+    }
+
+    /// The identity objects it sets: (index, sub, key, value).
+    pub fn objects(&self) -> Vec<(u16, u8, &'static str, u32)> {
+        [
+            (0x1000, 0, "device_type", self.device_type),
+            (0x1018, 1, "vendor_id", self.vendor_id),
+            (0x1018, 2, "product_code", self.product_code),
+            (0x1018, 3, "revision_number", self.revision_number),
+        ]
+        .into_iter()
+        .filter_map(|(i, s, k, v)| v.map(|v| (i, s, k, v)))
+        .collect()
+    }
+
+    fn set(&mut self, key: &str, v: &toml::Value, loc: &Loc) -> Result<(), ProfileError> {
+        let k = format!("identity.{key}");
+        let num = |max: i64, unit: &str| -> Result<u32, ProfileError> {
+            let n = v
+                .as_integer()
+                .ok_or_else(|| loc.err(&k, format!("{v} is not an integer")))?;
+            if !(0..=max).contains(&n) {
+                return Err(loc.err(&k, format!("{n} out of range 0..={max}{unit}")));
+            }
+            Ok(n as u32)
+        };
+        match key {
+            "boot_delay_ms" => self.boot_delay_ms = Some(num(BOOT_DELAY_MAX_MS, " (ms)")?),
+            "reset_node_boot_delay_ms" => {
+                self.reset_node_boot_delay_ms = Some(num(BOOT_DELAY_MAX_MS, " (ms)")?)
+            }
+            "reset_communication_boot_delay_ms" => {
+                self.reset_communication_boot_delay_ms = Some(num(BOOT_DELAY_MAX_MS, " (ms)")?)
+            }
+            "device_type" => self.device_type = Some(num(U32, "")?),
+            "vendor_id" => self.vendor_id = Some(num(U32, "")?),
+            "product_code" => self.product_code = Some(num(U32, "")?),
+            "revision_number" => self.revision_number = Some(num(U32, "")?),
+            "device_name" => {
+                let s = v
+                    .as_str()
+                    .ok_or_else(|| loc.err(&k, format!("{v} is not a string")))?;
+                if s.len() > DEVICE_NAME_MAX {
+                    return Err(
+                        loc.err(&k, format!("{} bytes, at most {DEVICE_NAME_MAX}", s.len()))
+                    );
+                }
+                self.device_name = Some(s.to_string());
+            }
+            other => {
+                let known: Vec<&str> = IDENTITY_KEYS.iter().map(|(k, _)| *k).collect();
+                return Err(loc.err(&k, unknown("[identity] key", other, &known)));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A table whose values keep where they were written (toml spans keys of a table only through
+/// their values: a key's line is its value's).
+type SpannedTable = BTreeMap<String, Spanned<toml::Value>>;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawProfile {
+    schema: Option<Spanned<toml::Value>>,
+    name: Option<Spanned<toml::Value>>,
+    description: Option<Spanned<toml::Value>>,
+    extends: Option<Spanned<toml::Value>>,
+    identity: Option<Spanned<SpannedTable>>,
+    /// Not spanned itself: `[quirks.X]` headers make it an implicit table, which has no span.
+    quirks: Option<BTreeMap<String, Spanned<SpannedTable>>>,
+}
+
+/// A profile file, parsed and validated on its own (not yet merged with what it extends).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProfileFile {
+    /// Its name (the file stem).
+    pub name: String,
+    /// Its one-line description.
+    pub description: String,
+    /// The profile it extends: (name or path, where written).
+    extends: Option<(String, Loc)>,
+    /// Its `[identity]`.
+    pub identity: Identity,
+    /// Its switch tables, in file order of names.
+    settings: Vec<Setting>,
+    /// Where it came from (`profiles/NAME.toml` for an embedded one, else the path).
+    pub origin: String,
+    /// The directory a relative `extends` path is taken from (none for embedded ones).
+    dir: Option<PathBuf>,
+}
+
+/// A toml error as the profile's error: line, key and reason.
+fn toml_error(e: &toml::de::Error, src: &str, origin: &str) -> ProfileError {
+    let line = e.span().map(|s| line_of(src, s.start));
+    let msg = e.message().trim();
+    // serde's "unknown field `x`, expected one of ..." in the schema's words
+    if let Some(rest) = msg.strip_prefix("unknown field `") {
+        let name = rest.split('`').next().unwrap_or("");
+        return ProfileError {
+            origin: origin.to_string(),
+            line,
+            key: name.to_string(),
+            reason: unknown("top-level key", name, &TOP_KEYS),
+        };
+    }
+    ProfileError {
+        origin: origin.to_string(),
+        line,
+        key: String::new(),
+        reason: msg.to_string(),
+    }
+}
+
+impl ProfileFile {
+    /// Parse `src`; `origin` names it in errors, `stem` is the name it must have, `dir`
+    /// where a relative `extends` path is read from.
+    pub fn parse(
+        src: &str,
+        origin: &str,
+        stem: &str,
+        dir: Option<PathBuf>,
+    ) -> Result<ProfileFile, ProfileError> {
+        let raw: RawProfile = toml::from_str(src).map_err(|e| toml_error(&e, src, origin))?;
+        let at = |span: std::ops::Range<usize>| Loc {
+            origin: origin.to_string(),
+            line: Some(line_of(src, span.start)),
+        };
+        let whole = Loc {
+            origin: origin.to_string(),
+            line: None,
+        };
+        let string = |v: &Option<Spanned<toml::Value>>,
+                      key: &str|
+         -> Result<Option<String>, ProfileError> {
+            match v {
+                None => Ok(None),
+                Some(s) => match s.get_ref().as_str() {
+                    Some(t) => Ok(Some(t.to_string())),
+                    None => Err(at(s.span()).err(key, format!("{} is not a string", s.get_ref()))),
+                },
+            }
+        };
+        let schema = raw
+            .schema
+            .as_ref()
+            .ok_or_else(|| whole.err("schema", "missing (write `schema = 1`)"))?;
+        match schema.get_ref().as_integer() {
+            Some(SCHEMA) => {}
+            Some(n) => {
+                return Err(at(schema.span()).err(
+                    "schema",
+                    format!("{n} not supported (this drive-emu reads schema {SCHEMA})"),
+                ))
+            }
+            None => {
+                return Err(at(schema.span())
+                    .err("schema", format!("{} is not an integer", schema.get_ref())))
+            }
+        }
+        let name = string(&raw.name, "name")?
+            .ok_or_else(|| whole.err("name", "missing (the file's stem)"))?;
+        if name != stem {
+            let span = raw.name.as_ref().map(|s| s.span()).unwrap_or(0..0);
+            return Err(at(span).err(
+                "name",
+                format!("\"{name}\" is not the file's stem \"{stem}\""),
+            ));
+        }
+        let description = string(&raw.description, "description")?
+            .ok_or_else(|| whole.err("description", "missing (one line)"))?;
+        if description.contains('\n') {
+            let span = raw.description.as_ref().map(|s| s.span()).unwrap_or(0..0);
+            return Err(at(span).err("description", "more than one line"));
+        }
+        let extends = match (&raw.extends, string(&raw.extends, "extends")?) {
+            (Some(s), Some(t)) => Some((t, at(s.span()))),
+            _ => None,
+        };
+        let mut identity = Identity::default();
+        if let Some(t) = &raw.identity {
+            for (k, v) in t.get_ref() {
+                identity.set(k, v.get_ref(), &at(v.span()))?;
+            }
+        }
+        let mut settings = Vec::new();
+        if let Some(q) = &raw.quirks {
+            for (k, table) in q {
+                let raw_table: RawTable = table
+                    .get_ref()
+                    .iter()
+                    .map(|(pk, pv)| (pk.clone(), (pv.get_ref().clone(), at(pv.span()))))
+                    .collect();
+                settings.push(setting(k, &raw_table, &at(table.span()))?);
+            }
+        }
+        Ok(ProfileFile {
+            name,
+            description,
+            extends,
+            identity,
+            settings,
+            origin: origin.to_string(),
+            dir,
+        })
+    }
+
+    /// The embedded profile `name`.
+    pub fn embedded(name: &str) -> Option<Result<ProfileFile, ProfileError>> {
+        EMBEDDED
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(n, text)| ProfileFile::parse(text, &format!("profiles/{n}.toml"), n, None))
+    }
+
+    /// A profile by name (embedded) or path (ending in `.toml`; relative to `dir`).
+    pub fn load(which: &str, dir: Option<&Path>) -> Result<ProfileFile, ProfileError> {
+        if which.ends_with(".toml") || which.contains('/') {
+            let p = Path::new(which);
+            let path = match dir {
+                Some(d) if p.is_relative() => d.join(p),
+                _ => p.to_path_buf(),
+            };
+            let origin = path.display().to_string();
+            let src = std::fs::read_to_string(&path).map_err(|e| ProfileError {
+                origin: origin.clone(),
+                line: None,
+                key: String::new(),
+                reason: format!("cannot read the profile: {e}"),
+            })?;
+            let stem = path
+                .file_stem()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_default();
+            return ProfileFile::parse(&src, &origin, &stem, path.parent().map(Path::to_path_buf));
+        }
+        ProfileFile::embedded(which).unwrap_or_else(|| {
+            let known: Vec<&str> = EMBEDDED.iter().map(|(n, _)| *n).collect();
+            Err(ProfileError {
+                origin: "--profile".into(),
+                line: None,
+                key: which.to_string(),
+                reason: format!(
+                    "{} (or a path to a .toml file)",
+                    unknown("profile", which, &known)
+                ),
+            })
+        })
+    }
+
+    /// The switches this file turns on (as written, not merged).
+    pub fn switches_on(&self) -> Vec<&'static str> {
+        self.settings
+            .iter()
+            .filter(|s| s.params.is_some())
+            .map(|s| s.switch.name)
+            .collect()
+    }
+}
+
+// --------------------------------------------------------- overlays: machine file, options
+
+/// Switch tables on top of a profile: a machine file's `quirks = {...}` or the command
+/// line's `--quirk` / `--no-quirk`, validated.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Overlay {
+    settings: Vec<Setting>,
+}
+
+impl Overlay {
+    /// `--quirk NAME[.PARAM=VALUE]` (repeatable; several for one switch make one table) and
+    /// `--no-quirk NAME`.
+    pub fn from_args(quirk: &[String], no_quirk: &[String]) -> Result<Overlay, ProfileError> {
+        let mut tables: BTreeMap<String, (RawTable, Loc)> = BTreeMap::new();
+        for arg in quirk {
+            let loc = Loc {
+                origin: format!("--quirk {arg}"),
+                line: None,
+            };
+            let (name, param) = match arg.split_once('.') {
+                Some((n, p)) => (n.trim(), Some(p)),
+                None => (arg.trim(), None),
+            };
+            let entry = tables
+                .entry(name.to_string())
+                .or_insert_with(|| (RawTable::new(), loc.clone()));
+            if let Some(p) = param {
+                let Some((k, v)) = p.split_once('=') else {
+                    return Err(loc.err(
+                        format!("quirks.{name}.{p}"),
+                        "write NAME.PARAM=VALUE (or NAME alone to turn it on)",
+                    ));
+                };
+                let value = toml::from_str::<toml::Table>(&format!("v = {v}"))
+                    .ok()
+                    .and_then(|mut t| t.remove("v"))
+                    .unwrap_or_else(|| toml::Value::String(v.to_string()));
+                entry.0.insert(k.trim().to_string(), (value, loc));
+            }
+        }
+        for name in no_quirk {
+            let loc = Loc {
+                origin: format!("--no-quirk {name}"),
+                line: None,
+            };
+            if tables.contains_key(name.trim()) {
+                return Err(loc.err(
+                    format!("quirks.{}", name.trim()),
+                    "also given with --quirk: on or off?",
+                ));
+            }
+            let mut t = RawTable::new();
+            t.insert("enabled".into(), (toml::Value::Boolean(false), loc.clone()));
+            tables.insert(name.trim().to_string(), (t, loc));
+        }
+        let mut settings = Vec::new();
+        for (name, (t, loc)) in &tables {
+            settings.push(setting(name, t, loc)?);
+        }
+        Ok(Overlay { settings })
+    }
+
+    /// A machine file's `quirks = { NAME = { PARAM = VALUE } }` of one axis; `origin` and
+    /// `line` say where it was written.
+    pub fn from_table(
+        table: &toml::Table,
+        origin: &str,
+        line: Option<usize>,
+    ) -> Result<Overlay, ProfileError> {
+        let loc = Loc {
+            origin: origin.to_string(),
+            line,
+        };
+        let mut settings = Vec::new();
+        for (name, v) in table {
+            let toml::Value::Table(t) = v else {
+                return Err(loc.err(
+                    format!("quirks.{name}"),
+                    format!("{v} is not a table (write {name} = {{}} to turn it on)"),
+                ));
+            };
+            let raw: RawTable = t
+                .iter()
+                .map(|(k, v)| (k.clone(), (v.clone(), loc.clone())))
+                .collect();
+            settings.push(setting(name, &raw, &loc)?);
+        }
+        Ok(Overlay { settings })
+    }
+
+    /// Nothing in it.
+    pub fn is_empty(&self) -> bool {
+        self.settings.is_empty()
+    }
+}
+
+// ------------------------------------------------------------------------ the result
+
+/// What a drive behaves as: the profile (after `extends`) and the overlays on top.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Behaviour {
+    /// The profile's name (`None`: no profile, the strict drive unless overlays say more).
+    pub profile: Option<String>,
+    /// The profiles read, parent first.
+    pub chain: Vec<String>,
+    /// The switches.
+    pub quirks: Quirks,
+    /// The identity keys and boot delays.
+    pub identity: Identity,
+}
+
+impl Behaviour {
+    /// Resolve `profile` (a name or path, `None`: none) with `overlays` on top, in order;
+    /// `dir` is where a relative profile path is read from.
+    pub fn resolve(
+        profile: Option<&str>,
+        dir: Option<&Path>,
+        overlays: &[&Overlay],
+    ) -> Result<Behaviour, ProfileError> {
+        let mut b = Behaviour::default();
+        let mut files = Vec::new();
+        if let Some(p) = profile {
+            let mut f = ProfileFile::load(p, dir)?;
+            let mut seen = vec![f.origin.clone()];
+            loop {
+                let parent = f.extends.clone();
+                files.push(f);
+                let Some((which, loc)) = parent else { break };
+                let parent_dir = files.last().and_then(|f| f.dir.clone());
+                let pf = ProfileFile::load(&which, parent_dir.as_deref()).map_err(|e| {
+                    loc.err(
+                        "extends",
+                        if e.origin == "--profile" {
+                            e.reason
+                        } else {
+                            e.to_string()
+                        },
+                    )
+                })?;
+                if seen.contains(&pf.origin) {
+                    seen.push(pf.origin.clone());
+                    return Err(loc.err("extends", format!("a cycle: {}", seen.join(" -> "))));
+                }
+                seen.push(pf.origin.clone());
+                f = pf;
+            }
+            b.profile = files.first().map(|f| f.name.clone());
+        }
+        for f in files.iter().rev() {
+            b.chain.push(f.name.clone());
+            b.identity.merge(&f.identity);
+            for s in &f.settings {
+                s.apply(&mut b.quirks);
+            }
+        }
+        for o in overlays {
+            for s in &o.settings {
+                s.apply(&mut b.quirks);
+            }
+        }
+        Ok(b)
+    }
+
+    /// `--profile` / `--quirk` / `--no-quirk` of `drive-emu run` (or `eds`): `None` when none
+    /// is given.
+    pub fn from_args(
+        profile: Option<&str>,
+        quirk: &[String],
+        no_quirk: &[String],
+    ) -> Result<Option<Behaviour>, ProfileError> {
+        if profile.is_none() && quirk.is_empty() && no_quirk.is_empty() {
+            return Ok(None);
+        }
+        let o = Overlay::from_args(quirk, no_quirk)?;
+        Behaviour::resolve(profile, None, &[&o]).map(Some)
+    }
+
+    /// The switches on, with their parameters, for people (`enable_requires_mode,
+    /// sdo_response_delay (delay_ms = 30)`); `strict` when none.
+    pub fn switches_text(&self) -> String {
+        let on: Vec<String> = self
+            .quirks
+            .on()
+            .map(|s| describe_switch(&self.quirks, s))
+            .collect();
+        if on.is_empty() {
+            "no switch on (strict)".into()
+        } else {
+            on.join(", ")
+        }
+    }
+
+    /// One line for the start-up message: profile, switches, boot delays that differ.
+    pub fn announce(&self, node_id: u8, default_boot_delay_ms: u64) -> String {
+        let mut s = format!(
+            "drive-emu: node {node_id}: profile {}: {}",
+            self.profile.as_deref().unwrap_or("none"),
+            self.switches_text()
+        );
+        let id = &self.identity;
+        let power = id.boot_delay_ms.map_or(default_boot_delay_ms, u64::from);
+        let node = id.reset_node_boot_delay_ms.map_or(power, u64::from);
+        let comm = id
+            .reset_communication_boot_delay_ms
+            .map_or(power, u64::from);
+        if id.boot_delay_ms.is_some()
+            || id.reset_node_boot_delay_ms.is_some()
+            || id.reset_communication_boot_delay_ms.is_some()
+        {
+            s += &format!(
+                "; boot-up {power} ms after power-on, {node} ms after NMT reset node, {comm} ms \
+                 after reset communication"
+            );
+        }
+        for (index, sub, key, v) in id.objects() {
+            s += &format!("; {key} 0x{index:04X}:{sub} = 0x{v:08X}");
+        }
+        if let Some(n) = &id.device_name {
+            s += &format!("; device_name 0x1008 = \"{n}\"");
+        }
+        s
+    }
+}
+
+/// A switch that is on, with its parameters (`sdo_response_delay (delay_ms = 30, ...)`).
+pub fn describe_switch(q: &Quirks, name: &str) -> String {
+    let params = match name {
+        "homing_status_bits_missing" => q.homing_status_bits_missing.map(|b| {
+            let mut v = Vec::new();
+            if b.target_reached {
+                v.push("\"target_reached\"");
+            }
+            if b.attained {
+                v.push("\"attained\"");
+            }
+            format!("bits = [{}]", v.join(", "))
+        }),
+        "homing_method_zero" => Some(format!("zero = \"{}\"", q.homing_method_zero.name())),
+        "bootup_then_heartbeat" => q.bootup_then_heartbeat.map(|b| {
+            format!(
+                "first_heartbeat_after_bootup_us = {}, heartbeat_ms_default = {}",
+                b.first_heartbeat_after_bootup_us, b.heartbeat_ms_default
+            )
+        }),
+        "not_ready_after_bootup" => q.not_ready_after_bootup.map(|n| {
+            format!(
+                "ready_after_ms = {}, initialising_heartbeat_ms = {}",
+                n.ready_after_ms, n.initialising_heartbeat_ms
+            )
+        }),
+        "sdo_response_delay" => q.sdo_response_delay.map(|d| {
+            format!(
+                "delay_ms = {}, late_delay_ms = {}, late_every = {}",
+                d.delay_ms, d.late_delay_ms, d.late_every
+            )
+        }),
+        "sdo_first_upload_dropped" => q
+            .sdo_first_upload_dropped
+            .as_ref()
+            .map(|d| format!("objects = [{}], count = {}", d.objects, d.count)),
+        "tpdo_rtr_unsupported" => q
+            .tpdo_rtr_unsupported
+            .map(|t| format!("abort_code = 0x{:08X}", t.abort_code)),
+        "controlword_min_hold" => q
+            .controlword_min_hold
+            .map(|c| format!("hold_us = {}", c.hold_us)),
+        "sync_watchdog" => q.sync_watchdog.as_ref().map(|w| {
+            let modes: Vec<String> = w.modes.iter().map(|m| m.to_string()).collect();
+            format!(
+                "missed_periods = {}, period_from = \"{}\", modes = [{}], emcy_code = 0x{:04X}",
+                w.missed_periods,
+                w.period_from.name(),
+                modes.join(", "),
+                w.emcy_code
+            )
+        }),
+        "late_sync_statusword_bit15" => q
+            .late_sync_statusword_bit15
+            .map(|l| format!("late_tolerance_us = {}", l.late_tolerance_us)),
+        "unmappable_objects" => q
+            .unmappable_objects
+            .as_ref()
+            .map(|l| format!("objects = [{l}]")),
+        "sdo_silent_objects" => q
+            .sdo_silent_objects
+            .as_ref()
+            .map(|l| format!("objects = [{l}]")),
+        _ => None,
+    };
+    match params {
+        Some(p) => format!("{name} ({p})"),
+        None => name.to_string(),
+    }
+}
+
+/// `drive-emu profiles`: the profiles shipped (name, what they turn on, description) and the
+/// switches of schema 1 with their parameters.
+pub fn list_text() -> Result<String, ProfileError> {
+    let mut s = String::from("Profiles (--profile NAME, or a path to a .toml file):\n");
+    for (name, _) in EMBEDDED {
+        let f = ProfileFile::embedded(name).expect("embedded")?;
+        let b = Behaviour::resolve(Some(name), None, &[])?;
+        let on: Vec<&str> = b.quirks.on().collect();
+        s += &format!(
+            "  {name:<18} {}\n  {:<18}   on: {}\n",
+            f.description,
+            "",
+            if on.is_empty() {
+                "nothing (strict)".to_string()
+            } else {
+                on.join(", ")
+            }
+        );
+    }
+    s += "\nSwitches (--quirk NAME[.PARAM=VALUE], --no-quirk NAME; docs/quirks.md):\n";
+    for sw in SWITCHES {
+        s += &format!(
+            "  {:<31} {} {}: {}\n",
+            sw.name, sw.section, sw.kind, sw.summary
+        );
+        for p in sw.params {
+            let ty = match p.ty {
+                ParamType::Int {
+                    min,
+                    max,
+                    unit,
+                    hex,
+                } => {
+                    let r = if hex {
+                        format!("{min:#x}..={max:#x}")
+                    } else {
+                        format!("{min}..={max}")
+                    };
+                    if unit.is_empty() {
+                        r
+                    } else {
+                        format!("{r} {unit}")
+                    }
+                }
+                ParamType::Float { min, max } => format!("{min:?}..={max:?}"),
+                ParamType::OneOf(w) => w
+                    .iter()
+                    .map(|w| format!("\"{w}\""))
+                    .collect::<Vec<_>>()
+                    .join(" | "),
+                ParamType::ListOf(w) => format!(
+                    "list of {}",
+                    w.iter()
+                        .map(|w| format!("\"{w}\""))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                ParamType::Objects => {
+                    "list of \"0xIIII:S\", \"0xIIII-0xJJJJ:S\", \"0xIIII:S-T\"".into()
+                }
+                ParamType::Modes => "list of 0x6060 values".into(),
+            };
+            s += &format!(
+                "  {:<31}   {} = {} [{}]\n",
+                "",
+                p.name,
+                ty,
+                p.default.unwrap_or("required")
+            );
+        }
+    }
+    s += "\n[identity] keys of a profile:\n";
+    for (k, what) in IDENTITY_KEYS {
+        s += &format!("  {k:<34} {what}\n");
+    }
+    Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(src: &str) -> Result<ProfileFile, ProfileError> {
+        ProfileFile::parse(src, "profiles/x.toml", "x", None)
+    }
+
+    fn err(src: &str) -> String {
+        parse(src).unwrap_err().to_string()
+    }
+
+    const HEAD: &str = "schema = 1\nname = \"x\"\ndescription = \"d\"\n";
+
+    #[test]
+    fn every_shipped_profile_parses_resolves_and_is_embedded() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles");
+        let mut on_disk: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .map(|p| p.file_stem().unwrap().to_string_lossy().to_string())
+            .collect();
+        on_disk.sort();
+        let mut embedded: Vec<String> = EMBEDDED.iter().map(|(n, _)| n.to_string()).collect();
+        embedded.sort();
+        assert_eq!(on_disk, embedded, "every file of profiles/ is embedded");
+        for (name, _) in EMBEDDED {
+            let b = Behaviour::resolve(Some(name), None, &[]).unwrap();
+            assert_eq!(b.profile.as_deref(), Some(name));
+            if name != "strict" {
+                assert_eq!(b.chain[0], "strict", "{name} extends strict");
+                assert!(!b.quirks.is_strict() || name == "copley-accelnet", "{name}");
+            }
+        }
+        // strict lists every switch, off
+        let f = ProfileFile::embedded("strict").unwrap().unwrap();
+        let mut listed: Vec<&str> = f.settings.iter().map(|s| s.switch.name).collect();
+        listed.sort();
+        let mut all: Vec<&str> = Quirks::SWITCHES.to_vec();
+        all.sort();
+        assert_eq!(listed, all);
+        assert!(Behaviour::resolve(Some("strict"), None, &[])
+            .unwrap()
+            .quirks
+            .is_strict());
+        // the table of switches is the protocol's list
+        let names: Vec<&str> = SWITCHES.iter().map(|s| s.name).collect();
+        assert_eq!(names, Quirks::SWITCHES);
+    }
+
+    #[test]
+    fn the_profiles_turn_on_what_docs_quirks_md_says() {
+        let q = |n: &str| Behaviour::resolve(Some(n), None, &[]).unwrap();
+        let b = q("nanotec-pd4c");
+        assert!(b.quirks.enable_requires_mode);
+        assert_eq!(
+            b.quirks.bootup_then_heartbeat,
+            Some(BootupThenHeartbeat {
+                first_heartbeat_after_bootup_us: 100,
+                heartbeat_ms_default: 100
+            })
+        );
+        assert_eq!(b.identity.reset_communication_boot_delay_ms, Some(0));
+        assert!(q("engel-hbi").quirks.mode_change_blocked_by_halt);
+        assert_eq!(
+            q("jvl-mis").quirks.homing_status_bits_missing,
+            Some(HomingBitsMissing {
+                target_reached: true,
+                attained: false
+            })
+        );
+        assert_eq!(
+            q("faulhaber-mc5004").quirks.homing_method_zero,
+            HomingMethodZero::Ignore
+        );
+        assert_eq!(
+            q("maxon-epos4").quirks.homing_method_zero,
+            HomingMethodZero::Refuse
+        );
+        let c = q("copley-accelnet");
+        assert!(!c.quirks.pdo_remap_lenient && c.identity.vendor_id == Some(0xAB));
+        assert_eq!(
+            q("roboteq-fbl2360")
+                .quirks
+                .tpdo_rtr_unsupported
+                .unwrap()
+                .abort_code,
+            0x0609_0030
+        );
+        assert_eq!(
+            q("technosoft-ipos")
+                .quirks
+                .controlword_min_hold
+                .unwrap()
+                .hold_us,
+            1000
+        );
+        let w = q("delta-asda-a2").quirks.sync_watchdog.unwrap();
+        assert_eq!((w.missed_periods, w.emcy_code), (2.0, 0x8100));
+        assert_eq!(&w.modes[..], &[7, 8]);
+        assert_eq!(
+            q("isel-imd20")
+                .quirks
+                .late_sync_statusword_bit15
+                .unwrap()
+                .late_tolerance_us,
+            200
+        );
+    }
+
+    /// Each validation rule of docs/quirks.md section 4, with its message.
+    #[test]
+    fn validation_errors_name_file_line_key_and_reason() {
+        assert_eq!(
+            err("schema = 2\nname = \"x\"\ndescription = \"d\"\n"),
+            "profiles/x.toml:1: schema: 2 not supported (this drive-emu reads schema 1)"
+        );
+        assert!(err("name = \"x\"\ndescription = \"d\"\n").contains("schema: missing"));
+        let e = err(&format!("{HEAD}colour = 3\n"));
+        assert!(
+            e.starts_with("profiles/x.toml:4: colour: unknown top-level key `colour`"),
+            "{e}"
+        );
+        let e = err(&format!("{HEAD}[identity]\nvendor = 1\n"));
+        assert!(
+            e.starts_with("profiles/x.toml:5: identity.vendor: unknown [identity] key `vendor`")
+                && e.contains("did you mean `vendor_id`?"),
+            "{e}"
+        );
+        let e = err(&format!("{HEAD}[quirks.sdo_reponse_delay]\n"));
+        assert!(
+            e.starts_with("profiles/x.toml:4: quirks.sdo_reponse_delay: unknown switch")
+                && e.contains("did you mean `sdo_response_delay`?")
+                && e.contains("known: enable_requires_mode"),
+            "{e}"
+        );
+        let e = err(&format!("{HEAD}[quirks.sdo_response_delay]\ndelay = 5\n"));
+        assert!(
+            e.starts_with(
+                "profiles/x.toml:5: quirks.sdo_response_delay.delay: unknown parameter of \
+                 sdo_response_delay `delay`"
+            ) && e.contains("did you mean `delay_ms`?"),
+            "{e}"
+        );
+        assert_eq!(
+            err(&format!("{HEAD}[quirks.sdo_response_delay]\n\ndelay_ms = 70000\n")),
+            "profiles/x.toml:6: quirks.sdo_response_delay.delay_ms: 70000 out of range 0..=5000 (ms)"
+        );
+        assert_eq!(
+            err(&format!(
+                "{HEAD}[quirks.homing_method_zero]\nzero = \"skip\"\n"
+            )),
+            "profiles/x.toml:5: quirks.homing_method_zero.zero: \"skip\" is not one of \"store\", \
+             \"ignore\", \"refuse\""
+        );
+        assert!(err(&format!(
+            "{HEAD}[quirks.sdo_response_delay]\ndelay_ms = \"5\"\n"
+        ))
+        .contains("delay_ms: \"5\" is not an integer"));
+        let e = err(&format!(
+            "{HEAD}[quirks.sdo_silent_objects]\nobjects = [\"0x1800-0x17FF:5\"]\n"
+        ));
+        assert!(
+            e.starts_with("profiles/x.toml:5: quirks.sdo_silent_objects.objects: ")
+                && e.ends_with("range end below start"),
+            "{e}"
+        );
+        assert_eq!(
+            err(&format!("{HEAD}[quirks.unmappable_objects]\n")),
+            "profiles/x.toml:4: quirks.unmappable_objects: parameter `objects` is required"
+        );
+        // off: the required parameter may be left out
+        assert!(parse(&format!(
+            "{HEAD}[quirks.unmappable_objects]\nenabled = false\n"
+        ))
+        .is_ok());
+        assert!(err(&format!(
+            "{HEAD}[quirks.sync_watchdog]\nmissed_periods = 0.5\n"
+        ))
+        .contains("missed_periods: 0.5 out of range 1.0..=100.0"));
+        assert!(
+            err(&format!("{HEAD}[quirks.sync_watchdog]\nmodes = [300]\n"))
+                .contains("modes: 300 is not a mode of operation")
+        );
+        assert!(err(&format!(
+            "{HEAD}[quirks.homing_status_bits_missing]\nbits = []\n"
+        ))
+        .contains("an empty list"));
+        assert!(err(&format!("{HEAD}[identity]\nboot_delay_ms = 700000\n"))
+            .contains("identity.boot_delay_ms: 700000 out of range 0..=600000 (ms)"));
+        assert!(err(&format!(
+            "{HEAD}[identity]\ndevice_name = \"{}\"\n",
+            "x".repeat(65)
+        ))
+        .contains("identity.device_name: 65 bytes, at most 64"));
+        assert_eq!(
+            ProfileFile::parse(HEAD, "profiles/y.toml", "y", None)
+                .unwrap_err()
+                .to_string(),
+            "profiles/y.toml:2: name: \"x\" is not the file's stem \"y\""
+        );
+        // a syntax error keeps toml's reason and gets the line
+        let e = err(&format!("{HEAD}[quirks\n"));
+        assert!(e.starts_with("profiles/x.toml:4: "), "{e}");
+    }
+
+    #[test]
+    fn extends_merges_whole_switch_tables_and_identity_keys_and_finds_cycles() {
+        let dir = std::env::temp_dir().join(format!("profiles-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let write = |n: &str, body: &str| {
+            std::fs::write(
+                dir.join(format!("{n}.toml")),
+                format!("schema = 1\nname = \"{n}\"\ndescription = \"{n}\"\n{body}"),
+            )
+            .unwrap();
+        };
+        write(
+            "base",
+            "extends = \"delta-asda-a2\"\n[identity]\nvendor_id = 7\nboot_delay_ms = 500\n\
+             [quirks.sdo_response_delay]\ndelay_ms = 30\nlate_every = 4\nlate_delay_ms = 90\n",
+        );
+        write(
+            "child",
+            "extends = \"base.toml\"\n[identity]\nvendor_id = 9\n\
+             [quirks.sdo_response_delay]\ndelay_ms = 5\n[quirks.sync_watchdog]\nenabled = false\n",
+        );
+        let path = dir.join("child.toml").display().to_string();
+        let b = Behaviour::resolve(Some(&path), None, &[]).unwrap();
+        assert_eq!(b.chain, ["strict", "delta-asda-a2", "base", "child"]);
+        assert_eq!(b.identity.vendor_id, Some(9));
+        assert_eq!(b.identity.boot_delay_ms, Some(500), "kept from the parent");
+        // the child's table replaces the parent's whole table
+        assert_eq!(
+            b.quirks.sdo_response_delay,
+            Some(SdoResponseDelay {
+                delay_ms: 5,
+                late_delay_ms: 0,
+                late_every: 0
+            })
+        );
+        assert_eq!(b.quirks.sync_watchdog, None, "turned off by the child");
+        // overlays on top: --quirk / --no-quirk
+        let o = Overlay::from_args(
+            &[
+                "sdo_response_delay.delay_ms=30".into(),
+                "enable_requires_mode".into(),
+            ],
+            &["sdo_response_delay_x".into()],
+        );
+        assert!(o
+            .unwrap_err()
+            .to_string()
+            .contains("did you mean `sdo_response_delay`"));
+        let o = Overlay::from_args(
+            &[
+                "sdo_response_delay.delay_ms=30".into(),
+                "sdo_response_delay.late_every=3".into(),
+                "enable_requires_mode".into(),
+            ],
+            &[],
+        )
+        .unwrap();
+        let b = Behaviour::resolve(Some(&path), None, &[&o]).unwrap();
+        assert_eq!(
+            b.quirks.sdo_response_delay,
+            Some(SdoResponseDelay {
+                delay_ms: 30,
+                late_delay_ms: 0,
+                late_every: 3
+            })
+        );
+        assert!(b.quirks.enable_requires_mode);
+        let off = Overlay::from_args(&[], &["sdo_response_delay".into()]).unwrap();
+        let b = Behaviour::resolve(Some(&path), None, &[&off]).unwrap();
+        assert_eq!(b.quirks.sdo_response_delay, None);
+        let e = Overlay::from_args(&["sdo_response_delay.delay_ms=9000".into()], &[])
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "--quirk sdo_response_delay.delay_ms=9000: quirks.sdo_response_delay.delay_ms: 9000 \
+             out of range 0..=5000 (ms)"
+        );
+        // a cycle, an unknown parent
+        write("a", "extends = \"b.toml\"\n");
+        write("b", "extends = \"a.toml\"\n");
+        let e = Behaviour::resolve(Some(&dir.join("a.toml").display().to_string()), None, &[])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(":4: extends: a cycle: ") && e.contains("a.toml"),
+            "{e}"
+        );
+        write("c", "extends = \"nanotec-pd4\"\n");
+        let e = Behaviour::resolve(Some(&dir.join("c.toml").display().to_string()), None, &[])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(
+                "c.toml:4: extends: unknown profile `nanotec-pd4` (did you mean \
+                        `nanotec-pd4c`?"
+            ),
+            "{e}"
+        );
+        let e = Behaviour::resolve(Some("nanotec"), None, &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("--profile: nanotec: unknown profile"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_listing_has_every_profile_and_switch() {
+        let t = list_text().unwrap();
+        for (n, _) in EMBEDDED {
+            assert!(t.contains(n), "{n}");
+        }
+        for s in SWITCHES {
+            assert!(t.contains(s.name), "{}", s.name);
+            for p in s.params {
+                assert!(t.contains(&format!("{} = ", p.name)), "{}", p.name);
+            }
+        }
+        assert!(t.contains("delay_ms = 0..=5000 ms [10]"), "{t}");
+    }
+}
