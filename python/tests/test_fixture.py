@@ -30,7 +30,9 @@ def test_ready_line_eds_and_live_statistics(drive_emu):
     ready = drive_emu.ready
     assert ready["event"] == "ready"
     assert ready["iface"] == drive_emu.iface
-    assert ready["nodes"] == [{"node_id": 21, "preset": "cnc1", "eds": None, "objects_base": "0x2000"}]
+    assert ready["nodes"] == [
+        {"node_id": 21, "preset": "cnc1", "eds": None, "objects_base": "0x2000", "profile": None, "quirks": []}
+    ]
     cfg = configparser.ConfigParser()
     cfg.optionxform = str
     cfg.read(drive_emu.eds_path)
