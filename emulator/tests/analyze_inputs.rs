@@ -13,10 +13,28 @@ fn corpus(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// A scratch directory per test thread, removed when the test's thread ends.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+thread_local! {
+    static SCRATCH: Scratch = Scratch(std::env::temp_dir().join(format!(
+        "analyze-inputs-{}-{:?}",
+        std::process::id(),
+        std::thread::current().id()
+    ).replace(['(', ')'], "")));
+}
+
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("analyze-inputs-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    SCRATCH.with(|d| {
+        std::fs::create_dir_all(&d.0).unwrap();
+        d.0.join(name)
+    })
 }
 
 fn analyze(trace: &Path, args: &[&str]) -> Output {

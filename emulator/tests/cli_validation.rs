@@ -1,6 +1,7 @@
 //! Nonsense on the command line is refused before anything runs, with a message that names
 //! the flag or key, the value and the allowed range.
 
+use std::path::PathBuf;
 use std::process::Command;
 
 /// Run drive-emu with `args`; it must fail, and its stderr must contain every `needle`.
@@ -115,10 +116,31 @@ fn demo_and_scenario_refuse_nonsense() {
 }
 
 /// A scenario file in a temporary directory.
-fn scenario_file(name: &str, text: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("drive-emu-cli-validation-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    let p = d.join(name);
+/// A scratch directory per test thread, removed when the test's thread ends.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+thread_local! {
+    static SCRATCH: Scratch = Scratch(std::env::temp_dir().join(
+        format!("drive-emu-cli-validation-{}-{:?}", std::process::id(), std::thread::current().id())
+            .replace(['(', ')'], ""),
+    ));
+}
+
+fn scratch_dir() -> PathBuf {
+    SCRATCH.with(|d| {
+        std::fs::create_dir_all(&d.0).expect("scratch dir");
+        d.0.clone()
+    })
+}
+
+fn scenario_file(name: &str, text: &str) -> PathBuf {
+    let p = scratch_dir().join(name);
     std::fs::write(&p, text).unwrap();
     p
 }

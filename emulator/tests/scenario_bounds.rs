@@ -62,10 +62,31 @@ fn says(e: &ScenarioError, key: &str, reasons: &[&str]) {
     }
 }
 
+/// A scratch directory per test thread, removed when the test's thread ends.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+thread_local! {
+    static SCRATCH: Scratch = Scratch(std::env::temp_dir().join(
+        format!("drive-emu-bounds-{}-{:?}", std::process::id(), std::thread::current().id())
+            .replace(['(', ')'], ""),
+    ));
+}
+
+fn scratch_dir() -> PathBuf {
+    SCRATCH.with(|d| {
+        std::fs::create_dir_all(&d.0).expect("scratch dir");
+        d.0.clone()
+    })
+}
+
 fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("drive-emu-bounds-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    scratch_dir().join(name)
 }
 
 #[test]

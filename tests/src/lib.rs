@@ -411,10 +411,32 @@ impl Drop for Emu {
 }
 
 /// Write `text` to a fresh file under the temp directory; returns its path.
+/// A scratch directory per test thread, removed when the test's thread ends.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+thread_local! {
+    static SCRATCH: Scratch = Scratch(std::env::temp_dir().join(
+        format!("drive-emu-e2e-{}-{:?}", std::process::id(), std::thread::current().id())
+            .replace(['(', ')'], ""),
+    ));
+}
+
+fn scratch_dir() -> PathBuf {
+    SCRATCH.with(|d| {
+        std::fs::create_dir_all(&d.0).expect("scratch dir");
+        d.0.clone()
+    })
+}
+
+/// The directory goes when the calling test's thread ends.
 pub fn temp_file(name: &str, text: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("drive-emu-e2e-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    let p = dir.join(name);
+    let p = scratch_dir().join(name);
     std::fs::write(&p, text).expect("write temp file");
     p
 }
