@@ -11,6 +11,7 @@ use drive_emu::presets::AxisConfig;
 use drive_emu::runtime::{AxisSlot, Runtime};
 use drive_emu::session::OfflineRun;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 const NODE: u8 = 5;
 
@@ -321,4 +322,87 @@ fn communication_timers_run_on_the_wall_clock_between_syncs() {
     );
     assert!(tpdo1 >= 2, "TPDO1's event timer: {tpdo1} without SYNC");
     assert_eq!(rt.sim_time_us, 0, "no SYNC, no simulated time");
+}
+
+/// A lock-step drive whose master wrote the SDOs `writes` (index, sub, little-endian value)
+/// and then sent three SYNCs: the simulated time per SYNC it took.
+fn period_per_sync_after(writes: &[(u16, u8, &[u8])]) -> u64 {
+    use drive_protocol::wire::{Initiate, Mux, SdoRequest, SdoResponse};
+    let mut eps = InProcBus::endpoints(2, 1 << 16);
+    let mut peer = eps.pop().unwrap();
+    let mut rt = Runtime::new(eps.pop().unwrap(), vec![axis()], 1000);
+    rt.boot();
+    let n = u32::from(NODE);
+    for &(index, sub, value) in writes {
+        let req = SdoRequest::InitiateDownload {
+            mux: Mux::new(index, sub),
+            data: Initiate::expedited(value),
+        };
+        peer.send(&CanFrame::new(0x600 + n, &req.emit())).unwrap();
+    }
+    const SYNCS: u64 = 3;
+    for _ in 0..SYNCS {
+        peer.send(&CanFrame::new(0x80, &[])).unwrap();
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    // Only against a hang: the run stops itself once the SYNCs are used up.
+    let guard = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_secs(30));
+            stop.store(true, Ordering::Relaxed);
+        })
+    };
+    let cfg = drive_emu::runtime::Lockstep::default();
+    let mut ticks = 0u64;
+    let mut wanted = u64::MAX;
+    rt.run_lockstep_with(cfg, &stop, |rt| {
+        ticks += 1;
+        wanted = SYNCS * rt.lockstep_period_us / 1000;
+        if ticks >= wanted {
+            stop.store(true, Ordering::Relaxed);
+        }
+    });
+    drop(guard);
+    let mut answers = 0;
+    while let Ok(Some(f)) = peer.recv() {
+        if f.id == 0x580 + n {
+            let r = SdoResponse::parse(&f.data);
+            assert!(
+                matches!(r, Ok(SdoResponse::InitiateDownload { .. })),
+                "a write was not accepted: {r:?}"
+            );
+            answers += 1;
+        }
+    }
+    assert_eq!(answers, writes.len(), "every write answered");
+    assert_eq!(ticks, wanted, "the SYNCs ran the drive {ticks} ticks");
+    assert_eq!(rt.sim_time_us, SYNCS * rt.lockstep_period_us);
+    rt.lockstep_period_us
+}
+
+#[test]
+fn the_time_per_sync_is_the_period_the_master_configured() {
+    // Nothing written: 1 ms per SYNC.
+    assert_eq!(period_per_sync_after(&[]), 1000);
+    // Lely and ros2_canopen write no 0x1006, but a CSP set-up writes the interpolation time
+    // period 0x60C2 (10 x 10^-3 s): the time between set-points, one per SYNC.
+    assert_eq!(
+        period_per_sync_after(&[(0x60C2, 1, &[10]), (0x60C2, 2, &[(-3i8) as u8])]),
+        10_000
+    );
+    // 0x60C2 = 25 x 10^-4 s: 2.5 ms, in whole 1 ms ticks (rounded half up).
+    assert_eq!(
+        period_per_sync_after(&[(0x60C2, 1, &[25]), (0x60C2, 2, &[(-4i8) as u8])]),
+        3000
+    );
+    // The communication cycle period 0x1006 comes first.
+    assert_eq!(
+        period_per_sync_after(&[
+            (0x60C2, 1, &[10]),
+            (0x60C2, 2, &[(-3i8) as u8]),
+            (0x1006, 0, &4000u32.to_le_bytes()),
+        ]),
+        4000
+    );
 }

@@ -1606,6 +1606,14 @@ impl Node {
             _ => None,
         }
     }
+    /// The interpolation time period 0x60C2 written by the master (value x 10^index s), us;
+    /// `None` while it is 0 (the default: not set) or the dictionary has no 0x60C2.
+    pub fn interpolation_period_us(&self) -> Option<u64> {
+        if !matches!(self.core.od.find(0x60C2, 1), Lookup::Found(_)) {
+            return None;
+        }
+        Some(interpolation_period_us(&self.core.store)).filter(|&p| p > 0)
+    }
     /// Whether a CiA 402 state has the drive's power stage on.
     pub fn is_enabled(&self) -> bool {
         self.core.cia.state.enabled()

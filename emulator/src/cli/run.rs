@@ -71,7 +71,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub lockstep: bool,
     /// Lock-step: simulated time per SYNC, us. Default: the communication cycle period 0x1006
-    /// once the master writes it, else 1000.
+    /// once the master writes it, else the interpolation time period 0x60C2 once written, else
+    /// 1000.
     #[arg(long, value_name = "US", value_parser = clap::value_parser!(u64).range(100..=1_000_000))]
     pub sync_period_us: Option<u64>,
     /// SCHED_FIFO priority for the loop thread (needs CAP_SYS_NICE); 0 = normal scheduling.
@@ -1001,7 +1002,7 @@ fn announce(
             (None, _) => String::new(),
             (Some(_), Some(p)) => format!(" (lock-step: {p} us per SYNC)"),
             (Some(_), None) => {
-                " (lock-step: per SYNC the period in 0x1006, else 1000 us)".into()
+                " (lock-step: per SYNC the period in 0x1006, else in 0x60C2, else 1000 us)".into()
             }
         },
         machine

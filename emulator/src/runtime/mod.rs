@@ -30,7 +30,8 @@ use std::time::Instant;
 
 /// At most this many received frames are handled per tick; the rest wait for the next tick.
 pub const MAX_RX_PER_TICK: usize = 256;
-/// Lock-step: simulated time per SYNC when neither the caller nor the master (0x1006) says.
+/// Lock-step: simulated time per SYNC when neither the caller nor the master (0x1006, 0x60C2)
+/// says.
 pub const DEFAULT_SYNC_PERIOD_US: u64 = 1000;
 /// Falling further behind than this many periods skips ticks instead of catching up (when no
 /// received frame paces the catch-up: frames read after a stall are interleaved with the ticks
@@ -416,7 +417,8 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
     }
 
     /// Lock-step as [`Runtime::run_lockstep`], with the SYNC period from the master when
-    /// `cfg.sync_period_us` is `None` (axis 0's 0x1006 once the master writes it, else 1 ms),
+    /// `cfg.sync_period_us` is `None` (axis 0's 0x1006 once the master writes it, else its
+    /// 0x60C2, else 1 ms),
     /// and, with `cfg.free_run_after_us`, the drive's own
     /// clock taking over when SYNC stops (see [`Lockstep`]). The period in force is published
     /// in [`Runtime::lockstep_period_us`].
@@ -455,10 +457,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                 free_ticks = 0;
                 let sync_us = cfg
                     .sync_period_us
-                    .or_else(|| {
-                        let p = self.axes.first()?.node.object_raw(0x1006, 0)?;
-                        (p > 0).then_some(u64::from(p))
-                    })
+                    .or_else(|| self.master_sync_period_us())
                     .unwrap_or(DEFAULT_SYNC_PERIOD_US);
                 let ticks_per_sync = ((sync_us + self.period_us / 2) / self.period_us).max(1);
                 self.lockstep_period_us = ticks_per_sync * self.period_us;
@@ -481,6 +480,18 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
             }
         }
         self.publish_stats();
+    }
+
+    /// The SYNC period the master told axis 0: its communication cycle period 0x1006, else
+    /// (Lely and ros2_canopen do not write 0x1006, but a CSP or IP set-up writes the
+    /// interpolation time period, which CiA 402 makes the time between set-points, one per
+    /// SYNC) its interpolation time period 0x60C2.
+    fn master_sync_period_us(&self) -> Option<u64> {
+        let node = &self.axes.first()?.node;
+        node.object_raw(0x1006, 0)
+            .filter(|&p| p > 0)
+            .map(u64::from)
+            .or_else(|| node.interpolation_period_us())
     }
 
     /// Lock-step: simulated time stands still without SYNC, but what a master measures on its
@@ -528,7 +539,8 @@ enum CommClock {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Lockstep {
     /// Simulated time per SYNC, us (rounded to whole ticks). `None`: axis 0's communication
-    /// cycle period 0x1006 when the master has set it, else [`DEFAULT_SYNC_PERIOD_US`]. (Not
+    /// cycle period 0x1006 when the master has set it, else its interpolation time period
+    /// 0x60C2 when set, else [`DEFAULT_SYNC_PERIOD_US`]. (Not
     /// the interval seen on the wall clock: lock-step results must not depend on the host.)
     pub sync_period_us: Option<u64>,
     /// When no SYNC has arrived for this long (wall clock, us) after the first one, the
