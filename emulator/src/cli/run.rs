@@ -1162,7 +1162,16 @@ fn watch(
             writeln!(out, "{line}")?;
             out.flush()?;
         }
-        std::thread::sleep(std::time::Duration::from_millis(5));
+        // 5 ms until the ready line is out, then 50 ms: an LSS store configuration is still
+        // answered well within a master's wait (python canopen: 0.5 s), and this thread wakes
+        // 20 times a second beside the loop, not 200 (one CPU under user-mode Linux).
+        std::thread::sleep(std::time::Duration::from_millis(
+            if ready_sent && status.booted.load(Ordering::Acquire) {
+                50
+            } else {
+                5
+            },
+        ));
         // Nothing to show before the loop's first tick has published the axes; redrawn every
         // 200 ms.
         if tty

@@ -26,7 +26,6 @@ use drive_protocol::{Clocks, Drive, FrameEvent, Node};
 use pll::SyncPll;
 use stats::LoopStats;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Instant;
 
 /// At most this many received frames are handled per tick; the rest wait for the next tick.
 pub const MAX_RX_PER_TICK: usize = 256;
@@ -115,11 +114,11 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
 
     /// The nodes' clocks now.
     fn clocks(&self) -> Clocks {
-        match self.comm_clock {
+        match &self.comm_clock {
             CommClock::Simulated => Clocks::same(self.sim_time_us),
-            CommClock::Wall { start } => Clocks {
+            CommClock::Wall { now_us, .. } => Clocks {
                 app_us: self.sim_time_us,
-                comm_us: start.elapsed().as_micros() as u64,
+                comm_us: *now_us,
             },
         }
     }
@@ -128,11 +127,45 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
     /// from the simulated time it has reached.
     pub fn use_wall_comm_clock(&mut self) {
         if let CommClock::Simulated = self.comm_clock {
-            let since = std::time::Duration::from_micros(self.sim_time_us);
-            let now = Instant::now();
             self.comm_clock = CommClock::Wall {
-                start: now.checked_sub(since).unwrap_or(now),
+                clock: crate::time::MonotonicClock::new(),
+                base_us: self.sim_time_us,
+                now_us: self.sim_time_us,
             };
+        }
+    }
+
+    /// Lock-step: read the wall clock for the communication time of what follows; every
+    /// `resync`-th call also re-measures the offset of the receive time stamps.
+    fn read_comm_clock(&mut self, resync: bool) {
+        if let CommClock::Wall {
+            clock,
+            base_us,
+            now_us,
+        } = &mut self.comm_clock
+        {
+            if resync {
+                clock.sync_realtime();
+            }
+            *now_us = (*now_us).max(*base_us + clock.now_us());
+        }
+    }
+
+    /// Lock-step: the communication time of the frame just received is its kernel receive
+    /// time stamp (no clock read); a transport without stamps has the clock read.
+    fn stamp_comm_clock(&mut self) {
+        let stamp = self.bus.last_rx_stamp_ns();
+        if let CommClock::Wall {
+            clock,
+            base_us,
+            now_us,
+        } = &mut self.comm_clock
+        {
+            let us = match stamp.and_then(|t| clock.realtime_to_us(t)) {
+                Some(us) => us,
+                None => clock.now_us(),
+            };
+            *now_us = (*now_us).max(*base_us + us);
         }
     }
 
@@ -428,7 +461,8 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         stop: &AtomicBool,
         mut hook: impl FnMut(&mut Self),
     ) {
-        let mut last_sync: Option<std::time::Instant> = None;
+        // Communication time (the wall clock, us) of the last SYNC.
+        let mut last_sync: Option<u64> = None;
         // Ticks run on the wall clock since SYNC stopped.
         let mut free_ticks = 0u64;
         let wait_us = cfg
@@ -437,23 +471,26 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
         // What a master measures on its own clock (heartbeats, event timers, the boot delay)
         // runs on the wall clock; the drive's time waits for SYNC.
         self.use_wall_comm_clock();
+        let mut wakes = 0u64;
+        let mut wait = wait_us.min(self.lockstep_comm());
         while !stop.load(Ordering::Relaxed) {
-            let wait_us = wait_us.min(self.lockstep_comm());
-            self.bus.wait_readable(wait_us);
+            self.bus.wait_readable(wait);
             // Frames in bus order: each SYNC advances time before the frames after it are
             // seen, so a batch read after a stall gives the same run as frames read one by one
             // (a set-point sent after SYNC k belongs to SYNC k+1, not k).
             let mut frames = 0;
             while frames < MAX_RX_PER_TICK {
-                let Some(sync) = self.receive_one() else {
+                let Some(frame) = self.recv_frame() else {
                     break;
                 };
+                self.stamp_comm_clock();
+                let sync = self.handle_frame(&frame, 0);
                 frames += 1;
                 self.flush_tx();
                 if !sync {
                     continue;
                 }
-                last_sync = Some(std::time::Instant::now());
+                last_sync = Some(self.clocks().comm_us);
                 free_ticks = 0;
                 let sync_us = cfg
                     .sync_period_us
@@ -465,9 +502,12 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                     self.lockstep_tick(&mut hook);
                 }
             }
+            // After the answers: the clock read for the free run and the communication timers.
+            wakes += 1;
+            self.read_comm_clock(wakes.is_multiple_of(256));
             // SYNC stopped: after the grace time the drive's clock runs on the wall's.
             if let (Some(limit), Some(last)) = (cfg.free_run_after_us, last_sync) {
-                let since_us = last.elapsed().as_micros() as u64;
+                let since_us = self.clocks().comm_us.saturating_sub(last);
                 if since_us > limit {
                     let due = (since_us - limit) / self.period_us;
                     let n = due.saturating_sub(free_ticks).min(MAX_CATCH_UP_TICKS);
@@ -478,6 +518,7 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                     self.lockstep_free_ticks += n;
                 }
             }
+            wait = wait_us.min(self.lockstep_comm());
         }
         self.publish_stats();
     }
@@ -527,12 +568,19 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
 }
 
 /// The nodes' communication clock.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug)]
 enum CommClock {
     /// The simulated time (real-time loop: it is the wall clock; offline: a virtual clock).
     Simulated,
-    /// The wall clock, us since `start` (lock-step).
-    Wall { start: Instant },
+    /// The wall clock (lock-step): `base_us` plus `clock`'s time, as last read or as the
+    /// kernel's receive time stamp of the frame being handled (`now_us`). A clock read is a
+    /// system call under user-mode Linux or a hypervisor: none is made between a frame's
+    /// arrival and the answer, one after the answer (for the communication timers).
+    Wall {
+        clock: crate::time::MonotonicClock,
+        base_us: u64,
+        now_us: u64,
+    },
 }
 
 /// How [`Runtime::run_lockstep_with`] turns SYNCs into simulated time.
