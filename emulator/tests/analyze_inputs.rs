@@ -3,6 +3,8 @@
 //! mid-line read with the cut reported, k_v from the capture or the preset, set-points written
 //! over SDO and PP moves, and verdicts that a small change of the capture does not flip.
 
+mod scratch;
+
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -13,28 +15,8 @@ fn corpus(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// A scratch directory per test thread, removed when the test's thread ends.
-struct Scratch(PathBuf);
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-thread_local! {
-    static SCRATCH: Scratch = Scratch(std::env::temp_dir().join(format!(
-        "analyze-inputs-{}-{:?}",
-        std::process::id(),
-        std::thread::current().id()
-    ).replace(['(', ')'], "")));
-}
-
 fn tmp(name: &str) -> PathBuf {
-    SCRATCH.with(|d| {
-        std::fs::create_dir_all(&d.0).unwrap();
-        d.0.join(name)
-    })
+    scratch::path(name)
 }
 
 fn analyze(trace: &Path, args: &[&str]) -> Output {

@@ -1,6 +1,8 @@
 //! Nonsense on the command line is refused before anything runs, with a message that names
 //! the flag or key, the value and the allowed range.
 
+mod scratch;
+
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -116,31 +118,8 @@ fn demo_and_scenario_refuse_nonsense() {
 }
 
 /// A scenario file in a temporary directory.
-/// A scratch directory per test thread, removed when the test's thread ends.
-struct Scratch(PathBuf);
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-thread_local! {
-    static SCRATCH: Scratch = Scratch(std::env::temp_dir().join(
-        format!("drive-emu-cli-validation-{}-{:?}", std::process::id(), std::thread::current().id())
-            .replace(['(', ')'], ""),
-    ));
-}
-
-fn scratch_dir() -> PathBuf {
-    SCRATCH.with(|d| {
-        std::fs::create_dir_all(&d.0).expect("scratch dir");
-        d.0.clone()
-    })
-}
-
 fn scenario_file(name: &str, text: &str) -> PathBuf {
-    let p = scratch_dir().join(name);
+    let p = scratch::path(name);
     std::fs::write(&p, text).unwrap();
     p
 }

@@ -4,6 +4,8 @@
 //! (an event after the end, a velocity beyond the axis, a load profile above what the tick
 //! can show, a CAN delay of days) is refused with file, line, key and reason.
 
+mod scratch;
+
 use drive_emu::presets::{AxisConfig, AxisKind};
 use drive_emu::scenario::{
     self, ScenarioError, MAX_EVENTS, MAX_EXPECTATIONS, MAX_FILE_BYTES, MAX_PROGRAM_STEPS,
@@ -62,31 +64,8 @@ fn says(e: &ScenarioError, key: &str, reasons: &[&str]) {
     }
 }
 
-/// A scratch directory per test thread, removed when the test's thread ends.
-struct Scratch(PathBuf);
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-thread_local! {
-    static SCRATCH: Scratch = Scratch(std::env::temp_dir().join(
-        format!("drive-emu-bounds-{}-{:?}", std::process::id(), std::thread::current().id())
-            .replace(['(', ')'], ""),
-    ));
-}
-
-fn scratch_dir() -> PathBuf {
-    SCRATCH.with(|d| {
-        std::fs::create_dir_all(&d.0).expect("scratch dir");
-        d.0.clone()
-    })
-}
-
 fn temp(name: &str) -> PathBuf {
-    scratch_dir().join(name)
+    scratch::path(name)
 }
 
 #[test]
