@@ -27,6 +27,9 @@ fn line_with(master: &mut Peer, key: &str, timeout: Duration) -> Value {
 fn the_page_shows_a_drive_on_vcan_moved_by_python_canopen() {
     let bus = iface(0);
     let dir = std::env::temp_dir().join(format!("drive-emu-panel-vcan-{}", std::process::id()));
+    // Under user-mode Linux the process IDs repeat from boot to boot: a run that failed left
+    // its go-N files here, which would let the master run ahead of this one.
+    let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let eds = dir.join("drive.eds");
     let out = Command::new(drive_emu_bin())
@@ -94,7 +97,7 @@ fn the_page_shows_a_drive_on_vcan_moved_by_python_canopen() {
         let sdo = at["position"].as_f64().unwrap();
         // The page's last plotted position, once the plot shows the axis standing there.
         let v = d.wait_js(
-            Duration::from_secs(30),
+            Duration::from_secs(120),
             &format!("const p = panel.plotted(0); return p && Math.abs(p.position_actual_uu - {sdo}) <= 3 ? p : null"),
         );
         assert!(
@@ -143,7 +146,7 @@ fn the_page_shows_a_drive_on_vcan_moved_by_python_canopen() {
         assert!(v.is_object(), "{v}");
     }
     assert_eq!(
-        line_with(&mut master, "backlash_mm", Duration::from_secs(30))["backlash_mm"],
+        line_with(&mut master, "backlash_mm", Duration::from_secs(120))["backlash_mm"],
         0.0
     );
     d.click("#param-key option[value='backlash_mm']");
