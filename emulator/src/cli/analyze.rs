@@ -570,3 +570,65 @@ pub fn render_text(o: &AnalyzeOutput) -> String {
     let _ = writeln!(s, "exit status {}", o.exit_code);
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn drive_sample() -> impl Strategy<Value = (u64, Sample)> {
+        (
+            1u64..5_000,
+            (any::<u16>(), prop::sample::select(vec![1i8, 3, 6, 7, 8, 9])),
+            (-1_000_000i32..1_000_000, -100_000i32..100_000),
+            (any::<i32>(), any::<i32>(), any::<i32>(), any::<i32>()),
+            (any::<i16>(), any::<i16>()),
+        )
+            .prop_map(|(dt, (sw, mode), (dem, vdem), (p, d, v, fe), (tq, cur))| {
+                let s = Sample {
+                    t_s: 0.0,
+                    statusword: sw,
+                    mode_display: mode,
+                    target_uu: f64::from(dem),
+                    setpoint_velocity_uu_s: f64::from(vdem),
+                    position_uu: p,
+                    direct_position_uu: d,
+                    velocity_uu_s: v,
+                    torque_permille: tq,
+                    current_permille: cur,
+                    following_error_uu: fe,
+                };
+                (dt, s)
+            })
+    }
+
+    proptest! {
+        /// A drive's sample log (`run --trace`, a panel recording) read back by `analyze` is
+        /// the trace `run --detect` analyses in memory: the same numbers, to the bit.
+        #[test]
+        fn a_drive_sample_log_reads_back_as_the_trace_analysed_live(
+            start_us in 0u64..100_000_000_000,
+            rows in prop::collection::vec(drive_sample(), 2..200),
+        ) {
+            let mut t_us = start_us;
+            let samples: Vec<Sample> = rows
+                .into_iter()
+                .map(|(dt, mut s)| {
+                    t_us += dt;
+                    s.t_s = Sample::t_s_of_us(t_us);
+                    s
+                })
+                .collect();
+            let mut text = format!("{}\n", Sample::CSV_HEADER).into_bytes();
+            for s in &samples {
+                s.write_csv_row(&mut text).unwrap();
+            }
+            let text = String::from_utf8(text).unwrap();
+            let (read, notes) = trace_from_csv_text(Path::new("trace.csv"), &text, false).unwrap();
+            prop_assert!(notes.is_empty(), "{:?}", notes);
+            let mut live = AxisTrace::from_sample_log(&samples, SampleSource::Drive, false);
+            live.set_velocity_source = read.set_velocity_source.clone();
+            prop_assert_eq!(read, live);
+        }
+    }
+}

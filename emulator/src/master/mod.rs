@@ -804,7 +804,7 @@ impl Master {
         }
         // Record what the drive reported for the previous cycle, with the set-point it had.
         let mut s = self.latest;
-        s.t_s = now_us as f64 * 1e-6;
+        s.t_s = Sample::t_s_of_us(now_us);
         s.target_uu = self.target_uu;
         s.setpoint_velocity_uu_s = self.velocity_uu_s;
         // The master's own position loop (CSV): the velocity it sends answers the position

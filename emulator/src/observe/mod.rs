@@ -119,7 +119,7 @@ impl AxisSnapshot {
     pub fn from_words(w: &[u64; WORDS]) -> Self {
         AxisSnapshot {
             sample: Sample {
-                t_s: w[0] as f64 * 1e-6,
+                t_s: Sample::t_s_of_us(w[0]),
                 statusword: w[1] as u16,
                 mode_display: (w[1] >> 40) as u8 as i8,
                 target_uu: f(w[2]),

@@ -30,7 +30,7 @@ const QUEUE_SAMPLES: usize = 1 << 16;
 pub fn node_sample(node: &Node, now_us: u64) -> Sample {
     let raw = |i: u16, s: u8| node.object_raw(i, s).unwrap_or(0);
     Sample {
-        t_s: now_us as f64 * 1e-6,
+        t_s: Sample::t_s_of_us(now_us),
         statusword: node.statusword(),
         mode_display: node.mode(),
         target_uu: f64::from(raw(0x6062, 0) as i32),

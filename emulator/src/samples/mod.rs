@@ -43,6 +43,14 @@ pub struct Sample {
 }
 
 impl Sample {
+    /// A sample's time `t_s` for a drive time in microseconds: `us / 1e6`, correctly rounded,
+    /// which is the number the CSV's six decimals read back as. (`us * 1e-6` is not: 1e-6 has
+    /// no exact binary value, and a time one ulp off moved a sample across a window's edge, so
+    /// `run --detect` and `analyze` of the same run's `--trace` disagreed in the fifth digit.)
+    pub fn t_s_of_us(us: u64) -> f64 {
+        us as f64 / 1e6
+    }
+
     /// The sample log's CSV header (`samples.csv` of a scenario report, `run --trace`), the
     /// layout `drive-emu analyze` reads.
     pub const CSV_HEADER: &'static str = "t_s,statusword,mode_display,target_uu,\
@@ -66,5 +74,36 @@ impl Sample {
             self.current_permille,
             self.following_error_uu
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The time a sample carries is the number its CSV row reads back as, to the bit.
+        #[test]
+        fn a_samples_time_is_what_its_csv_row_reads_back(us in 0u64..1_000_000_000_000) {
+            let t = Sample::t_s_of_us(us);
+            let text = format!("{t:.6}");
+            prop_assert_eq!(text.parse::<f64>().unwrap().to_bits(), t.to_bits(), "{} us: {}", us, text);
+        }
+    }
+
+    #[test]
+    fn the_product_with_1e_6_is_not_and_would_have_been_caught() {
+        // What the times were computed as before: some microseconds give another number.
+        let off = (0u64..100_000)
+            .filter(|&us| {
+                let t = us as f64 * 1e-6;
+                format!("{t:.6}").parse::<f64>().unwrap().to_bits() != t.to_bits()
+            })
+            .count();
+        assert!(
+            off > 0,
+            "every product round-trips: the test above proves nothing new"
+        );
     }
 }

@@ -249,7 +249,7 @@ impl FastForward {
             while b + 1 < self.breaks.len() && self.breaks[b + 1].0 <= t_us {
                 b += 1;
             }
-            smp.t_s = (t_us + self.breaks[b].1) as f64 * 1e-6;
+            smp.t_s = Sample::t_s_of_us(t_us + self.breaks[b].1);
         }
         samples
     }
