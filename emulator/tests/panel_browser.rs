@@ -5,7 +5,8 @@
 //! - the position the page plotted at a time equals 0x6064 read over SDO at that time (the
 //!   axis moving at 10 mm/s: within what it travels between two plotted samples);
 //! - a backlash set on the page (its control, typed and clicked) reads back over SDO from
-//!   0x2000, and the page's detector then reports the limit cycle it causes.
+//!   0x2000, and the page's detector then reports the limit cycle it causes;
+//! - at a long span the plots draw a few points per pixel column and keep every extreme.
 //!
 //! With `DRIVE_EMU_PANEL_SCREENSHOT=PATH` the page's screenshot at the end is written there
 //! (docs/img/panel.png was made so). A missing chromium or chromedriver fails the test with
@@ -105,6 +106,34 @@ fn the_page_shows_the_drive_live_and_its_backlash_control_reaches_the_drive() {
         text.contains("f/k_v 0.") || text.contains("f/k_v 1"),
         "{text}"
     );
+    // At the longest span the plots draw a few points per pixel column, not every sample,
+    // and keep every series' extremes (the limit cycle's peaks): each plot's lowest and
+    // highest drawn value is the lowest and highest sample it was drawn from.
+    d.click("#span option[value='60']");
+    let env = d.wait_js(
+        Duration::from_secs(60),
+        "const e = panel.envelope(0); \
+         return e && e.every((p) => p.samples > 3 * p.width_px) ? e : null",
+    );
+    let plots = env
+        .as_array()
+        .unwrap_or_else(|| panic!("the plots never held 3 samples a pixel: {env}"));
+    assert_eq!(plots.len(), 4, "{env}");
+    for p in plots {
+        let (points, samples, width) = (
+            p["points"].as_u64().unwrap(),
+            p["samples"].as_u64().unwrap(),
+            p["width_px"].as_u64().unwrap(),
+        );
+        let series = p["sampled"].as_array().unwrap().len() as u64 - 1;
+        assert!(
+            points < samples && points <= (2 + 2 * series) * (width + 1),
+            "{}: {points} points drawn of {samples} samples, {width} px",
+            p["plot"]
+        );
+        assert_eq!(p["plotted"], p["sampled"], "{}: extremes", p["plot"]);
+    }
+    d.click("#span option[value='5']");
     // The picture for the README.
     std::thread::sleep(Duration::from_millis(500));
     let png = d.screenshot();

@@ -25,7 +25,7 @@ const el = (tag, attrs = {}, text) => {
   return e;
 };
 
-const state = { hello: null, axes: [], lastRedraw: 0, simTime: 0 };
+const state = { hello: null, axes: [], frame: 0, simTime: 0 };
 
 function newBuffers() {
   return { t: [], demand: [], actual: [], ferr: [], rpm: [], load: [], current: [] };
@@ -140,7 +140,10 @@ function onParamKey() {
     `${o.value}: ${o.dataset.min} .. ${o.dataset.max === "null" ? "∞" : o.dataset.max} ${o.dataset.unit}`;
 }
 
+// Drop samples older than KEEP_S, in chunks of at least a tenth of what is kept: moving
+// 30000 numbers per column on every message would cost more than drawing them.
 function trim(buf, tmax) {
+  if (buf.t.length < 16 || buf.t[0] >= tmax - KEEP_S * 1.1) return;
   let k = 0;
   while (k < buf.t.length && buf.t[k] < tmax - KEEP_S) k++;
   if (k > 0) for (const key of Object.keys(buf)) buf[key].splice(0, k);
@@ -175,24 +178,67 @@ function onSamples(m) {
   redraw();
 }
 
+// Drawing follows the browser's frames, not the messages: messages that arrive while a frame
+// is drawn are drawn together in the next one, so a browser short of CPU draws less often
+// instead of falling behind the stream (and a hidden tab draws nothing).
 function redraw() {
+  if (state.frame) return;
+  state.frame = requestAnimationFrame(() => { state.frame = 0; draw(); });
+}
+
+// The samples to draw of [k, n) for a plot `cols` pixels wide: every one when there are few;
+// else per pixel column its first and last sample and each series' lowest and highest, so
+// the line keeps the envelope of every sample (a limit cycle's peaks too) at any span.
+function pick(t, k, n, cols, series) {
+  const idx = [];
+  if (n - k <= 3 * cols) {
+    for (let i = k; i < n; i++) idx.push(i);
+    return idx;
+  }
+  const t0 = t[k], scale = cols / ((t[n - 1] - t0) || 1);
+  let i = k;
+  while (i < n) {
+    const c = Math.floor((t[i] - t0) * scale);
+    const lo = series.map(() => i), hi = series.map(() => i);
+    let j = i + 1;
+    for (; j < n && Math.floor((t[j] - t0) * scale) === c; j++) {
+      for (let s = 0; s < series.length; s++) {
+        const y = series[s];
+        if (y[j] < y[lo[s]]) lo[s] = j;
+        if (y[j] > y[hi[s]]) hi[s] = j;
+      }
+    }
+    const col = [...new Set([i, j - 1, ...lo, ...hi])].sort((a, b) => a - b);
+    for (const x of col) idx.push(x);
+    i = j;
+  }
+  return idx;
+}
+
+// The time plots and the buffer columns each draws (time first).
+const PLOTS = { pos: ["t", "demand", "actual"], ferr: ["t", "ferr"], speed: ["t", "rpm", "load"],
+                current: ["t", "current"] };
+
+function setPlot(u, b, k, cols) {
+  const [tcol, ...cols_] = cols;
+  const idx = pick(b[tcol], k, b[tcol].length, u.width, cols_.map((c) => b[c]));
+  u.setData(cols.map((c) => idx.map((x) => b[c][x])));
+}
+
+function draw() {
   if ($("pause").checked) return;
   const span = Number($("span").value);
   for (const ax of state.axes) {
     const b = ax.buf;
     if (!b.t.length) continue;
     const tmax = b.t[b.t.length - 1];
-    let k = 0;
-    while (k < b.t.length && b.t[k] < tmax - span) k++;
-    const w = (arr) => arr.slice(k);
-    const t = w(b.t);
-    ax.pos.setData([t, w(b.demand), w(b.actual)]);
-    ax.ferr.setData([t, w(b.ferr)]);
-    ax.speed.setData([t, w(b.rpm), w(b.load)]);
-    ax.current.setData([t, w(b.current)]);
+    let k = b.t.length - 1;
+    while (k > 0 && b.t[k - 1] >= tmax - span) k--;
+    for (const [name, cols] of Object.entries(PLOTS)) setPlot(ax[name], b, k, cols);
     const d = ax.pos.data;
     ax.plotted = { t_s: d[0][d[0].length - 1], position_actual_uu: d[2][d[2].length - 1],
-                   points: d[0].length };
+                   points: d[0].length, samples: b.t.length - k, width_px: ax.pos.width,
+                   from: k, to: b.t.length };
   }
 }
 
@@ -335,6 +381,19 @@ window.panel = {
     return k < 0 ? null : { t_s: d[0][k], position_actual_uu: d[2][k] };
   },
   state: (axis) => $("state-" + axis) && $("state-" + axis).textContent,
+  // Each plot's last drawing against the samples it was drawn from: how many points and
+  // samples, and each column's lowest and highest value in both (time first).
+  envelope: (axis) => {
+    const ax = state.axes[axis];
+    if (!ax || !ax.plotted) return null;
+    const { from, to } = ax.plotted, b = ax.buf;
+    const range = (a) => a.reduce(([lo, hi], y) => [Math.min(lo, y), Math.max(hi, y)], [Infinity, -Infinity]);
+    return Object.entries(PLOTS).map(([name, cols]) => ({
+      plot: name, points: ax[name].data[0].length, samples: to - from, width_px: ax[name].width,
+      plotted: ax[name].data.map(range), sampled: cols.map((c) => range(b[c].slice(from, to))),
+    }));
+  },
+
   inject,
 };
 
