@@ -10,6 +10,7 @@ target it reads the backlash 0x2000 (REAL32, mm) over SDO every 0.2 s and prints
 import argparse
 import json
 import os
+import socket
 import struct
 import sys
 import time
@@ -20,6 +21,32 @@ canopen.BaseNode402.TIMEOUT_CHECK_TPDO = 2.0
 canopen.BaseNode402.TIMEOUT_SWITCH_OP_MODE = 5.0
 canopen.BaseNode402.TIMEOUT_SWITCH_STATE_SINGLE = 3.0
 canopen.BaseNode402.TIMEOUT_SWITCH_STATE_FINAL = 10.0
+
+
+SO_MEMINFO = 55        # linux/socket.h: getsockopt -> u32[SK_MEMINFO_VARS]
+SK_MEMINFO_DROPS = 8   # frames the socket dropped (receive buffer full)
+
+
+def socket_drops(network):
+    """Frames this master's CAN socket dropped since it opened (its receive buffer was full)."""
+    raw = network.bus.socket.getsockopt(socket.SOL_SOCKET, SO_MEMINFO, 4 * 9)
+    return struct.unpack("<9I", raw)[SK_MEMINFO_DROPS]
+
+
+SO_RCVBUFFORCE = 33    # asm-generic/socket.h
+
+
+def widen_receive_buffer(network, nbytes=16 << 20):
+    """Give this master's CAN socket room for tens of seconds of frames. Inside user-mode
+    Linux this python shares one CPU with the drive and a browser; starved for seconds, it
+    lost the drive's SDO answer from its full receive queue (the default 208 KiB holds about
+    a second of this bus) and timed out, with the answer on the bus. The drive's own socket
+    asks for the same (emulator/src/bus/socketcan.rs)."""
+    sock = network.bus.socket
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, nbytes)  # root (CI, UML)
+    except OSError:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, nbytes)  # capped by rmem_max
 
 
 def say(**kv):
@@ -62,6 +89,7 @@ def main():
     a = ap.parse_args()
     network = canopen.Network()
     network.connect(interface="socketcan", channel=a.iface)
+    widen_receive_buffer(network)
     try:
         node = canopen.BaseNode402(a.node, a.eds)
         network.add_node(node)
@@ -95,6 +123,9 @@ def main():
             time.sleep(0.2)
         node.state = "SWITCH ON DISABLED"
         network.sync.stop()
+    except canopen.SdoCommunicationError:
+        say(error="sdo", socket_drops=socket_drops(network))
+        raise
     finally:
         network.disconnect()
     return 0
