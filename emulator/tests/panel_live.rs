@@ -7,7 +7,7 @@ mod panel_rig;
 
 use drive_emu::master::{Step, MODE_CSP};
 use drive_emu::scenario::{self, runner, timeline::Trigger};
-use panel_rig::{backlash_mm, Rig, RigOptions, SseReader};
+use panel_rig::{backlash_mm, cruise_csp_10_mm_s, Rig, RigOptions, SseReader};
 use serde_json::{json, Value};
 use std::io::{BufReader, Read, Write};
 use std::net::TcpStream;
@@ -569,14 +569,7 @@ fn more_than_the_client_limit_get_503_and_the_others_keep_streaming() {
 #[test]
 fn a_saved_session_replays_the_same_events_at_the_same_times() {
     let rig = Rig::start(RigOptions {
-        program: vec![
-            Step::Enable { mode: MODE_CSP },
-            Step::Cruise {
-                velocity_uu_s: 10_000.0,
-                accel_uu_s2: 100_000.0,
-                duration_s: 3600.0,
-            },
-        ],
+        program: cruise_csp_10_mm_s(),
         overrides: vec![("backlash_mm", "0.01")],
         ..Default::default()
     });

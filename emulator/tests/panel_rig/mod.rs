@@ -61,6 +61,21 @@ impl Default for RigOptions {
     }
 }
 
+/// The reference master's program of the panel's tests: enable in CSP, then cruise at
+/// 10 mm/s (10 000 uu/s on cnc1) for an hour.
+pub fn cruise_csp_10_mm_s() -> Vec<Step> {
+    vec![
+        Step::Enable {
+            mode: drive_emu::master::MODE_CSP,
+        },
+        Step::Cruise {
+            velocity_uu_s: 10_000.0,
+            accel_uu_s2: 100_000.0,
+            duration_s: 3600.0,
+        },
+    ]
+}
+
 fn sdo_read(
     rt: &mut Runtime<FaultyBus<InProcEndpoint>, AxisDrive>,
     client: &mut InProcEndpoint,

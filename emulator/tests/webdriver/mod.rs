@@ -182,6 +182,14 @@ impl Driver {
         )
     }
 
+    /// A Chrome DevTools Protocol command through chromedriver (e.g. `Performance.getMetrics`).
+    pub fn cdp(&self, cmd: &str, params: Value) -> Value {
+        self.post(
+            &self.s("/goog/cdp/execute"),
+            json!({"cmd": cmd, "params": params}),
+        )
+    }
+
     pub fn element(&self, css: &str) -> String {
         let v = self.post(
             &self.s("/element"),

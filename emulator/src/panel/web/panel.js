@@ -25,7 +25,8 @@ const el = (tag, attrs = {}, text) => {
   return e;
 };
 
-const state = { hello: null, axes: [], frame: 0, simTime: 0 };
+const state = { hello: null, axes: [], simTime: 0, messages: 0, draws: 0,
+                drawTimer: 0, drawEnd: -Infinity, drawCost: 0 };
 
 function newBuffers() {
   return { t: [], demand: [], actual: [], ferr: [], rpm: [], load: [], current: [] };
@@ -150,6 +151,7 @@ function trim(buf, tmax) {
 }
 
 function onSamples(m) {
+  state.messages++;
   state.simTime = m.t_s;
   $("simtime").textContent = m.t_s.toFixed(3);
   for (const e of m.axes) {
@@ -178,55 +180,31 @@ function onSamples(m) {
   redraw();
 }
 
-// Drawing follows the browser's frames, not the messages: messages that arrive while a frame
-// is drawn are drawn together in the next one, so a browser short of CPU draws less often
-// instead of falling behind the stream (and a hidden tab draws nothing).
+// Drawing is paced by its own cost: a message draws at once when the last drawing ended at
+// least MIN_DRAW_GAP_MS ago and at least as long ago as it took; otherwise one drawing is due
+// at that time and the messages that arrive meanwhile are drawn together in it. The page thus
+// spends at most half its time drawing: a browser short of CPU draws less often instead of
+// falling ever further behind the stream, and the messages, the controls and anything else
+// on the page still get their turn. (Drawing on animation frames did the same but cost the
+// browser a quarter more: measured with benches/panel_page.rs.)
+const MIN_DRAW_GAP_MS = 30;
+
 function redraw() {
-  if (state.frame) return;
-  state.frame = requestAnimationFrame(() => { state.frame = 0; draw(); });
+  if (state.drawTimer) return;
+  const wait = state.drawEnd + Math.max(MIN_DRAW_GAP_MS, state.drawCost) - performance.now();
+  if (wait <= 0) draw();
+  else state.drawTimer = setTimeout(() => { state.drawTimer = 0; draw(); }, wait);
 }
 
-// The samples to draw of [k, n) for a plot `cols` pixels wide: every one when there are few;
-// else per pixel column its first and last sample and each series' lowest and highest, so
-// the line keeps the envelope of every sample (a limit cycle's peaks too) at any span.
-function pick(t, k, n, cols, series) {
-  const idx = [];
-  if (n - k <= 3 * cols) {
-    for (let i = k; i < n; i++) idx.push(i);
-    return idx;
-  }
-  const t0 = t[k], scale = cols / ((t[n - 1] - t0) || 1);
-  let i = k;
-  while (i < n) {
-    const c = Math.floor((t[i] - t0) * scale);
-    const lo = series.map(() => i), hi = series.map(() => i);
-    let j = i + 1;
-    for (; j < n && Math.floor((t[j] - t0) * scale) === c; j++) {
-      for (let s = 0; s < series.length; s++) {
-        const y = series[s];
-        if (y[j] < y[lo[s]]) lo[s] = j;
-        if (y[j] > y[hi[s]]) hi[s] = j;
-      }
-    }
-    const col = [...new Set([i, j - 1, ...lo, ...hi])].sort((a, b) => a - b);
-    for (const x of col) idx.push(x);
-    i = j;
-  }
-  return idx;
-}
-
-// The time plots and the buffer columns each draws (time first).
+// The time plots and the buffer columns each draws (time first). uPlot draws a line through
+// more points than its width has pixels as each pixel column's lowest and highest point, so
+// a long span costs about what a short one does and every peak is still drawn.
 const PLOTS = { pos: ["t", "demand", "actual"], ferr: ["t", "ferr"], speed: ["t", "rpm", "load"],
                 current: ["t", "current"] };
 
-function setPlot(u, b, k, cols) {
-  const [tcol, ...cols_] = cols;
-  const idx = pick(b[tcol], k, b[tcol].length, u.width, cols_.map((c) => b[c]));
-  u.setData(cols.map((c) => idx.map((x) => b[c][x])));
-}
-
 function draw() {
   if ($("pause").checked) return;
+  const t0 = performance.now();
   const span = Number($("span").value);
   for (const ax of state.axes) {
     const b = ax.buf;
@@ -234,12 +212,17 @@ function draw() {
     const tmax = b.t[b.t.length - 1];
     let k = b.t.length - 1;
     while (k > 0 && b.t[k - 1] >= tmax - span) k--;
-    for (const [name, cols] of Object.entries(PLOTS)) setPlot(ax[name], b, k, cols);
+    for (const [name, cols] of Object.entries(PLOTS)) ax[name].setData(cols.map((c) => b[c].slice(k)));
     const d = ax.pos.data;
     ax.plotted = { t_s: d[0][d[0].length - 1], position_actual_uu: d[2][d[2].length - 1],
-                   points: d[0].length, samples: b.t.length - k, width_px: ax.pos.width,
-                   from: k, to: b.t.length };
+                   points: d[0].length };
   }
+  state.draws++;
+  // uPlot draws in a microtask queued by setData: this one runs after it.
+  queueMicrotask(() => {
+    state.drawEnd = performance.now();
+    state.drawCost = state.drawEnd - t0;
+  });
 }
 
 function onSpectrum(m) {
@@ -381,19 +364,8 @@ window.panel = {
     return k < 0 ? null : { t_s: d[0][k], position_actual_uu: d[2][k] };
   },
   state: (axis) => $("state-" + axis) && $("state-" + axis).textContent,
-  // Each plot's last drawing against the samples it was drawn from: how many points and
-  // samples, and each column's lowest and highest value in both (time first).
-  envelope: (axis) => {
-    const ax = state.axes[axis];
-    if (!ax || !ax.plotted) return null;
-    const { from, to } = ax.plotted, b = ax.buf;
-    const range = (a) => a.reduce(([lo, hi], y) => [Math.min(lo, y), Math.max(hi, y)], [Infinity, -Infinity]);
-    return Object.entries(PLOTS).map(([name, cols]) => ({
-      plot: name, points: ax[name].data[0].length, samples: to - from, width_px: ax[name].width,
-      plotted: ax[name].data.map(range), sampled: cols.map((c) => range(b[c].slice(from, to))),
-    }));
-  },
-
+  // `samples` messages taken and drawings made since the page opened.
+  counts: () => ({ messages: state.messages, draws: state.draws }),
   inject,
 };
 
