@@ -98,7 +98,7 @@ fn the_page_shows_the_drive_live_and_its_backlash_control_reaches_the_drive() {
         text.contains("f/k_v 0.") || text.contains("f/k_v 1"),
         "{text}"
     );
-    // Drawing follows the browser's frames: messages that arrive while the page is busy are
+    // Drawing is paced by its own cost: messages that arrive while the page is busy are
     // drawn together. Keep its main thread busy for 1.5 s (25 messages a second queue up
     // meanwhile): the backlog is then drawn in a drawing or two, not once per message.
     let before = d.js("return panel.counts()", json!([]));
@@ -123,7 +123,31 @@ fn the_page_shows_the_drive_live_and_its_backlash_control_reaches_the_drive() {
         messages >= 20 && draws * 2 <= messages,
         "{messages} messages taken, {draws} drawings made: {before} -> {after}"
     );
-    // The picture for the README.
+    // Each plot is as wide as its column of the grid (two columns in this 1600 px window).
+    let widths = d.js(
+        "return [...document.querySelectorAll('#axis-0 .plots > div')].map(\
+         (c) => [c.clientWidth, c.querySelector('canvas').getBoundingClientRect().width])",
+        json!([]),
+    );
+    let widths: Vec<(f64, f64)> = widths
+        .as_array()
+        .expect("plot widths")
+        .iter()
+        .map(|w| (w[0].as_f64().unwrap(), w[1].as_f64().unwrap()))
+        .collect();
+    assert_eq!(widths.len(), 5, "{widths:?}");
+    assert!(
+        widths
+            .iter()
+            .all(|&(cell, canvas)| cell >= 420.0 && (cell - canvas).abs() <= 1.0),
+        "plot columns and their canvases (px): {widths:?}"
+    );
+    // The picture for the README: a 10 s span shows the limit cycle set in.
+    d.js(
+        "const s = document.getElementById('span'); s.value = '10'; \
+         s.dispatchEvent(new Event('change')); return 1",
+        json!([]),
+    );
     std::thread::sleep(Duration::from_millis(500));
     let png = d.screenshot();
     assert!(

@@ -43,7 +43,13 @@ function plot(container, title, series, scales, xlabel = "t [s]") {
     cursor: { drag: { x: false, y: false } },
   };
   const data = [[]].concat(series.map(() => []));
-  return new uPlot(opts, data, container);
+  const u = new uPlot(opts, data, container);
+  // As wide as its column of the grid, whatever the window.
+  new ResizeObserver((entries) => {
+    const w = Math.floor(entries[0].contentRect.width);
+    if (w > 0 && w !== u.width) u.setSize({ width: w, height: u.height });
+  }).observe(container);
+  return u;
 }
 
 function buildAxis(a) {
