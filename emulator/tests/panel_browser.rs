@@ -1,4 +1,4 @@
-//! The live panel in a real browser: Debian's chromium, headless, driven by chromium-driver
+//! The live panel in a real browser: Debian's Chromium headless shell, driven by chromium-driver
 //! through the WebDriver HTTP API (a small client here), against a drive with the panel on an
 //! in-process bus, moved by the reference master at constant speed in CSP:
 //! - the page shows the drive reach OPERATION ENABLED;
@@ -6,7 +6,8 @@
 //!   axis moving at 10 mm/s: within what it travels between two plotted samples);
 //! - a backlash set on the page (its control, typed and clicked) reads back over SDO from
 //!   0x2000, and the page's detector then reports the limit cycle it causes;
-//! - messages that arrive while the page is busy are drawn together, not one by one.
+//! - messages that arrive while the page is busy are drawn together, not one by one;
+//! - each plot is as wide as its column of the page's grid.
 //!
 //! With `DRIVE_EMU_PANEL_SCREENSHOT=PATH` the page's screenshot at the end is written there
 //! (docs/img/panel.png was made so). A missing chromium or chromedriver fails the test with
@@ -143,21 +144,9 @@ fn the_page_shows_the_drive_live_and_its_backlash_control_reaches_the_drive() {
         "plot columns and their canvases (px): {widths:?}"
     );
     // The picture for the README: a 10 s span shows the limit cycle set in.
-    d.js(
-        "const s = document.getElementById('span'); s.value = '10'; \
-         s.dispatchEvent(new Event('change')); return 1",
-        json!([]),
-    );
+    d.select("#span", "10");
     std::thread::sleep(Duration::from_millis(500));
-    let png = d.screenshot();
-    assert!(
-        png.starts_with(b"\x89PNG\r\n\x1a\n") && png.len() > 10_000,
-        "{} bytes",
-        png.len()
-    );
-    if let Some(p) = std::env::var_os("DRIVE_EMU_PANEL_SCREENSHOT") {
-        std::fs::write(&p, &png).unwrap();
-    }
+    d.screenshot_to("DRIVE_EMU_PANEL_SCREENSHOT");
     drop(d);
     rig.stop();
 }

@@ -1,10 +1,12 @@
 //! The live panel in a real browser against `drive-emu run --panel` on vcan0, moved by a
 //! python canopen master (tests/python/panel_master.py, BaseNode402 in profile position):
-//! Debian's chromium headless through chromium-driver's WebDriver API (the client shared
-//! with the host test, emulator/tests/webdriver). The page shows OPERATION ENABLED; at each
-//! target the master reached, the position the page plotted last equals 0x6064 the master
-//! read over SDO; a backlash set with the page's control reads back over SDO from 0x2000 in
-//! the master. Run inside user-mode Linux by ./test-all.sh (docs/vcan.md).
+//! Debian's Chromium headless shell through chromium-driver's WebDriver API (the client
+//! shared with the host test, emulator/tests/webdriver). The page shows OPERATION ENABLED; at
+//! each target the master reached, the position the page plotted last equals 0x6064 the
+//! master read over SDO; a backlash set with the page's control reads back over SDO from
+//! 0x2000 in the master. Run inside user-mode Linux by ./test-all.sh (docs/vcan.md). With
+//! `DRIVE_EMU_PANEL_VCAN_SCREENSHOT=PATH` the page's screenshot at the end is written there
+//! (the README's second picture, docs/img/panel-vcan.png).
 
 #[path = "../../emulator/tests/webdriver/mod.rs"]
 mod webdriver;
@@ -159,6 +161,15 @@ fn the_page_shows_a_drive_on_vcan_moved_by_python_canopen() {
         b["backlash_mm"], 0.042,
         "0x2000 read over SDO by the master"
     );
+    // The picture for the README: both moves, at a 30 s span.
+    d.select("#span", "30");
+    let logged = d.wait_js(
+        Duration::from_secs(60),
+        "const li = document.querySelector('#injections li'); \
+         return li && li.textContent.includes('backlash_mm = 0.042') ? li.textContent : null",
+    );
+    assert!(logged.is_string(), "the page logged {logged}");
+    d.screenshot_to("DRIVE_EMU_PANEL_VCAN_SCREENSHOT");
     std::fs::write(dir.join("done"), "").unwrap();
     let status = master.finish(Duration::from_secs(30));
     assert!(status.success(), "the master failed");

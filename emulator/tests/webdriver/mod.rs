@@ -223,6 +223,29 @@ impl Driver {
             .unwrap()
     }
 
+    /// Choose `value` in the `<select>` at `css`, as a user would (its change event fires).
+    pub fn select(&self, css: &str, value: &str) {
+        self.js(
+            "const s = document.querySelector(arguments[0]); s.value = arguments[1]; \
+             s.dispatchEvent(new Event('change')); return s.value",
+            json!([css, value]),
+        );
+    }
+
+    /// A screenshot of the page, checked to be a PNG of some substance, and written to the
+    /// path in the environment variable `var` when there is one.
+    pub fn screenshot_to(&self, var: &str) {
+        let png = self.screenshot();
+        assert!(
+            png.starts_with(b"\x89PNG\r\n\x1a\n") && png.len() > 10_000,
+            "a screenshot of {} bytes",
+            png.len()
+        );
+        if let Some(p) = std::env::var_os(var) {
+            std::fs::write(&p, &png).unwrap_or_else(|e| panic!("{var}: {e}"));
+        }
+    }
+
     /// Wait until the script returns something truthy; the last value.
     pub fn wait_js(&self, limit: Duration, script: &str) -> Value {
         let t0 = Instant::now();
