@@ -25,7 +25,7 @@ RESTITUTION = 0.41          # [paper] eq. 10 with f = 0.6 k_v (eq. 13)
 T_SUM = SPEED_CYCLE_S / 2 + SPEED_CYCLE_S / 2 + SPEED_FILTER_S + 1 / (2 * math.pi * CURRENT_LOOP_HZ)
 
 # name: (J_m [kg m^2], r [m/rad or rad/rad: load motion per motor radian], load mass [kg] or
-# inertia [kg m^2], contact stiffness [N/m or N m/rad]), from emulator/presets/*.toml
+# inertia [kg m^2], contact stiffness [N/m or N m/rad]), from physics/presets/*.toml
 PRESETS = {
     "cnc1": (0.0048, 0.010 / (2 * math.pi), 800.0, 200e6),
     "cnc2": (0.0092, 0.016 / (2 * math.pi), 600.0, 150e6),

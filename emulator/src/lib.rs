@@ -12,11 +12,9 @@ pub mod samples;
 
 pub mod bus;
 
-pub mod axis;
-
-pub mod control;
-
-pub mod presets;
+// The physics (axis, servo cascade, presets) is its own crate, `drive-physics`: re-exported
+// here under the names the emulator's modules and users have always used.
+pub use drive_physics::{axis, control, presets};
 
 pub mod runtime;
 

@@ -11,9 +11,10 @@ use std::path::{Path, PathBuf};
 /// The layer order, bottom first. A module may import only modules before it in this list.
 /// Written once here and in docs/decisions/0006-emulator-layers.md.
 const LAYERS: &[&str] = &[
-    "time",     // clocks: monotonic wall clock, virtual clock
-    "samples",  // trace sample types and trace-file reading
-    "bus",      // CAN bus abstraction: SocketCAN, in-process, fault injector
+    "time",    // clocks: monotonic wall clock, virtual clock
+    "samples", // trace sample types and trace-file reading
+    "bus",     // CAN bus abstraction: SocketCAN, in-process, fault injector
+    // crate drive-physics, re-exported (lib.rs `pub use drive_physics::{...}`):
     "axis",     // physics: two-mass axis with backlash, friction, encoders
     "control",  // servo cascade on the axis
     "presets",  // axis configurations (preset files, overrides)
@@ -29,6 +30,28 @@ const LAYERS: &[&str] = &[
     "panel",    // the live panel of `run --panel`: server, stream, injections, recording
     "study",    // parameter studies and figures
     "cli",      // the command line
+];
+
+/// The physics crate's modules (physics/src), bottom first: the same rule inside it.
+const PHYSICS_LAYERS: &[&str] = &["params", "axis", "control", "presets"];
+
+/// The workspace's crates and the workspace crates each may depend on (its `[dependencies]`
+/// on a `path`): the compiler keeps these layers, this test keeps the list. Bottom first.
+const CRATES: &[(&str, &[&str])] = &[
+    ("protocol", &[]),
+    ("physics", &[]),
+    ("emulator", &["protocol", "physics"]),
+];
+
+/// What the physics crate must never name: a fieldbus, a thread, a clock, a socket.
+const PHYSICS_FORBIDDEN: &[&str] = &[
+    "drive_protocol",
+    "drive_emu",
+    "std::thread",
+    "Instant",
+    "SystemTime",
+    "std::net",
+    "std::sync",
 ];
 
 /// Files directly in `src/` that are not modules of the layering (crate root, binary).
@@ -126,7 +149,12 @@ fn root_depth(src: &Path, file: &Path) -> usize {
 
 /// Every import that goes up (or sideways into a module not below), as messages.
 fn violations(src: &Path) -> Vec<String> {
-    let layer = |m: &str| LAYERS.iter().position(|l| *l == m);
+    violations_in(src, LAYERS)
+}
+
+/// [`violations`] of a crate whose modules are `layers`, bottom first.
+fn violations_in(src: &Path, layers: &[&str]) -> Vec<String> {
+    let layer = |m: &str| layers.iter().position(|l| *l == m);
     let mut out = Vec::new();
     let mut files = Vec::new();
     rs_files(src, &mut files);
@@ -178,6 +206,91 @@ fn every_emulator_module_imports_only_modules_below_it() {
 }
 
 #[test]
+fn every_physics_module_imports_only_modules_below_it_and_nothing_of_a_bus_or_a_clock() {
+    let src = workspace().join("physics/src");
+    let bad = violations_in(&src, PHYSICS_LAYERS);
+    assert!(
+        bad.is_empty(),
+        "physics layering broken:\n{}",
+        bad.join("\n")
+    );
+    let mut files = Vec::new();
+    rs_files(&src, &mut files);
+    let mut named = Vec::new();
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        for w in PHYSICS_FORBIDDEN {
+            if text.contains(w) {
+                named.push(format!("{} names `{w}`", f.display()));
+            }
+        }
+    }
+    assert!(named.is_empty(), "{}", named.join("\n"));
+}
+
+/// The workspace root.
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
+}
+
+/// The workspace crates (folders) that `manifest` depends on by path, in `[dependencies]`
+/// (dev-dependencies may reach further: tests drive a crate from outside).
+fn path_dependencies(manifest: &str) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    let mut in_deps = false;
+    for line in manifest.lines() {
+        let l = line.trim();
+        if l.starts_with('[') {
+            in_deps = l == "[dependencies]";
+            continue;
+        }
+        if !in_deps {
+            continue;
+        }
+        if let Some(i) = l.find("path = \"../") {
+            let rest = &l[i + "path = \"../".len()..];
+            let name = rest.split('"').next().unwrap_or("");
+            out.insert(name.trim_end_matches('/').to_string());
+        }
+    }
+    out
+}
+
+#[test]
+fn every_crate_depends_only_on_the_crates_below_it() {
+    let root = workspace();
+    let mut bad = Vec::new();
+    for (i, (krate, allowed)) in CRATES.iter().enumerate() {
+        let manifest = std::fs::read_to_string(root.join(krate).join("Cargo.toml")).unwrap();
+        for dep in path_dependencies(&manifest) {
+            let below = CRATES[..i].iter().any(|(c, _)| *c == dep);
+            if !below || !allowed.contains(&dep.as_str()) {
+                bad.push(format!("{krate} depends on {dep}"));
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "crate layering broken: {bad:?} (CRATES in tests/layering.rs)"
+    );
+    // Every member of the workspace with a library is placed.
+    let ws = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
+    for m in ["protocol", "physics", "emulator"] {
+        assert!(
+            ws.contains(&format!("\"{m}\"")),
+            "{m} not a workspace member"
+        );
+    }
+    assert_eq!(
+        path_dependencies("[dependencies]\na = { path = \"../physics\" }\n[dev-dependencies]\nb = { path = \"../x\" }\n"),
+        BTreeSet::from(["physics".to_string()])
+    );
+}
+
+#[test]
 fn every_module_of_lib_rs_has_a_layer_and_every_layer_is_a_module() {
     let lib =
         std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("src/lib.rs")).unwrap();
@@ -186,9 +299,31 @@ fn every_module_of_lib_rs_has_a_layer_and_every_layer_is_a_module() {
         .filter_map(|l| l.trim().strip_prefix("pub mod "))
         .chain(lib.lines().filter_map(|l| l.trim().strip_prefix("mod ")))
         .map(|l| l.trim_end_matches(';'))
+        .chain(reexported(&lib, "drive_physics"))
         .collect();
     let layers: BTreeSet<&str> = LAYERS.iter().copied().collect();
     assert_eq!(declared, layers);
+    // The physics' modules are the crate's, re-exported, not copies.
+    for m in PHYSICS_LAYERS.iter().filter(|m| **m != "params") {
+        assert!(
+            !Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("src")
+                .join(m)
+                .exists(),
+            "emulator/src/{m} exists beside the physics crate's"
+        );
+    }
+}
+
+/// The names of a `pub use CRATE::{a, b, c};` line of `lib`.
+fn reexported<'a>(lib: &'a str, krate: &str) -> Vec<&'a str> {
+    let head = format!("pub use {krate}::{{");
+    lib.lines()
+        .filter_map(|l| l.trim().strip_prefix(head.as_str()))
+        .flat_map(|l| l.trim_end_matches("};").split(','))
+        .map(str::trim)
+        .filter(|n| !n.is_empty())
+        .collect()
 }
 
 /// A scratch `src/` tree with the given files.

@@ -53,7 +53,7 @@ fn step_too_coarse_for_stiffness_is_rejected() {
 fn unknown_key_is_rejected() {
     let e = err("backlash_inch", "0.001");
     assert_eq!(e.key, "backlash_inch");
-    assert_eq!(e.reason, "unknown key");
+    assert_eq!(e.reason, "unknown key (did you mean `backlash_mm`?)");
     let text = AxisConfig::from_preset("cnc2").unwrap();
     let mut t = toml::to_string(&text).unwrap();
     t.push_str("\nfoo_bar = 3\n");

@@ -7,7 +7,7 @@
 //! The servo keeps its own control cycle (`position_cycle_us` of the preset) whatever the bus
 //! tick: [`AxisDrive::advance`] runs as many position cycles as the elapsed time holds.
 
-use super::objects::{AxisParam, EmuObjects, ParamError, INJECT_TAG, PARAMS};
+use super::objects::{param_of_tag, AxisParam, EmuObjects, ParamError, INJECT_TAG};
 use crate::control::cascade::{Command, Servo, Setpoint as ServoSetpoint};
 use crate::presets::{AxisConfig, AxisKind, ConfigError, Transmission};
 use drive_protocol::wire::sdo::abort;
@@ -487,9 +487,9 @@ impl Drive for AxisDrive {
         _sub: u8,
         out: &mut [u8],
     ) -> Result<usize, u32> {
-        let def = PARAMS.get(tag as usize).ok_or(abort::NO_OBJECT)?;
-        let (_, scale) = def.unit(self.info.rotary);
-        let v = (self.param(def.param) * scale) as f32;
+        let spec = param_of_tag(tag).ok_or(abort::NO_OBJECT)?;
+        let param = spec.live.ok_or(abort::NO_OBJECT)?;
+        let v = spec.form(self.info.rotary).from_si(self.param(param)) as f32;
         out[..4].copy_from_slice(&v.to_le_bytes());
         Ok(4)
     }
@@ -500,15 +500,15 @@ impl Drive for AxisDrive {
             self.injected = (code != 0).then_some(code);
             return Ok(());
         }
-        let def = PARAMS.get(tag as usize).ok_or(abort::NO_OBJECT)?;
+        let spec = param_of_tag(tag).ok_or(abort::NO_OBJECT)?;
+        let param = spec.live.ok_or(abort::NO_OBJECT)?;
         let bytes: [u8; 4] = data.try_into().map_err(|_| abort::LENGTH_MISMATCH)?;
         let v = f32::from_le_bytes(bytes) as f64;
         if !v.is_finite() {
             return Err(abort::VALUE_RANGE);
         }
-        let (_, scale) = def.unit(self.info.rotary);
-        let si = v / scale;
-        self.set_param(def.param, si).map_err(|e| e.abort_code(si))
+        let si = spec.form(self.info.rotary).to_si(v);
+        self.set_param(param, si).map_err(|e| e.abort_code(si))
     }
 
     fn reset_fault(&mut self) -> bool {

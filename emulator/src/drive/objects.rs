@@ -2,10 +2,11 @@
 //! built ([`register`]), at a base index (0x2000 unless a vendor's EDS has objects there):
 //!
 //! - base + 0x00 ..= 0x0D: the axis parameters of [`AxisParam`], one REAL32 each, in the
-//!   engineering unit the object's name says (`backlash_mm`, `kv_per_s`, ...); the drive keeps
-//!   them (a handler: an SDO read or write converts `engineering = SI * scale` and goes to
-//!   [`AxisDrive::param`] / [`AxisDrive::set_param`]). Rotary axes use the `rotary_name` /
-//!   `rotary_scale` column (SI is rad there).
+//!   unit the object's name says (`backlash_mm`, `kv_per_s`, ...): the parameter registry's
+//!   spelling (`drive_physics::params`, one name everywhere); the drive keeps them (a handler:
+//!   an SDO read or write converts with the spelling's SI scale and goes to
+//!   [`AxisDrive::param`] / [`AxisDrive::set_param`]). Rotary axes use the rotary spelling (SI
+//!   is rad there).
 //! - base + 0x100: the runtime's loop statistics (RECORD of U32, read-only, mappable, subs
 //!   named by [`STATS_NAMES`]), stored values the runtime publishes ([`EmuObjects::stats`]).
 //! - base + 0x101: fault injection (U16, write-only): a non-zero value is a drive fault with
@@ -33,7 +34,7 @@ pub const DEFAULT_BASE: u16 = 0x2000;
 pub const STATS_OFFSET: u16 = 0x100;
 /// Offset of the fault injection object from the base.
 pub const INJECT_OFFSET: u16 = 0x101;
-/// Handler tag of the fault injection object; parameter `i` of [`PARAMS`] has tag `i`.
+/// Handler tag of the fault injection object; a parameter object's tag is its offset.
 pub const INJECT_TAG: u16 = 0x100;
 /// Offset of the backlash detector's record from the base.
 pub const DETECTOR_OFFSET: u16 = 0x102;
@@ -50,38 +51,9 @@ pub const DETECTOR_NAMES: [&str; 5] = [
 /// 0.01 Hz (U16), the amplitude in 0.1 um or 0.1 mdeg (U16).
 pub const EMCY_BACKLASH: u16 = 0xFF01;
 
-/// Axis parameters the master may read and write while the axis runs, in SI units.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum AxisParam {
-    /// Backlash at the load, m (linear) or rad (rotary).
-    Backlash,
-    /// Drive-train stiffness at the load, N/m (linear) or N m/rad (rotary).
-    Stiffness,
-    /// Drive-train damping at the load, N s/m or N m s/rad.
-    Damping,
-    /// Coulomb friction at the load, N or N m.
-    LoadCoulombFriction,
-    /// Viscous friction at the load, N s/m or N m s/rad.
-    LoadViscousFriction,
-    /// Coulomb friction at the motor, N m.
-    MotorCoulombFriction,
-    /// External load force/torque at the load (cutting force), N or N m.
-    ExternalLoad,
-    /// Position-loop gain k_v, 1/s.
-    Kv,
-    /// Speed-loop proportional gain, N m s/rad.
-    SpeedKp,
-    /// Speed-loop integral time, s.
-    SpeedTi,
-    /// Motor-encoder noise, standard deviation in increments.
-    MotorEncoderNoise,
-    /// Direct-encoder noise, standard deviation in m or rad.
-    DirectEncoderNoise,
-    /// Direct-encoder offset (thermal drift of a linear scale), m or rad.
-    DirectEncoderOffset,
-    /// 1.0 = the direct encoder closes the position loop, 0.0 = the motor encoder does.
-    PositionFromDirect,
-}
+/// The axis parameters (the registry's live rows, `drive_physics::params`).
+pub use drive_physics::params::AxisParam;
+use drive_physics::params::{ParamSpec, PARAMS};
 
 /// Why the drive refused a parameter value.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -113,74 +85,11 @@ impl ParamError {
     }
 }
 
-/// One parameter object.
-#[derive(Clone, Copy, Debug)]
-pub struct ParamDef {
-    /// Offset from the base index.
-    pub offset: u16,
-    /// The parameter.
-    pub param: AxisParam,
-    /// Name (and unit) on a linear axis.
-    pub name: &'static str,
-    /// Engineering units per SI unit on a linear axis.
-    pub scale: f64,
-    /// Name on a rotary axis.
-    pub rotary_name: &'static str,
-    /// Engineering units per SI unit on a rotary axis.
-    pub rotary_scale: f64,
+/// The parameter object with handler tag `tag`: the registry row whose object sits `tag`
+/// above the base (`drive_physics::params::PARAMS`, `object_offset`).
+pub fn param_of_tag(tag: u16) -> Option<&'static ParamSpec> {
+    PARAMS.iter().find(|p| p.object_offset == Some(tag))
 }
-
-impl ParamDef {
-    /// Name and scale for the axis kind.
-    pub fn unit(&self, rotary: bool) -> (&'static str, f64) {
-        if rotary {
-            (self.rotary_name, self.rotary_scale)
-        } else {
-            (self.name, self.scale)
-        }
-    }
-}
-
-const DEG: f64 = 180.0 / core::f64::consts::PI;
-const ARCSEC: f64 = DEG * 3600.0;
-
-const fn p(
-    offset: u16,
-    param: AxisParam,
-    name: &'static str,
-    scale: f64,
-    rotary_name: &'static str,
-    rotary_scale: f64,
-) -> ParamDef {
-    ParamDef {
-        offset,
-        param,
-        name,
-        scale,
-        rotary_name,
-        rotary_scale,
-    }
-}
-
-/// The parameter objects, in offset order (tag = position).
-#[rustfmt::skip]
-pub const PARAMS: [ParamDef; 14] = [
-    //  offset  parameter                          linear name (unit)                 scale  rotary name                         scale
-    p(0x00, AxisParam::Backlash,             "backlash_mm",                      1e3,  "backlash_deg",                     DEG),
-    p(0x01, AxisParam::Stiffness,            "stiffness_N_per_um",               1e-6, "stiffness_Nm_per_rad",             1.0),
-    p(0x02, AxisParam::Damping,              "damping_Ns_per_m",                 1.0,  "damping_Nms_per_rad",              1.0),
-    p(0x03, AxisParam::LoadCoulombFriction,  "load_coulomb_friction_N",          1.0,  "load_coulomb_friction_Nm",         1.0),
-    p(0x04, AxisParam::LoadViscousFriction,  "load_viscous_friction_Ns_per_m",   1.0,  "load_viscous_friction_Nms_per_rad",1.0),
-    p(0x05, AxisParam::MotorCoulombFriction, "motor_coulomb_friction_Nm",        1.0,  "motor_coulomb_friction_Nm",        1.0),
-    p(0x06, AxisParam::ExternalLoad,         "external_load_N",                  1.0,  "external_load_Nm",                 1.0),
-    p(0x07, AxisParam::Kv,                   "kv_per_s",                         1.0,  "kv_per_s",                         1.0),
-    p(0x08, AxisParam::SpeedKp,              "speed_kp_Nms_per_rad",             1.0,  "speed_kp_Nms_per_rad",             1.0),
-    p(0x09, AxisParam::SpeedTi,              "speed_ti_ms",                      1e3,  "speed_ti_ms",                      1e3),
-    p(0x0A, AxisParam::MotorEncoderNoise,    "motor_encoder_noise_inc",          1.0,  "motor_encoder_noise_inc",          1.0),
-    p(0x0B, AxisParam::DirectEncoderNoise,   "direct_encoder_noise_um",          1e6,  "direct_encoder_noise_arcsec",      ARCSEC),
-    p(0x0C, AxisParam::DirectEncoderOffset,  "direct_encoder_offset_um",         1e6,  "direct_encoder_offset_arcsec",     ARCSEC),
-    p(0x0D, AxisParam::PositionFromDirect,   "position_from_direct",             1.0,  "position_from_direct",             1.0),
-];
 
 pub use crate::runtime::stats::STATS_NAMES;
 
@@ -201,12 +110,9 @@ pub fn range(base: u16) -> core::ops::RangeInclusive<u16> {
 }
 
 /// The parameter (with its tag) at `index` for objects at `base`.
-pub fn param_at(base: u16, index: u16) -> Option<(u16, &'static ParamDef)> {
+pub fn param_at(base: u16, index: u16) -> Option<(u16, &'static ParamSpec)> {
     let off = index.checked_sub(base)?;
-    PARAMS
-        .iter()
-        .position(|d| d.offset == off)
-        .map(|i| (i as u16, &PARAMS[i]))
+    param_of_tag(off).map(|p| (off, p))
 }
 
 /// Add the emulator's objects to `od` at `base` (names for a rotary axis if `rotary`).
@@ -218,11 +124,11 @@ pub fn register(od: &mut ObjectDictionary, base: u16, rotary: bool) -> Result<Em
             reason: "the emulator's objects do not fit above this base".into(),
         });
     }
-    for (tag, d) in PARAMS.iter().enumerate() {
-        let (name, _) = d.unit(rotary);
+    for p in PARAMS {
+        let Some(off) = p.object_offset else { continue };
         od.insert(
-            Entry::var(base + d.offset, name, DataType::Real32, Access::Rw)
-                .with_handler(tag as u16),
+            Entry::var(base + off, p.form(rotary).key, DataType::Real32, Access::Rw)
+                .with_handler(off),
         )?;
     }
     let index = base + STATS_OFFSET;

@@ -72,30 +72,9 @@ pub struct Controls {
     preset: String,
 }
 
-/// The unit a parameter key's name ends in, for people.
+/// The unit of a parameter key, for people (the parameter registry's).
 pub fn unit_of(key: &str) -> &'static str {
-    const UNITS: &[(&str, &str)] = &[
-        ("_n_per_m_per_s", "N/(m/s)"),
-        ("_nm_per_rad_per_s", "N m/(rad/s)"),
-        ("_n_s_per_m", "N s/m"),
-        ("_nm_s_per_rad", "N m s/rad"),
-        ("_nms_per_rad", "N m s/rad"),
-        ("_n_per_um", "N/µm"),
-        ("_nm_per_arcsec", "N m/arcsec"),
-        ("_per_s", "1/s"),
-        ("_counts", "counts"),
-        ("_mdeg", "mdeg"),
-        ("_deg", "deg"),
-        ("_mm", "mm"),
-        ("_um", "µm"),
-        ("_ms", "ms"),
-        ("_nm", "N m"),
-        ("_n", "N"),
-    ];
-    UNITS
-        .iter()
-        .find(|(suffix, _)| key.ends_with(suffix))
-        .map_or("0 or 1", |(_, u)| u)
+    drive_physics::params::find(key).map_or("", |(_, form)| form.unit)
 }
 
 impl Controls {
@@ -395,7 +374,7 @@ mod tests {
         assert_eq!(unit_of("direct_encoder_noise_um"), "µm");
         assert_eq!(unit_of("load_viscous_friction_n_per_m_per_s"), "N/(m/s)");
         assert_eq!(unit_of("position_from_direct"), "0 or 1");
-        for k in PARAM_KEYS {
+        for k in PARAM_KEYS.iter() {
             assert!(!unit_of(k.key).is_empty());
         }
     }

@@ -3,6 +3,7 @@
 //! and the TOML deserializer attaches the span of the offending value (or key) to the error.
 
 use crate::drive::AxisParam;
+use drive_physics::params::{Applies, Form, PARAMS};
 use drive_protocol::Cia402State;
 use serde::de::{self, Deserializer, Visitor};
 use std::fmt;
@@ -119,122 +120,62 @@ pub struct ParamKey {
     pub min: f64,
 }
 
-const DEG: f64 = std::f64::consts::PI / 180.0;
+/// Every parameter a timeline event may set, ramp or drive (applied through the drive's
+/// `set_param` while the axis runs): the parameter registry's live rows
+/// (`drive_physics::params::PARAMS`), one entry per spelling (linear, rotary or both).
+pub static PARAM_KEYS: [ParamKey; LIVE_FORMS] = live_keys();
 
-macro_rules! key {
-    ($k:literal, $p:ident, $s:expr, $a:ident, $min:expr) => {
-        ParamKey {
-            key: $k,
-            param: AxisParam::$p,
-            scale: $s,
-            axis: AxisKind::$a,
-            min: $min,
+/// How many spellings the registry's live parameters have.
+const LIVE_FORMS: usize = {
+    let mut n = 0;
+    let mut i = 0;
+    while i < PARAMS.len() {
+        if PARAMS[i].live.is_some() {
+            n += if PARAMS[i].rotary.is_some() { 2 } else { 1 };
         }
-    };
+        i += 1;
+    }
+    n
+};
+
+const fn key_of(form: &Form, param: AxisParam, min: f64) -> ParamKey {
+    ParamKey {
+        key: form.key,
+        param,
+        scale: form.si_per_unit,
+        axis: match form.applies {
+            Applies::Linear => AxisKind::Linear,
+            Applies::Rotary => AxisKind::Rotary,
+            Applies::Any => AxisKind::Any,
+        },
+        min,
+    }
 }
 
-const ARCSEC: f64 = DEG / 3600.0;
-
-/// Every parameter a timeline event may set, ramp or drive (applied through the drive's
-/// `set_param` while the axis runs). The keys are the preset files' where a preset key exists
-/// (the unit is part of the name); `load_force_n` / `load_torque_nm` (external load) and the
-/// direct-encoder noise in length units have no preset counterpart.
-pub const PARAM_KEYS: &[ParamKey] = &[
-    key!("backlash_mm", Backlash, 1e-3, Linear, 0.0),
-    key!("backlash_deg", Backlash, DEG, Rotary, 0.0),
-    key!("stiffness_n_per_um", Stiffness, 1e6, Linear, 1e-9),
-    key!(
-        "stiffness_nm_per_arcsec",
-        Stiffness,
-        1.0 / ARCSEC,
-        Rotary,
-        1e-12
-    ),
-    key!("damping_n_s_per_m", Damping, 1.0, Linear, 0.0),
-    key!("damping_nm_s_per_rad", Damping, 1.0, Rotary, 0.0),
-    key!(
-        "load_coulomb_friction_n",
-        LoadCoulombFriction,
-        1.0,
-        Linear,
-        0.0
-    ),
-    key!(
-        "load_coulomb_friction_nm",
-        LoadCoulombFriction,
-        1.0,
-        Rotary,
-        0.0
-    ),
-    key!(
-        "load_viscous_friction_n_per_m_per_s",
-        LoadViscousFriction,
-        1.0,
-        Linear,
-        0.0
-    ),
-    key!(
-        "load_viscous_friction_nm_per_rad_per_s",
-        LoadViscousFriction,
-        1.0,
-        Rotary,
-        0.0
-    ),
-    key!(
-        "motor_coulomb_friction_nm",
-        MotorCoulombFriction,
-        1.0,
-        Any,
-        0.0
-    ),
-    key!("load_force_n", ExternalLoad, 1.0, Linear, f64::NEG_INFINITY),
-    key!(
-        "load_torque_nm",
-        ExternalLoad,
-        1.0,
-        Rotary,
-        f64::NEG_INFINITY
-    ),
-    key!("kv_per_s", Kv, 1.0, Any, 1e-9),
-    key!("speed_kp_nms_per_rad", SpeedKp, 1.0, Any, 1e-12),
-    key!("speed_ti_ms", SpeedTi, 1e-3, Any, 1e-9),
-    key!(
-        "motor_encoder_noise_counts",
-        MotorEncoderNoise,
-        1.0,
-        Any,
-        0.0
-    ),
-    key!(
-        "direct_encoder_noise_um",
-        DirectEncoderNoise,
-        1e-6,
-        Linear,
-        0.0
-    ),
-    key!(
-        "direct_encoder_noise_mdeg",
-        DirectEncoderNoise,
-        1e-3 * DEG,
-        Rotary,
-        0.0
-    ),
-    key!(
-        "direct_encoder_offset_um",
-        DirectEncoderOffset,
-        1e-6,
-        Linear,
-        f64::NEG_INFINITY
-    ),
-    key!(
-        "direct_encoder_offset_mdeg",
-        DirectEncoderOffset,
-        1e-3 * DEG,
-        Rotary,
-        f64::NEG_INFINITY
-    ),
-    key!("position_from_direct", PositionFromDirect, 1.0, Any, 0.0),
-];
+const fn live_keys() -> [ParamKey; LIVE_FORMS] {
+    let placeholder = ParamKey {
+        key: "",
+        param: AxisParam::Kv,
+        scale: 1.0,
+        axis: AxisKind::Any,
+        min: 0.0,
+    };
+    let mut out = [placeholder; LIVE_FORMS];
+    let (mut i, mut k) = (0, 0);
+    while i < PARAMS.len() {
+        let p = &PARAMS[i];
+        if let Some(param) = p.live {
+            out[k] = key_of(&p.linear, param, p.min);
+            k += 1;
+            if let Some(r) = &p.rotary {
+                out[k] = key_of(r, param, p.min);
+                k += 1;
+            }
+        }
+        i += 1;
+    }
+    out
+}
 
 pub fn param_key(name: &str) -> Option<&'static ParamKey> {
     PARAM_KEYS.iter().find(|k| k.key == name)
@@ -256,7 +197,15 @@ impl<'de> de::Deserialize<'de> for ParamName {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let s = String::deserialize(d)?;
         param_key(&s).map(ParamName).ok_or_else(|| {
-            de::Error::custom(format!("unknown parameter `{s}` (known: {})", known_keys()))
+            let keys = PARAM_KEYS.iter().map(|k| k.key);
+            let hint = match drive_physics::params::moved(&s) {
+                Some(new) => format!(" (now `{new}`)"),
+                None => drive_physics::params::did_you_mean(&s, keys),
+            };
+            de::Error::custom(format!(
+                "unknown parameter `{s}`{hint} (known: {})",
+                known_keys()
+            ))
         })
     }
 }

@@ -309,6 +309,27 @@ fn default_motor_thermal_time_constant_s() -> f64 {
     DEFAULT_MOTOR_THERMAL_TIME_CONSTANT_S
 }
 
+/// The keys of a preset file that are not parameters (what the axis is).
+pub const STRUCTURAL_KEYS: [&str; 5] = ["name", "description", "kind", "transmission", "vertical"];
+
+/// Every key a preset file and `--set` take: the registry's preset parameters and
+/// [`STRUCTURAL_KEYS`].
+pub fn preset_keys() -> impl Iterator<Item = &'static str> {
+    crate::params::PARAMS
+        .iter()
+        .filter(|p| p.preset)
+        .flat_map(|p| p.forms().map(|f| f.key))
+        .chain(STRUCTURAL_KEYS)
+}
+
+/// " (did you mean `x`?)" for an unknown preset key, " (now `x`)" for a moved one, or "".
+fn did_you_mean_key(key: &str) -> String {
+    match crate::params::moved(key) {
+        Some(new) => format!(" (now `{new}`)"),
+        None => crate::params::did_you_mean(key, preset_keys()),
+    }
+}
+
 /// Turn a serde/toml error into a key + reason.
 fn parse_error(e: toml::de::Error) -> ConfigError {
     let msg = e.message().to_string();
@@ -319,7 +340,7 @@ fn parse_error(e: toml::de::Error) -> ConfigError {
         .map(str::to_string)
         .unwrap_or_default();
     let reason = if msg.starts_with("unknown field") {
-        "unknown key".to_string()
+        format!("unknown key{}", did_you_mean_key(&key))
     } else if msg.starts_with("missing field") {
         "missing".to_string()
     } else {
