@@ -30,6 +30,8 @@ enum Command {
     Analyze(cli::analyze::AnalyzeArgs),
     /// Write the drive's EDS (CiA 306) to stdout.
     Eds(cli::eds::EdsArgs),
+    /// Write the preset axis as an FMI 2.0 co-simulation FMU (for Simulink, VeriStand, FMPy).
+    Fmu(cli::fmu::FmuArgs),
     /// List the axis presets.
     Presets,
     /// List the vendor behaviour profiles and switches (docs/quirks.md), or show one.
@@ -48,6 +50,7 @@ fn main() -> ExitCode {
         Command::Analyze(args) => cli::analyze::run(&args),
         Command::Eds(args) => ok(cli::eds::run_eds(&args)),
         Command::Presets => ok(cli::eds::run_presets()),
+        Command::Fmu(args) => ok(cli::fmu::fmu(&args)),
         Command::Profiles(args) => ok(cli::profiles::run(&args)),
     };
     match result {

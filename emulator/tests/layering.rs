@@ -40,7 +40,8 @@ const PHYSICS_LAYERS: &[&str] = &["params", "axis", "control", "presets"];
 const CRATES: &[(&str, &[&str])] = &[
     ("protocol", &[]),
     ("physics", &[]),
-    ("emulator", &["protocol", "physics"]),
+    ("fmu", &["physics"]),
+    ("emulator", &["protocol", "physics", "fmu"]),
 ];
 
 /// What the physics crate must never name: a fieldbus, a thread, a clock, a socket.
@@ -278,7 +279,7 @@ fn every_crate_depends_only_on_the_crates_below_it() {
     );
     // Every member of the workspace with a library is placed.
     let ws = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
-    for m in ["protocol", "physics", "emulator"] {
+    for m in ["protocol", "physics", "fmu", "emulator"] {
         assert!(
             ws.contains(&format!("\"{m}\"")),
             "{m} not a workspace member"

@@ -4,6 +4,7 @@ pub mod analyze;
 pub mod demo;
 pub mod eds;
 pub mod figures;
+pub mod fmu;
 pub mod lss_store;
 pub mod profiles;
 pub mod run;
