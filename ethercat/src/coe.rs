@@ -99,9 +99,11 @@ fn coe_header(m: &mut Message, svc: u8) {
     m.push(&(u16::from(svc) << 12).to_le_bytes());
 }
 
+/// An SDO abort: CoE carries it with the service "SDO request" (ETG.1000.6 5.6.2.7.1), as
+/// SOEM expects it.
 fn sdo_abort(mbx: &mut Mailbox, index: u16, sub: u8, code: u32) {
     let mut m = Message::new();
-    coe_header(&mut m, service::SDO_RESPONSE);
+    coe_header(&mut m, service::SDO_REQUEST);
     m.push(&[0x80]);
     m.push(&index.to_le_bytes());
     m.push(&[sub]);

@@ -285,13 +285,18 @@ impl Master {
         if kind == 0 {
             return Err(SdoError::Mailbox(u16::from_le_bytes([body[2], body[3]])));
         }
+        if body.len() >= 10 && body[1] >> 4 == 2 && body[2] == 0x80 {
+            // an abort comes with the service "SDO request"
+            return Err(SdoError::Abort(u32::from_le_bytes([
+                body[6], body[7], body[8], body[9],
+            ])));
+        }
         if body.len() < 3 || body[1] >> 4 != 3 {
             return Err(SdoError::Unexpected(body));
         }
         if body[2] == 0x80 {
-            return Err(SdoError::Abort(u32::from_le_bytes([
-                body[6], body[7], body[8], body[9],
-            ])));
+            // an abort as an SDO response: not what SOEM takes
+            return Err(SdoError::Unexpected(body));
         }
         Ok(body[2..].to_vec())
     }
