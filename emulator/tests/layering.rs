@@ -41,7 +41,8 @@ const CRATES: &[(&str, &[&str])] = &[
     ("protocol", &[]),
     ("physics", &[]),
     ("fmu", &["physics"]),
-    ("emulator", &["protocol", "physics", "fmu"]),
+    ("ethercat", &["protocol"]),
+    ("emulator", &["protocol", "physics", "fmu", "ethercat"]),
 ];
 
 /// What the physics crate must never name: a fieldbus, a thread, a clock, a socket.
@@ -279,7 +280,7 @@ fn every_crate_depends_only_on_the_crates_below_it() {
     );
     // Every member of the workspace with a library is placed.
     let ws = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
-    for m in ["protocol", "physics", "fmu", "emulator"] {
+    for m in ["protocol", "physics", "fmu", "ethercat", "emulator"] {
         assert!(
             ws.contains(&format!("\"{m}\"")),
             "{m} not a workspace member"

@@ -3,6 +3,8 @@
 //! `pop_tx` hands out frames to send. Built once from a [`NodeConfig`]; nothing here
 //! allocates after `Node::new`.
 
+mod access;
+
 use heapless::Deque;
 
 use crate::cia301::cob_id;

@@ -6,6 +6,7 @@
 //! Both are non-blocking and allocation-free per frame. A frame the transport cannot take
 //! ([`SendError::Full`]) is retried after a bounded wait and counted; never a panic or a stall.
 
+pub mod ethercat;
 pub mod fault;
 pub mod inproc;
 pub mod socketcan;

@@ -121,6 +121,12 @@ pub struct RunArgs {
     /// (for scripts and test fixtures; with --json the statistics follow at exit).
     #[arg(long)]
     pub ready: bool,
+    /// Serve the run's drives as EtherCAT CoE slaves on this Ethernet interface (AF_PACKET,
+    /// EtherType 0x88A4; a veth end, a TAP or a NIC; needs CAP_NET_RAW) instead of CAN: one
+    /// slave per axis in machine-file order, as on a line. Not yet with --scenario,
+    /// --lockstep, --detect, --trace or --panel.
+    #[arg(long, value_name = "IFACE")]
+    pub ethercat: Option<String>,
     #[command(flatten)]
     pub panel: crate::panel::PanelArgs,
     /// Watch the axis: run the backlash detector on the drive's own samples while it runs (a
@@ -231,14 +237,14 @@ pub fn build_axes(
         .collect()
 }
 
-/// One axis from its configuration and its machine entry (node ID, vendor EDS, objects base),
-/// its LSS slave as `lss` says.
-fn axis_slot(
+/// The node configuration and the simulated drive of one axis (what [`axis_slot`] builds its
+/// node from; `run --ethercat` builds an EtherCAT slave from it).
+fn axis_setup(
     cfg: AxisConfig,
     e: &mut AxisEntry,
     boot_delay_us: u64,
     lss: &LssOptions,
-) -> Result<AxisSlot<AxisDrive>> {
+) -> Result<(drive_protocol::NodeConfig, AxisDrive)> {
     let ctx = |err: anyhow::Error| anyhow::anyhow!("axis node {}: {err:#}", e.node_id);
     let eds = match &e.eds {
         Some(p) => Some(Arc::new(VendorEds::load(p).map_err(ctx)?)),
@@ -272,7 +278,19 @@ fn axis_slot(
         );
     }
     e.objects_base = Some(setup.objects_base);
-    let node = drive_protocol::Node::new(setup.config)
+    Ok((setup.config, drive))
+}
+
+/// One axis from its configuration and its machine entry (node ID, vendor EDS, objects base),
+/// its LSS slave as `lss` says.
+fn axis_slot(
+    cfg: AxisConfig,
+    e: &mut AxisEntry,
+    boot_delay_us: u64,
+    lss: &LssOptions,
+) -> Result<AxisSlot<AxisDrive>> {
+    let (config, drive) = axis_setup(cfg, e, boot_delay_us, lss)?;
+    let node = drive_protocol::Node::new(config)
         .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
     Ok(AxisSlot { node, drive })
 }
@@ -579,6 +597,9 @@ pub fn positive_seconds(s: &str) -> Result<f64, String> {
 }
 
 pub fn run(args: &RunArgs) -> Result<()> {
+    if let Some(iface) = &args.ethercat {
+        return run_ethercat(args, iface);
+    }
     let scenario = match &args.scenario {
         Some(path) => Some(crate::scenario::load(path).map_err(|e| anyhow::anyhow!("{e}"))?),
         None => None,
@@ -1276,6 +1297,71 @@ fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
             String::new()
         }
     );
+    Ok(())
+}
+
+/// `run --ethercat IFACE`: the machine's axes as EtherCAT slaves on a raw Ethernet port.
+fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
+    validate_args(args)?;
+    if args.scenario.is_some() || args.lockstep || args.detect || args.trace.is_some() {
+        bail!("--ethercat: not yet with --scenario, --lockstep, --detect or --trace");
+    }
+    let mut machine = machine_from_args(args)?;
+    machine::validate(&machine)?;
+    let lss = LssOptions::default();
+    let mut slaves = Vec::new();
+    let mut drives = Vec::new();
+    for e in machine.axes.iter_mut() {
+        let mut cfg = AxisConfig::from_preset(&e.preset)
+            .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+        for (k, v) in &e.set {
+            cfg = cfg
+                .with_override(k, &machine::value_text(v))
+                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+        }
+        // no boot delay: an EtherCAT slave's mailbox is there from PRE-OP on
+        let (config, mut drive) = axis_setup(cfg, e, 0, &lss)?;
+        let slave = drive_ethercat::Slave::new(config, &mut drive)
+            .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+        slaves.push(slave);
+        drives.push(drive);
+    }
+    let mut sock = crate::bus::ethercat::PacketSocket::open(iface)?;
+    let stop = stop_flag(args, None)?;
+    let period_us = 1_000_000 / u64::from(machine.tick_hz);
+    eprintln!(
+        "drive-emu: {} EtherCAT slave(s) on {iface}, {} Hz",
+        slaves.len(),
+        machine.tick_hz
+    );
+    if args.ready {
+        let nodes: Vec<serde_json::Value> = machine
+            .axes
+            .iter()
+            .map(|e| serde_json::json!({"node_id": e.node_id, "preset": e.preset}))
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({"event": "ready", "ethercat": iface, "nodes": nodes,
+                "pid": std::process::id()})
+        );
+        use std::io::Write;
+        std::io::stdout().flush().ok();
+    }
+    let mut seg = drive_ethercat::Segment::new(slaves);
+    let stats = crate::runtime::ethercat::serve(&mut sock, &mut seg, &mut drives, period_us, &stop);
+    eprintln!(
+        "drive-emu: stopped. {} frames answered, {} refused, {} socket errors, {} cycles ({} late)",
+        stats.frames, stats.refused, stats.socket_errors, stats.cycles, stats.late_cycles
+    );
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({"frames": stats.frames, "refused": stats.refused,
+                "socket_errors": stats.socket_errors, "cycles": stats.cycles,
+                "late_cycles": stats.late_cycles})
+        );
+    }
     Ok(())
 }
 

@@ -14,6 +14,7 @@
 //!   results do not depend on how busy the host is;
 //! - [`Runtime::tick`] called by an offline driver with a virtual clock (demo, scenarios).
 
+pub mod ethercat;
 pub mod pll;
 pub mod realtime;
 pub mod stats;

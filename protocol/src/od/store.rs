@@ -126,6 +126,11 @@ impl Store {
         n
     }
 
+    /// Length of the variable-length value of slot `i` as stored (0 for fixed-size types).
+    pub(crate) fn stored_len(&self, i: usize) -> usize {
+        self.spans.get(i).map_or(0, |s| s.len as usize)
+    }
+
     /// Store the bytes of a variable-length value; false if they exceed the capacity.
     pub fn write_bytes(&mut self, i: usize, data: &[u8]) -> bool {
         let sp = &mut self.spans[i];

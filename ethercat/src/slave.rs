@@ -1,0 +1,617 @@
+//! One EtherCAT slave: the ESC ([`crate::esc`]) in front of one drive-core [`Node`] (built
+//! as the emulator builds it, plus the CoE communication objects 0x1C00, 0x1C12, 0x1C13,
+//! 0x1C32, 0x1C33). Frames reach it datagram by datagram ([`Slave::execute`]); the drive
+//! runs one cycle per [`Slave::cycle`], with the [`Drive`] passed in as the node takes it.
+
+use drive_protocol::od::{Access, DataType, DefaultValue, Entry, ObjType, ObjectDictionary};
+use drive_protocol::{Clocks, ConfigError, Drive, Node, NodeConfig};
+
+use crate::al::{code, Al, AlState, Checks};
+use crate::coe::{self, Coe};
+use crate::datagram;
+use crate::esc::{eep, reg, Esc};
+use crate::frame::DatagramAt;
+use crate::mailbox::{self, Header, Mailbox, TYPE_COE};
+use crate::pdo::{self, ProcessData};
+use crate::sii::{self, SiiConfig, SmEntry};
+
+/// SM0 (mailbox, master to slave) start.
+pub const MBX_OUT_START: u16 = 0x1000;
+/// SM1 (mailbox, slave to master) start.
+pub const MBX_IN_START: u16 = 0x1080;
+/// SM2 (outputs) start.
+pub const OUTPUTS_START: u16 = 0x1100;
+/// SM3 (inputs) start.
+pub const INPUTS_START: u16 = 0x1180;
+/// SM0 control byte: mailbox, the master writes, PDI interrupt.
+pub const SM0_CONTROL: u8 = 0x26;
+/// SM1 control byte: mailbox, the master reads, PDI interrupt.
+pub const SM1_CONTROL: u8 = 0x22;
+/// SM2 control byte: buffered, the master writes, watchdog.
+pub const SM2_CONTROL: u8 = 0x64;
+/// SM3 control byte: buffered, the master reads.
+pub const SM3_CONTROL: u8 = 0x20;
+
+/// Why a slave could not be built.
+#[derive(Debug)]
+pub enum SlaveError {
+    /// The node refused its configuration.
+    Node(ConfigError),
+    /// A CoE object could not be added to the dictionary.
+    Dictionary(String),
+    /// The default PDO assignment does not resolve (abort code).
+    Pdo(u32),
+}
+
+impl core::fmt::Display for SlaveError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            SlaveError::Node(e) => write!(f, "node: {e}"),
+            SlaveError::Dictionary(e) => write!(f, "object dictionary: {e}"),
+            SlaveError::Pdo(c) => write!(f, "default PDO assignment: abort 0x{c:08X}"),
+        }
+    }
+}
+
+impl std::error::Error for SlaveError {}
+
+/// A sub-index of a CoE record: sub, name, type, access, default, limits.
+type SubSpec = (
+    u8,
+    &'static str,
+    DataType,
+    Access,
+    u64,
+    Option<(i128, i128)>,
+);
+
+/// Add the CoE communication objects a dictionary lacks: 0x1C00 sync manager types,
+/// 0x1C12 / 0x1C13 PDO assignment (by default the second RxPDO and TxPDO: controlword +
+/// target position, statusword + position actual), 0x1C32 / 0x1C33 sync manager parameters.
+pub fn add_coe_objects(od: &mut ObjectDictionary) -> Result<(), String> {
+    let err = |e: drive_protocol::od::OdError| e.to_string();
+    if !od.has_index(0x1C00) {
+        let arr = ObjType::Array;
+        let name = "Sync manager communication type";
+        od.insert(
+            Entry::member(
+                0x1C00,
+                0,
+                arr,
+                name,
+                "Used sync managers",
+                DataType::U8,
+                Access::Const,
+            )
+            .with_default(DefaultValue::Value(4)),
+        )
+        .map_err(err)?;
+        for s in 1..=4u8 {
+            od.insert(
+                Entry::member(
+                    0x1C00,
+                    s,
+                    arr,
+                    name,
+                    format!("SM{}", s - 1),
+                    DataType::U8,
+                    Access::Const,
+                )
+                .with_default(DefaultValue::Value(u64::from(s))),
+            )
+            .map_err(err)?;
+        }
+    }
+    for (index, base, name) in [
+        (0x1C12u16, 0x1600u16, "RxPDO assign"),
+        (0x1C13, 0x1A00, "TxPDO assign"),
+    ] {
+        if od.has_index(index) {
+            continue;
+        }
+        let mappings: Vec<u16> = (0..8u16)
+            .map(|n| base + n)
+            .filter(|&m| od.get(m, 0).is_some())
+            .collect();
+        // the default: the second PDO first (position set-point / actual), the rest after
+        let mut order = mappings.clone();
+        if order.len() > 1 {
+            order.swap(0, 1);
+        }
+        let arr = ObjType::Array;
+        od.insert(
+            Entry::member(
+                index,
+                0,
+                arr,
+                name,
+                "Number of assigned PDOs",
+                DataType::U8,
+                Access::Rw,
+            )
+            .with_default(DefaultValue::Value(u64::from(!order.is_empty())))
+            .with_limits(Some(0), Some(order.len() as i128)),
+        )
+        .map_err(err)?;
+        for (k, &m) in order.iter().enumerate() {
+            od.insert(
+                Entry::member(
+                    index,
+                    k as u8 + 1,
+                    arr,
+                    name,
+                    format!("PDO {}", k + 1),
+                    DataType::U16,
+                    Access::Rw,
+                )
+                .with_default(DefaultValue::Value(u64::from(m)))
+                .with_limits(Some(i128::from(base)), Some(i128::from(base) + 0x1FF)),
+            )
+            .map_err(err)?;
+        }
+    }
+    for (index, name) in [
+        (0x1C32u16, "SM output parameter"),
+        (0x1C33, "SM input parameter"),
+    ] {
+        if od.has_index(index) {
+            continue;
+        }
+        let rec = ObjType::Record;
+        let subs: [SubSpec; 6] = [
+            (
+                0,
+                "Highest sub-index supported",
+                DataType::U8,
+                Access::Const,
+                0x20,
+                None,
+            ),
+            (
+                1,
+                "Synchronization type",
+                DataType::U16,
+                Access::Rw,
+                0,
+                Some((0, 2)),
+            ),
+            (2, "Cycle time", DataType::U32, Access::Rw, 1_000_000, None),
+            (
+                4,
+                "Synchronization types supported",
+                DataType::U16,
+                Access::Const,
+                0x0007,
+                None,
+            ),
+            (
+                5,
+                "Minimum cycle time",
+                DataType::U32,
+                Access::Const,
+                125_000,
+                None,
+            ),
+            (0x20, "Sync error", DataType::Boolean, Access::Ro, 0, None),
+        ];
+        for (sub, n, dt, acc, def, lim) in subs {
+            let mut e = Entry::member(index, sub, rec, name, n, dt, acc)
+                .with_default(DefaultValue::Value(def));
+            if let Some((lo, hi)) = lim {
+                e = e.with_limits(Some(lo), Some(hi));
+            }
+            od.insert(e).map_err(err)?;
+        }
+    }
+    Ok(())
+}
+
+/// One slave.
+#[derive(Clone, Debug)]
+pub struct Slave {
+    node: Node,
+    esc: Esc,
+    sii: Vec<u16>,
+    al: Al,
+    mbx: Mailbox,
+    coe: Coe,
+    pd: Option<ProcessData>,
+    /// Outputs written since SAFE-OP was entered.
+    outputs_seen: bool,
+    /// Frame time of the last outputs write, ns.
+    last_outputs_ns: Option<u64>,
+    /// The slave's clock as of the last frame, ns.
+    now_ns: u64,
+    /// Outputs the drive refused (an RPDO value out of range), counted.
+    pub refused_outputs: u32,
+}
+
+struct Transition<'a> {
+    node: &'a Node,
+    esc: &'a mut Esc,
+    pd: &'a mut Option<ProcessData>,
+    mbx: &'a mut Mailbox,
+    coe: &'a mut Coe,
+    outputs_seen: &'a mut bool,
+    last_outputs_ns: &'a mut Option<u64>,
+    now_ns: u64,
+}
+
+impl Checks for Transition<'_> {
+    fn mailbox(&mut self) -> Result<(), u16> {
+        let (out, inp) = (self.esc.sm(0), self.esc.sm(1));
+        let good = out.enabled()
+            && out.mailbox()
+            && out.master_writes()
+            && out.start == MBX_OUT_START
+            && out.len as usize == mailbox::SIZE
+            && inp.enabled()
+            && inp.mailbox()
+            && !inp.master_writes()
+            && inp.start == MBX_IN_START
+            && inp.len as usize == mailbox::SIZE;
+        if good {
+            Ok(())
+        } else {
+            Err(code::INVALID_MAILBOX_CONFIG)
+        }
+    }
+
+    fn process_data(&mut self) -> Result<(), u16> {
+        *self.pd = Some(ProcessData::configure(self.node, self.esc)?);
+        Ok(())
+    }
+
+    fn outputs(&mut self) -> Result<(), u16> {
+        Ok(())
+    }
+
+    fn entered(&mut self, state: AlState) {
+        match state {
+            AlState::Init | AlState::Boot => {
+                self.mbx.reset();
+                self.coe.reset();
+                *self.pd = None;
+                self.esc.set_mailbox_full(0, false);
+                self.esc.set_mailbox_full(1, false);
+            }
+            AlState::PreOp => *self.pd = None,
+            AlState::SafeOp => {
+                *self.outputs_seen = false;
+            }
+            AlState::Op => *self.last_outputs_ns = Some(self.now_ns),
+        }
+    }
+}
+
+impl Slave {
+    /// Build the slave around the node of `cfg` (the CoE objects added to its dictionary),
+    /// boot the node and generate the SII from its identity and default PDO assignment.
+    pub fn new(mut cfg: NodeConfig, drive: &mut impl Drive) -> Result<Slave, SlaveError> {
+        add_coe_objects(&mut cfg.od).map_err(SlaveError::Dictionary)?;
+        let mut node = Node::new(cfg).map_err(SlaveError::Node)?;
+        node.boot(0);
+        while node.pop_tx().is_some() {}
+        // EtherCAT has no COB-IDs: every PDO is "not valid" on CAN, which is also what lets a
+        // master change a mapping in PRE-OP (CiA 301's dynamic mapping procedure)
+        let mut maps = Vec::new();
+        node.for_each_pdo_mapping(|tx, m| maps.push((tx, m)));
+        for (tx, m) in maps {
+            let comm = m - 0x200;
+            if let Some(cob) = node.object_raw(comm, 1) {
+                let _ = node.write_object(comm, 1, &(cob | 0x8000_0000).to_le_bytes(), drive);
+            }
+            let _ = tx;
+        }
+        // the transfer buffer holds the largest object whole (complete access: sub 0 as 16
+        // bits plus every sub-index)
+        let mut largest = 0usize;
+        let (mut index, mut sum) = (None, 0usize);
+        for (_, e) in node.od().iter() {
+            if index != Some(e.index) {
+                index = Some(e.index);
+                sum = 1;
+            }
+            sum += e.dtype.size().max(e.capacity);
+            largest = largest.max(sum);
+        }
+        let bytes = largest.clamp(mailbox::SIZE, 1 << 20);
+        let mut s = Slave {
+            esc: Esc::new(),
+            sii: Vec::new(),
+            al: Al::default(),
+            mbx: Mailbox::default(),
+            coe: Coe::new(bytes),
+            pd: None,
+            outputs_seen: false,
+            last_outputs_ns: None,
+            now_ns: 0,
+            refused_outputs: 0,
+            node,
+        };
+        s.sii = sii::image(&s.sii_config()?);
+        s.publish_al();
+        Ok(s)
+    }
+
+    fn sii_config(&self) -> Result<SiiConfig, SlaveError> {
+        let n = &self.node;
+        let id = |sub| n.object_raw(0x1018, sub).unwrap_or(0);
+        let outputs = pdo::resolve(n, 0x1C12).map_err(SlaveError::Pdo)?;
+        let inputs = pdo::resolve(n, 0x1C13).map_err(SlaveError::Pdo)?;
+        let pdos = |l: &pdo::Layout, sm: u8| -> Vec<sii::Pdo> {
+            l.pdos
+                .iter()
+                .map(|p| {
+                    let count = n.object_raw(p.mapping, 0).unwrap_or(0) as u8;
+                    let entries = (1..=count)
+                        .filter_map(|s| n.object_raw(p.mapping, s))
+                        .map(|v| {
+                            let (index, sub) = ((v >> 16) as u16, (v >> 8) as u8);
+                            let data_type = n
+                                .od()
+                                .get(index, sub)
+                                .map_or(0, |(_, e)| e.dtype.code() as u8);
+                            sii::PdoEntry {
+                                index,
+                                sub,
+                                data_type,
+                                bits: v as u8,
+                            }
+                        })
+                        .collect();
+                    sii::Pdo {
+                        index: p.mapping,
+                        sm,
+                        entries,
+                    }
+                })
+                .collect()
+        };
+        Ok(SiiConfig {
+            identity: sii::Identity {
+                vendor: id(1),
+                product: id(2),
+                revision: id(3),
+                serial: id(4),
+            },
+            name: "drive-emu CiA 402 drive".into(),
+            group: "Drives".into(),
+            order: "drive-emu".into(),
+            sms: vec![
+                SmEntry {
+                    start: MBX_OUT_START,
+                    len: mailbox::SIZE as u16,
+                    control: SM0_CONTROL,
+                    enable: 1,
+                    kind: 1,
+                },
+                SmEntry {
+                    start: MBX_IN_START,
+                    len: mailbox::SIZE as u16,
+                    control: SM1_CONTROL,
+                    enable: 1,
+                    kind: 2,
+                },
+                SmEntry {
+                    start: OUTPUTS_START,
+                    len: outputs.len as u16,
+                    control: SM2_CONTROL,
+                    enable: 1,
+                    kind: 3,
+                },
+                SmEntry {
+                    start: INPUTS_START,
+                    len: inputs.len as u16,
+                    control: SM3_CONTROL,
+                    enable: 1,
+                    kind: 4,
+                },
+            ],
+            rx_pdos: pdos(&outputs, 2),
+            tx_pdos: pdos(&inputs, 3),
+        })
+    }
+
+    /// The drive core.
+    pub fn node(&self) -> &Node {
+        &self.node
+    }
+    /// The drive core, mutable (the application's own objects, faults).
+    pub fn node_mut(&mut self) -> &mut Node {
+        &mut self.node
+    }
+    /// The ESC memory.
+    pub fn esc(&self) -> &Esc {
+        &self.esc
+    }
+    /// The SII EEPROM image, words.
+    pub fn sii(&self) -> &[u16] {
+        &self.sii
+    }
+    /// AL state.
+    pub fn al_state(&self) -> AlState {
+        self.al.state
+    }
+    /// AL status code (0 without an error).
+    pub fn al_status_code(&self) -> u16 {
+        self.al.code
+    }
+    /// The process-data layout of SAFE-OP / OP.
+    pub fn process_data(&self) -> Option<&ProcessData> {
+        self.pd.as_ref()
+    }
+    /// Mailbox messages dropped because the queue was full.
+    pub fn mailbox_dropped(&self) -> u32 {
+        self.mbx.dropped
+    }
+
+    fn publish_al(&mut self) {
+        self.esc.set_u16(reg::AL_STATUS, self.al.status());
+        self.esc.set_u16(reg::AL_STATUS_CODE, self.al.code);
+    }
+
+    fn transition<R>(&mut self, f: impl FnOnce(&mut Al, &mut Transition<'_>) -> R) -> R {
+        let mut t = Transition {
+            node: &self.node,
+            esc: &mut self.esc,
+            pd: &mut self.pd,
+            mbx: &mut self.mbx,
+            coe: &mut self.coe,
+            outputs_seen: &mut self.outputs_seen,
+            last_outputs_ns: &mut self.last_outputs_ns,
+            now_ns: self.now_ns,
+        };
+        let r = f(&mut self.al, &mut t);
+        self.publish_al();
+        r
+    }
+
+    /// Execute one datagram of `frame` as the frame passes this slave at `now_ns` (the
+    /// slave's clock, ns, the same clock as [`Slave::cycle`]'s communication time); then act
+    /// on what it did (AL control, EEPROM command, mailbox). Returns the working counter it
+    /// added.
+    pub fn execute(
+        &mut self,
+        frame: &mut [u8],
+        d: &DatagramAt,
+        now_ns: u64,
+        drive: &mut impl Drive,
+    ) -> u16 {
+        self.now_ns = now_ns;
+        let offset = self.esc.u64(reg::DC_OFFSET);
+        self.esc
+            .set_u64(reg::DC_SYSTEM_TIME, now_ns.wrapping_add(offset));
+        let add = datagram::execute(&mut self.esc, frame, d);
+        let ev = core::mem::take(&mut self.esc.events);
+        if ev.dc_latch {
+            self.esc.set_u32(reg::DC_RECV_TIME0, now_ns as u32);
+            self.esc.set_u32(reg::DC_RECV_TIME0 + 4, now_ns as u32);
+            self.esc.set_u64(reg::DC_RECV_TIME_PU, now_ns);
+        }
+        if ev.al_control {
+            let v = self.esc.u16(reg::AL_CONTROL);
+            self.transition(|al, t| al.request(v, t));
+        }
+        if ev.eeprom_command {
+            self.eeprom_command();
+        }
+        if ev.outputs_written {
+            self.outputs_seen = true;
+            self.last_outputs_ns = Some(now_ns);
+        }
+        if ev.mailbox_written {
+            self.mailbox_in(drive);
+        }
+        if ev.mailbox_written || ev.mailbox_read {
+            self.mailbox_out();
+        }
+        add
+    }
+
+    fn eeprom_command(&mut self) {
+        let ctl = self.esc.u16(reg::EEP_CONTROL);
+        let status = eep::READ_8 | eep::ADDR_16;
+        match ctl & eep::CMD_MASK {
+            eep::CMD_READ => {
+                let at = self.esc.u32(reg::EEP_ADDRESS) as usize;
+                for k in 0..4 {
+                    let w = sii::word(&self.sii, at + k);
+                    self.esc.set_u16(reg::EEP_DATA + 2 * k as u16, w);
+                }
+                self.esc.set_u16(reg::EEP_CONTROL, status);
+            }
+            eep::CMD_RELOAD | 0 => self.esc.set_u16(reg::EEP_CONTROL, status),
+            _ => self.esc.set_u16(reg::EEP_CONTROL, status | eep::ERR_CMD),
+        }
+    }
+
+    /// A request completed in SM0: parse it and answer.
+    fn mailbox_in(&mut self, drive: &mut impl Drive) {
+        let sm = self.esc.sm(0);
+        self.esc.set_mailbox_full(0, false);
+        if matches!(self.al.state, AlState::Init | AlState::Boot) {
+            return;
+        }
+        let mut buf = [0u8; mailbox::SIZE];
+        let n = (sm.len as usize).min(mailbox::SIZE);
+        self.esc.get(sm.start, &mut buf[..n]);
+        let h = match Header::parse(&buf[..n]) {
+            Ok(h) => h,
+            Err(detail) => return self.mbx.error(detail),
+        };
+        if h.counter != 0 && self.mbx.last_in == Some(h.counter) {
+            return; // a repeated request
+        }
+        self.mbx.last_in = Some(h.counter);
+        let body = &buf[mailbox::HEADER..mailbox::HEADER + h.len];
+        match h.kind {
+            TYPE_COE => self
+                .coe
+                .handle(body, &mut self.node, drive, self.al.state, &mut self.mbx),
+            _ => self.mbx.error(mailbox::error::UNSUPPORTED_PROTOCOL),
+        }
+    }
+
+    /// Put the next waiting message into SM1 when it is free.
+    fn mailbox_out(&mut self) {
+        self.coe.pump(&self.node, &mut self.mbx);
+        let sm = self.esc.sm(1);
+        if !sm.enabled() || self.esc.mailbox_full(1) {
+            return;
+        }
+        let Some(m) = self.mbx.out.pop_front() else {
+            return;
+        };
+        let mut buf = [0u8; mailbox::SIZE];
+        buf[..m.len].copy_from_slice(&m.buf[..m.len]);
+        let n = (sm.len as usize).min(mailbox::SIZE);
+        self.esc.set(sm.start, &buf[..n]);
+        self.esc.set_mailbox_full(1, true);
+        self.coe.pump(&self.node, &mut self.mbx);
+    }
+
+    /// The SM watchdog time, ns (0: off).
+    fn watchdog_ns(&self) -> u64 {
+        let sm = self.esc.sm(pdo::SM_OUTPUTS);
+        if sm.control & 0x40 == 0 {
+            return 0;
+        }
+        let tick_ns = (u64::from(self.esc.u16(reg::WD_DIVIDER)) + 2) * 40;
+        u64::from(self.esc.u16(reg::WD_TIME_PD)) * tick_ns
+    }
+
+    /// One drive cycle at `clocks` (the communication clock in us is the frames' clock):
+    /// in OP the outputs go to the drive core (each RxPDO with the RPDO rules), the drive
+    /// runs its cycle ([`Node::cycle`]), in SAFE-OP and OP the inputs are written; the
+    /// drive's EMCYs become CoE emergencies; the SM watchdog takes an OP slave whose outputs
+    /// stopped down to SAFE-OP with AL status code 0x001B.
+    pub fn cycle(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+        let now_ns = clocks.comm_us.saturating_mul(1000);
+        if self.al.state == AlState::Op {
+            let wd = self.watchdog_ns();
+            let last = self.last_outputs_ns.unwrap_or(0);
+            if wd > 0 && now_ns.saturating_sub(last) > wd {
+                self.now_ns = now_ns;
+                self.transition(|al, t| al.fall_to(AlState::SafeOp, code::SM_WATCHDOG, t));
+            }
+        }
+        if let (AlState::Op, Some(pd)) = (self.al.state, &self.pd) {
+            if !pd.apply_outputs(&mut self.node, &self.esc) {
+                self.refused_outputs = self.refused_outputs.wrapping_add(1);
+            }
+        }
+        self.node.cycle(clocks, drive);
+        if let (AlState::SafeOp | AlState::Op, Some(pd)) = (self.al.state, &self.pd) {
+            pd.write_inputs(&self.node, &mut self.esc);
+        }
+        let emcy_cob = self.node.object_raw(0x1014, 0).unwrap_or(0) & 0x7FF;
+        let mailbox_up = !matches!(self.al.state, AlState::Init | AlState::Boot);
+        while let Some(f) = self.node.pop_tx() {
+            if mailbox_up && f.id == emcy_cob && !f.rtr {
+                coe::emergency(&mut self.mbx, f.payload());
+            }
+        }
+        self.mailbox_out();
+    }
+}
