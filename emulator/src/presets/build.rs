@@ -519,6 +519,17 @@ impl AxisConfig {
 
     /// The physics step `h`, s, must resolve the drive train's contact dynamics.
     fn check_physics_step(&self, mech: &MechParams, h: f64) -> Result<(), ConfigError> {
+        // A finer step only costs time: 1 us already means a million steps per second.
+        if h < MIN_PHYSICS_STEP_US * 1e-6 {
+            return Err(ConfigError::new(
+                "physics_step_us",
+                format!(
+                    "{} us is below the finest step of {MIN_PHYSICS_STEP_US} us (a run would \
+                     not end in reasonable time)",
+                    crate::quote::number(self.physics_step_us)
+                ),
+            ));
+        }
         let max_step = mech.max_step();
         if h > max_step {
             return Err(ConfigError::new(
@@ -534,6 +545,9 @@ impl AxisConfig {
         Ok(())
     }
 }
+
+/// The finest physics step accepted, us.
+pub const MIN_PHYSICS_STEP_US: f64 = 1.0;
 
 /// The two-mass drive train; the contact damping follows from the damping ratio and the
 /// reduced mass.
