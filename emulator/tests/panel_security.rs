@@ -96,19 +96,30 @@ fn eleven_hundred_idle_connections_leave_new_requests_answered() {
         let v: Value = serde_json::from_str(&body).unwrap();
         assert_eq!(v["type"], "hello");
     }
-    // The panel holds at most its limit: most of the idle ones were closed by it.
+    // The panel holds at most its limit: the others were closed by it (it closes them as it
+    // accepts; on a busy machine that takes a moment: looked at until a generous deadline).
+    let want = 1100 - drive_emu::panel::server::MAX_CONNECTIONS;
+    let mut open: Vec<TcpStream> = idle;
     let mut closed = 0;
-    for s in &mut idle {
-        s.set_read_timeout(Some(Duration::from_millis(1))).unwrap();
-        let mut b = [0u8; 1];
-        if matches!(s.read(&mut b), Ok(0)) {
-            closed += 1;
+    let t0 = std::time::Instant::now();
+    while closed < want && t0.elapsed() < Duration::from_secs(60) {
+        let mut still = Vec::new();
+        for mut s in open {
+            s.set_read_timeout(Some(Duration::from_millis(1))).unwrap();
+            let mut b = [0u8; 1];
+            match s.read(&mut b) {
+                Ok(0) => closed += 1,
+                Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => closed += 1,
+                _ => still.push(s),
+            }
         }
+        open = still;
     }
     assert!(
-        closed >= 1100 - drive_emu::panel::server::MAX_CONNECTIONS,
+        closed >= want,
         "{closed} of 1100 idle connections closed by the panel"
     );
+    let idle = open;
     drop(idle);
     rig.stop();
 }
