@@ -369,3 +369,26 @@ fn a_token_from_the_environment_or_a_file_is_taken_and_the_command_line_warned()
     assert_ne!(code, 0);
     assert!(err.contains("one of"), "{err}");
 }
+
+#[test]
+fn a_stream_outlives_the_header_and_idle_timeout() {
+    let rig = Rig::start(RigOptions::default());
+    let mut s = TcpStream::connect(rig.panel().addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    s.write_all(b"GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        .unwrap();
+    let limit = drive_emu::panel::server::HEADER_TIMEOUT + Duration::from_secs(2);
+    let t0 = std::time::Instant::now();
+    let mut buf = vec![0u8; 64 << 10];
+    let mut late = 0usize;
+    while t0.elapsed() < limit + Duration::from_secs(1) {
+        let n = s.read(&mut buf).expect("the stream goes on");
+        assert!(n > 0, "the stream was closed after {:?}", t0.elapsed());
+        if t0.elapsed() > limit {
+            late += n;
+        }
+    }
+    assert!(late > 0, "nothing arrived after the header timeout");
+    drop(s);
+    rig.stop();
+}
