@@ -6,6 +6,10 @@
 //! Modules, bottom layer first: a module imports only modules before it in this list
 //! (`tests/layering.rs`, docs/decisions/0006-emulator-layers.md).
 
+pub mod quote;
+
+pub mod infile;
+
 pub mod time;
 
 pub mod samples;

@@ -378,13 +378,26 @@ pub struct Analysis {
     pub trace: Option<AxisTrace>,
 }
 
+/// The k_v the drive accepts (0x2007), 1/s; `analyze` takes no other.
+pub const KV_RANGE_PER_S: (f64, f64) = (1e-9, 1000.0);
+
+fn kv_in_range(kv: f64) -> bool {
+    kv.is_finite() && (KV_RANGE_PER_S.0..=KV_RANGE_PER_S.1).contains(&kv)
+}
+
 /// Read and decode the trace, find k_v and run the detector: everything `analyze` does but
 /// writing the report directory and printing. A usage error (bad flags, no k_v) is an error
 /// whose chain holds [`UsageError`]; the Python module's `drive_emu.analyze` calls this.
 pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Result<Analysis> {
     if let Some(kv) = args.kv {
-        if !(kv > 0.0 && kv.is_finite()) {
-            return Err(UsageError(format!("--kv {kv}: must be a finite number > 0 (1/s)")).into());
+        if !kv_in_range(kv) {
+            return Err(UsageError(format!(
+                "--kv {}: must be within the drive's range {} .. {} (1/s)",
+                crate::quote::number(kv),
+                crate::quote::number(KV_RANGE_PER_S.0),
+                crate::quote::number(KV_RANGE_PER_S.1)
+            ))
+            .into());
         }
     }
     for (name, v) in [("--suspect", args.suspect), ("--alarm", args.alarm)] {
@@ -434,11 +447,21 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
         notes.extend(n);
         Ok(t)
     };
+    if let (None, Some(k)) = (args.kv, kv_written) {
+        if !kv_in_range(k) {
+            return Err(UsageError(format!(
+                "the capture writes k_v = {} 1/s to 0x2007, outside the drive's range {} .. {} \
+                 (the drive refuses it): give the k_v in effect with --kv",
+                crate::quote::number(k),
+                crate::quote::number(KV_RANGE_PER_S.0),
+                crate::quote::number(KV_RANGE_PER_S.1)
+            ))
+            .into());
+        }
+    }
     let (kv, kv_source) = match (args.kv, kv_written, &args.preset) {
         (Some(k), _, _) => (k, "--kv".to_string()),
-        (None, Some(k), _) if k > 0.0 && k.is_finite() => {
-            (k, "0x2007 kv_per_s written in the capture".to_string())
-        }
+        (None, Some(k), _) => (k, "0x2007 kv_per_s written in the capture".to_string()),
         (None, _, Some(p)) => (preset_kv(p)?, format!("preset {p}")),
         (None, _, None) => {
             return Err(UsageError(

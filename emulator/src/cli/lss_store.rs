@@ -59,9 +59,9 @@ pub fn parse(text: &str, origin: &str) -> Result<Stored> {
 /// it cannot be read or is not a store file. A file whose directory does not exist is an
 /// error now rather than at the first store.
 pub fn load(path: &Path) -> Result<Option<Stored>> {
-    match std::fs::read_to_string(path) {
-        Ok(text) => parse(&text, &path.display().to_string()).map(Some),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+    match crate::infile::read_text(path, "--lss-store", MAX_FILE_BYTES) {
+        Ok(text) => parse(&text, &crate::quote::text(&path.to_string_lossy())).map(Some),
+        Err(e) if e.is_not_found() => {
             let dir = path
                 .parent()
                 .filter(|d| !d.as_os_str().is_empty())
@@ -69,17 +69,18 @@ pub fn load(path: &Path) -> Result<Option<Stored>> {
             if !dir.is_dir() {
                 bail!(
                     "--lss-store {}: the directory {} does not exist",
-                    path.display(),
-                    dir.display()
+                    crate::quote::text(&path.to_string_lossy()),
+                    crate::quote::text(&dir.to_string_lossy())
                 );
             }
             Ok(None)
         }
-        Err(e) => {
-            Err(e).with_context(|| format!("cannot read the LSS store file {}", path.display()))
-        }
+        Err(e) => Err(e.into()),
     }
 }
+
+/// Largest LSS store file read, bytes (one is about 150).
+pub const MAX_FILE_BYTES: u64 = 64 << 10;
 
 /// The file's text for a store.
 pub fn text(s: &LssStore) -> String {
@@ -95,11 +96,36 @@ pub fn text(s: &LssStore) -> String {
 
 /// Write a store: to a temporary file beside it, then renamed over it, so a crash leaves the
 /// old file or the new one, never half of one.
+///
+/// The temporary file `FILE.tmp` is made new (`O_EXCL|O_NOFOLLOW`, mode 0600): a stale one
+/// is removed first (unlinking a symlink never touches its target); one that cannot be
+/// removed, or that appears again in between (someone else's), is an error, never written
+/// through.
 pub fn save(path: &Path, s: &LssStore) -> Result<()> {
+    use std::io::Write;
+    use std::os::unix::fs::OpenOptionsExt;
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
     let tmp = std::path::PathBuf::from(tmp);
-    std::fs::write(&tmp, text(s)).with_context(|| format!("cannot write {}", tmp.display()))?;
+    match std::fs::remove_file(&tmp) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            return Err(e).with_context(|| {
+                format!("cannot remove the stale temporary file {}", tmp.display())
+            })
+        }
+        _ => {}
+    }
+    let mut f = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC)
+        .open(&tmp)
+        .with_context(|| format!("cannot create {} (new, not through a link)", tmp.display()))?;
+    f.write_all(text(s).as_bytes())
+        .and_then(|()| f.sync_all())
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    drop(f);
     std::fs::rename(&tmp, path)
         .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
 }
@@ -167,5 +193,59 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("does not exist"), "{e}");
+        // A device or a FIFO is refused by name, not read for ever.
+        let e = load(Path::new("/dev/zero")).unwrap_err().to_string();
+        assert!(
+            e.contains("/dev/zero: a character device, not a regular file"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_planted_temporary_symlink_is_not_written_through() {
+        let dir = std::env::temp_dir().join(format!("lss-store-plant-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let victim = dir.join("victim");
+        std::fs::write(&victim, "root-only\n").unwrap();
+        let path = dir.join("drive.lss");
+        std::os::unix::fs::symlink(&victim, dir.join("drive.lss.tmp")).unwrap();
+        let s = LssStore {
+            node_id: Some(12),
+            bit_timing_index: 0,
+        };
+        save(&path, &s).unwrap();
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "root-only\n");
+        assert_eq!(load(&path).unwrap().unwrap().node_id, Some(12));
+        assert!(!std::fs::symlink_metadata(&path).unwrap().is_symlink());
+        assert!(!dir.join("drive.lss.tmp").exists());
+        // A temporary name that cannot be removed (a non-empty directory here, as another
+        // user's file in a sticky folder would be): an error, the store untouched.
+        std::fs::create_dir(dir.join("drive.lss.tmp")).unwrap();
+        std::fs::write(dir.join("drive.lss.tmp").join("x"), "").unwrap();
+        let e = save(
+            &path,
+            &LssStore {
+                node_id: Some(3),
+                bit_timing_index: 0,
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("drive.lss.tmp"), "{e}");
+        assert_eq!(load(&path).unwrap().unwrap().node_id, Some(12));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_file_that_is_not_utf8_says_where() {
+        let dir = std::env::temp_dir().join(format!("lss-store-utf8-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("drive.lss");
+        std::fs::write(&path, b"node_id = 5\nbit_timing_index = \xff\n").unwrap();
+        let e = load(&path).unwrap_err().to_string();
+        assert!(e.contains("line 2, column 20: not UTF-8"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

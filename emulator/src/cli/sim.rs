@@ -125,10 +125,74 @@ pub fn simulate(args: &SimArgs, record: bool, stop: &AtomicBool) -> anyhow::Resu
         record,
         kick: args.kick,
     };
-    constant_velocity_run_until(&cfg, &opts, stop).map_err(|e| match e {
+    let res = constant_velocity_run_until(&cfg, &opts, stop).map_err(|e| match e {
         RunError::Stopped { .. } => anyhow::Error::new(e),
         RunError::Config(e) => anyhow::anyhow!("{e}"),
-    })
+    })?;
+    check_finite(&res, &args.set)?;
+    Ok(res)
+}
+
+/// A run whose signals hold a NaN or an infinity diverged: an error naming the first signal
+/// and time, never a result with "fundamental none".
+pub fn check_finite(res: &RunResult, set: &[String]) -> anyhow::Result<()> {
+    let s = &res.summary;
+    let t = &res.trace;
+    let columns: [(&str, &[f64]); 8] = [
+        ("position set point", &t.position_setpoint),
+        ("direct position", &t.direct_position),
+        ("motor position", &t.motor_position),
+        ("motor speed", &t.motor_velocity_rpm),
+        ("load velocity", &t.load_velocity),
+        ("torque", &t.torque_nm),
+        ("current", &t.current_a),
+        ("following error", &t.following_error),
+    ];
+    let mut bad = columns.iter().find_map(|(name, col)| {
+        col.iter().position(|x| !x.is_finite()).map(|i| {
+            format!(
+                "{name} is {} at t = {:.6} s",
+                crate::quote::number(col[i]),
+                t.time_s[i]
+            )
+        })
+    });
+    if bad.is_none() {
+        bad = [
+            ("motor speed amplitude", s.motor_velocity_amplitude_rpm),
+            (
+                "motor speed half peak-to-peak",
+                s.motor_velocity_half_p2p_rpm,
+            ),
+            ("current amplitude", s.current_amplitude_a),
+            ("load velocity half peak-to-peak", s.load_velocity_half_p2p),
+            (
+                "following error half peak-to-peak",
+                s.following_error_half_p2p,
+            ),
+            ("mean motor speed", s.mean_motor_velocity_rpm),
+        ]
+        .iter()
+        .find(|(_, v)| !v.is_finite())
+        .map(|(name, v)| format!("{name} is {}", crate::quote::number(*v)));
+    }
+    match bad {
+        None => Ok(()),
+        Some(what) => anyhow::bail!(
+            "the simulation diverged: {what}; a parameter is outside what the model resolves{}",
+            if set.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " (check --set {})",
+                    set.iter()
+                        .map(|x| crate::quote::text(x))
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                )
+            }
+        ),
+    }
 }
 
 pub fn run(args: &SimArgs) -> anyhow::Result<()> {

@@ -134,8 +134,7 @@ fn parse_in(text: &str, origin: &str, dir: Option<&Path>) -> Result<MachineFile>
 }
 
 pub fn load(path: &Path) -> Result<MachineFile> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read machine file {}", path.display()))?;
+    let text = crate::infile::read_text(path, "machine file", crate::infile::MAX_CONFIG_BYTES)?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let mut m = parse_in(&text, &path.display().to_string(), Some(dir))?;
     // an EDS path is relative to the machine file, as a user writes it beside it

@@ -992,12 +992,21 @@ impl ProfileFile {
                 _ => p.to_path_buf(),
             };
             let origin = path.display().to_string();
-            let src = std::fs::read_to_string(&path).map_err(|e| ProfileError {
-                origin: origin.clone(),
-                line: None,
-                key: String::new(),
-                reason: format!("cannot read the profile: {e}"),
-            })?;
+            let src = crate::infile::read_text(&path, "", crate::infile::MAX_CONFIG_BYTES)
+                .map_err(|e| {
+                    let (line, reason) = match e.problem {
+                        crate::infile::Problem::NotUtf8 { line, column } => {
+                            (Some(line), format!("column {column}: not UTF-8 text"))
+                        }
+                        _ => (None, format!("cannot read the profile: {}", e.reason())),
+                    };
+                    ProfileError {
+                        origin: origin.clone(),
+                        line,
+                        key: String::new(),
+                        reason,
+                    }
+                })?;
             let stem = path
                 .file_stem()
                 .map(|s| s.to_string_lossy().to_string())

@@ -12,7 +12,7 @@
 
 use super::objects;
 use crate::presets::AxisConfig;
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use drive_protocol::od::eds_parse::{self, EdsFile};
 use drive_protocol::od::{BuildReport, Fate, ObjectDictionary};
 use drive_protocol::DriveInfo;
@@ -30,11 +30,10 @@ pub struct VendorEds {
 impl VendorEds {
     /// Read and parse `path` (errors: `FILE: line N, [section] key: reason`).
     pub fn load(path: &Path) -> Result<VendorEds> {
-        let bytes =
-            std::fs::read(path).with_context(|| format!("cannot read EDS {}", path.display()))?;
+        let bytes = crate::infile::read_bytes(path, "EDS", crate::infile::MAX_CONFIG_BYTES)?;
         let text = eds_parse::decode_text(&bytes);
-        let file =
-            eds_parse::parse(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let file = eds_parse::parse(&text)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", crate::quote::text(&path.to_string_lossy())))?;
         Ok(VendorEds {
             path: path.to_path_buf(),
             file,

@@ -5,7 +5,74 @@
 
 use anyhow::{bail, Result};
 
-/// The token a run was started with (`--panel-token`), if any.
+/// The environment variable a token may come from (not visible in `ps`, unlike an argument).
+pub const TOKEN_ENV: &str = "DRIVE_EMU_PANEL_TOKEN";
+
+/// Where the token came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TokenSource {
+    Env,
+    File,
+    CommandLine,
+}
+
+/// The panel's token from the one source given: `--panel-token-file FILE` (its first line),
+/// the environment variable [`TOKEN_ENV`] (`env`), or `--panel-token` (then `warn` is told
+/// that every user of the machine can read it with `ps`). Two sources at once are an error.
+pub fn resolve_token(
+    arg: Option<&str>,
+    file: Option<&std::path::Path>,
+    env: Option<std::ffi::OsString>,
+) -> Result<Option<(String, TokenSource)>> {
+    let env = env.filter(|v| !v.is_empty());
+    let given = [arg.is_some(), file.is_some(), env.is_some()];
+    if given.iter().filter(|g| **g).count() > 1 {
+        bail!(
+            "the panel's token comes from one of --panel-token-file, {TOKEN_ENV} and \
+             --panel-token; {} given",
+            [
+                (given[1], "--panel-token-file"),
+                (given[2], TOKEN_ENV),
+                (given[0], "--panel-token")
+            ]
+            .iter()
+            .filter(|(g, _)| *g)
+            .map(|(_, n)| *n)
+            .collect::<Vec<_>>()
+            .join(" and ")
+        );
+    }
+    let (token, source) = if let Some(path) = file {
+        let text = crate::infile::read_text(path, "--panel-token-file", 4096)?;
+        let line = text.lines().next().unwrap_or("").trim().to_string();
+        (line, TokenSource::File)
+    } else if let Some(v) = env {
+        let Some(v) = v.to_str() else {
+            bail!("{TOKEN_ENV}: not UTF-8");
+        };
+        (v.trim().to_string(), TokenSource::Env)
+    } else if let Some(t) = arg {
+        (t.to_string(), TokenSource::CommandLine)
+    } else {
+        return Ok(None);
+    };
+    check_token_text(&token).map_err(|e| {
+        let from = match source {
+            TokenSource::Env => TOKEN_ENV,
+            TokenSource::File => "--panel-token-file",
+            TokenSource::CommandLine => "--panel-token",
+        };
+        anyhow::anyhow!("{}", e.to_string().replacen("--panel-token", from, 1))
+    })?;
+    Ok(Some((token, source)))
+}
+
+/// What `--panel-token` on the command line prints on stderr.
+pub const COMMAND_LINE_WARNING: &str = "drive-emu: warning: --panel-token on the command line \
+    is visible to every user of this machine (ps, /proc/PID/cmdline): give it in the \
+    environment variable DRIVE_EMU_PANEL_TOKEN or in a file (--panel-token-file FILE)";
+
+/// The token a run was started with, if any.
 #[derive(Debug, Clone, Default)]
 pub struct Auth {
     token: Option<String>,
@@ -44,7 +111,12 @@ fn same(a: &[u8], b: &[u8]) -> bool {
 /// in the query.
 pub fn offered<'a>(headers: &'a axum::http::HeaderMap, query: Option<&'a str>) -> Option<&'a str> {
     let h = |name: &str| headers.get(name).and_then(|v| v.to_str().ok());
-    if let Some(t) = h("authorization").and_then(|v| v.strip_prefix("Bearer ")) {
+    // The scheme is case-insensitive (RFC 9110 11.1): `Bearer`, `bearer`, `BEARER`.
+    if let Some(t) = h("authorization")
+        .and_then(|v| v.trim_start().split_once(' '))
+        .filter(|(scheme, _)| scheme.eq_ignore_ascii_case("bearer"))
+        .map(|(_, t)| t)
+    {
         return Some(t.trim());
     }
     if let Some(t) = h("x-panel-token") {
@@ -96,8 +168,43 @@ mod tests {
         assert_eq!(offered(&h, Some("token=abc")), Some("xyz"));
         h.insert("authorization", HeaderValue::from_static("Bearer tok"));
         assert_eq!(offered(&h, None), Some("tok"));
+        for v in ["bearer tok", "BEARER tok", "bEaReR  tok "] {
+            h.insert("authorization", HeaderValue::from_static(v));
+            assert_eq!(offered(&h, None), Some("tok"), "{v}");
+        }
+        h.remove("x-panel-token");
+        h.insert("authorization", HeaderValue::from_static("Basic dG9r"));
+        assert_eq!(offered(&h, None), None);
         // Without a token configured, anything passes (the panel is on loopback then).
         assert!(Auth::new(None).check(None).is_ok());
+    }
+
+    #[test]
+    fn the_token_comes_from_one_source() {
+        let env = |s: &str| Some(std::ffi::OsString::from(s));
+        let (t, src) = resolve_token(None, None, env("envtok")).unwrap().unwrap();
+        assert_eq!((t.as_str(), src), ("envtok", TokenSource::Env));
+        let (t, src) = resolve_token(Some("cli"), None, None).unwrap().unwrap();
+        assert_eq!((t.as_str(), src), ("cli", TokenSource::CommandLine));
+        assert!(resolve_token(None, None, None).unwrap().is_none());
+        assert!(resolve_token(None, None, env("")).unwrap().is_none());
+        let e = resolve_token(Some("cli"), None, env("envtok")).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("DRIVE_EMU_PANEL_TOKEN and --panel-token"),
+            "{e}"
+        );
+        let e = resolve_token(None, None, env("a b")).unwrap_err();
+        assert!(e.to_string().starts_with("DRIVE_EMU_PANEL_TOKEN: "), "{e}");
+        let dir = std::env::temp_dir().join(format!("panel-token-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("token");
+        std::fs::write(&f, "filetok\n").unwrap();
+        let (t, src) = resolve_token(None, Some(&f), None).unwrap().unwrap();
+        assert_eq!((t.as_str(), src), ("filetok", TokenSource::File));
+        let e = resolve_token(None, Some(std::path::Path::new("/dev/zero")), None).unwrap_err();
+        assert!(e.to_string().contains("a character device"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -53,10 +53,16 @@ pub struct PanelArgs {
     /// The panel's token: required on every write and on the stream (header
     /// `Authorization: Bearer TOKEN` or query `?token=TOKEN`); required with a non-loopback
     /// --panel address.
+    /// Prefer the environment variable DRIVE_EMU_PANEL_TOKEN or --panel-token-file: an
+    /// argument is visible to every user of the machine (`ps`); given here it is warned about.
     #[arg(long, value_name = "TOKEN", requires = "panel")]
     pub panel_token: Option<String>,
-    /// Directory for the panel's recordings (default: a new directory under the system's
-    /// temporary directory).
+    /// Read the panel's token from the first line of FILE (instead of --panel-token).
+    #[arg(long, value_name = "FILE", requires = "panel")]
+    pub panel_token_file: Option<PathBuf>,
+    /// Directory for the panel's recordings (default: a new private directory with a random
+    /// name under the system's temporary directory). Made with mode 0700 if absent; an
+    /// existing one must be this user's and writable by no one else.
     #[arg(long, value_name = "DIR", requires = "panel")]
     pub panel_dir: Option<PathBuf>,
 }
@@ -81,11 +87,29 @@ pub fn check_bind(addr: &str, token: Option<&str>) -> Result<SocketAddr> {
     Ok(sa)
 }
 
+/// The panel's token from its one source (`--panel-token-file`, `DRIVE_EMU_PANEL_TOKEN`,
+/// `--panel-token`), when the panel is asked for.
+pub fn token(args: &PanelArgs) -> Result<Option<(String, auth::TokenSource)>> {
+    if args.panel.is_none() {
+        return Ok(None);
+    }
+    auth::resolve_token(
+        args.panel_token.as_deref(),
+        args.panel_token_file.as_deref(),
+        std::env::var_os(auth::TOKEN_ENV),
+    )
+}
+
 /// The panel's options checked before anything opens (the CAN interface, the port): a
-/// non-loopback address without a token is refused at start.
+/// non-loopback address without a token is refused at start; a token on the command line is
+/// warned about.
 pub fn check_args(args: &PanelArgs) -> Result<()> {
     if let Some(addr) = &args.panel {
-        check_bind(addr, args.panel_token.as_deref())?;
+        let t = token(args)?;
+        if matches!(t, Some((_, auth::TokenSource::CommandLine))) {
+            eprintln!("{}", auth::COMMAND_LINE_WARNING);
+        }
+        check_bind(addr, t.as_ref().map(|(t, _)| t.as_str()))?;
     }
     Ok(())
 }
@@ -250,7 +274,7 @@ pub fn start_for_run(
         eprintln!(
             "drive-emu: panel on {}{}",
             panel.url(),
-            if args.panel_token.is_some() {
+            if panel.shared.auth.required() {
                 " (token required: ?token=TOKEN)"
             } else {
                 ""
@@ -268,21 +292,37 @@ pub fn start(args: &PanelArgs, setup: PanelSetup) -> Result<Option<(Panel, Panel
     let Some(addr) = &args.panel else {
         return Ok(None);
     };
-    let sa = check_bind(addr, args.panel_token.as_deref())?;
+    let tok = token(args)?.map(|(t, _)| t);
+    let sa = check_bind(addr, tok.as_deref())?;
     let listener = std::net::TcpListener::bind(sa)
         .with_context(|| format!("--panel {addr}: cannot listen there"))?;
     let dir = match &args.panel_dir {
-        Some(d) => d.clone(),
-        None => std::env::temp_dir().join(format!("drive-emu-panel-{}", std::process::id())),
+        Some(d) => record::RecordDir::named(d)?,
+        None => record::RecordDir::private_in(&std::env::temp_dir())?,
     };
-    start_on(listener, args.panel_token.clone(), dir, setup).map(Some)
+    start_with(listener, tok, dir, setup).map(Some)
 }
 
-/// Start the panel on a bound listener (tests bind port 0).
+/// Start the panel on a bound listener (tests bind port 0), recordings in `record_dir` (as
+/// `--panel-dir`: made 0700 when absent, else it must be private to this user).
 pub fn start_on(
     listener: std::net::TcpListener,
     token: Option<String>,
     record_dir: PathBuf,
+    setup: PanelSetup,
+) -> Result<(Panel, PanelLoop)> {
+    start_with(
+        listener,
+        token,
+        record::RecordDir::named(&record_dir)?,
+        setup,
+    )
+}
+
+fn start_with(
+    listener: std::net::TcpListener,
+    token: Option<String>,
+    record_dir: record::RecordDir,
     setup: PanelSetup,
 ) -> Result<(Panel, PanelLoop)> {
     if setup.axes.is_empty() {
@@ -352,6 +392,19 @@ impl Panel {
             let _ = t.join();
         }
         record::finish_active(&self.shared);
+        self.shared.record_dir.remove_if_empty();
+    }
+
+    /// The recording directory.
+    pub fn record_dir(&self) -> &std::path::Path {
+        &self.shared.record_dir.path
+    }
+
+    /// Change the recording caps (tests make them small).
+    pub fn set_record_limits(&self, limits: record::RecordLimits) {
+        if let Ok(mut l) = self.shared.record_limits.lock() {
+            *l = limits;
+        }
     }
 }
 

@@ -33,7 +33,6 @@ use axum::{Json, Router};
 use serde_json::{json, Value};
 use std::collections::BTreeMap;
 use std::convert::Infallible;
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -69,7 +68,8 @@ pub struct Shared {
     pub obs: Arc<Observation>,
     /// The panel's injection queue to the loop.
     pub link: Arc<LiveLink>,
-    pub record_dir: PathBuf,
+    pub record_dir: record::RecordDir,
+    pub record_limits: Mutex<record::RecordLimits>,
     pub record: Mutex<RecordState>,
     pub session: Mutex<Session>,
     pub tx: broadcast::Sender<Arc<Message>>,
@@ -90,7 +90,7 @@ impl Shared {
         controls: Controls,
         obs: Arc<Observation>,
         link: Arc<LiveLink>,
-        record_dir: PathBuf,
+        record_dir: record::RecordDir,
     ) -> Self {
         let kv = setup.axes[0].config.kv_per_s;
         Shared {
@@ -100,6 +100,7 @@ impl Shared {
             obs,
             link,
             record_dir,
+            record_limits: Mutex::new(record::RecordLimits::default()),
             record: Mutex::new(RecordState {
                 next_number: 1,
                 ..Default::default()
@@ -195,7 +196,20 @@ fn cross_site(sh: &Shared, req: &Request) -> Option<(StatusCode, &'static str)> 
         if !loopback {
             return Some((
                 StatusCode::FORBIDDEN,
-                "without --panel-token the panel answers requests to 127.0.0.1, [::1] or                  localhost only",
+                "without a token the panel answers requests to 127.0.0.1, [::1] or localhost \
+                 only",
+            ));
+        }
+    }
+    // A browser says where a request comes from: only the panel's own page ("same-origin")
+    // and the user's own action ("none": typed, bookmarked) pass; "same-site" is another
+    // port or subdomain of the same host (another local web application).
+    if let Some(site) = h.get("sec-fetch-site").and_then(|v| v.to_str().ok()) {
+        let site = site.trim();
+        if !(site.eq_ignore_ascii_case("same-origin") || site.eq_ignore_ascii_case("none")) {
+            return Some((
+                StatusCode::FORBIDDEN,
+                "a request from a page of another site is refused (Sec-Fetch-Site)",
             ));
         }
     }
@@ -264,7 +278,35 @@ pub fn router(shared: Arc<Shared>) -> Router {
         .merge(api)
         .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page") })
         .layer(DefaultBodyLimit::max(MAX_BODY))
+        .layer(middleware::from_fn_with_state(
+            Arc::clone(&shared),
+            body_deadline,
+        ))
+        .layer(middleware::map_response(security_headers))
         .with_state(shared)
+}
+
+/// On every response: no `Referer` with the token leaves the page; no other site may frame
+/// the page (its injection buttons could be clickjacked); the browser does not guess types.
+async fn security_headers(mut r: Response) -> Response {
+    let h = r.headers_mut();
+    h.insert(
+        header::REFERRER_POLICY,
+        header::HeaderValue::from_static("no-referrer"),
+    );
+    h.insert(
+        header::CONTENT_SECURITY_POLICY,
+        header::HeaderValue::from_static("frame-ancestors 'none'"),
+    );
+    h.insert(
+        header::X_FRAME_OPTIONS,
+        header::HeaderValue::from_static("DENY"),
+    );
+    h.insert(
+        header::X_CONTENT_TYPE_OPTIONS,
+        header::HeaderValue::from_static("nosniff"),
+    );
+    r
 }
 
 fn page(body: &'static [u8], content_type: &'static str) -> Response {
@@ -497,9 +539,11 @@ fn record_json(sh: &Shared, st: &RecordState) -> Value {
             "csv": r.csv_names,
             "capture": r.capture_name,
             "note": r.capture_note,
+            "bytes": r.bytes(),
+            "cap": r.cap_note(),
         })),
         "files": st.files,
-        "dir": sh.record_dir.display().to_string(),
+        "dir": sh.record_dir.path.display().to_string(),
     })
 }
 
@@ -547,14 +591,27 @@ async fn record_cmd(
             sh.refused.fetch_add(1, Ordering::Relaxed);
             return error(StatusCode::CONFLICT, "a recording is running already");
         }
-        let ids: Vec<u8> = sh.setup.axes.iter().map(|a| a.node_id).collect();
+        let limits = sh.record_limits.lock().map(|l| *l).unwrap_or_default();
         let n = st.next_number;
+        if n > limits.max_recordings {
+            sh.refused.fetch_add(1, Ordering::Relaxed);
+            return error(
+                StatusCode::CONFLICT,
+                format!(
+                    "this run made {} recordings, the most a run makes: download what you \
+                     need and start another run",
+                    limits.max_recordings
+                ),
+            );
+        }
+        let ids: Vec<u8> = sh.setup.axes.iter().map(|a| a.node_id).collect();
         match record::start(
-            &sh.record_dir,
+            &sh.record_dir.path,
             n,
             &ids,
             sh.setup.iface.as_deref(),
             sh.now_us(),
+            limits.max_bytes,
         ) {
             Ok(r) => {
                 st.active = Some(r);
@@ -571,7 +628,7 @@ async fn record_cmd(
         for n in &names {
             println!(
                 "drive-emu: panel: recording written: {}",
-                sh.record_dir.join(n).display()
+                sh.record_dir.path.join(n).display()
             );
         }
         st.files.extend(names);
@@ -593,7 +650,7 @@ async fn record_file(State(sh): State<Arc<Shared>>, Path(name): Path<String>) ->
                 "recording state poisoned",
             );
         };
-        record::served_path(&sh.record_dir, &st, &name)
+        record::served_path(&sh.record_dir.path, &st, &name)
     };
     let Some(path) = path else {
         return error(
@@ -601,27 +658,58 @@ async fn record_file(State(sh): State<Arc<Shared>>, Path(name): Path<String>) ->
             "no such recording (finished ones only)",
         );
     };
-    match std::fs::read(&path) {
-        Ok(bytes) => {
-            let ct = if name.ends_with(".csv") {
-                "text/csv; charset=utf-8"
-            } else {
-                "text/plain; charset=utf-8"
-            };
-            (
-                [
-                    (header::CONTENT_TYPE, ct.to_string()),
-                    (
-                        header::CONTENT_DISPOSITION,
-                        format!("attachment; filename=\"{name}\""),
-                    ),
-                ],
-                Body::from(bytes),
-            )
-                .into_response()
+    let (file, size) = match record::open_served(&path) {
+        Ok(x) => x,
+        Err(e) => {
+            sh.refused.fetch_add(1, Ordering::Relaxed);
+            return error(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                format!("{name}: cannot serve: {e}"),
+            );
         }
-        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, format!("{name}: {e}")),
-    }
+    };
+    let ct = if name.ends_with(".csv") {
+        "text/csv; charset=utf-8"
+    } else {
+        "text/plain; charset=utf-8"
+    };
+    (
+        [
+            (header::CONTENT_TYPE, ct.to_string()),
+            (
+                header::CONTENT_DISPOSITION,
+                format!("attachment; filename=\"{name}\""),
+            ),
+        ],
+        Body::from_stream(file_chunks(file, size)),
+    )
+        .into_response()
+}
+
+/// Bytes served per read of a download.
+const CHUNK_BYTES: usize = 64 << 10;
+
+/// A file as a stream of chunks, at most `size` bytes (the size `fstat` gave when it was
+/// opened: a file that grows is not followed), read one chunk at a time.
+fn file_chunks(
+    file: std::fs::File,
+    size: u64,
+) -> impl futures_util::Stream<Item = std::io::Result<Bytes>> + Send + 'static {
+    futures_util::stream::unfold((file, size), |(mut f, left)| async move {
+        use std::io::Read;
+        if left == 0 {
+            return None;
+        }
+        let mut buf = vec![0u8; CHUNK_BYTES.min(left as usize)];
+        match f.read(&mut buf) {
+            Ok(0) => None,
+            Ok(n) => {
+                buf.truncate(n);
+                Some((Ok(Bytes::from(buf)), (f, left - n as u64)))
+            }
+            Err(e) => Some((Err(e), (f, 0))),
+        }
+    })
 }
 
 async fn session(State(sh): State<Arc<Shared>>) -> Response {
@@ -649,6 +737,155 @@ async fn session(State(sh): State<Arc<Shared>>) -> Response {
         .into_response()
 }
 
+/// Most connections served at once. At the limit a new connection takes the place of the
+/// oldest one that is not in a request (waiting for its first request, or idle between two):
+/// idle connections cannot keep a request out; if every connection is in a request, the new
+/// one is closed.
+pub const MAX_CONNECTIONS: usize = 256;
+/// How long a connection may take to send a request's head (start line and headers), and how
+/// long it may stay idle before its next one: then it is closed. Checked before the token.
+pub const HEADER_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long a request may take to send its body (at most [`MAX_BODY`] bytes); then 408.
+pub const BODY_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// One connection, as the accept loop sees it.
+struct Conn {
+    id: u64,
+    /// Requests in progress on it (a stream's lasts as long as the stream).
+    busy: AtomicU64,
+    /// Told to close (its place taken by a new connection).
+    evicted: AtomicBool,
+    evict: tokio::sync::Notify,
+}
+
+/// The connections served now.
+#[derive(Default)]
+struct Conns {
+    list: Mutex<Vec<Arc<Conn>>>,
+}
+
+impl Conns {
+    /// Room for one more: true if there is (after closing the oldest idle one if need be).
+    fn make_room(&self) -> bool {
+        let Ok(list) = self.list.lock() else {
+            return false;
+        };
+        let closing = list
+            .iter()
+            .filter(|c| c.evicted.load(Ordering::Relaxed))
+            .count();
+        if list.len() - closing < MAX_CONNECTIONS {
+            return true;
+        }
+        let idle = list
+            .iter()
+            .find(|c| c.busy.load(Ordering::Acquire) == 0 && !c.evicted.load(Ordering::Relaxed));
+        match idle {
+            Some(c) => {
+                c.evicted.store(true, Ordering::Relaxed);
+                c.evict.notify_one();
+                true
+            }
+            None => false,
+        }
+    }
+}
+
+/// Keeps a connection counted busy until the response's body is done (or dropped).
+struct BusyGuard(Arc<Conn>);
+
+impl BusyGuard {
+    fn new(c: &Arc<Conn>) -> Self {
+        c.busy.fetch_add(1, Ordering::AcqRel);
+        BusyGuard(Arc::clone(c))
+    }
+}
+
+impl Drop for BusyGuard {
+    fn drop(&mut self) {
+        self.0.busy.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// Serve one accepted connection until it ends, is evicted, or the panel stops.
+async fn serve_conn(
+    stream: tokio::net::TcpStream,
+    app: Router,
+    conn: Arc<Conn>,
+    conns: Arc<Conns>,
+    mut stop: watch::Receiver<bool>,
+) {
+    use futures_util::StreamExt;
+    let svc_conn = Arc::clone(&conn);
+    let service = hyper::service::service_fn(move |req: hyper::Request<hyper::body::Incoming>| {
+        let guard = BusyGuard::new(&svc_conn);
+        let app = app.clone();
+        async move {
+            use hyper::service::Service;
+            let svc = hyper_util::service::TowerToHyperService::new(app);
+            let resp = svc.call(req.map(Body::new)).await?;
+            Ok::<_, Infallible>(resp.map(|body| {
+                let data = body.into_data_stream().map(move |chunk| {
+                    let _keep = &guard;
+                    chunk
+                });
+                Body::from_stream(data)
+            }))
+        }
+    });
+    let mut builder = hyper::server::conn::http1::Builder::new();
+    builder
+        .timer(hyper_util::rt::TokioTimer::new())
+        .header_read_timeout(HEADER_TIMEOUT)
+        .max_buf_size(64 << 10);
+    let io = hyper_util::rt::TokioIo::new(stream);
+    let c = builder.serve_connection(io, service);
+    tokio::pin!(c);
+    let mut shutting = false;
+    loop {
+        tokio::select! {
+            _ = c.as_mut() => break,
+            _ = conn.evict.notified(), if !shutting => break,
+            _ = stop.wait_for(|v| *v), if !shutting => {
+                shutting = true;
+                c.as_mut().graceful_shutdown();
+            }
+        }
+    }
+    if let Ok(mut l) = conns.list.lock() {
+        l.retain(|x| x.id != conn.id);
+    }
+}
+
+/// Before the routes and the token: a request's body read whole within [`BODY_TIMEOUT`] and
+/// [`MAX_BODY`] bytes (408 or 413 otherwise).
+async fn body_deadline(State(sh): State<Arc<Shared>>, req: Request, next: Next) -> Response {
+    let (parts, body) = req.into_parts();
+    let read = tokio::time::timeout(BODY_TIMEOUT, axum::body::to_bytes(body, MAX_BODY)).await;
+    let bytes = match read {
+        Ok(Ok(b)) => b,
+        Ok(Err(_)) => {
+            sh.refused.fetch_add(1, Ordering::Relaxed);
+            return error(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!("the body is larger than {MAX_BODY} bytes (or was cut off)"),
+            );
+        }
+        Err(_) => {
+            sh.refused.fetch_add(1, Ordering::Relaxed);
+            return error(
+                StatusCode::REQUEST_TIMEOUT,
+                format!(
+                    "the body did not arrive within {} s",
+                    BODY_TIMEOUT.as_secs()
+                ),
+            );
+        }
+    };
+    next.run(Request::from_parts(parts, Body::from(bytes)))
+        .await
+}
+
 /// Start the server thread on `listener` (already bound). It ends when the panel stops: the
 /// streams close at once, other requests get 2 s to finish.
 pub fn spawn(
@@ -670,22 +907,53 @@ pub fn spawn(
                         return;
                     }
                 };
-                let mut stop1 = shared.shutdown_tx.subscribe();
-                let mut stop2 = shared.shutdown_tx.subscribe();
+                let mut stop = shared.shutdown_tx.subscribe();
                 let app = router(Arc::clone(&shared));
-                let serve = axum::serve(listener, app).with_graceful_shutdown(async move {
-                    let _ = stop1.wait_for(|v| *v).await;
-                });
-                tokio::select! {
-                    r = serve => {
-                        if let Err(e) = r {
-                            eprintln!("drive-emu: panel: server: {e}");
+                let conns = Arc::new(Conns::default());
+                let mut next_id = 0u64;
+                loop {
+                    let accepted = tokio::select! {
+                        a = listener.accept() => a,
+                        _ = stop.wait_for(|v| *v) => break,
+                    };
+                    let stream = match accepted {
+                        Ok((s, _)) => s,
+                        Err(_) => {
+                            // Out of descriptors or the like: let a connection end first.
+                            tokio::time::sleep(Duration::from_millis(50)).await;
+                            continue;
                         }
+                    };
+                    if !conns.make_room() {
+                        shared.refused.fetch_add(1, Ordering::Relaxed);
+                        drop(stream);
+                        continue;
                     }
-                    _ = async move {
-                        let _ = stop2.wait_for(|v| *v).await;
-                        tokio::time::sleep(Duration::from_secs(2)).await;
-                    } => {}
+                    let _ = stream.set_nodelay(true);
+                    next_id += 1;
+                    let conn = Arc::new(Conn {
+                        id: next_id,
+                        busy: AtomicU64::new(0),
+                        evicted: AtomicBool::new(false),
+                        evict: tokio::sync::Notify::new(),
+                    });
+                    if let Ok(mut l) = conns.list.lock() {
+                        l.push(Arc::clone(&conn));
+                    }
+                    tokio::spawn(serve_conn(
+                        stream,
+                        app.clone(),
+                        conn,
+                        Arc::clone(&conns),
+                        shared.shutdown_tx.subscribe(),
+                    ));
+                }
+                // Stopping: the streams end on the shutdown signal; other requests get 2 s.
+                let deadline = tokio::time::Instant::now() + Duration::from_secs(2);
+                while conns.list.lock().map_or(0, |l| l.len()) > 0
+                    && tokio::time::Instant::now() < deadline
+                {
+                    tokio::time::sleep(Duration::from_millis(10)).await;
                 }
             });
         })?)

@@ -14,8 +14,7 @@ pub const MAX_LINE_BYTES: usize = 64 << 10;
 /// early with a clear error instead of filling memory.
 pub fn read_trace_text(path: &Path) -> anyhow::Result<String> {
     use std::io::Read;
-    let mut f =
-        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut f = crate::infile::open(path, "")?.file;
     let mut magic = [0u8; 2];
     let n = f
         .read(&mut magic)

@@ -294,7 +294,8 @@ pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
         key: String::new(),
         reason,
     };
-    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot read: {e}")))?;
+    let crate::infile::Opened { file, size } =
+        crate::infile::open(path, "").map_err(|e| err(e.reason()))?;
     let too_long = |bytes: String| {
         err(format!(
             "{bytes} bytes, above the cap of {MAX_FILE_BYTES} bytes ({} MiB) for a scenario \
@@ -303,15 +304,8 @@ pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
             MAX_FILE_BYTES >> 20
         ))
     };
-    if let Some(len) = file
-        .metadata()
-        .ok()
-        .filter(|m| m.is_file())
-        .map(|m| m.len())
-    {
-        if len > MAX_FILE_BYTES {
-            return Err(too_long(len.to_string()));
-        }
+    if size > MAX_FILE_BYTES {
+        return Err(too_long(size.to_string()));
     }
     let mut bytes = Vec::new();
     file.take(MAX_FILE_BYTES + 1)

@@ -517,8 +517,20 @@ impl AxisConfig {
         Ok((control, h))
     }
 
-    /// The physics step `h`, s, must resolve the drive train's contact dynamics.
+    /// The physics step `h`, s, must resolve the drive train's contact dynamics (and be at least
+    /// [`MIN_PHYSICS_STEP_US`]).
     fn check_physics_step(&self, mech: &MechParams, h: f64) -> Result<(), ConfigError> {
+        // A finer step only costs time: 1 us already means a million steps per second.
+        if h < MIN_PHYSICS_STEP_US * 1e-6 {
+            return Err(ConfigError::new(
+                "physics_step_us",
+                format!(
+                    "{} us is below the finest step of {MIN_PHYSICS_STEP_US} us (a run would \
+                     not end in reasonable time)",
+                    compact(self.physics_step_us)
+                ),
+            ));
+        }
         let max_step = mech.max_step();
         if h > max_step {
             return Err(ConfigError::new(
@@ -534,6 +546,9 @@ impl AxisConfig {
         Ok(())
     }
 }
+
+/// The finest physics step accepted, us.
+pub const MIN_PHYSICS_STEP_US: f64 = 1.0;
 
 /// The two-mass drive train; the contact damping follows from the damping ratio and the
 /// reduced mass.
@@ -591,4 +606,15 @@ fn check_stiffness_holds_peak_force(
         ));
     }
     Ok(())
+}
+
+/// A number as people write it: plain between 1e-4 and 1e6, else in exponent form (1e-12, not
+/// 0.000000000001; 1e300, not 300 digits).
+fn compact(x: f64) -> String {
+    let a = x.abs();
+    if a == 0.0 || (1e-4..1e6).contains(&a) || !x.is_finite() {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
 }

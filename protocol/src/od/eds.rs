@@ -87,7 +87,11 @@ fn hex_bytes(b: &[u8]) -> String {
 /// object's current value, as an SDO read returns it).
 fn default_text(e: &Entry, value: Option<u64>, real32: Real32Notation) -> String {
     match (&e.default, value) {
-        (DefaultValue::NodeId(b), None) => format!("$NODEID+0x{b:X}"),
+        // The base is kept as 64-bit two's complement: `$NODEID-1` is 0xFFFF_FFFF_FFFF_FFFF.
+        (DefaultValue::NodeId(b), None) => match *b as i64 {
+            o if o < 0 => format!("$NODEID-0x{:X}", o.unsigned_abs()),
+            o => format!("$NODEID+0x{o:X}"),
+        },
         (DefaultValue::Bytes(b), _) => match e.dtype {
             DataType::VisibleString => String::from_utf8_lossy(b).into_owned(),
             _ => hex_bytes(b),

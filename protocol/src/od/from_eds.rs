@@ -351,6 +351,17 @@ impl ObjectDictionary {
             let slot = standard::slot_of(index, sub).expect("standard object");
             if !od.slots[slot].visible {
                 od.slots[slot].visible = true;
+                // An added sub takes the object type the file gave its object (0x1018 as an
+                // ARRAY with sub 1 only): an export writes one ObjectType for the object, and
+                // what it reads back must be the same dictionary.
+                let file_otype = od
+                    .slots
+                    .iter()
+                    .find(|s| s.visible && s.entry.index == index && s.entry.sub != sub)
+                    .map(|s| s.entry.otype);
+                if let Some(t) = file_otype {
+                    od.slots[slot].entry.otype = t;
+                }
                 let name = od.slots[slot].entry.name.to_string();
                 report.line(
                     index,
@@ -400,6 +411,18 @@ fn check_device_type(file: &EdsFile) -> Result<(), EdsBuildError> {
             reason: "0x1000 has no value".into(),
         });
     };
+    // CiA 301 7.5.2.1: UNSIGNED32. Another type would be served with another size, and an
+    // export of it would refuse itself.
+    if s.data_type != DataType::U32 {
+        return Err(err(
+            s,
+            0x1000,
+            format!(
+                "device type (0x1000) is {}, not UNSIGNED32 as CiA 301 defines it",
+                s.data_type.name()
+            ),
+        ));
+    }
     let value = s
         .default
         .as_ref()

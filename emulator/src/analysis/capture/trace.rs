@@ -130,10 +130,16 @@ pub fn choose_time_base(stamps_s: &[f64], position: &[f64]) -> (TimeBase, String
             f64::NAN
         }
     };
+    // Too few telling intervals to fit a line: said so, not "a slope of NaN".
+    let slope_text = if slope.is_finite() {
+        format!("the increments grow with the interval by a slope of {slope:.2}")
+    } else {
+        "too few of them, or all alike, to fit how the increments grow with the interval"
+            .to_string()
+    };
     let said = format!(
         "{telling} SYNC intervals off the median {:.3} ms by {:.0} % or more while the axis \
-         moved; the increments grow with the interval by a slope of {slope:.2} (1: the time \
-         stamps, 0: the SYNC count)",
+         moved; {slope_text} (slope 1: the time stamps, 0: the SYNC count)",
         period * 1e3,
         INFORMATIVE_SPREAD * 100.0
     );
@@ -566,5 +572,10 @@ mod tests {
         let (t, _) = cruise(true);
         let (_, why) = choose_time_base(&t, &vec![5.0; t.len()]);
         assert!(why.contains("both bases agree"), "{why}");
+        // Even SYNCs and a short log: no slope to fit, and no "NaN" said.
+        let t: Vec<f64> = (0..20).map(|k| f64::from(k) * 4e-3).collect();
+        let x: Vec<f64> = t.iter().map(|t| 1e4 * t).collect();
+        let (_, why) = choose_time_base(&t, &x);
+        assert!(!why.contains("NaN") && why.contains("too few"), "{why}");
     }
 }

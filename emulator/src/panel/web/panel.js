@@ -2,8 +2,21 @@
 // plots them with uPlot; writes go to /api/inject and /api/record. No build step, no npm.
 "use strict";
 
-const params = new URLSearchParams(location.search);
-const TOKEN = params.get("token");
+// The token: read from ?token= once, kept for this tab only (sessionStorage, so a reload
+// still works) and dropped from the address bar and the history at once.
+const TOKEN = (() => {
+  const params = new URLSearchParams(location.search);
+  let t = params.get("token");
+  if (t !== null) {
+    params.delete("token");
+    const q = params.toString();
+    history.replaceState(null, "", location.pathname + (q ? "?" + q : "") + location.hash);
+    try { sessionStorage.setItem("drive-emu-panel-token", t); } catch (e) { /* no storage */ }
+  } else {
+    try { t = sessionStorage.getItem("drive-emu-panel-token"); } catch (e) { t = null; }
+  }
+  return t;
+})();
 const withToken = (url) =>
   TOKEN ? url + (url.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(TOKEN) : url;
 const KEEP_S = 60; // seconds of samples kept per axis (the longest span)
