@@ -5,7 +5,6 @@
 //! panel's directory as `rec-N-node5.csv` and `rec-N.log`, downloadable while the run lasts.
 
 use super::server::Shared;
-use crate::bus::socketcan::SocketCanBus;
 use crate::bus::CanBus;
 use crate::samples::Sample;
 use std::fs::File;
@@ -86,7 +85,7 @@ pub fn start(
         Some(iface) => {
             let name = format!("rec-{number}.log");
             let file = create(dir, &name)?;
-            match SocketCanBus::open(iface) {
+            match open_capture_bus(iface) {
                 Ok(bus) => (
                     Some(spawn_capture(bus, iface.to_string(), file)?),
                     Some(name),
@@ -117,8 +116,20 @@ pub fn start(
     })
 }
 
+/// A socket of its own on `iface`, to capture what the bus carries.
+#[cfg(feature = "socketcan")]
+fn open_capture_bus(iface: &str) -> anyhow::Result<crate::bus::socketcan::SocketCanBus> {
+    Ok(crate::bus::socketcan::SocketCanBus::open(iface)?)
+}
+
+/// Without SocketCAN there is no interface to capture.
+#[cfg(not(feature = "socketcan"))]
+fn open_capture_bus(iface: &str) -> anyhow::Result<crate::bus::inproc::InProcEndpoint> {
+    anyhow::bail!("{iface}: this drive-emu was built without SocketCAN")
+}
+
 fn spawn_capture(
-    bus: SocketCanBus,
+    bus: impl CanBus + Send + 'static,
     iface: String,
     mut out: BufWriter<File>,
 ) -> std::io::Result<Capture> {
@@ -130,7 +141,9 @@ fn spawn_capture(
             .name("drive-emu-panel-capture".into())
             .spawn(move || {
                 let mut bus = bus;
-                let fd = bus.rx_fd().expect("a SocketCAN bus has a descriptor");
+                let Some(fd) = bus.rx_fd() else {
+                    return Ok(());
+                };
                 while !stop.load(Ordering::Acquire) {
                     let mut pfd = libc::pollfd {
                         fd,
