@@ -3,7 +3,7 @@
 `drive-emu run --socketcand`: no kernel CAN. Boots the drive (NMT reset, boot-up seen), NMT
 states, enables and moves it in profile position (PP) and in cyclic synchronous position
 (CSP, with the master's SYNC), reads the loop statistics 0x2100. Prints what it saw as one
-JSON line last (emulator/tests/socketcand_python.rs checks it); exits non-zero on any
+JSON line last (emulator/tests/socketcand_run.rs checks it); exits non-zero on any
 failure.
 
     drive-emu run --socketcand 127.0.0.1:29536 --node 5 &
