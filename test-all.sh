@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Run the whole test suite:
 #   1. host tests (protocol, emulator): cargo nextest run --workspace --exclude e2e
+#   1a. the emulator without SocketCAN: cargo nextest run -p drive-emu --no-default-features
+#      (the cargo feature `socketcan` off, as where there is no SocketCAN: portability)
 #   1b. the `cargo fuzz` targets built (fuzz/fuzz_targets/*.rs) and a bounded run of frames.rs
 #      (FUZZ_SECONDS, default 60; stable Rust, no sanitizer, overflow checks on; needs
 #      cargo-fuzz, which .ci/run installs: a missing cargo-fuzz fails this phase)
@@ -19,7 +21,7 @@
 set -euo pipefail
 
 case "${1:-}" in
-    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     "") ;;
     *) echo "test-all.sh: no arguments expected (see --help)" >&2; exit 2 ;;
 esac
@@ -39,6 +41,12 @@ banner "host tests: cargo nextest run --workspace --exclude e2e"
 t=$(now); host_rc=0
 cargo nextest run --workspace --exclude e2e --no-fail-fast || host_rc=$?
 host_time=$(secs "$t")
+
+# ---- 1a. the emulator with the SocketCAN feature off (builds and passes without it)
+banner "host tests without SocketCAN: cargo nextest run -p drive-emu --no-default-features"
+t=$(now); nosc_rc=0
+cargo nextest run -p drive-emu --no-default-features --no-fail-fast || nosc_rc=$?
+nosc_time=$(secs "$t")
 
 # ---- 1b. bounded fuzz run (the frames target asserts the Node::poll_at contract after
 # every poll; -s none: sanitizers need nightly; -a: debug assertions and overflow checks)
@@ -111,8 +119,9 @@ py_time=$(secs "$t")
 
 banner "summary"
 printf 'host tests: %s (%ss)\n' "$([[ $host_rc == 0 ]] && echo ok || echo "FAILED ($host_rc)")" "$host_time"
+printf 'host tests without SocketCAN: %s (%ss)\n' "$([[ $nosc_rc == 0 ]] && echo ok || echo "FAILED ($nosc_rc)")" "$nosc_time"
 printf 'fuzz run: %s (%ss)\n' "$([[ $fuzz_rc == 0 ]] && echo ok || echo "FAILED ($fuzz_rc)")" "$fuzz_time"
 printf 'vcan tests: %s (build+archive %ss, run via vcan-setup.sh %ss)\n' \
     "$([[ $e2e_rc == 0 ]] && echo ok || echo "FAILED ($e2e_rc)")" "$build_time" "$run_time"
 printf 'python module tests: %s (%ss)\n' "$([[ $py_rc == 0 ]] && echo ok || echo "FAILED ($py_rc)")" "$py_time"
-if [[ $host_rc != 0 || $fuzz_rc != 0 || $e2e_rc != 0 || $py_rc != 0 ]]; then exit 1; fi
+if [[ $host_rc != 0 || $nosc_rc != 0 || $fuzz_rc != 0 || $e2e_rc != 0 || $py_rc != 0 ]]; then exit 1; fi

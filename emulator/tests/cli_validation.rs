@@ -234,6 +234,7 @@ fn an_override_of_the_wrong_type_names_the_key() {
     );
 }
 
+#[cfg(feature = "socketcan")]
 #[test]
 fn an_interface_that_exists_but_is_not_can_is_named_so() {
     // lo exists on every Linux machine, with or without CAN in the kernel.
@@ -249,6 +250,39 @@ fn an_interface_that_exists_but_is_not_can_is_named_so() {
             "cannot open CAN interface lo: lo exists but is not a CAN interface",
             "link type 772, loopback",
         ],
+    );
+}
+
+/// Built without SocketCAN (`--no-default-features`): an interface is refused with the way
+/// out, and --socketcand with --iface is one bus too many.
+#[cfg(not(feature = "socketcan"))]
+#[test]
+fn without_socketcan_an_interface_is_refused_with_the_way_out() {
+    refused(
+        &["run", "--iface", "vcan0", "--duration", "0.1"],
+        &[
+            "cannot open CAN interface vcan0",
+            "built without SocketCAN",
+            "--socketcand ADDR:PORT",
+        ],
+    );
+}
+
+#[test]
+fn socketcand_and_an_interface_are_not_both_taken() {
+    refused(
+        &["run", "--iface", "vcan0", "--socketcand", "127.0.0.1:0"],
+        &["--socketcand", "--iface"],
+    );
+    refused(
+        &[
+            "run",
+            "--socketcand",
+            "127.0.0.1:99999",
+            "--duration",
+            "0.1",
+        ],
+        &["cannot serve socketcand on 127.0.0.1:99999"],
     );
 }
 

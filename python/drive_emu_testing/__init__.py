@@ -1,6 +1,8 @@
 """Run drive-emu (an emulated CANopen CiA 402 servo drive) from python, for tests.
 
-`DriveEmu` starts `drive-emu run --ready --json` on a CAN interface, waits for its ready line
+`DriveEmu` starts `drive-emu run --ready --json` on a CAN interface (SocketCAN), or where
+that interface does not exist (no vcan: macOS, Windows, containers, CI runners) serving the
+bus over socketcand on 127.0.0.1 (python-can's `socketcand` interface), waits for its ready line
 (`{"event": "ready", ...}` on stdout, printed once the drive has sent its boot-up), generates
 the matching EDS with `drive-emu eds`, and stops the process with SIGTERM, collecting the
 loop statistics it prints on exit. The pytest fixture `drive_emu` (plugin.py) wraps it.
@@ -17,7 +19,7 @@ import threading
 import time
 from pathlib import Path
 
-__all__ = ["DriveEmu", "DriveEmuError", "find_binary", "STATISTICS"]
+__all__ = ["DriveEmu", "DriveEmuError", "find_binary", "interface_exists", "STATISTICS"]
 
 # 0x2100 sub 1..7, as the EDS names them
 STATISTICS = (
@@ -51,19 +53,38 @@ def find_binary(explicit=None):
     return found
 
 
+def interface_exists(iface):
+    """True if this machine has a network interface `iface` (Linux: /sys/class/net)."""
+    return bool(iface) and "/" not in iface and os.path.exists(f"/sys/class/net/{iface}")
+
+
 class DriveEmu:
     """One `drive-emu run` process with one axis.
 
+    The bus: `socketcand="HOST:PORT"` serves it over socketcand (port 0: any free port);
+    `socketcand=None` (default) does so on 127.0.0.1:0 when $DRIVE_EMU_SOCKETCAND says so (an
+    address) or when `iface` does not exist on this machine, else the drive is on `iface`.
+    `socketcand=False`: always `iface`.
+
     Attributes once started: `iface`, `node_id`, `preset`, `eds_path` (EDS generated for the
-    same preset, --set values and node ID), `ready` (the ready line as a dict), `pid`.
+    same preset, --set values and node ID), `ready` (the ready line as a dict), `pid`,
+    `transport` ("socketcan" or "socketcand"), `socketcand` ((host, port) or None) and
+    `can_args`: the keyword arguments of `can.Bus(...)` / `canopen.Network().connect(...)`
+    that reach the drive either way.
     After `stop()`: `exit_statistics` (dict, the loop statistics printed at exit),
     `returncode`, `stderr` (all lines the process wrote to stderr).
     """
 
     def __init__(self, iface="vcan0", node_id=5, preset="cnc1", set=(), binary=None,
                  lockstep=False, sync_period_us=None, boot_delay_ms=None, extra_args=(),
-                 ready_timeout=60.0, workdir=None):
+                 ready_timeout=60.0, workdir=None, socketcand=None):
         self.iface = iface
+        if socketcand is None:
+            socketcand = os.environ.get("DRIVE_EMU_SOCKETCAND") or (
+                None if interface_exists(iface) else "127.0.0.1:0")
+        self.socketcand_addr = socketcand or None
+        self.transport = "socketcand" if self.socketcand_addr else "socketcan"
+        self.socketcand = None
         self.node_id = int(node_id)
         self.preset = preset
         self.set = list(set)
@@ -107,7 +128,9 @@ class DriveEmu:
 
     def command(self):
         """The `drive-emu run` command line."""
-        cmd = [self.binary, "run", "--iface", self.iface, "--node", str(self.node_id),
+        bus = (["--socketcand", self.socketcand_addr] if self.socketcand_addr
+               else ["--iface", self.iface])
+        cmd = [self.binary, "run", *bus, "--node", str(self.node_id),
                "--preset", self.preset, "--ready", "--json",
                # unprivileged and inside user-mode Linux: no SCHED_FIFO, no mlockall
                "--rt-priority", "0", "--no-mlock"]
@@ -159,6 +182,10 @@ class DriveEmu:
                 continue
             if isinstance(msg, dict) and msg.get("event") == "ready":
                 self.ready = msg
+                sc = msg.get("socketcand")
+                if sc:
+                    self.socketcand = (sc["host"], sc["port"])
+                    self._channel = sc["channel"]
                 return self
 
     @staticmethod
@@ -221,6 +248,16 @@ class DriveEmu:
         return self.exit_statistics
 
     # ---- while it runs
+    @property
+    def can_args(self):
+        """python-can bus arguments that reach this drive: `can.Bus(**emu.can_args)`,
+        `network.connect(**emu.can_args)`."""
+        if self.socketcand:
+            host, port = self.socketcand
+            return {"interface": "socketcand", "host": host, "port": port,
+                    "channel": self._channel}
+        return {"interface": "socketcan", "channel": self.iface}
+
     def statistics(self, node):
         """The loop statistics (0x2100) read over SDO with a python canopen node."""
         return {name: int.from_bytes(node.sdo.upload(0x2100, sub + 1), "little")

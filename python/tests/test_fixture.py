@@ -12,9 +12,10 @@ from drive_emu_testing import DriveEmu, find_binary
 TIMEOUT = 60  # generous: user-mode Linux is slow; nothing here measures time
 
 
-def connect(iface):
+def connect(emu):
+    """On the drive's bus: its vcan interface, or socketcand where there is none."""
     network = canopen.Network()
-    network.connect(interface="socketcan", channel=iface)
+    network.connect(**emu.can_args)
     return network
 
 
@@ -29,7 +30,11 @@ def wait_for(pred, what, timeout=TIMEOUT):
 def test_ready_line_eds_and_live_statistics(drive_emu):
     ready = drive_emu.ready
     assert ready["event"] == "ready"
-    assert ready["iface"] == drive_emu.iface
+    if drive_emu.transport == "socketcand":
+        assert ready["iface"] is None
+        assert ready["socketcand"]["port"] == drive_emu.socketcand[1] > 0
+    else:
+        assert ready["iface"] == drive_emu.iface
     assert ready["nodes"] == [
         {"node_id": 21, "preset": "cnc1", "eds": None, "objects_base": "0x2000", "profile": None, "quirks": []}
     ]
@@ -37,7 +42,7 @@ def test_ready_line_eds_and_live_statistics(drive_emu):
     cfg.optionxform = str
     cfg.read(drive_emu.eds_path)
     assert cfg["DeviceComissioning"]["NodeID"] == "21"
-    network = connect(drive_emu.iface)
+    network = connect(drive_emu)
     try:
         node = canopen.RemoteNode(drive_emu.node_id, drive_emu.eds_path)
         network.add_node(node)
@@ -61,7 +66,7 @@ def test_ready_line_eds_and_live_statistics(drive_emu):
 @pytest.mark.parametrize("command", ["RESET COMMUNICATION", "RESET"])
 @pytest.mark.drive_emu(node_id=22)
 def test_reset_then_wait_for_bootup_sees_the_boot_up(drive_emu, command):
-    network = connect(drive_emu.iface)
+    network = connect(drive_emu)
     try:
         node = canopen.RemoteNode(drive_emu.node_id, drive_emu.eds_path)
         network.add_node(node)
@@ -77,7 +82,7 @@ def test_reset_then_wait_for_bootup_sees_the_boot_up(drive_emu, command):
 def test_lockstep_drive_boots_without_sync(drive_emu):
     # a master waits for the boot-up before it sends SYNC: the boot delay of a lock-step
     # drive passes on the wall clock
-    network = connect(drive_emu.iface)
+    network = connect(drive_emu)
     try:
         node = canopen.RemoteNode(drive_emu.node_id, drive_emu.eds_path)
         network.add_node(node)
@@ -89,7 +94,8 @@ def test_lockstep_drive_boots_without_sync(drive_emu):
 
 def test_exit_statistics_after_sigterm(request):
     iface = request.config.getoption("--drive-emu-iface") or "vcan0"
-    emu = DriveEmu(iface=iface, node_id=24, binary=request.config.getoption("--drive-emu-bin"))
+    emu = DriveEmu(iface=iface, node_id=24, binary=request.config.getoption("--drive-emu-bin"),
+                   socketcand=request.config.getoption("--drive-emu-socketcand"))
     with emu:
         assert emu.alive()
         time.sleep(0.5)

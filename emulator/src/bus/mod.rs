@@ -1,15 +1,21 @@
-//! The CAN bus as the runtime sees it: one trait, two implementations.
+//! The CAN bus as the runtime sees it: one trait, three implementations.
 //!
 //! - [`inproc::InProcBus`]: an in-process bus for tests, offline runs and the embedded demo.
-//! - [`socketcan::SocketCanBus`]: a Linux SocketCAN interface (`can0`, `vcan0`).
+//! - `socketcan::SocketCanBus`: a Linux SocketCAN interface (`can0`, `vcan0`); cargo feature
+//!   `socketcan` (on by default).
+//! - [`socketcand::SocketcandBus`]: the bus served over TCP in the socketcand protocol, for
+//!   CAN tools where there is no kernel CAN (`run --socketcand`).
 //!
-//! Both are non-blocking and allocation-free per frame. A frame the transport cannot take
+//! [`live::LiveTransport`] is the one `run` chose at start. All are non-blocking and allocation-free per frame. A frame the transport cannot take
 //! ([`SendError::Full`]) is retried after a bounded wait and counted; never a panic or a stall.
 
 pub mod ethercat;
 pub mod fault;
 pub mod inproc;
+pub mod live;
+#[cfg(feature = "socketcan")]
 pub mod socketcan;
+pub mod socketcand;
 
 pub use drive_protocol::CanFrame;
 

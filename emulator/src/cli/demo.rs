@@ -8,7 +8,6 @@
 //! frequency set by k_v, not by the gap.
 
 use crate::analysis::spectrum::fundamental;
-use crate::bus::socketcan::SocketCanBus;
 use crate::drive::axis_drive::AxisDrive;
 use crate::master::on_bus::{run_on_bus, BusRunStats};
 use crate::master::{Master, MasterConfig, Step, MODE_CSP, MODE_PP};
@@ -212,6 +211,21 @@ fn run_in_process(
     Ok(run.master)
 }
 
+/// The master's socket on `iface`.
+#[cfg(feature = "socketcan")]
+fn open_master_bus(iface: &str) -> Result<crate::bus::socketcan::SocketCanBus> {
+    Ok(crate::bus::socketcan::SocketCanBus::open(iface)?)
+}
+
+/// Without SocketCAN, `--iface` cannot be: said clearly.
+#[cfg(not(feature = "socketcan"))]
+fn open_master_bus(iface: &str) -> Result<crate::bus::inproc::InProcEndpoint> {
+    anyhow::bail!(
+        "--iface {iface}: this drive-emu was built without SocketCAN (cargo feature \
+         `socketcan`); without --iface the demo runs in-process"
+    )
+}
+
 /// The master on `iface` against a drive already running there; its backlash is written
 /// over SDO first.
 fn run_on_iface(
@@ -232,7 +246,7 @@ fn run_on_iface(
             len: 4,
         },
     );
-    let mut bus = SocketCanBus::open(iface)?;
+    let mut bus = open_master_bus(iface)?;
     // On a busy host a drive (in lock-step possibly many SYNCs behind the master)
     // answers late, not never: generous timeouts, counted in the master's SYNC
     // periods, longer than the whole program, so only a silent drive times out.

@@ -1,7 +1,8 @@
 //! `drive-emu run`: the drive(s) on a real or virtual CAN bus, at a fixed rate.
 
 use crate::bus::fault::FaultyBus;
-use crate::bus::socketcan::SocketCanBus;
+use crate::bus::live::LiveTransport;
+use crate::bus::socketcand::SocketcandBus;
 use crate::drive::axis_drive::AxisDrive;
 use crate::drive::machine::{self, AxisEntry, MachineFile};
 use crate::drive::vendor::{self, VendorEds};
@@ -26,6 +27,12 @@ pub struct RunArgs {
     /// CAN interface (can0, vcan0, ...).
     #[arg(long, default_value = "vcan0")]
     pub iface: String,
+    /// Serve the bus over TCP in the socketcand protocol on ADDR:PORT instead of a CAN
+    /// interface (port 0: any free port, printed on stderr and in the ready line), for
+    /// python-can's `socketcand` interface (channel can0) and other socketcand clients: no
+    /// kernel CAN needed. Several clients share the bus. See docs/socketcand.md.
+    #[arg(long, value_name = "ADDR:PORT", conflicts_with = "iface")]
+    pub socketcand: Option<String>,
     /// Node ID of the (single) drive, 1..=127; 255: non-configured, as a drive out of the box:
     /// silent but for LSS (CiA 305) until a master gives it a node-ID. Ignored with --config.
     #[arg(long, default_value_t = 5)]
@@ -616,7 +623,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             println!(
                 "{} (live on {}): {}",
                 s.name,
-                args.iface,
+                args.bus_label(),
                 if o.passed() { "passed" } else { "FAILED" }
             );
         }
@@ -731,8 +738,49 @@ pub fn print_outcome(o: &LiveOutcome) {
     }
 }
 
-/// The live bus: the interface behind the scenario's fault injector.
-type LiveBus = FaultyBus<SocketCanBus>;
+/// The live bus: the interface or socketcand server behind the scenario's fault injector.
+type LiveBus = FaultyBus<LiveTransport>;
+
+impl RunArgs {
+    /// What the bus is, for people: the interface, or `socketcand ADDR:PORT`.
+    pub fn bus_label(&self) -> String {
+        match &self.socketcand {
+            Some(addr) => format!("socketcand {addr}"),
+            None => self.iface.clone(),
+        }
+    }
+}
+
+/// The bus the options ask for: the SocketCAN interface, or the socketcand server (said on
+/// stderr with the address it got).
+fn open_transport(args: &RunArgs) -> Result<LiveTransport> {
+    if let Some(addr) = &args.socketcand {
+        let bus = SocketcandBus::bind(addr)?;
+        let a = bus.local_addr();
+        eprintln!(
+            "drive-emu: socketcand on {a}, bus {}: python-can Bus(interface=\"socketcand\", \
+             host=\"{}\", port={}, channel=\"{}\")",
+            crate::bus::socketcand::CHANNEL,
+            a.ip(),
+            a.port(),
+            crate::bus::socketcand::CHANNEL
+        );
+        return Ok(LiveTransport::Socketcand(bus));
+    }
+    #[cfg(feature = "socketcan")]
+    {
+        Ok(LiveTransport::SocketCan(
+            crate::bus::socketcan::SocketCanBus::open(&args.iface)?,
+        ))
+    }
+    #[cfg(not(feature = "socketcan"))]
+    bail!(
+        "cannot open CAN interface {}: this drive-emu was built without SocketCAN (cargo \
+         feature `socketcan`); serve the bus with --socketcand ADDR:PORT instead \
+         (docs/socketcand.md)",
+        args.iface
+    )
+}
 
 /// Run the drive(s) on the bus; with a scenario, inject its timeline into axis 0 and return
 /// what it found. The steps: the machine and its axes, the stop flag, the trace files, the
@@ -742,7 +790,13 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     crate::panel::check_args(&args.panel)?;
     let (machine, axes) = live_axes(args, scenario)?;
     let seed = scenario.map_or(1, |s| s.run.seed);
-    let bus = FaultyBus::new(SocketCanBus::open(&args.iface)?, seed);
+    let transport = open_transport(args)?;
+    let socketcand = transport.socketcand().map(SocketcandBus::local_addr);
+    let label = match socketcand {
+        Some(a) => format!("socketcand {a}"),
+        None => args.iface.clone(),
+    };
+    let bus = FaultyBus::new(transport, seed);
     let period_us = 1_000_000 / u64::from(machine.tick_hz);
     let n_axes = axes.len();
     let rt = Runtime::new(bus, axes, period_us);
@@ -792,7 +846,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
         }
         None => None,
     };
-    announce(args, &machine, lockstep.as_ref(), scenario);
+    announce(args, &label, &machine, lockstep.as_ref(), scenario);
 
     // The scenario thread follows the loop's time and feeds it injections.
     let link = Arc::new(LiveLink::new());
@@ -800,7 +854,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     // The live panel (--panel): bound before the loop starts; it takes the scenario's
     // injections into its own injector.
     let context = crate::panel::RunContext {
-        iface: &args.iface,
+        iface: socketcand.is_none().then_some(args.iface.as_str()),
         node: args.node,
         lockstep: args.lockstep,
         json: args.json,
@@ -828,6 +882,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
 
     watch(
         args,
+        (&label, socketcand),
         &machine,
         lockstep.as_ref(),
         &status,
@@ -849,6 +904,9 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
     let summary = rt.stats.summary();
     eprintln!("drive-emu: stopped. {}", summary.text(lockstep.is_some()));
+    if let Some(server) = rt.bus.inner().socketcand() {
+        eprintln!("drive-emu: socketcand: {}", server.stats().summary());
+    }
     let lockstep_period_us =
         (lockstep.is_some() && rt.lockstep_period_us > 0).then_some(rt.lockstep_period_us);
     if let Some(p) = lockstep_period_us {
@@ -1005,6 +1063,7 @@ fn stop_flag(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Arc<AtomicBo
 /// What runs where, on stderr: axes, interface, rate, lock-step, scenario; the user unit.
 fn announce(
     args: &RunArgs,
+    label: &str,
     machine: &MachineFile,
     lockstep: Option<&Lockstep>,
     scenario: Option<&Scenario>,
@@ -1017,7 +1076,7 @@ fn announce(
         } else {
             "axes"
         },
-        args.iface,
+        label,
         machine.tick_hz,
         match (lockstep, args.sync_period_us) {
             (None, _) => String::new(),
@@ -1148,6 +1207,7 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
 /// stderr (a terminal only, so stdout stays clean for --json and pipes).
 fn watch(
     args: &RunArgs,
+    (label, socketcand): (&str, Option<std::net::SocketAddr>),
     machine: &MachineFile,
     lockstep: Option<&Lockstep>,
     status: &Status,
@@ -1165,7 +1225,11 @@ fn watch(
             ready_sent = true;
             let line = serde_json::json!({
                 "event": "ready",
-                "iface": args.iface,
+                "iface": socketcand.is_none().then_some(&args.iface),
+                "socketcand": socketcand.map(|a| serde_json::json!({
+                    "host": a.ip().to_string(), "port": a.port(),
+                    "channel": crate::bus::socketcand::CHANNEL,
+                })),
                 "nodes": machine.axes.iter().map(|a| serde_json::json!({
                     "node_id": a.node_id, "preset": a.preset,
                     "eds": a.eds.as_ref().map(|p| p.display().to_string()),
@@ -1200,7 +1264,7 @@ fn watch(
             && drawn_at.elapsed() >= std::time::Duration::from_millis(200)
         {
             drawn_at = std::time::Instant::now();
-            let lines = status.lines(&args.iface, lockstep.is_some());
+            let lines = status.lines(label, lockstep.is_some());
             drawn = redraw(
                 &mut std::io::stderr().lock(),
                 drawn,

@@ -196,7 +196,8 @@ impl PanelLoop {
 
 /// What the panel needs of a live run's options.
 pub struct RunContext<'a> {
-    pub iface: &'a str,
+    /// The CAN interface; `None`: the bus is not one (socketcand).
+    pub iface: Option<&'a str>,
     /// The node ID a scenario's axis gets (`--node`).
     pub node: u8,
     pub lockstep: bool,
@@ -258,7 +259,7 @@ pub fn start_for_run(
     };
     let setup = PanelSetup {
         axes,
-        iface: Some(iface.to_string()),
+        iface: iface.map(str::to_string),
         tick_hz: machine.tick_hz,
         lockstep,
         master_id: scenario.map_or(crate::master::MasterConfig::default().master_id, |s| {

@@ -14,7 +14,6 @@
 //! one that reaches its cap stops writing and says so.
 
 use super::server::Shared;
-use crate::bus::socketcan::SocketCanBus;
 use crate::bus::CanBus;
 use crate::samples::Sample;
 use std::fs::File;
@@ -315,7 +314,7 @@ pub fn start(
                     return Err(e);
                 }
             };
-            match SocketCanBus::open(iface) {
+            match open_capture_bus(iface) {
                 Ok(bus) => (
                     Some(spawn_capture(
                         bus,
@@ -353,8 +352,20 @@ pub fn start(
     })
 }
 
+/// A socket of its own on `iface`, to capture what the bus carries.
+#[cfg(feature = "socketcan")]
+fn open_capture_bus(iface: &str) -> anyhow::Result<crate::bus::socketcan::SocketCanBus> {
+    Ok(crate::bus::socketcan::SocketCanBus::open(iface)?)
+}
+
+/// Without SocketCAN there is no interface to capture.
+#[cfg(not(feature = "socketcan"))]
+fn open_capture_bus(iface: &str) -> anyhow::Result<crate::bus::inproc::InProcEndpoint> {
+    anyhow::bail!("{iface}: this drive-emu was built without SocketCAN")
+}
+
 fn spawn_capture(
-    bus: SocketCanBus,
+    bus: impl CanBus + Send + 'static,
     iface: String,
     mut out: BufWriter<File>,
     budget: Arc<Budget>,
@@ -367,7 +378,9 @@ fn spawn_capture(
             .name("drive-emu-panel-capture".into())
             .spawn(move || {
                 let mut bus = bus;
-                let fd = bus.rx_fd().expect("a SocketCAN bus has a descriptor");
+                let Some(fd) = bus.rx_fd() else {
+                    return Ok(());
+                };
                 let mut line = Vec::with_capacity(64);
                 while !stop.load(Ordering::Acquire) {
                     let mut pfd = libc::pollfd {
