@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Run the whole test suite:
 #   1. host tests (protocol, emulator): cargo nextest run --workspace --exclude e2e
-#   1a. the emulator without SocketCAN: cargo nextest run -p drive-emu --no-default-features
-#      (the cargo feature `socketcan` off, as where there is no SocketCAN: portability)
+#   1a. the emulator without SocketCAN: its library, binary and the bus tests built and run with
+#      --no-default-features (the cargo feature `socketcan` off, as where there is no SocketCAN:
+#      portability; the rest of the suite is the same code either way)
 #   1b. the `cargo fuzz` targets built (fuzz/fuzz_targets/*.rs) and a bounded run of frames.rs
 #      (FUZZ_SECONDS, default 60; stable Rust, no sanitizer, overflow checks on; needs
 #      cargo-fuzz, which .ci/run installs: a missing cargo-fuzz fails this phase)
@@ -43,9 +44,11 @@ cargo nextest run --workspace --exclude e2e --no-fail-fast || host_rc=$?
 host_time=$(secs "$t")
 
 # ---- 1a. the emulator with the SocketCAN feature off (builds and passes without it)
-banner "host tests without SocketCAN: cargo nextest run -p drive-emu --no-default-features"
+nosc=(-p drive-emu --no-default-features --lib --bins --test socketcand_bus --test socketcand_run
+    --test cli_validation --test layering)
+banner "host tests without SocketCAN: cargo nextest run ${nosc[*]}"
 t=$(now); nosc_rc=0
-cargo nextest run -p drive-emu --no-default-features --no-fail-fast || nosc_rc=$?
+cargo nextest run "${nosc[@]}" --no-fail-fast || nosc_rc=$?
 nosc_time=$(secs "$t")
 
 # ---- 1b. bounded fuzz run (the frames target asserts the Node::poll_at contract after

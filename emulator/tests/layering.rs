@@ -11,11 +11,11 @@ use std::path::{Path, PathBuf};
 /// The layer order, bottom first. A module may import only modules before it in this list.
 /// Written once here and in docs/decisions/0006-emulator-layers.md.
 const LAYERS: &[&str] = &[
-    "quote",    // file content rendered in messages: control characters escaped, capped
-    "infile",   // the bounded reader of every input file: regular files only, size cap
-    "time",     // clocks: monotonic wall clock, virtual clock
-    "samples",  // trace sample types and trace-file reading
-    "bus",      // CAN bus abstraction: SocketCAN, in-process, fault injector
+    "quote",   // file content rendered in messages: control characters escaped, capped
+    "infile",  // the bounded reader of every input file: regular files only, size cap
+    "time",    // clocks: monotonic wall clock, virtual clock
+    "samples", // trace sample types and trace-file reading
+    "bus",     // CAN bus abstraction: SocketCAN, in-process, fault injector
     // crate drive-physics, re-exported (lib.rs `pub use drive_physics::{...}`):
     "axis",     // physics: two-mass axis with backlash, friction, encoders
     "control",  // servo cascade on the axis
