@@ -513,7 +513,7 @@ fn print_conclusion(args: &DemoArgs, unit: &str, healthy: &RunReport, worn: &Run
     };
     println!(
         "Next: drive-emu sim --preset {p} --set {key}={b} --velocity {v} --json; \
-         drive-emu run --iface vcan0 --preset {p} --set {key}={b} (see README).",
+         drive-emu run --iface vcan0 --preset {p} --set {key}={b} (docs/master.md).",
         p = args.preset,
         b = args.backlash,
         v = args.velocity

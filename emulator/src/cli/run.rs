@@ -43,7 +43,7 @@ pub struct RunArgs {
     /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
-    /// Machine file with several axes (see README); replaces --node/--preset/--set/--eds.
+    /// Machine file with several axes (docs/master.md, "Several axes in one process"); replaces --node/--preset/--set/--eds.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Serve this vendor's EDS or DCF as the drive's own: its identity, device type, PDO

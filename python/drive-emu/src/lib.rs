@@ -139,6 +139,19 @@ fn python_names(text: &str) -> String {
 /// `OSError` (`FileNotFoundError` when missing), anything else the caller gave a `ValueError`.
 fn to_py_err(e: anyhow::Error) -> PyErr {
     let text = python_names(&format!("{e:#}"));
+    // The bounded reader's errors (drive_emu::infile) say what the file is, not an io::Error.
+    if let Some(input) = e
+        .chain()
+        .find_map(|c| c.downcast_ref::<drive_emu::infile::InputError>())
+    {
+        return match &input.problem {
+            drive_emu::infile::Problem::NotFound => PyFileNotFoundError::new_err(text),
+            drive_emu::infile::Problem::Io(_) | drive_emu::infile::Problem::NotRegular(_) => {
+                PyOSError::new_err(text)
+            }
+            _ => PyValueError::new_err(text),
+        };
+    }
     match e.chain().find_map(|c| c.downcast_ref::<std::io::Error>()) {
         Some(io) if io.kind() == std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(text),
         Some(_) => PyOSError::new_err(text),
