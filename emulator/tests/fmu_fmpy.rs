@@ -8,20 +8,11 @@ mod scratch;
 use std::path::PathBuf;
 use std::process::Command;
 
-/// The FMU's shared library as cargo built it beside the test's binaries (the newer of the
-/// uplifted copy and the one in deps/: a build as a dependency refreshes only the latter).
+/// The FMU's shared library as cargo built it beside the test's binaries.
 fn library() -> PathBuf {
     let bin = PathBuf::from(env!("CARGO_BIN_EXE_drive-emu"));
     let dir = bin.parent().unwrap();
-    [
-        dir.join("libdrive_fmu.so"),
-        dir.join("deps/libdrive_fmu.so"),
-    ]
-    .into_iter()
-    .filter_map(|p| Some((std::fs::metadata(&p).ok()?.modified().ok()?, p)))
-    .max()
-    .map(|(_, p)| p)
-    .unwrap_or_else(|| {
+    drive_fmu::package::library_in(dir).unwrap_or_else(|| {
         panic!(
             "libdrive_fmu.so not in {}: cargo build -p drive-fmu",
             dir.display()

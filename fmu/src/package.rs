@@ -12,6 +12,20 @@ use crate::model::{variables, Causality, Kind, Variable};
 /// The model identifier: the shared library's name inside the FMU and the model's name.
 pub const MODEL_IDENTIFIER: &str = "drive_emu_axis";
 
+/// The FMU's shared library as cargo leaves it in a target directory `dir` (`target/<profile>`):
+/// the newer of `dir/libdrive_fmu.so` and `dir/deps/libdrive_fmu.so` (a build of this crate as
+/// a dependency only refreshes the latter).
+pub fn library_in(dir: &std::path::Path) -> Option<std::path::PathBuf> {
+    [
+        dir.join("libdrive_fmu.so"),
+        dir.join("deps/libdrive_fmu.so"),
+    ]
+    .into_iter()
+    .filter_map(|p| Some((std::fs::metadata(&p).ok()?.modified().ok()?, p)))
+    .max()
+    .map(|(_, p)| p)
+}
+
 /// The communication step the FMU proposes (`DefaultExperiment stepSize`), s.
 pub const DEFAULT_STEP_S: f64 = 1e-3;
 

@@ -28,20 +28,10 @@ pub struct FmuArgs {
     pub library: Option<PathBuf>,
 }
 
-/// The shared library beside the running program.
+/// The shared library beside the running program (`target/<profile>/`, as cargo builds them).
 fn default_library() -> Option<PathBuf> {
     let exe = std::env::current_exe().ok()?;
-    let dir = exe.parent()?;
-    // `target/<profile>/drive-emu` beside `libdrive_fmu.so`, or in `deps/` when cargo built
-    // it as a dependency only: the newer of the two.
-    [
-        dir.join("libdrive_fmu.so"),
-        dir.join("deps/libdrive_fmu.so"),
-    ]
-    .into_iter()
-    .filter_map(|p| Some((std::fs::metadata(&p).ok()?.modified().ok()?, p)))
-    .max()
-    .map(|(_, p)| p)
+    drive_fmu::package::library_in(exe.parent()?)
 }
 
 /// Largest shared library taken, bytes.
