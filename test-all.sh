@@ -18,7 +18,7 @@
 # Exits non-zero if any phase fails (all always run). See docs/vcan.md.
 #
 # Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase, FUZZ_SECONDS the
-# fuzz run; the CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
+# fuzz run; TEST_ALL_FREE_DISK=1 (set by .ci/run) deletes the fuzz build after its run; the CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
 set -euo pipefail
 
 case "${1:-}" in
@@ -64,6 +64,8 @@ else
     fuzz_rc=127
 fi
 fuzz_time=$(secs "$t")
+if [[ ${TEST_ALL_FREE_DISK:-0} == 1 ]]; then rm -rf fuzz/target; fi
+df -h . | tail -n 1
 
 # ---- 2. vcan (e2e) tests
 banner "vcan tests: build + archive e2e on the host, run it through ./vcan-setup.sh"
