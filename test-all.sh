@@ -15,6 +15,9 @@
 #   3. the Python module's tests on the host (python/drive-emu/tests: sim and sweep against the
 #      CLI, Dask, Ctrl-C, the Fig. 11 example; needs `pip install './python/drive-emu[all]'`,
 #      again after a change of the Rust code, and pytest's "no tests" fails).
+#   3b. both Python packages at the lowest versions their pyproject.toml allow (python/lowest.txt,
+#      python/drive-emu/lowest.txt) in a fresh venv: the module's tests and python/tests (over
+#      socketcand where the host has no vcan0).
 # Exits non-zero if any phase fails (all always run). See docs/vcan.md.
 #
 # Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase, FUZZ_SECONDS the
@@ -22,7 +25,7 @@
 set -euo pipefail
 
 case "${1:-}" in
-    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     "") ;;
     *) echo "test-all.sh: no arguments expected (see --help)" >&2; exit 2 ;;
 esac
@@ -122,6 +125,28 @@ else
 fi
 py_time=$(secs "$t")
 
+# ---- 3b. both Python packages at the lowest versions they allow, in a fresh venv: the
+# module's tests and the fixture's (python/tests: on this host's vcan0 if it has one, else
+# over socketcand)
+banner "python packages at their lowest versions: python/lowest.txt, python/drive-emu/lowest.txt"
+t=$(now); low_rc=0
+if [[ $emu_ok == 1 ]]; then
+    (
+        set -e
+        python3 -m pip wheel -q --disable-pip-version-check --no-deps -w "$tmp/wheel" ./python/drive-emu
+        python3 -m venv "$tmp/lowest"
+        "$tmp/lowest/bin/pip" install -q --disable-pip-version-check \
+            -r python/lowest.txt -r python/drive-emu/lowest.txt ./python
+        "$tmp/lowest/bin/pip" install -q --disable-pip-version-check --no-deps "$tmp"/wheel/drive_emu-*.whl
+        "$tmp/lowest/bin/pip" list --format=freeze | grep -iE '^(numpy|pandas|python-can|canopen)='
+        "$tmp/lowest/bin/python" -m pytest -p no:cacheprovider -q python/drive-emu/tests python/tests
+    ) || low_rc=$?
+else
+    echo "test-all.sh: no drive-emu binary to test the packages with" >&2; low_rc=1
+fi
+low_time=$(secs "$t")
+rm -rf "$tmp/lowest" "$tmp/wheel"
+
 banner "summary"
 printf 'host tests: %s (%ss)\n' "$([[ $host_rc == 0 ]] && echo ok || echo "FAILED ($host_rc)")" "$host_time"
 printf 'host tests without SocketCAN: %s (%ss)\n' "$([[ $nosc_rc == 0 ]] && echo ok || echo "FAILED ($nosc_rc)")" "$nosc_time"
@@ -129,4 +154,5 @@ printf 'fuzz run: %s (%ss)\n' "$([[ $fuzz_rc == 0 ]] && echo ok || echo "FAILED 
 printf 'vcan tests: %s (build+archive %ss, run via vcan-setup.sh %ss)\n' \
     "$([[ $e2e_rc == 0 ]] && echo ok || echo "FAILED ($e2e_rc)")" "$build_time" "$run_time"
 printf 'python module tests: %s (%ss)\n' "$([[ $py_rc == 0 ]] && echo ok || echo "FAILED ($py_rc)")" "$py_time"
-if [[ $host_rc != 0 || $nosc_rc != 0 || $fuzz_rc != 0 || $e2e_rc != 0 || $py_rc != 0 ]]; then exit 1; fi
+printf 'python packages at their lowest versions: %s (%ss)\n' "$([[ $low_rc == 0 ]] && echo ok || echo "FAILED ($low_rc)")" "$low_time"
+if [[ $host_rc != 0 || $nosc_rc != 0 || $fuzz_rc != 0 || $e2e_rc != 0 || $py_rc != 0 || $low_rc != 0 ]]; then exit 1; fi

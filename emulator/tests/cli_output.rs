@@ -227,3 +227,118 @@ fn user_errors_print_a_message_and_no_backtrace() {
         }
     }
 }
+
+/// `demo --velocity -10` runs its constant-speed segment towards negative positions (the
+/// argument parser takes the minus sign) and finds the same limit cycle as at +10: k_v sets
+/// the frequency whatever the direction.
+#[test]
+fn demo_runs_at_a_negative_speed() {
+    let o = run(&["demo", "--velocity", "-10", "--json"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("demo --json is JSON");
+    let runs = v["runs"].as_array().expect("runs");
+    let (healthy, worn) = (&runs[0], &runs[1]);
+    assert_eq!(v["velocity"], -10.0);
+    // The master's log says where it went.
+    let narrated = run(&["demo", "--velocity", "-10"]);
+    let t = text(&narrated);
+    assert!(narrated.status.success(), "{t}");
+    assert!(t.contains("cruise at -10000 uu/s"), "{t}");
+    assert!(t.contains("at -10 mm/s"), "{t}");
+    assert!(healthy["fundamental_hz"].is_null(), "{healthy}");
+    let kv = worn["kv_per_s"].as_f64().unwrap();
+    let f = worn["fundamental_hz"]
+        .as_f64()
+        .expect("the worn run's limit cycle");
+    assert!(
+        (0.45..=0.75).contains(&(f / kv)),
+        "f = {f} Hz, k_v = {kv} 1/s: f/k_v = {}",
+        f / kv
+    );
+}
+
+/// A gap far beyond wear (5 mm) keeps the PP move from ever ending: the demo says where the
+/// axis stood, that the position window is why, and what a worn gap is; it does not say only
+/// "target not reached".
+#[test]
+fn demo_explains_a_target_a_huge_gap_never_reaches() {
+    let o = run(&["demo", "--backlash", "5"]);
+    let t = text(&o);
+    assert!(!o.status.success(), "{t}");
+    for needle in [
+        "target not reached",
+        "uu off",
+        "position window (0x6067)",
+        "5 mm",
+        "--backlash 0.05",
+    ] {
+        assert!(t.contains(needle), "`{needle}` missing in:\n{t}");
+    }
+    assert!(!t.contains("panicked"), "{t}");
+}
+
+/// `demo --panel 127.0.0.1:0`: the demo's drive in real time with the panel on it, in one
+/// command and no bus: it prints the page's address, the page's `hello` names the preset, its
+/// stream shows the drive enabled and moving, and Ctrl-C (SIGINT) ends it cleanly.
+#[test]
+fn demo_with_the_panel_serves_the_page_until_ctrl_c() {
+    use std::io::{BufRead, BufReader, Read};
+    use std::process::Stdio;
+    let mut child = bin()
+        .args(["demo", "--panel", "127.0.0.1:0", "--backlash", "0.05"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start drive-emu demo --panel");
+    let mut out = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    let url = line
+        .trim()
+        .strip_prefix("drive-emu demo: panel on ")
+        .unwrap_or_else(|| panic!("no address in: {line}"))
+        .to_string();
+    let http = |path: &str| -> String {
+        let addr = url.trim_start_matches("http://").trim_end_matches('/');
+        let mut s = std::net::TcpStream::connect(addr).expect("connect to the panel");
+        s.set_read_timeout(Some(std::time::Duration::from_secs(30)))
+            .unwrap();
+        use std::io::Write;
+        write!(
+            s,
+            "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+        )
+        .unwrap();
+        let mut body = String::new();
+        // The stream never ends: read until the drive is seen enabled and moving.
+        let mut buf = [0u8; 4096];
+        while let Ok(n) = s.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            body.push_str(&String::from_utf8_lossy(&buf[..n]));
+            if path != "/api/stream"
+                || body.contains("OPERATION ENABLED") && body.contains("\"mode_name\":\"CSP\"")
+            {
+                break;
+            }
+        }
+        body
+    };
+    let info = http("/api/info");
+    assert!(info.starts_with("HTTP/1.1 200"), "{info}");
+    assert!(info.contains("\"preset\":\"cnc1\""), "{info}");
+    let stream = http("/api/stream");
+    assert!(
+        stream.contains("OPERATION ENABLED") && stream.contains("\"mode_name\":\"CSP\""),
+        "{stream}"
+    );
+    let pid = child.id() as i32;
+    // SAFETY: kill(2) on our own child's pid.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    let status = child.wait().unwrap();
+    let mut rest = String::new();
+    out.read_to_string(&mut rest).unwrap();
+    assert!(status.success(), "{status}: {rest}");
+    assert!(rest.contains("stopped at"), "{rest}");
+}

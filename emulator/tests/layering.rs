@@ -387,3 +387,38 @@ fn the_check_catches_an_upward_import_a_cycle_and_an_unplaced_module() {
     assert_eq!(bad.len(), 5, "{bad:?}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `cargo install --path emulator` builds the binary and what it needs, nothing of the Python
+/// module (pyo3, maturin) or of the benchmarks (criterion, divan): those live in their own
+/// crate (python/drive-emu) or in dev-dependencies.
+#[test]
+fn installing_the_binary_builds_no_python_or_benchmark_crates() {
+    let out = std::process::Command::new(env!("CARGO"))
+        .args([
+            "tree",
+            "-p",
+            "drive-emu",
+            "-e",
+            "normal,build",
+            "--prefix",
+            "none",
+            "--offline",
+        ])
+        .current_dir(workspace())
+        .output()
+        .expect("run cargo tree");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let crates: BTreeSet<&str> = text.lines().filter_map(|l| l.split(' ').next()).collect();
+    assert!(
+        crates.contains("clap") && crates.contains("drive-protocol"),
+        "{crates:?}"
+    );
+    for name in ["pyo3", "maturin", "criterion", "divan", "proptest"] {
+        assert!(!crates.contains(name), "`cargo install` would build {name}");
+    }
+}

@@ -7,7 +7,7 @@
 //! - a backlash set on the page (its control, typed and clicked) reads back over SDO from
 //!   0x2000, and the page's detector then reports the limit cycle it causes;
 //! - messages that arrive while the page is busy are drawn together, not one by one;
-//! - each plot is as wide as its column of the page's grid.
+//! - each plot is as wide as its column of the page's grid, each y axis as its longest label.
 //!
 //! With `DRIVE_EMU_PANEL_SCREENSHOT=PATH` the page's screenshot at the end is written there
 //! (docs/img/panel.png was made so). A missing chromium or chromedriver fails the test with
@@ -99,6 +99,20 @@ fn the_page_shows_the_drive_live_and_its_backlash_control_reaches_the_drive() {
         text.contains("f/k_v 0.") || text.contains("f/k_v 1"),
         "{text}"
     );
+    // Every y axis is as wide as its longest tick label: the position has grown to six
+    // digits by now, whose labels a fixed 60 px axis cut ("148,000" showed ".48,000").
+    let fit = d.js("return panel.axisFit()", json!([]));
+    let fit = fit.as_array().expect("panel.axisFit() is a list");
+    assert!(fit.len() >= 5, "every plot's y axes: {fit:?}");
+    assert!(
+        fit.iter()
+            .any(|a| a["label"].as_str().is_some_and(|l| l.len() >= 6)),
+        "a long label among {fit:?}"
+    );
+    for a in fit {
+        let (size, need) = (a["size"].as_f64().unwrap(), a["need"].as_f64().unwrap());
+        assert!(size + 0.5 >= need, "a y axis narrower than its labels: {a}");
+    }
     // Drawing is paced by its own cost: messages that arrive while the page is busy are
     // drawn together. Keep its main thread busy for 1.5 s (25 messages a second queue up
     // meanwhile): the backlog is then drawn in a drawing or two, not once per message.
@@ -148,5 +162,90 @@ fn the_page_shows_the_drive_live_and_its_backlash_control_reaches_the_drive() {
     std::thread::sleep(Duration::from_millis(500));
     d.screenshot_to("DRIVE_EMU_PANEL_SCREENSHOT");
     drop(d);
+    rig.stop();
+}
+
+/// docs/panel.md's screenshot command: `chromium --headless --virtual-time-budget
+/// --screenshot` on the page with `?snapshot` returns (it never did while the page's stream
+/// stayed open) and writes a PNG of the page with the run's recent past drawn.
+#[test]
+fn a_headless_screenshot_of_the_snapshot_page_returns() {
+    use std::process::{Command, Stdio};
+    let rig = Rig::start(RigOptions {
+        program: cruise_csp_10_mm_s(),
+        ..Default::default()
+    });
+    assert!(
+        rig.wait_for(Duration::from_secs(120), || rig.now_s() > 3.0),
+        "the run never reached 3 s"
+    );
+    // The snapshot page: the recent past drawn (seconds of samples at once, not the fraction
+    // of a second since it opened), then the stream closed.
+    {
+        let d = Driver::start();
+        d.go(&format!("{}/?snapshot", rig.base));
+        let v = d.wait_js(
+            Duration::from_secs(60),
+            "const p = panel.plotted(0); \
+             return document.getElementById('conn').textContent === 'snapshot' && p ? p : null",
+        );
+        let first = d.js(
+            "const p = panel.plotted(0); return panel.plottedAt(0, p.t_s - 2.0)",
+            json!([]),
+        );
+        assert!(
+            v["points"].as_u64().unwrap_or(0) > 500 && !first.is_null(),
+            "the snapshot drew {v} (2 s before its end: {first})"
+        );
+    }
+    let dir = std::env::temp_dir().join(format!("drive-emu-snapshot-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("panel.png");
+    let browser = ["chromium", "/usr/bin/chromium"]
+        .into_iter()
+        .find(|b| Command::new(b).arg("--version").output().is_ok())
+        .expect("chromium is not installed: apt-get install -y chromium");
+    let mut child = Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            &format!("--user-data-dir={}", dir.join("profile").display()),
+            "--window-size=1400,1900",
+            "--virtual-time-budget=5000",
+            &format!("--screenshot={}", png.display()),
+            &format!("{}/?snapshot", rig.base),
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start chromium");
+    // A hang guard, not a measurement: the command must return at all.
+    let t0 = std::time::Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t0.elapsed() > Duration::from_secs(300) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("chromium --screenshot on ?snapshot did not return in 300 s");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert!(status.success(), "chromium: {status}");
+    let bytes = std::fs::read(&png).expect("the screenshot");
+    assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
+    assert!(
+        bytes.len() > 20_000,
+        "a page with plots, not a blank one: {} bytes",
+        bytes.len()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
     rig.stop();
 }

@@ -12,6 +12,7 @@ fn args(preset: &str) -> DemoArgs {
         json: false,
         iface: None,
         node: 5,
+        panel: Default::default(),
     }
 }
 

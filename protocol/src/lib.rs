@@ -33,6 +33,7 @@ pub mod od;
 pub mod quirks;
 pub mod wire;
 
+pub use cia301::emcy_code::{self, EmcyMeaning};
 pub use cia301::nmt::NmtState;
 pub use cia402::State as Cia402State;
 pub use drive::{Drive, DriveCommand, DriveInfo, Feedback, Setpoint};

@@ -5,6 +5,10 @@
     drive-emu eds --preset cnc1 --node 5 > drive.eds
     python csp.py --iface vcan0 --node 5 --eds drive.eds
 
+Without kernel CAN (no vcan: macOS, Windows, containers) the drive serves its bus over
+socketcand instead: `drive-emu run --socketcand 127.0.0.1:29536 --node 5 &`, then
+`python csp.py --socketcand 127.0.0.1:29536 --node 5 --eds drive.eds`.
+
 Default PDOs, no remap: RPDO2 (controlword + target position) is synchronous, applied at the
 next SYNC; TPDO2 (statusword + position actual) comes with every SYNC. The master streams a
 position ramp, 10 um per 10 ms cycle (1 mm/s), for 1 s: each cycle it sends RPDO2 and a SYNC,
@@ -33,9 +37,9 @@ def wait_for(pred, timeout, what):
         time.sleep(0.01)
 
 
-def main(iface, node_id, eds, cycles=100, step_um=10):
+def main(bus, node_id, eds, cycles=100, step_um=10):
     network = canopen.Network()
-    network.connect(interface="socketcan", channel=iface)
+    network.connect(**bus)
     try:
         node = canopen.BaseNode402(node_id, eds)
         network.add_node(node)
@@ -83,8 +87,16 @@ def main(iface, node_id, eds, cycles=100, step_um=10):
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--iface", default="vcan0")
+    where = ap.add_mutually_exclusive_group()
+    where.add_argument("--iface", default="vcan0", help="SocketCAN interface (default vcan0)")
+    where.add_argument("--socketcand", metavar="HOST:PORT",
+                       help="the drive's socketcand server (drive-emu run --socketcand)")
     ap.add_argument("--node", type=int, default=5)
     ap.add_argument("--eds", required=True)
     a = ap.parse_args()
-    main(a.iface, a.node, a.eds)
+    if a.socketcand:
+        host, _, port = a.socketcand.rpartition(":")
+        bus = {"interface": "socketcand", "host": host, "port": int(port), "channel": "can0"}
+    else:
+        bus = {"interface": "socketcan", "channel": a.iface}
+    main(bus, a.node, a.eds)

@@ -5,6 +5,10 @@
     drive-emu eds --preset cnc1 --node 5 > drive.eds
     python pp.py --iface vcan0 --node 5 --eds drive.eds
 
+Without kernel CAN (no vcan: macOS, Windows, containers) the drive serves its bus over
+socketcand instead: `drive-emu run --socketcand 127.0.0.1:29536 --node 5 &`, then
+`python pp.py --socketcand 127.0.0.1:29536 --node 5 --eds drive.eds`.
+
 Resets the node and waits for its boot-up, enables it in PP, moves 5 mm (5000 um, the
 default user unit is 1 um on linear axes) and back, each time waiting for "target reached"
 (statusword bit 10), then disables it. Exit status 0 on success.
@@ -41,9 +45,9 @@ def move_to(node, target_um, timeout=30):
     return node.sdo["Position actual value"].raw
 
 
-def main(iface, node_id, eds):
+def main(bus, node_id, eds):
     network = canopen.Network()
-    network.connect(interface="socketcan", channel=iface)
+    network.connect(**bus)
     try:
         node = canopen.BaseNode402(node_id, eds)
         network.add_node(node)
@@ -71,8 +75,16 @@ def main(iface, node_id, eds):
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--iface", default="vcan0")
+    where = ap.add_mutually_exclusive_group()
+    where.add_argument("--iface", default="vcan0", help="SocketCAN interface (default vcan0)")
+    where.add_argument("--socketcand", metavar="HOST:PORT",
+                       help="the drive's socketcand server (drive-emu run --socketcand)")
     ap.add_argument("--node", type=int, default=5)
     ap.add_argument("--eds", required=True)
     a = ap.parse_args()
-    main(a.iface, a.node, a.eds)
+    if a.socketcand:
+        host, _, port = a.socketcand.rpartition(":")
+        bus = {"interface": "socketcand", "host": host, "port": int(port), "channel": "can0"}
+    else:
+        bus = {"interface": "socketcan", "channel": a.iface}
+    main(bus, a.node, a.eds)

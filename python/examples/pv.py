@@ -5,6 +5,10 @@
     drive-emu eds --preset cnc1 --node 5 > drive.eds
     python pv.py --iface vcan0 --node 5 --eds drive.eds
 
+Without kernel CAN (no vcan: macOS, Windows, containers) the drive serves its bus over
+socketcand instead: `drive-emu run --socketcand 127.0.0.1:29536 --node 5 &`, then
+`python pv.py --socketcand 127.0.0.1:29536 --node 5 --eds drive.eds`.
+
 Resets the node, enables it in PV, runs at 10 mm/s (10000 um/s) until "target reached"
 (statusword bit 10: the speed is within the velocity window), then at 0 again, then disables
 it. Exit status 0 on success.
@@ -30,9 +34,9 @@ def wait_for(pred, timeout, what):
         time.sleep(0.01)
 
 
-def main(iface, node_id, eds, velocity_um_s=10000):
+def main(bus, node_id, eds, velocity_um_s=10000):
     network = canopen.Network()
-    network.connect(interface="socketcan", channel=iface)
+    network.connect(**bus)
     try:
         node = canopen.BaseNode402(node_id, eds)
         network.add_node(node)
@@ -61,8 +65,16 @@ def main(iface, node_id, eds, velocity_um_s=10000):
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--iface", default="vcan0")
+    where = ap.add_mutually_exclusive_group()
+    where.add_argument("--iface", default="vcan0", help="SocketCAN interface (default vcan0)")
+    where.add_argument("--socketcand", metavar="HOST:PORT",
+                       help="the drive's socketcand server (drive-emu run --socketcand)")
     ap.add_argument("--node", type=int, default=5)
     ap.add_argument("--eds", required=True)
     a = ap.parse_args()
-    main(a.iface, a.node, a.eds)
+    if a.socketcand:
+        host, _, port = a.socketcand.rpartition(":")
+        bus = {"interface": "socketcand", "host": host, "port": int(port), "channel": "can0"}
+    else:
+        bus = {"interface": "socketcan", "channel": a.iface}
+    main(bus, a.node, a.eds)

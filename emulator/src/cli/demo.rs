@@ -29,8 +29,9 @@ pub struct DemoArgs {
     /// Worn backlash for the second run, mm (linear) or deg (rotary).
     #[arg(long, default_value_t = 0.05)]
     pub backlash: f64,
-    /// Constant speed of the CSP segment, mm/s (linear) or deg/s (rotary).
-    #[arg(long, default_value_t = 10.0)]
+    /// Constant speed of the CSP segment, mm/s (linear) or deg/s (rotary); negative runs
+    /// towards negative positions.
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub velocity: f64,
     /// Duration of the constant-speed segment, s.
     #[arg(long, default_value_t = 4.0)]
@@ -47,6 +48,11 @@ pub struct DemoArgs {
     /// Node ID of the drive on --iface.
     #[arg(long, default_value_t = 5)]
     pub node: u8,
+    /// `--panel [ADDR]`: instead of the two runs, the worn drive in real time with the live
+    /// panel on it (default 127.0.0.1:8080), moved back and forth by the reference master
+    /// until Ctrl-C (docs/panel.md).
+    #[command(flatten)]
+    pub panel: crate::panel::PanelArgs,
 }
 
 /// SDO and step timeout of the master on a real bus, us of its SYNC-period clock.
@@ -75,9 +81,9 @@ fn validate(args: &DemoArgs) -> Result<()> {
     let per_unit = if rotary { 1f64.to_radians() } else { 1e-3 };
     let v_max = built.axis.motor.max_speed / built.axis.mech.ratio / per_unit;
     anyhow::ensure!(
-        args.velocity.is_finite() && args.velocity > 0.0 && args.velocity <= v_max,
-        "--velocity {}: must be > 0 and <= {v_max:.1} {unit}/s (the motor's maximum speed on \
-         this preset)",
+        args.velocity.is_finite() && args.velocity != 0.0 && args.velocity.abs() <= v_max,
+        "--velocity {}: must be non-zero and within -{v_max:.1}..={v_max:.1} {unit}/s (the \
+         motor's maximum speed on this preset)",
         args.velocity
     );
     anyhow::ensure!(
@@ -117,7 +123,7 @@ pub struct RunReport {
 const CRUISE_ACCEL_PER_S: f64 = 100.0;
 
 /// Axis unit (mm or deg) in the drive's user units.
-const UU_PER_AXIS_UNIT: f64 = 1000.0;
+pub(crate) const UU_PER_AXIS_UNIT: f64 = 1000.0;
 
 /// One run with `backlash` (mm or deg): the master's program against the drive, in process
 /// or on `--iface`, and the analysis of the constant-speed window it received.
@@ -142,7 +148,11 @@ pub fn run_once(args: &DemoArgs, backlash: f64) -> Result<RunReport> {
             (master, Some(stats))
         }
     };
-    check_master_outcome(&master, backlash)?;
+    let gap = format!(
+        "{backlash} {}",
+        if key == "backlash_deg" { "deg" } else { "mm" }
+    );
+    check_master_outcome(&master, &gap)?;
     let window = constant_speed_window(master.samples(), v_uu);
     let kv = cfg.kv_per_s;
     let band = (kv / 4.0, kv);
@@ -175,18 +185,18 @@ fn demo_program(v_uu: f64, cruise_s: f64) -> Vec<Step> {
         Step::Enable { mode: MODE_PP },
         Step::MoveTo {
             target_uu: (20.0 * UU_PER_AXIS_UNIT) as i32,
-            velocity_uu_s: (5.0 * v_uu) as u32,
-            accel_uu_s2: (50.0 * v_uu) as u32,
+            velocity_uu_s: (5.0 * v_uu.abs()) as u32,
+            accel_uu_s2: (50.0 * v_uu.abs()) as u32,
         },
         Step::SetMode { mode: MODE_CSP },
         Step::Cruise {
             velocity_uu_s: v_uu,
-            accel_uu_s2: CRUISE_ACCEL_PER_S * v_uu,
+            accel_uu_s2: CRUISE_ACCEL_PER_S * v_uu.abs(),
             duration_s: cruise_s,
         },
         Step::Cruise {
             velocity_uu_s: 0.0,
-            accel_uu_s2: CRUISE_ACCEL_PER_S * v_uu,
+            accel_uu_s2: CRUISE_ACCEL_PER_S * v_uu.abs(),
             duration_s: 0.5,
         },
         Step::Disable,
@@ -275,8 +285,16 @@ fn run_on_iface(
 
 /// The run failed if the master failed, did not finish, or saw the drive in FAULT (then
 /// with its EMCY codes and a hint for a SYNC loss).
-fn check_master_outcome(master: &Master, backlash: f64) -> Result<()> {
+fn check_master_outcome(master: &Master, backlash: &str) -> Result<()> {
     if let Some(e) = master.error() {
+        if e.contains("target not reached") {
+            bail!(
+                "the reference master failed: {e}. The axis did not settle inside the drive's \
+                 position window (0x6067) around the target: with {backlash} of backlash it \
+                 hunts wider than that window, as a worn axis does. A worn drive train shows \
+                 0.01-0.1 mm (0.01-0.04 deg on a table); try --backlash 0.05"
+            );
+        }
         bail!("the reference master failed: {e}");
     }
     if !master.finished() {
@@ -287,23 +305,21 @@ fn check_master_outcome(master: &Master, backlash: f64) -> Result<()> {
         .iter()
         .any(|s| Cia402State::from_statusword(s.statusword) == Some(Cia402State::Fault))
     {
-        // Distinct error codes, without the "error reset" (0x0000) entries.
-        let mut codes: Vec<String> = Vec::new();
+        // Distinct error codes, without the "error reset" (0x0000) entries, each with its
+        // meaning and what to do.
+        let mut codes: Vec<u16> = Vec::new();
         for e in master.emcys().iter().filter(|e| e.code != 0) {
-            let c = format!("{:#06X}", e.code);
-            if !codes.contains(&c) {
-                codes.push(c);
+            if !codes.contains(&e.code) {
+                codes.push(e.code);
             }
         }
-        let hint = if master.emcys().iter().any(|e| e.code == 0x8100) {
-            " (0x8100: SYNC loss, the SYNCs came more than 1.5 periods apart; on a slow or \
-             virtualised host run the drive with --lockstep)"
-        } else {
-            ""
-        };
+        let explained: Vec<String> = codes
+            .iter()
+            .map(|c| crate::master::emcy_explained(*c))
+            .collect();
         bail!(
-            "the drive went to FAULT during the run with {backlash} backlash, EMCY {}{hint}",
-            codes.join(", ")
+            "the drive went to FAULT during the run with {backlash} backlash, EMCY {}",
+            explained.join("; ")
         );
     }
     Ok(())
@@ -352,6 +368,14 @@ fn chart(values: &[f64], lo: f64, hi: f64, rows: usize) -> Vec<String> {
 /// `drive-emu demo`: a healthy and a worn run, reported as JSON or narrated.
 pub fn run(args: &DemoArgs) -> Result<()> {
     validate(args)?;
+    if args.panel.panel.is_some() {
+        anyhow::ensure!(
+            args.iface.is_none() && !args.json,
+            "--panel runs the demo on its own in-process bus with the page as its output: \
+             without --iface and --json"
+        );
+        return super::demo_panel::run(args);
+    }
     let unit = if AxisConfig::from_preset(&args.preset)?
         .backlash_deg
         .is_some()

@@ -2,6 +2,7 @@
 
 pub mod analyze;
 pub mod demo;
+pub mod demo_panel;
 pub mod eds;
 pub mod figures;
 pub mod fmu;

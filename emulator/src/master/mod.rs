@@ -260,29 +260,28 @@ pub fn nmt_name(code: u8) -> &'static str {
     }
 }
 
-/// What an EMCY error code means (CiA 301 / CiA 402 codes this drive sends).
-pub fn emcy_name(code: u16) -> &'static str {
+/// What an EMCY code means: CiA 301/402's table, and this drive's own warning 0xFF01.
+pub fn emcy_meaning(code: u16) -> drive_protocol::EmcyMeaning {
+    use drive_protocol::{emcy_code::meaning, EmcyMeaning};
     match code {
-        0x0000 => "error reset / no error",
-        0x1000 => "generic error",
-        0x2310 => "continuous over-current",
-        0x3210 => "DC link over-voltage",
-        0x4310 => "drive over-temperature",
-        0x5530 => "data storage error",
-        0x6100 => "internal software error",
-        0x7300 => "sensor (encoder) error",
-        0x8100 => "SYNC loss (communication)",
-        0x8110 => "CAN overrun",
-        0x8120 => "CAN error passive",
-        0x8130 => "heartbeat / life guard error",
-        0x8140 => "recovered from bus-off",
-        0x8210 => "PDO length error",
-        0x8220 => "PDO length exceeded",
-        0x8240 => "unexpected SYNC data length",
-        0x8611 => "following error",
-        0xFF00..=0xFFFF => "manufacturer-specific",
-        _ => "see CiA 301 / CiA 402",
+        crate::drive::objects::EMCY_BACKLASH => EmcyMeaning::with(
+            "backlash limit cycle found by the drive's detector (a warning: the drive keeps running)",
+            "the axis is worn: see `drive-emu analyze` or the panel for the frequency and amplitude",
+        ),
+        _ => meaning(code),
     }
+}
+
+/// The short name of an EMCY code, for lists (see [`emcy_meaning`]).
+pub fn emcy_name(code: u16) -> &'static str {
+    emcy_meaning(code).name
+}
+
+/// `0x8130 (heartbeat / life guard error ...: make the master send ...)`, for messages that
+/// stop a run.
+pub fn emcy_explained(code: u16) -> String {
+    let m = emcy_meaning(code);
+    format!("{code:#06X} ({}: {})", m.name, m.action)
 }
 
 /// The name of the CiA 402 state a statusword shows (CiA 402 statusword masks), for
@@ -714,9 +713,20 @@ impl Master {
                     _ => {}
                 }
                 if self.timed_out(now_us) {
+                    // Where the axis stood: a worn axis hunts around the target, wider than
+                    // the drive's position window 0x6067, and never sets bit 10.
+                    let at = self.samples.last().map_or(String::new(), |s| {
+                        format!(
+                            " in {:.1} s: position {} uu, {} uu off, statusword {:#06X}",
+                            self.cfg.step_timeout_us as f64 * 1e-6,
+                            s.position_uu,
+                            i64::from(s.position_uu) - i64::from(target_uu),
+                            s.statusword
+                        )
+                    });
                     self.fail(
                         now_us,
-                        format!("PP move to {target_uu} uu: target not reached"),
+                        format!("PP move to {target_uu} uu: target not reached{at}"),
                     );
                 }
             }
@@ -850,6 +860,30 @@ impl Master {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_code_the_drive_raises_is_explained() {
+        use crate::drive::axis_drive as ad;
+        for code in [
+            ad::ERROR_SENSOR,
+            ad::ERROR_OVERCURRENT,
+            ad::ERROR_MOTOR_I2T,
+            ad::ERROR_OVERSPEED,
+            ad::ERROR_POSITION_RANGE,
+            ad::ERROR_PHYSICS,
+            crate::drive::objects::EMCY_BACKLASH,
+            0x8130, // heartbeat consumer (drive_protocol's node)
+        ] {
+            let text = emcy_explained(code);
+            assert!(text.starts_with(&format!("{code:#06X} (")), "{text}");
+            assert!(
+                !text.contains("see the drive's manual"),
+                "{code:#06X}: {text}"
+            );
+        }
+        assert!(emcy_name(0xFF01).contains("backlash"));
+        assert!(emcy_explained(0xFF77).contains("manufacturer-specific"));
+    }
 
     #[test]
     fn statusword_decoding_follows_the_standard_masks() {

@@ -21,6 +21,7 @@
 pub mod assets;
 pub mod auth;
 pub mod control;
+pub mod history;
 pub mod record;
 pub mod server;
 pub mod stream;

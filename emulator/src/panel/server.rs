@@ -16,6 +16,7 @@
 
 use super::auth::{offered, Auth};
 use super::control::{self, Controls, Session, SessionEvent, MAX_SESSION_EVENTS};
+use super::history::History;
 use super::record::{self, RecordState};
 use super::{assets, PanelSetup};
 use crate::observe::Observation;
@@ -32,6 +33,7 @@ use axum::routing::{get, post};
 use axum::{Json, Router};
 use serde_json::{json, Value};
 use std::collections::BTreeMap;
+use std::collections::VecDeque;
 use std::convert::Infallible;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -73,6 +75,9 @@ pub struct Shared {
     pub record: Mutex<RecordState>,
     pub session: Mutex<Session>,
     pub tx: broadcast::Sender<Arc<Message>>,
+    /// The stream's recent past, sent to a client when it connects (taken with the
+    /// subscription under this lock, so a client misses nothing and gets nothing twice).
+    pub history: Mutex<History>,
     pub clients: Mutex<BTreeMap<u64, ClientEntry>>,
     next_client: AtomicU64,
     pub stop: AtomicBool,
@@ -107,6 +112,7 @@ impl Shared {
             }),
             session: Mutex::new(Session::default()),
             tx: broadcast::channel(CLIENT_BACKLOG).0,
+            history: Mutex::new(History::default()),
             clients: Mutex::new(BTreeMap::new()),
             next_client: AtomicU64::new(1),
             stop: AtomicBool::new(false),
@@ -128,10 +134,20 @@ impl Shared {
 
     /// Send a message to every client (none connected: dropped).
     pub fn broadcast(&self, kind: &'static str, v: Value) {
-        let _ = self.tx.send(Arc::new(Message {
+        let m = Arc::new(Message {
             kind,
             json: v.to_string(),
-        }));
+        });
+        let axis = v.get("axis").and_then(Value::as_u64);
+        match self.history.lock() {
+            Ok(mut h) => {
+                h.keep(&m, axis);
+                let _ = self.tx.send(m);
+            }
+            Err(_) => {
+                let _ = self.tx.send(m);
+            }
+        }
         self.messages_sent.fetch_add(1, Ordering::Relaxed);
     }
 
@@ -358,6 +374,10 @@ impl Drop for ClientGuard {
 
 struct StreamState {
     hello: Option<String>,
+    /// The history, sent after `hello` and before the live messages.
+    replay: VecDeque<Arc<Message>>,
+    /// How many messages the replay had, until the `live` message has said so.
+    replayed: Option<usize>,
     rx: broadcast::Receiver<Arc<Message>>,
     shutdown: watch::Receiver<bool>,
     _guard: ClientGuard,
@@ -383,9 +403,15 @@ async fn stream(State(sh): State<Arc<Shared>>) -> Response {
             },
         );
     }
+    let (rx, replay) = match sh.history.lock() {
+        Ok(h) => (sh.tx.subscribe(), h.replay()),
+        Err(_) => (sh.tx.subscribe(), VecDeque::new()),
+    };
     let st = StreamState {
         hello: Some(sh.hello().to_string()),
-        rx: sh.tx.subscribe(),
+        replayed: Some(replay.len()),
+        replay,
+        rx,
         shutdown: sh.shutdown_tx.subscribe(),
         _guard: ClientGuard {
             shared: Arc::clone(&sh),
@@ -401,6 +427,16 @@ async fn stream(State(sh): State<Arc<Shared>>) -> Response {
         }
         if *st.shutdown.borrow() {
             return None;
+        }
+        if let Some(m) = st.replay.pop_front() {
+            let ev = Event::default().event(m.kind).data(&m.json);
+            return Some((Ok(ev), st));
+        }
+        if let Some(n) = st.replayed.take() {
+            // The seam between the past and the live messages (a page taking a snapshot
+            // closes the stream here).
+            let v = json!({"type": "live", "replayed": n});
+            return Some((Ok(Event::default().event("live").data(v.to_string())), st));
         }
         tokio::select! {
             r = st.rx.recv() => match r {

@@ -312,10 +312,13 @@ impl Collector {
         for (name, x) in STATS_NAMES.iter().zip(v) {
             m.insert((*name).into(), json!(x));
         }
-        m.insert(
-            "sync_lock".into(),
-            json!(crate::runtime::stats::lock_name(v[7])),
-        );
+        // A lock-step loop's time is the SYNCs themselves: no phase lock to report.
+        let lock = if sh.setup.lockstep {
+            "lock-step"
+        } else {
+            crate::runtime::stats::lock_name(v[7])
+        };
+        m.insert("sync_lock".into(), json!(lock));
         m.insert("clients".into(), json!(sh.client_count()));
         sh.broadcast("stats", Value::Object(m));
         let rec = sh

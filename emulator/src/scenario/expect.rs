@@ -115,7 +115,7 @@ impl Expectation {
                 within_us,
                 after,
             } => {
-                let mut s = format!("EMCY {code:#06X}");
+                let mut s = format!("EMCY {code:#06X} ({})", crate::master::emcy_name(*code));
                 if let Some(w) = within_us {
                     s += &format!(" within {} s", fs(*w));
                 }
@@ -358,7 +358,13 @@ fn list_emcys(rec: &RunRecord) -> String {
     rec.emcys
         .iter()
         .take(8)
-        .map(|(t, c)| format!("{c:#06X}@{:.3}s", secs(*t)))
+        .map(|(t, c)| {
+            format!(
+                "{c:#06X} ({})@{:.3}s",
+                crate::master::emcy_name(*c),
+                secs(*t)
+            )
+        })
         .collect::<Vec<_>>()
         .join(", ")
 }

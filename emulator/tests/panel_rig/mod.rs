@@ -42,6 +42,8 @@ pub struct RigOptions {
     pub overrides: Vec<(&'static str, &'static str)>,
     /// Sleep this long after each tick (0: as fast as the CPU allows).
     pub sleep_per_tick: Duration,
+    /// Tell the panel the run is lock-step (its statistics then say so).
+    pub lockstep: bool,
 }
 
 impl Default for RigOptions {
@@ -57,6 +59,7 @@ impl Default for RigOptions {
             preset: "cnc1",
             overrides: vec![],
             sleep_per_tick: Duration::from_millis(1),
+            lockstep: false,
         }
     }
 }
@@ -136,7 +139,7 @@ impl Rig {
             }],
             iface: None,
             tick_hz: 1000,
-            lockstep: false,
+            lockstep: o.lockstep,
             master_id: MasterConfig::default().master_id,
             json_stdout: false,
         };

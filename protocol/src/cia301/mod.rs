@@ -2,6 +2,7 @@
 
 pub mod cob_id;
 pub mod emcy;
+pub mod emcy_code;
 pub mod heartbeat;
 pub mod nmt;
 pub mod pdo;

@@ -45,6 +45,19 @@ function newBuffers() {
   return { t: [], demand: [], actual: [], ferr: [], rpm: [], load: [], current: [] };
 }
 
+// A y axis as wide as its longest tick label (uPlot's fixed width cut "148,000" to ".48,000").
+function axisSize(u, values, axisIdx, cycleNum) {
+  const axis = u.axes[axisIdx];
+  if (cycleNum > 1) return axis._size;  // uPlot converges by itself after the first pass
+  let size = axis.ticks.size + axis.gap;
+  const longest = (values || []).reduce((a, v) => (String(v).length > a.length ? String(v) : a), "");
+  if (longest !== "") {
+    u.ctx.font = axis.font[0];
+    size += u.ctx.measureText(longest).width / devicePixelRatio;
+  }
+  return Math.ceil(size) + 2;
+}
+
 function plot(container, title, series, scales, xlabel = "t [s]") {
   const opts = {
     title, width: 560, height: 170, legend: { live: false },
@@ -52,7 +65,7 @@ function plot(container, title, series, scales, xlabel = "t [s]") {
     series: [{ label: xlabel }].concat(series),
     axes: [{ label: xlabel }].concat(
       (series.map((s) => s.scale || "y").filter((v, i, a) => a.indexOf(v) === i)).map(
-        (sc, i) => ({ scale: sc, side: i === 0 ? 3 : 1, grid: { show: i === 0 }, size: 60 }))),
+        (sc, i) => ({ scale: sc, side: i === 0 ? 3 : 1, grid: { show: i === 0 }, size: axisSize }))),
     cursor: { drag: { x: false, y: false } },
   };
   const data = [[]].concat(series.map(() => []));
@@ -368,6 +381,14 @@ function connect() {
   on("injection", onInjection);
   on("recording", onRecording);
   on("lagged", (m) => logLine("emcys", `stream: ${m.messages} messages lost (slow client)`));
+  // `?snapshot`: draw the run's recent past and close the stream, so that a headless browser's
+  // --screenshot --virtual-time-budget ends (an open stream keeps its virtual time going).
+  on("live", () => {
+    if (!new URLSearchParams(location.search).has("snapshot")) return;
+    es.close();
+    $("conn").textContent = "snapshot"; $("conn").className = "";
+    draw();
+  });
 }
 
 // What a test (or a curious user) can ask the page: the last plotted values and states.
@@ -383,6 +404,15 @@ window.panel = {
     return k < 0 ? null : { t_s: d[0][k], position_actual_uu: d[2][k] };
   },
   state: (axis) => $("state-" + axis) && $("state-" + axis).textContent,
+  // Every y axis drawn: its width and what its longest tick label needs.
+  axisFit: () => state.axes.flatMap((ax) => ["pos", "ferr", "speed", "current", "spectrum"].flatMap(
+    (name) => ax[name].axes.slice(1).filter((a) => a._values && a._values.length).map((a) => {
+      const u = ax[name];
+      u.ctx.font = a.font[0];
+      const label = a._values.reduce((l, v) => (String(v).length > l.length ? String(v) : l), "");
+      return { plot: name, label, size: a._size,
+               need: a.ticks.size + a.gap + u.ctx.measureText(label).width / devicePixelRatio };
+    }))),
   // `samples` messages taken and drawings made since the page opened.
   counts: () => ({ messages: state.messages, draws: state.draws }),
   inject,

@@ -366,6 +366,29 @@ def _grid_cases(grid: Any) -> list[dict]:
                     f"{type(grid).__name__}")
 
 
+def _grid_size(grid: Any) -> Any:
+    """How many cases `grid` has, without building them ("?" where that cannot be told)."""
+    if isinstance(grid, Mapping):
+        n = 1
+        for v in grid.values():
+            if isinstance(v, (str, bytes, numbers.Number)) or v is None:
+                continue
+            if not hasattr(v, "__len__"):
+                return "?"
+            n *= len(v)
+        return n
+    return len(grid) if hasattr(grid, "__len__") else "?"
+
+
+def _add_note(e: BaseException, note: str) -> None:
+    """`e.add_note(note)` (Python 3.11+), or the same `__notes__` list on 3.10."""
+    notes = getattr(e, "__notes__", None)
+    if notes is None:
+        notes = []
+        e.__notes__ = notes
+    notes.append(note)
+
+
 def _native_case(i: int, case: dict) -> tuple:
     for k in case:
         if not isinstance(k, str):
@@ -431,8 +454,13 @@ def sweep(grid: Any, *, workers: int = 0, client: Any = None, progress: bool = T
         raise ImportError(f"sweep() returns a pandas DataFrame: {_PIP_HINT}") from e
     if isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 0:
         raise ValueError(f"workers: {workers!r}: a number of threads >= 0 (0 = all cores)")
-    cases = _grid_cases(grid)
-    native = [_native_case(i, c) for i, c in enumerate(cases)]
+    try:
+        cases = _grid_cases(grid)
+        native = [_native_case(i, c) for i, c in enumerate(cases)]
+    except KeyboardInterrupt as e:
+        # Ctrl-C while the cases are built (a large grid on a busy machine): none ran.
+        _add_note(e, f"drive_emu.sweep: stopped after 0 of {_grid_size(grid)} runs")
+        raise
     if client is None:
         bar = _bar(len(native), progress, "sweep")
         try:
