@@ -190,3 +190,48 @@ fn identity_strings_are_the_files_empty_stays_empty() {
         "no DefaultValue in the file: empty, as the file says"
     );
 }
+
+/// Issue 33, item 4: the file's factor group is the user unit on the bus. 0x608F:1 = 2000
+/// increments per revolution and 0x6092:1 = 2000 per revolution make 1 uu one increment: a
+/// PP move at 0x6081 = 10000 uu/s runs at 10000 uu/s (the speed the motor reaches, read in
+/// 0x606C) and ends at its target in those units.
+#[test]
+fn the_files_factor_group_is_the_user_unit_and_the_move_runs_at_its_speed() {
+    let f = load("factor-2000.eds");
+    let (mut b, _) = bench(&f);
+    b.start();
+    b.enable(1);
+    let p0 = b.node.position_actual();
+    b.w32(0x6081, 0, 10_000).unwrap();
+    b.w32(0x6083, 0, 100_000).unwrap();
+    b.w32(0x6084, 0, 100_000).unwrap();
+    b.w32(0x607A, 0, (p0 + 5000) as u32).unwrap();
+    b.cw(0x1F);
+    b.cw(0x0F);
+    let mut peak = 0i32;
+    let mut reached = false;
+    for _ in 0..3000 {
+        b.tick();
+        peak = peak.max(b.ri32(0x606C, 0));
+        if b.statusword() & (1 << 10) != 0 && b.node.position_actual() > p0 + 4900 {
+            reached = true;
+            break;
+        }
+    }
+    assert!(
+        reached,
+        "moved {} of 5000 uu",
+        b.node.position_actual() - p0
+    );
+    assert!(
+        (9_500..=10_500).contains(&peak),
+        "peak speed {peak} uu/s, commanded 10000"
+    );
+    // and the same number of increments reached the motor: 1 uu = 1 increment (the test
+    // drive's axis counts what the node commands)
+    assert!(
+        (b.drive.pos - (p0 as f64 + 5000.0)).abs() < 60.0,
+        "motor at {} inc",
+        b.drive.pos
+    );
+}
