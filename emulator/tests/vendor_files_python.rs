@@ -1,5 +1,6 @@
 //! python canopen 2.4.1 (over python-can's socketcand interface, no kernel CAN) against
-//! `drive-emu run --eds FILE` for the minimal files of issue 33 (tests/eds/minimal): every
+//! `drive-emu run --eds FILE` for the minimal files of issue 33 (tests/eds/minimal) and the
+//! real vendor files (tests/eds/vendors): every
 //! readable object uploads with its type's size, the identity is the file's,
 //! `load_configuration()` of the DCF whose default maps take 32 of 64 bits passes, and the
 //! PDO maps read back as the file says. One drive-emu process per file, one python process
@@ -57,13 +58,21 @@ impl Drop for Drive {
 }
 
 #[test]
-fn python_canopen_uploads_every_object_and_loads_the_dcf_of_each_minimal_file() {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/eds/minimal");
-    let files = ["short-pdo-map.dcf", "placeholders.eds", "factor-2000.eds"];
-    let paths: Vec<String> = files
+fn python_canopen_uploads_every_object_and_loads_the_configuration_of_each_file() {
+    let eds = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/eds");
+    let mut paths: Vec<String> = ["short-pdo-map.dcf", "placeholders.eds", "factor-2000.eds"]
         .iter()
-        .map(|f| dir.join(f).to_string_lossy().into_owned())
+        .map(|f| eds.join("minimal").join(f).to_string_lossy().into_owned())
         .collect();
+    let mut vendors: Vec<String> = std::fs::read_dir(eds.join("vendors"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| matches!(p.extension().and_then(|e| e.to_str()), Some("eds" | "dcf")))
+        .map(|p| p.to_string_lossy().into_owned())
+        .collect();
+    vendors.sort();
+    assert!(vendors.len() >= 7, "{vendors:?}");
+    paths.extend(vendors);
     let drives: Vec<Drive> = paths.iter().map(|p| Drive::start(p)).collect();
     let script = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -91,7 +100,7 @@ fn python_canopen_uploads_every_object_and_loads_the_dcf_of_each_minimal_file() 
         .lines()
         .map(|l| serde_json::from_str(l).expect("a JSON line"))
         .collect();
-    assert_eq!(lines.len(), files.len(), "{stdout}");
+    assert_eq!(lines.len(), paths.len(), "{stdout}");
     for (l, p) in lines.iter().zip(&paths) {
         assert_eq!(l["file"], p.as_str(), "{l}");
         assert!(l["uploads"].as_u64().unwrap() >= 10, "{l}");
