@@ -2,8 +2,10 @@
 //! `drive-emu run --eds FILE` for the minimal files of issue 33 (tests/eds/minimal) and the
 //! real vendor files (tests/eds/vendors): every
 //! readable object uploads with its type's size, the identity is the file's,
-//! `load_configuration()` of the DCF whose default maps take 32 of 64 bits passes, and the
-//! PDO maps read back as the file says. One drive-emu process per file, one python process
+//! `load_configuration()` of the DCF whose default maps take 32 of 64 bits passes, the
+//! PDO maps read back as the file says, and BaseNode402 reaches a profile-position target
+//! (bit 10, within the position window) in the file's own units wherever 0x6502 offers PP
+//! (the placeholder file's 0x607F = 0 and 0x6065 = 0 included). One drive-emu process per file, one python process
 //! for all (tests/python/vendor_file_check.py). Needs python3 with python-can 4.6.1 and
 //! canopen 2.4.1 (tests/requirements.txt; `DRIVE_EMU_PYTHON` names another interpreter).
 
@@ -108,5 +110,16 @@ fn python_canopen_uploads_every_object_and_loads_the_configuration_of_each_file(
         assert_eq!(l["identity_ok"], true, "{l}");
         assert_eq!(l["configured"], true, "{l}");
         assert_eq!(l["map_mismatches"], serde_json::json!([]), "{l}");
+        assert!(l["pp"] == "reached" || l["pp"] == "not offered", "{l}");
+    }
+    let reached = lines.iter().filter(|l| l["pp"] == "reached").count();
+    assert!(
+        reached >= 8,
+        "PP reached on {reached} files only:\n{stdout}"
+    );
+    for l in &lines[..3] {
+        if !l["file"].as_str().unwrap().ends_with(".dcf") {
+            assert_eq!(l["pp"], "reached", "{l}");
+        }
     }
 }
