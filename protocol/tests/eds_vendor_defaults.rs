@@ -235,3 +235,24 @@ fn the_files_factor_group_is_the_user_unit_and_the_move_runs_at_its_speed() {
         b.drive.pos
     );
 }
+
+/// A DCF's ParameterValue 0 for a placeholder object is what a master writes: the report says
+/// that the drive then takes it as CiA 402 says (the boot value is still the axis's).
+#[test]
+fn a_dcf_parameter_value_zero_for_a_placeholder_is_said() {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/eds/minimal/placeholders.eds");
+    let text = decode_text(&std::fs::read(&p).unwrap()).replace(
+        "ParameterName=Following error window\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue=0\n",
+        "ParameterName=Following error window\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\nDefaultValue=0\nParameterValue=0\n",
+    );
+    let f = parse(&text).unwrap();
+    let (mut b, report) = bench(&f);
+    assert!(
+        report.notes.iter().any(
+            |n| n.starts_with("0x6065 (Following error window): the DCF's ParameterValue is 0")
+        ),
+        "{:?}",
+        report.notes
+    );
+    assert_ne!(b.r32(0x6065, 0), 0);
+}

@@ -330,6 +330,20 @@ impl ObjectDictionary {
                 if let Some(w) = placeholder(&mut e, obj.index, s.sub, &axis_od) {
                     why = w;
                 }
+                // a DCF's ParameterValue 0 there is what a master writes (load_configuration,
+                // a concise DCF): the drive then takes 0 as CiA 402 says; say so
+                let zero_pv = s.parameter_value.as_ref().is_some_and(|v| {
+                    v.resolve(s.data_type, Some(1))
+                        .is_ok_and(|b| b.iter().all(|&x| x == 0))
+                });
+                if s.sub == 0 && zero_pv && PLACEHOLDERS.iter().any(|p| p.0 == obj.index) {
+                    report.notes.push(format!(
+                        "0x{:04X} ({}): the DCF's ParameterValue is 0: a master that loads it \
+                         (load_configuration, a concise DCF) sets 0, which the drive takes as \
+                         CiA 402 says, not as a placeholder",
+                        obj.index, s.name
+                    ));
+                }
                 let fate = if std_slot.is_some() {
                     Fate::Simulated
                 } else {
