@@ -250,3 +250,98 @@ fn lely_dcfchk_accepts_each_vendor_file_or_its_complaints_are_listed() {
         expected_path.display()
     );
 }
+
+/// Four broken copies of each vendor file, each refused with the line, section and key at
+/// fault (issue 33): an unknown data type, a missing AccessType, a default outside its type,
+/// a line that is no key=value. Each is made in the file's device type object [1000] (every
+/// file has one), keeping its line ends.
+#[test]
+fn four_broken_copies_of_each_vendor_file_are_refused_with_line_section_and_key() {
+    for path in vendor_files() {
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let text = decode_text(&std::fs::read(&path).unwrap());
+        let eol = if text.contains("\r\n") { "\r\n" } else { "\n" };
+        let lines: Vec<&str> = text.split('\n').map(|l| l.trim_end_matches('\r')).collect();
+        let header = lines
+            .iter()
+            .position(|l| l.trim().eq_ignore_ascii_case("[1000]"))
+            .unwrap_or_else(|| panic!("{name}: no [1000]"));
+        let end = (header + 1..lines.len())
+            .find(|&i| lines[i].trim_start().starts_with('['))
+            .unwrap_or(lines.len());
+        let key_line = |key: &str| {
+            (header + 1..end).find(|&i| {
+                lines[i]
+                    .split('=')
+                    .next()
+                    .is_some_and(|k| k.trim().eq_ignore_ascii_case(key))
+            })
+        };
+        let join = |v: &[String]| v.join(eol);
+        let owned: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+        // (text, 1-based line, key, what the reason says)
+        let mut cases: Vec<(String, usize, Option<&str>, &str)> = Vec::new();
+        let dt = key_line("DataType").unwrap_or_else(|| panic!("{name}: [1000] DataType"));
+        let mut v = owned.clone();
+        v[dt] = "DataType=0x0033".into();
+        cases.push((
+            join(&v),
+            dt + 1,
+            Some("DataType"),
+            "unknown data type 0x0033",
+        ));
+        let at = key_line("AccessType").unwrap_or_else(|| panic!("{name}: [1000] AccessType"));
+        let mut v = owned.clone();
+        v.remove(at);
+        cases.push((
+            join(&v),
+            header + 1,
+            Some("AccessType"),
+            "AccessType is missing",
+        ));
+        let mut v = owned.clone();
+        let dv = match key_line("DefaultValue") {
+            Some(i) => {
+                v[i] = "DefaultValue=0x1FFFFFFFF".into();
+                i
+            }
+            None => {
+                v.insert(header + 1, "DefaultValue=0x1FFFFFFFF".into());
+                header + 1
+            }
+        };
+        cases.push((
+            join(&v),
+            dv + 1,
+            Some("DefaultValue"),
+            "outside the range of UNSIGNED32",
+        ));
+        let mut v = owned.clone();
+        v.insert(
+            header + 1,
+            "this line is no key=value pair".replace('=', " "),
+        );
+        cases.push((
+            join(&v),
+            header + 2,
+            None,
+            "is neither a [section], a key=value pair nor a comment",
+        ));
+        for (broken, line, key, why) in cases {
+            let e = match parse(&broken) {
+                Ok(_) => panic!("{name}: a copy with '{why}' parsed"),
+                Err(e) => e,
+            };
+            assert_eq!(
+                (e.line, e.section.as_deref(), e.key.as_deref()),
+                (
+                    line,
+                    Some(lines[header].trim().trim_matches(['[', ']'])),
+                    key
+                ),
+                "{name}: {e}"
+            );
+            assert!(e.reason.contains(why), "{name}: {e}");
+        }
+    }
+}

@@ -37,6 +37,10 @@ pub struct RunArgs {
     /// silent but for LSS (CiA 305) until a master gives it a node-ID. Ignored with --config.
     #[arg(long, default_value_t = 5)]
     pub node: u8,
+    /// Serve LSS (CiA 305) even where the vendor's EDS says LSS_Supported=0 or omits it (so
+    /// that --node 255 starts non-configured with that file).
+    #[arg(long)]
+    pub force_lss: bool,
     /// Preset of the (single) axis: cnc1 ... cnc5. Ignored with --config.
     #[arg(long, default_value = "cnc1")]
     pub preset: String,
@@ -218,6 +222,8 @@ pub struct LssOptions {
     pub config: drive_protocol::LssConfig,
     /// 0x1018:4 (`None`: the node-ID at power-on).
     pub serial_number: Option<u32>,
+    /// `--force-lss`: an LSS slave even where the vendor's EDS has none.
+    pub force: bool,
 }
 
 /// The axes of a machine, each node with `boot_delay_us` before its boot-up. With a vendor's
@@ -267,6 +273,7 @@ fn axis_setup(
         eds: eds.clone(),
         lss: lss.config,
         serial_number: lss.serial_number,
+        force_lss: lss.force,
         ..NodeOptions::new(e.node_id).with_boot_delay_us(boot_delay_us)
     };
     let opts = NodeOptions {
@@ -1003,7 +1010,10 @@ fn live_axes(
 /// store configuration is written to it.
 fn lss_options(args: &RunArgs, machine: &mut MachineFile) -> Result<LssOptions> {
     let Some(path) = &args.lss_store else {
-        return Ok(LssOptions::default());
+        return Ok(LssOptions {
+            force: args.force_lss,
+            ..LssOptions::default()
+        });
     };
     if machine.axes.len() != 1 {
         bail!(
@@ -1019,6 +1029,7 @@ fn lss_options(args: &RunArgs, machine: &mut MachineFile) -> Result<LssOptions> 
             ..Default::default()
         },
         serial_number: Some(u32::from(configured)),
+        force: args.force_lss,
     };
     match super::lss_store::load(path)? {
         Some(s) => {

@@ -33,6 +33,9 @@ pub struct NodeOptions {
     /// The vendor behaviour (profile, switches, identity, boot delays; `None`: the strict
     /// drive with the emulator's identity).
     pub behaviour: Option<Arc<Behaviour>>,
+    /// An LSS slave even where the vendor's EDS says LSS_Supported=0 or omits it
+    /// (`run --force-lss`).
+    pub force_lss: bool,
 }
 
 impl NodeOptions {
@@ -47,6 +50,7 @@ impl NodeOptions {
             lss: LssConfig::default(),
             serial_number: None,
             behaviour: None,
+            force_lss: false,
         }
     }
 
@@ -97,6 +101,27 @@ pub fn node_setup(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<N
     }
     let objects_base = objects.base;
     drive.objects = Some(objects);
+    if !od.device.lss_supported && opts.force_lss {
+        od.device.lss_supported = true;
+    }
+    if !od.device.lss_supported && opts.node_id == 255 {
+        let said = match opts.eds.as_deref() {
+            Some(v) => format!(
+                "{} {}",
+                v.path.display(),
+                match v.file.device_info.lss_supported {
+                    Some(_) => "says LSS_Supported=0 in [DeviceInfo]",
+                    None => "has no LSS_Supported in [DeviceInfo] (CiA 306: no LSS)",
+                }
+            ),
+            None => "the dictionary has no LSS".into(),
+        };
+        anyhow::bail!(
+            "node id 255 (non-configured, waiting for a node-ID by LSS): {said}, so the drive \
+             has no LSS slave and no master could give it a node-ID. Give a node ID 1..=127, or \
+             --force-lss to serve LSS (CiA 305) with this file anyway"
+        );
+    }
     let lss = od.device.lss_supported.then_some(opts.lss);
     let mut config = NodeConfig::new(opts.node_id, info)
         .with_od(od)

@@ -119,7 +119,90 @@ impl VendorEds {
             .map_err(|e| anyhow::anyhow!("{}: {e}", self.path.display()))?;
         let objects = objects::register(&mut od, base, rotary)
             .map_err(|e| anyhow::anyhow!("{}: the emulator's objects: {e}", self.path.display()))?;
+        let mut report = report;
+        report.notes.insert(0, user_unit_note(&od, info));
         Ok((od, objects, report))
+    }
+}
+
+/// What one user unit on the bus is, with the file's factor group (0x608F encoder
+/// resolution, 0x6091 gear ratio, 0x6092 feed constant; where the file lacks one, the
+/// simulated axis's): increments of the motor encoder and travel of the simulated axis.
+/// Speeds are user units per second, accelerations per second squared. SI unit objects
+/// (0x60A8 / 0x60A9) the file has are named: served as the file says, not applied.
+pub fn user_unit_note(od: &ObjectDictionary, info: &DriveInfo) -> String {
+    let v = |index: u16, sub: u8, fallback: u32| {
+        od.get(index, sub)
+            .map(|(_, e)| e.default_raw(1) as u32)
+            .filter(|&x| x != 0)
+            .unwrap_or(fallback)
+    };
+    // increments per user unit (CiA 402 factor group), None for a zero term
+    let inc_per_uu = |enc: u32, enc_r: u32, gm: u32, gs: u32, feed: u32, feed_r: u32| {
+        let terms = [enc, enc_r, gm, gs, feed, feed_r];
+        (!terms.contains(&0)).then(|| {
+            f64::from(enc) / f64::from(enc_r) * (f64::from(gm) / f64::from(gs))
+                / (f64::from(feed) / f64::from(feed_r))
+        })
+    };
+    let f = inc_per_uu(
+        v(0x608F, 1, info.encoder_increments_per_rev),
+        v(0x608F, 2, 1),
+        v(0x6091, 1, info.gear_motor_revs),
+        v(0x6091, 2, info.gear_shaft_revs),
+        v(0x6092, 1, info.feed_user_units),
+        v(0x6092, 2, info.feed_shaft_revs),
+    );
+    // the simulated axis: its own factor says what an increment is in its units
+    // (1 um linear, 0.001 deg rotary)
+    let axis = inc_per_uu(
+        info.encoder_increments_per_rev,
+        1,
+        info.gear_motor_revs,
+        info.gear_shaft_revs,
+        info.feed_user_units,
+        info.feed_shaft_revs,
+    );
+    let mut s = match (f, axis) {
+        (Some(f), Some(a)) => {
+            let inc = f;
+            let std_uu = inc / a;
+            let travel = if info.rotary {
+                format!("{} deg", sig(std_uu * 1e-3))
+            } else {
+                format!("{} mm", sig(std_uu * 1e-3))
+            };
+            format!(
+                "1 uu = {} increments of the motor encoder = {travel} of the simulated axis \
+                 (factor group 0x608F/0x6091/0x6092 as served); speeds in uu/s, \
+                 accelerations in uu/s^2",
+                sig(inc)
+            )
+        }
+        _ => "1 uu: the factor group has a zero term; positions are in increments".into(),
+    };
+    for (index, what) in [(0x60A8u16, "position"), (0x60A9, "velocity")] {
+        if let Some((_, e)) = od.get(index, 0) {
+            s.push_str(&format!(
+                "; 0x{index:04X} SI unit {what} = 0x{:08X} is served as the file says, not applied",
+                e.default_raw(1) as u32
+            ));
+        }
+    }
+    s
+}
+
+/// A number with about 6 significant digits, without trailing zeros.
+fn sig(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let digits = (5 - x.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    let t = format!("{x:.digits$}");
+    if t.contains('.') {
+        t.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        t
     }
 }
 
@@ -138,6 +221,9 @@ pub fn report_text(r: &BuildReport, base: u16, file: &Path) -> String {
         r.count(Fate::Added),
         r.count(Fate::Hidden),
     );
+    for w in &r.warnings {
+        let _ = writeln!(s, "  warning: {}: {w}", file.display());
+    }
     for n in &r.notes {
         let _ = writeln!(s, "  note: {n}");
     }

@@ -25,15 +25,16 @@
 //!   section) is an error: python canopen would glue an indented line to the previous value.
 //! - **Names.** Section names and keys are case-insensitive (Lely; python canopen is
 //!   case-sensitive but real files stay in one case). `[1018sub1]`, `[1018Sub1]`,
-//!   `[1018SUB01]` name the same sub-index. A section or key given twice is an error (python
-//!   canopen's strict parser refuses both; `[1018sub1]` and `[1018sub01]` count as twice).
+//!   `[1018SUB01]` name the same sub-index. A section given twice is one section, a key given
+//!   twice takes its last value (Lely's reading; python canopen's strict parser refuses
+//!   both; `[1018sub1]` and `[1018sub01]` count as twice): a warning at the second.
 //!   `[DeviceComissioning]` (CiA 306's spelling) and `[DeviceCommissioning]` are both read.
 //! - **Objects.** `[IIII]` is an object; `ObjectType` defaults to VAR (both readers). NULL,
 //!   DOMAIN, DEFTYPE and VAR are one value (sub-index 0, attributes in the object's own
 //!   section); DEFSTRUCT, ARRAY and RECORD have sub-indices in `[IIIIsubS]` sections or from
-//!   `CompactSubObj`. `SubNumber` must equal the number of sub-index sections present
-//!   (dcf-tools' `dcfchk` refuses a mismatch; Lely silently reads fewer, python canopen ignores
-//!   the count). Sub-index 0xFF is refused (reserved for the structure, CiA 301; both Lely
+//!   `CompactSubObj`. Every sub-index section present is read; a `SubNumber` that does not
+//!   count them, or none, is a warning (dcf-tools' `dcfchk` refuses a mismatch; Lely reads
+//!   the first SubNumber, python canopen ignores the count). Sub-index 0xFF is refused (reserved for the structure, CiA 301; both Lely
 //!   readers refuse or skip it). A sub-index section without its object is an error; one of a
 //!   VAR is ignored with a warning (both readers ignore it). Data type objects 0x0001-0x025F
 //!   (DEFTYPE, DEFSTRUCT, and the VARs some tools write there) are kept;
@@ -54,7 +55,7 @@
 //! - **Values** ([`ValueExpr`]): integers in decimal, `0x` hex or, as CiA 306 and C's
 //!   `strtoul` read them, octal with a leading 0 (`010` is 8; python canopen rejects it and
 //!   leaves the value None, so it is read but warned about when it differs from the decimal
-//!   reading; `08` is an error). `$NODEID` plus or minus a number, in either order, any case,
+//!   reading; `08`, not octal, is read as the decimal 8 with a warning). `$NODEID` plus or minus a number, in either order, any case,
 //!   with or without spaces (`$NODEID+0x180`, `0x180 + $nodeid`, `$NodeID - 1`): python
 //!   canopen accepts the forms with `+` in any order, Lely `$NODEID` first only. REAL32 and
 //!   REAL64 from hex IEEE 754 bits (`0x41F00000`, as Lely reads and writes them) or from a
@@ -71,10 +72,18 @@
 //!   so a number that is not one or lies outside its type is an error at its line.
 //!   LowLimit > HighLimit is an error; a DefaultValue or ParameterValue outside the limits is
 //!   a warning (Lely warns about all three).
-//! - **Object lists.** `[MandatoryObjects]`, `[OptionalObjects]`, `[ManufacturerObjects]`: an
-//!   index listed without its section is an error (Lely fails), a missing entry number is an
-//!   error, an object section no list names is kept with a warning (python canopen ignores
-//!   the lists and reads every section; Lely drops it).
+//! - **Object lists.** `[MandatoryObjects]`, `[OptionalObjects]`, `[ManufacturerObjects]`:
+//!   python canopen ignores the lists and reads every section, so a list that does not match
+//!   is read past with a warning (an index listed without its section, a missing entry
+//!   number, a missing SupportedObjects); an object section no list names is kept with a
+//!   warning (Lely drops it).
+//! - **Read past, with a warning** (issue 33; `tests/eds/lenient/` has a file per class):
+//!   a non-numeric `ObjFlags` (`NV`: read as 0, as Lely's strtoul does), a `PDOMapping` that
+//!   is a word or above 1, `[DeviceInfo]` / `[DeviceComissioning]` keys that are no number or
+//!   out of range (read as not given; `yes`/`true` for a flag), a `;` comment without a
+//!   space before it after a number. Still errors (no reading makes sense): an unknown data
+//!   type, a missing DataType or AccessType, a value outside its type, a line that is no
+//!   `key=value`, an unclosed section header.
 //! - **Other sections.** `[FileInfo]`, `[DeviceInfo]`, `[DummyUsage]`, `[Comments]`,
 //!   `[DeviceComissioning]`, `[IIIIName]`, `[IIIIValue]`, `[IIIIObjectLinks]` are read; any
 //!   other section (modular devices, `[Tools]`) is ignored with a warning.
@@ -581,11 +590,12 @@ pub fn decode_text(bytes: &[u8]) -> String {
 // ---------------------------------------------------------------------------------------
 // numbers
 
-/// A `#` after whitespace ends a number (dcf-tools' inline comment).
+/// A `#` after whitespace ends a number (dcf-tools' inline comment), and so does a `;`
+/// anywhere (a comment written without the space before it; the reader warns).
 fn strip_hash_comment(t: &str) -> &str {
     let b = t.as_bytes();
     for i in 1..b.len() {
-        if b[i] == b'#' && b[i - 1].is_ascii_whitespace() {
+        if (b[i] == b'#' && b[i - 1].is_ascii_whitespace()) || b[i] == b';' {
             return t[..i].trim_end();
         }
     }
@@ -640,10 +650,11 @@ fn parse_uint(t: &str) -> Result<(u128, Radix), String> {
     for c in digits.chars() {
         let d = match c.to_digit(base) {
             Some(d) => d,
-            None if radix == Radix::Octal && c.is_ascii_digit() => {
-                return Err(format!(
-                    "'{t}' is not a number: CiA 306 reads a leading 0 as octal, and '{c}' is not an octal digit"
-                ))
+            // '08', '09': not octal; the decimal reading is the only one (python canopen and
+            // Lely stop; the value_key warning says so)
+            None if radix == Radix::Octal && digits.bytes().all(|b| b.is_ascii_digit()) => {
+                return parse_uint(digits.trim_start_matches('0'))
+                    .map(|(v, _)| (v, Radix::Decimal));
             }
             None => return Err(format!("'{t}' is not a number")),
         };
@@ -808,6 +819,10 @@ fn hex4(s: &str) -> Option<u16> {
     }
 }
 
+fn kind_counts_object(k: Kind) -> bool {
+    matches!(k, Kind::Object(_))
+}
+
 /// What a section name (lowercase) is; `Err` for a sub-index out of range.
 fn classify(lc: &str) -> Result<Kind, String> {
     Ok(match lc {
@@ -925,11 +940,68 @@ fn key_err(s: &Section, e: &Entry, reason: impl Into<String>) -> EdsError {
     err(e.line, Some(s.name), Some(e.key), reason)
 }
 
-/// Split the text into sections (step 1: lines only).
-fn lex(text: &str) -> Result<Vec<Section<'_>>, EdsError> {
+/// A warning of the lexer (no [`Ctx`] yet).
+fn lex_warn(
+    out: &mut Vec<EdsWarning>,
+    line: usize,
+    section: Option<&str>,
+    key: Option<&str>,
+    reason: String,
+) {
+    out.push(EdsWarning {
+        line,
+        section: section.map(str::to_string),
+        key: key.map(str::to_string),
+        reason,
+    });
+}
+
+/// Put `entry` into `sec`: a key given twice is read as the last one gives it (Lely's
+/// reading; python canopen's strict parser refuses the file), with a warning.
+fn add_entry<'a>(
+    sec: &mut Section<'a>,
+    written_in: &str,
+    entry: Entry<'a>,
+    warnings: &mut Vec<EdsWarning>,
+) {
+    let lc = entry.key.to_ascii_lowercase();
+    if let Some(&first) = sec.keys.get(&lc) {
+        let old = &sec.entries[first];
+        let reason = if old.value == entry.value {
+            format!(
+                "key given twice in this section (first at line {}), same value; read once",
+                old.line
+            )
+        } else {
+            format!(
+                "key given twice in this section (first at line {}, '{}'): the last one, '{}', is read (as Lely reads it; python canopen refuses the file)",
+                old.line,
+                clip(old.value),
+                clip(entry.value)
+            )
+        };
+        lex_warn(
+            warnings,
+            entry.line,
+            Some(written_in),
+            Some(entry.key),
+            reason,
+        );
+        sec.entries[first] = entry;
+        return;
+    }
+    sec.keys.insert(lc, sec.entries.len());
+    sec.entries.push(entry);
+}
+
+/// Split the text into sections (step 1: lines only). A section given twice is one section
+/// (its keys read into the first, as Lely reads it), with a warning.
+fn lex(text: &str) -> Result<(Vec<Section<'_>>, Vec<EdsWarning>), EdsError> {
     let text = text.strip_prefix('\u{FEFF}').unwrap_or(text);
     let mut sections: Vec<Section> = Vec::new();
+    let mut warnings = Vec::new();
     let mut seen: HashMap<String, usize> = HashMap::new();
+    let mut current: Option<usize> = None;
     for (n, raw) in text.split('\n').enumerate() {
         let line_no = n + 1;
         let line = raw.strip_suffix('\r').unwrap_or(raw).trim();
@@ -968,15 +1040,18 @@ fn lex(text: &str) -> Result<Vec<Section<'_>>, EdsError> {
             }
             let lc = name.to_ascii_lowercase();
             if let Some(&first) = seen.get(&lc) {
-                return Err(err(
+                lex_warn(
+                    &mut warnings,
                     line_no,
                     Some(name),
                     None,
                     format!(
-                        "section given twice (first at line {})",
+                        "section given twice (first at line {}): its keys are read as part of the first (as Lely reads it; python canopen refuses the file)",
                         sections[first].line
                     ),
-                ));
+                );
+                current = Some(first);
+                continue;
             }
             if sections.len() >= MAX_SECTIONS {
                 return Err(err(
@@ -987,6 +1062,7 @@ fn lex(text: &str) -> Result<Vec<Section<'_>>, EdsError> {
                 ));
             }
             seen.insert(lc, sections.len());
+            current = Some(sections.len());
             sections.push(Section {
                 name,
                 line: line_no,
@@ -996,7 +1072,7 @@ fn lex(text: &str) -> Result<Vec<Section<'_>>, EdsError> {
             continue;
         }
         let Some(eq) = line.find('=') else {
-            let section = sections.last().map(|s| s.name);
+            let section = current.map(|i| sections[i].name);
             return Err(err(
                 line_no,
                 section,
@@ -1017,7 +1093,7 @@ fn lex(text: &str) -> Result<Vec<Section<'_>>, EdsError> {
         {
             value = value[..p].trim_end();
         }
-        let Some(sec) = sections.last_mut() else {
+        let Some(sec) = current.map(|i| &mut sections[i]) else {
             return Err(err(
                 line_no,
                 None,
@@ -1044,26 +1120,19 @@ fn lex(text: &str) -> Result<Vec<Section<'_>>, EdsError> {
                 ),
             ));
         }
-        let lc = key.to_ascii_lowercase();
-        if let Some(&first) = sec.keys.get(&lc) {
-            return Err(err(
-                line_no,
-                Some(sec.name),
-                Some(key),
-                format!(
-                    "key given twice in this section (first at line {})",
-                    sec.entries[first].line
-                ),
-            ));
-        }
-        sec.keys.insert(lc, sec.entries.len());
-        sec.entries.push(Entry {
-            key,
-            value,
-            line: line_no,
-        });
+        let written_in = sec.name;
+        add_entry(
+            sec,
+            written_in,
+            Entry {
+                key,
+                value,
+                line: line_no,
+            },
+            &mut warnings,
+        );
     }
-    Ok(sections)
+    Ok((sections, warnings))
 }
 
 fn clip(s: &str) -> String {
@@ -1096,11 +1165,11 @@ pub fn parse(text: &str) -> Result<EdsFile, EdsError> {
             ),
         ));
     }
-    let sections = lex(text)?;
+    let (sections, lex_warnings) = lex(text)?;
     let mut cx = Ctx {
         sections,
         by_kind: HashMap::new(),
-        warnings: Vec::new(),
+        warnings: lex_warnings,
     };
     // classify every section
     let mut n_objects = 0usize;
@@ -1145,15 +1214,27 @@ pub fn parse(text: &str) -> Result<EdsFile, EdsError> {
             }
         }
         if let Some(&first) = cx.by_kind.get(&kind) {
-            return Err(err(
+            // [1018sub1] and [1018sub01]: one section, read as Lely reads a section twice
+            let (fname, fline) = (cx.sections[first].name, cx.sections[first].line);
+            cx.warn(
                 line,
                 Some(name),
                 None,
                 format!(
-                    "names the same thing as [{}] at line {}",
-                    cx.sections[first].name, cx.sections[first].line
+                    "names the same thing as [{fname}] at line {fline}: its keys are read as part of [{fname}] (as Lely reads a section given twice)"
                 ),
-            ));
+            );
+            let entries = std::mem::take(&mut cx.sections[i].entries);
+            cx.sections[i].keys.clear();
+            let mut w = Vec::new();
+            for e in entries {
+                add_entry(&mut cx.sections[first], name, e, &mut w);
+            }
+            cx.warnings.append(&mut w);
+            if kind_counts_object(kind) {
+                n_objects -= 1;
+            }
+            continue;
         }
         cx.by_kind.insert(kind, i);
     }
@@ -1274,22 +1355,59 @@ fn read_file_info(cx: &Ctx) -> FileInfo {
     }
 }
 
-/// A number key of a fixed section, range-checked; empty is `None`.
-fn num_key(s: Option<&Section>, key: &str, max: u128) -> Result<Option<u128>, EdsError> {
-    let Some(s) = s else { return Ok(None) };
-    let Some(e) = s.get(key) else { return Ok(None) };
+/// A number key of a fixed section, range-checked; empty is `None`. A value that is not a
+/// number, or above `max`, is read as not given, with a warning (these keys describe the
+/// file; the objects say what the device does).
+fn num_key(w: &mut Vec<EdsWarning>, s: Option<&Section>, key: &str, max: u128) -> Option<u128> {
+    let s = s?;
+    let e = s.get(key)?;
     if e.value.is_empty() {
-        return Ok(None);
+        return None;
     }
-    let v = parse_plain_uint(e.value).map_err(|r| key_err(s, e, r))?;
-    if v > max {
-        return Err(key_err(s, e, format!("{v} is more than {max}")));
-    }
-    Ok(Some(v))
+    let why = match parse_plain_uint(e.value) {
+        Ok(v) if v <= max => return Some(v),
+        Ok(v) => format!("{v} is more than {max}"),
+        Err(r) => r,
+    };
+    lex_warn(
+        w,
+        e.line,
+        Some(s.name),
+        Some(e.key),
+        format!("{why}: read as not given"),
+    );
+    None
 }
 
-fn bool_key(s: Option<&Section>, key: &str) -> Result<Option<bool>, EdsError> {
-    Ok(num_key(s, key, 1)?.map(|v| v != 0))
+/// A 0/1 key; `true`/`yes` and `false`/`no` and any non-zero number are read too, with a
+/// warning.
+fn bool_key(w: &mut Vec<EdsWarning>, s: Option<&Section>, key: &str) -> Option<bool> {
+    let e = s?.get(key)?;
+    let word = match e.value.to_ascii_lowercase().as_str() {
+        "true" | "yes" => Some(true),
+        "false" | "no" => Some(false),
+        _ => None,
+    };
+    let (v, note) = match word {
+        Some(b) => (b, true),
+        None => {
+            let v = num_key(w, s, key, u128::MAX)?;
+            (v != 0, v > 1)
+        }
+    };
+    if note {
+        lex_warn(
+            w,
+            e.line,
+            s.map(|s| s.name),
+            Some(e.key),
+            format!(
+                "'{}' where CiA 306 writes 0 or 1: read as {}",
+                e.value, v as u8
+            ),
+        );
+    }
+    Some(v)
 }
 
 fn read_device_info(cx: &mut Ctx) -> Result<DeviceInfo, EdsError> {
@@ -1303,29 +1421,30 @@ fn read_device_info(cx: &mut Ctx) -> Result<DeviceInfo, EdsError> {
         return Ok(DeviceInfo::default());
     };
     let s = Some(&cx.sections[si]);
+    let w = &mut cx.warnings;
     let mut baud_rates_kbit = Vec::new();
     for kbit in [10u16, 20, 50, 125, 250, 500, 800, 1000] {
-        if bool_key(s, &format!("BaudRate_{kbit}"))? == Some(true) {
+        if bool_key(w, s, &format!("BaudRate_{kbit}")) == Some(true) {
             baud_rates_kbit.push(kbit);
         }
     }
     let d = DeviceInfo {
         vendor_name: text_of(s, "VendorName"),
-        vendor_number: num_key(s, "VendorNumber", u32::MAX as u128)?.map(|v| v as u32),
+        vendor_number: num_key(w, s, "VendorNumber", u32::MAX as u128).map(|v| v as u32),
         product_name: text_of(s, "ProductName"),
-        product_number: num_key(s, "ProductNumber", u32::MAX as u128)?.map(|v| v as u32),
-        revision_number: num_key(s, "RevisionNumber", u32::MAX as u128)?.map(|v| v as u32),
+        product_number: num_key(w, s, "ProductNumber", u32::MAX as u128).map(|v| v as u32),
+        revision_number: num_key(w, s, "RevisionNumber", u32::MAX as u128).map(|v| v as u32),
         order_code: text_of(s, "OrderCode"),
         baud_rates_kbit,
-        simple_boot_up_master: bool_key(s, "SimpleBootUpMaster")?,
-        simple_boot_up_slave: bool_key(s, "SimpleBootUpSlave")?,
-        granularity: num_key(s, "Granularity", 64)?.map(|v| v as u8),
-        dynamic_channels_supported: num_key(s, "DynamicChannelsSupported", 255)?.map(|v| v as u8),
-        group_messaging: bool_key(s, "GroupMessaging")?,
-        nr_of_rx_pdo: num_key(s, "NrOfRXPDO", 512)?.map(|v| v as u16),
-        nr_of_tx_pdo: num_key(s, "NrOfTXPDO", 512)?.map(|v| v as u16),
-        lss_supported: bool_key(s, "LSS_Supported")?,
-        compact_pdo: num_key(s, "CompactPDO", 255)?.map(|v| v as u8),
+        simple_boot_up_master: bool_key(w, s, "SimpleBootUpMaster"),
+        simple_boot_up_slave: bool_key(w, s, "SimpleBootUpSlave"),
+        granularity: num_key(w, s, "Granularity", 64).map(|v| v as u8),
+        dynamic_channels_supported: num_key(w, s, "DynamicChannelsSupported", 255).map(|v| v as u8),
+        group_messaging: bool_key(w, s, "GroupMessaging"),
+        nr_of_rx_pdo: num_key(w, s, "NrOfRXPDO", 512).map(|v| v as u16),
+        nr_of_tx_pdo: num_key(w, s, "NrOfTXPDO", 512).map(|v| v as u16),
+        lss_supported: bool_key(w, s, "LSS_Supported"),
+        compact_pdo: num_key(w, s, "CompactPDO", 255).map(|v| v as u8),
     };
     if d.compact_pdo.is_some_and(|m| m != 0) {
         let (line, name) = (cx.sections[si].line, cx.sections[si].name);
@@ -1341,9 +1460,10 @@ fn read_device_info(cx: &mut Ctx) -> Result<DeviceInfo, EdsError> {
 
 fn read_dummy_usage(cx: &mut Ctx) -> Result<[bool; 8], EdsError> {
     let mut d = [false; 8];
-    let s = cx.section(Kind::DummyUsage);
+    let s = cx.by_kind.get(&Kind::DummyUsage).map(|&i| &cx.sections[i]);
+    let w = &mut cx.warnings;
     for (t, slot) in d.iter_mut().enumerate().skip(1) {
-        *slot = bool_key(s, &format!("Dummy{t:04X}"))? == Some(true);
+        *slot = bool_key(w, s, &format!("Dummy{t:04X}")) == Some(true);
     }
     Ok(d)
 }
@@ -1353,7 +1473,7 @@ fn read_comments(cx: &mut Ctx) -> Result<Vec<String>, EdsError> {
         return Ok(Vec::new());
     };
     let s = &cx.sections[si];
-    let n = num_key(Some(s), "Lines", 65_535)?.unwrap_or(0) as usize;
+    let n = num_key(&mut cx.warnings, Some(s), "Lines", 65_535).unwrap_or(0) as usize;
     let mut lines = Vec::with_capacity(n);
     let mut missing = None;
     for i in 1..=n {
@@ -1393,22 +1513,27 @@ fn read_commissioning(cx: &mut Ctx) -> Result<Option<Commissioning>, EdsError> {
         return Ok(None);
     };
     let s = Some(&cx.sections[si]);
-    let node_id = num_key(s, "NodeID", 255)?;
-    if let Some(id) = node_id {
-        if !(1..=127).contains(&id) {
-            let s = &cx.sections[si];
-            let e = s.get("NodeID").expect("read above");
-            return Err(key_err(s, e, format!("node ID {id} is outside 1..=127")));
-        }
+    let w = &mut cx.warnings;
+    let mut node_id = num_key(w, s, "NodeID", 255);
+    if let Some(id) = node_id.filter(|id| !(1..=127).contains(id)) {
+        let e = s.and_then(|s| s.get("NodeID")).expect("read above");
+        lex_warn(
+            w,
+            e.line,
+            s.map(|s| s.name),
+            Some(e.key),
+            format!("node ID {id} is outside 1..=127: read as not given (the node ID comes from the command line)"),
+        );
+        node_id = None;
     }
     Ok(Some(Commissioning {
         node_id: node_id.map(|v| v as u8),
         node_name: text_of(s, "NodeName"),
-        baudrate_kbit: num_key(s, "Baudrate", 1000)?.map(|v| v as u16),
-        net_number: num_key(s, "NetNumber", u32::MAX as u128)?.map(|v| v as u32),
+        baudrate_kbit: num_key(w, s, "Baudrate", 1000).map(|v| v as u16),
+        net_number: num_key(w, s, "NetNumber", u32::MAX as u128).map(|v| v as u32),
         network_name: text_of(s, "NetworkName"),
-        canopen_manager: bool_key(s, "CANopenManager")?,
-        lss_serial_number: num_key(s, "LSS_SerialNumber", u32::MAX as u128)?.map(|v| v as u32),
+        canopen_manager: bool_key(w, s, "CANopenManager"),
+        lss_serial_number: num_key(w, s, "LSS_SerialNumber", u32::MAX as u128).map(|v| v as u32),
     }))
 }
 
@@ -1492,6 +1617,25 @@ fn value_key(
         v = ValueExpr::Integer(c);
     }
     let (line, name, k, text) = (e.line, s.name, e.key, e.value);
+    if !dtype.variable() && text.contains(';') {
+        notes.push(format!(
+            "'{}': a ';' comment without a space before it; the number before it is read (python canopen reads such a value as text and fails)",
+            clip(text)
+        ));
+    }
+    if matches!(v, ValueExpr::Integer(_)) {
+        let digits = strip_hash_comment(text).trim_start_matches(['-', '+']);
+        if digits.len() > 1
+            && digits.starts_with('0')
+            && digits.bytes().all(|b| b.is_ascii_digit())
+            && digits.bytes().any(|b| b >= b'8')
+        {
+            notes.push(format!(
+                "'{text}' has a leading 0 (octal in CiA 306) but an 8 or 9: read as the decimal {} (python canopen and Lely stop here)",
+                digits.trim_start_matches('0')
+            ));
+        }
+    }
     if dtype.float() && matches!(v, ValueExpr::Integer(i) if i != 0) {
         notes.push(format!(
             "{} value '{text}' is a plain decimal integer: read as the number (python canopen); Lely reads it as IEEE 754 bits",
@@ -1595,23 +1739,54 @@ fn read_attrs(
         }
     };
     let s = &cx.sections[si];
+    // PDOMapping and ObjFlags are read past as Lely reads them (strtoul: a word is 0, any
+    // non-zero number is set); python canopen reads PDOMapping with bool(int()), ignores
+    // ObjFlags
+    let mut notes: Vec<(usize, &str, String)> = Vec::new();
     let pdo_mapping = match s.get("PDOMapping") {
-        Some(e) if !e.value.is_empty() => {
-            let v = parse_plain_uint(e.value).map_err(|r| key_err(s, e, r))?;
-            if v > 1 {
-                return Err(key_err(s, e, format!("PDOMapping is 0 or 1, not {v}")));
+        Some(e) if !e.value.is_empty() => match parse_plain_uint(e.value) {
+            Ok(v) if v <= 1 => v == 1,
+            Ok(v) => {
+                notes.push((e.line, e.key, format!("PDOMapping is 0 or 1, not {v}: read as 1 (mappable), as python canopen and Lely read it")));
+                true
             }
-            v == 1
-        }
+            Err(_) => {
+                let yes = matches!(e.value.to_ascii_lowercase().as_str(), "true" | "yes");
+                notes.push((
+                    e.line,
+                    e.key,
+                    format!(
+                        "'{}' is not 0 or 1: read as {} ({})",
+                        e.value,
+                        yes as u8,
+                        if yes {
+                            "the word says so"
+                        } else {
+                            "not mappable, as Lely reads a word"
+                        }
+                    ),
+                ));
+                yes
+            }
+        },
         _ => false,
     };
     let obj_flags = match s.get("ObjFlags") {
-        Some(e) if !e.value.is_empty() => {
-            let v = parse_plain_uint(e.value).map_err(|r| key_err(s, e, r))?;
-            u32::try_from(v).map_err(|_| key_err(s, e, format!("{v} does not fit 32 bits")))?
-        }
+        Some(e) if !e.value.is_empty() => match parse_plain_uint(e.value)
+            .ok()
+            .and_then(|v| u32::try_from(v).ok())
+        {
+            Some(v) => v,
+            None => {
+                notes.push((e.line, e.key, format!("'{}' is not a 32-bit number (CiA 306: bit 0 refuse write on download, bit 1 refuse read on scan): read as 0, as Lely reads it (python canopen ignores ObjFlags)", clip(e.value))));
+                0
+            }
+        },
         _ => 0,
     };
+    for (l, k, why) in notes {
+        cx.warn(l, Some(name), Some(k), why);
+    }
     let numeric_type = dtype.integer() || dtype.float();
     let mut low = None;
     let mut high = None;
@@ -1955,16 +2130,16 @@ fn read_object(
             }
             Some((n, l)) if n < subs.len() => {
                 let listed: Vec<String> = subs.iter().map(|(s, _)| format!("{s:X}")).collect();
-                return Err(err(
+                cx.warn(
                     l,
                     Some(sname),
                     Some("SubNumber"),
                     format!(
-                        "SubNumber={n} but {} sub-index sections are present (sub {}): ambiguous, Lely reads the first {n}, python canopen all",
+                        "SubNumber={n} but {} sub-index sections are present (sub {}): all are read, as python canopen reads them (Lely reads the first {n})",
                         subs.len(),
-                        if listed.is_empty() { "none".into() } else { listed.join(", ") }
+                        listed.join(", ")
                     ),
-                ));
+                );
             }
             None if subs.is_empty() => {
                 return Err(err(line, Some(sname), None, format!("{code:?} object with neither SubNumber nor CompactSubObj nor sub-index sections")));
@@ -2070,7 +2245,7 @@ fn read_compact_names(cx: &mut Ctx, index: u16, n: u8) -> Result<Vec<Option<Stri
         names[sub as usize] = Some(e.value.to_string());
         count += 1;
     }
-    let nr = num_key(Some(s), "NrOfEntries", 255)?;
+    let nr = num_key(&mut cx.warnings, Some(s), "NrOfEntries", 255);
     if nr.is_some_and(|v| v as usize != count) {
         let (l, name) = (s.line, s.name);
         cx.warn(
@@ -2116,7 +2291,7 @@ fn read_compact_values(
         values[sub as usize] = v;
         count += 1;
     }
-    let nr = num_key(Some(s), "NrOfEntries", 255)?;
+    let nr = num_key(&mut cx.warnings, Some(s), "NrOfEntries", 255);
     if nr.is_some_and(|v| v as usize != count) {
         let (l, name) = (s.line, s.name);
         cx.warn(
@@ -2134,7 +2309,7 @@ fn read_links(cx: &mut Ctx, index: u16) -> Result<Vec<u16>, EdsError> {
         return Ok(Vec::new());
     };
     let s = &cx.sections[si];
-    let n = num_key(Some(s), "ObjectLinks", 65_535)?.unwrap_or(0) as usize;
+    let n = num_key(&mut cx.warnings, Some(s), "ObjectLinks", 65_535).unwrap_or(0) as usize;
     let mut links = Vec::with_capacity(n.min(1024));
     for e in &s.entries {
         if e.key.eq_ignore_ascii_case("ObjectLinks") {
@@ -2162,7 +2337,9 @@ fn read_links(cx: &mut Ctx, index: u16) -> Result<Vec<u16>, EdsError> {
     Ok(links)
 }
 
-/// The object lists against the object sections.
+/// The object lists against the object sections. Python canopen reads every object section
+/// and ignores the lists, so a list that does not match the sections is read past with a
+/// warning: an entry without its section, a missing entry number, a missing count.
 fn check_lists(cx: &mut Ctx, objects: &[(u16, usize)]) -> Result<(), EdsError> {
     let mut listed: HashMap<u16, (usize, usize)> = HashMap::new(); // index -> (list section, line)
     for list in 0..3u8 {
@@ -2170,35 +2347,62 @@ fn check_lists(cx: &mut Ctx, objects: &[(u16, usize)]) -> Result<(), EdsError> {
             continue;
         };
         let s = &cx.sections[si];
-        let Some(n) = num_key(Some(s), "SupportedObjects", 65_535)? else {
-            return Err(err(
-                s.line,
-                Some(s.name),
-                Some("SupportedObjects"),
-                "SupportedObjects is missing",
-            ));
+        let name = s.name;
+        let mut notes: Vec<(usize, Option<&str>, String)> = Vec::new();
+        let counted = num_key(&mut cx.warnings, Some(s), "SupportedObjects", 65_535);
+        let numbered = |e: &&Entry| e.key.parse::<usize>().is_ok_and(|i| i > 0);
+        let n = match counted {
+            Some(n) => n as usize,
+            None => {
+                let n = s
+                    .entries
+                    .iter()
+                    .filter(numbered)
+                    .filter_map(|e| e.key.parse::<usize>().ok())
+                    .max()
+                    .unwrap_or(0);
+                notes.push((
+                    s.line,
+                    Some("SupportedObjects"),
+                    format!("SupportedObjects is missing or unreadable: the {n} numbered entries are read"),
+                ));
+                n
+            }
         };
         let mut dups = Vec::new();
-        for i in 1..=n as usize {
+        for i in 1..=n {
             let Some(e) = s.get(&i.to_string()) else {
-                return Err(err(
+                notes.push((
                     s.line,
-                    Some(s.name),
                     None,
-                    format!("SupportedObjects={n} but entry {i} is missing"),
+                    format!("SupportedObjects={n} but entry {i} is missing; the entries present are read"),
                 ));
+                continue;
             };
-            let v = parse_plain_uint(e.value).map_err(|r| key_err(s, e, r))?;
-            let index = u16::try_from(v)
-                .ok()
-                .filter(|&x| x != 0)
-                .ok_or_else(|| key_err(s, e, format!("0x{v:X} is not an object index")))?;
+            let index = match parse_plain_uint(e.value) {
+                Ok(v) => match u16::try_from(v).ok().filter(|&x| x != 0) {
+                    Some(x) => x,
+                    None => {
+                        notes.push((
+                            e.line,
+                            Some(e.key),
+                            format!("0x{v:X} is not an object index; entry ignored"),
+                        ));
+                        continue;
+                    }
+                },
+                Err(r) => {
+                    notes.push((e.line, Some(e.key), format!("{r}; entry ignored")));
+                    continue;
+                }
+            };
             if !cx.by_kind.contains_key(&Kind::Object(index)) {
-                return Err(key_err(
-                    s,
-                    e,
-                    format!("object 0x{index:04X} is listed but has no section [{index:04X}]"),
+                notes.push((
+                    e.line,
+                    Some(e.key),
+                    format!("object 0x{index:04X} is listed but has no section [{index:04X}]; entry ignored (python canopen reads the sections, not the lists)"),
                 ));
+                continue;
             }
             if let Some(&(first_si, first_line)) = listed.get(&index) {
                 dups.push((e.line, e.key, index, cx.sections[first_si].name, first_line));
@@ -2206,36 +2410,27 @@ fn check_lists(cx: &mut Ctx, objects: &[(u16, usize)]) -> Result<(), EdsError> {
                 listed.insert(index, (si, e.line));
             }
         }
-        let extra: Vec<&Entry> = s
-            .entries
-            .iter()
-            .filter(|e| {
-                !e.key.eq_ignore_ascii_case("SupportedObjects")
-                    && e.key
-                        .parse::<usize>()
-                        .map_or(true, |i| i == 0 || i > n as usize)
-            })
-            .collect();
-        let extra_warn: Vec<(usize, String)> =
-            extra.iter().map(|e| (e.line, e.key.to_string())).collect();
-        let name = s.name;
+        for e in s.entries.iter().filter(|e| {
+            !e.key.eq_ignore_ascii_case("SupportedObjects")
+                && e.key.parse::<usize>().map_or(true, |i| i == 0 || i > n)
+        }) {
+            notes.push((
+                e.line,
+                Some(e.key),
+                format!("entry beyond SupportedObjects={n}; ignored"),
+            ));
+        }
         for (line, key, index, first, first_line) in dups {
-            cx.warn(
+            notes.push((
                 line,
-                Some(name),
                 Some(key),
                 format!(
                     "object 0x{index:04X} listed twice (also in [{first}] at line {first_line})"
                 ),
-            );
+            ));
         }
-        for (line, key) in extra_warn {
-            cx.warn(
-                line,
-                Some(name),
-                Some(&key),
-                format!("entry beyond SupportedObjects={n}; ignored"),
-            );
+        for (line, key, why) in notes {
+            cx.warn(line, Some(name), key, why);
         }
     }
     let mut unlisted = Vec::new();
@@ -2299,8 +2494,8 @@ mod tests {
         assert_eq!(p("30.0"), ValueExpr::Decimal(30.0));
         assert_eq!(p("-1e-3"), ValueExpr::Decimal(-1e-3));
         assert_eq!(p(strip_hash_comment("12 # twelve")), ValueExpr::Integer(12));
+        assert_eq!(p("08"), ValueExpr::Integer(8)); // not octal: the decimal (warned)
         for bad in [
-            "08",
             "0x",
             "12a",
             "$NODEID+$NODEID",

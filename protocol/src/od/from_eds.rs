@@ -84,6 +84,9 @@ pub struct BuildReport {
     pub lines: Vec<ReportLine>,
     /// Notes on the whole file (modes, identity, PDOs).
     pub notes: Vec<String>,
+    /// What the parser read past ([`EdsFile::warnings`], as `line N, [section] key: why`;
+    /// the caller names the file).
+    pub warnings: Vec<String>,
 }
 
 impl BuildReport {
@@ -247,7 +250,12 @@ impl ObjectDictionary {
         info: &DriveInfo,
     ) -> Result<(ObjectDictionary, BuildReport), EdsBuildError> {
         let mut od = ObjectDictionary::standard_hidden(info);
-        let mut report = BuildReport::default();
+        // the simulated axis's own values (placeholders), untouched by the file
+        let axis_od = ObjectDictionary::standard_hidden(info);
+        let mut report = BuildReport {
+            warnings: file.warnings.iter().map(|w| w.to_string()).collect(),
+            ..BuildReport::default()
+        };
         check_device_type(file)?;
         for obj in &file.objects {
             if obj.defines_type()
@@ -297,22 +305,44 @@ impl ObjectDictionary {
                         let info = &file.device_info;
                         let ident = |v: Option<u32>| v.map(|x| DefaultValue::Value(u64::from(x)));
                         let from_info = match (obj.index, s.sub) {
-                            (0x1008, 0) => info
-                                .product_name
-                                .as_ref()
-                                .map(|p| DefaultValue::Bytes(p.as_bytes().to_vec())),
+                            // the device name and versions as the file gives them: an
+                            // empty default stays empty (python canopen reads "")
+                            (0x1008..=0x100A, 0) if e.dtype.variable() => {
+                                Some(DefaultValue::Bytes(Vec::new()))
+                            }
                             (0x1018, 1) => ident(info.vendor_number),
                             (0x1018, 2) => ident(info.product_number),
                             (0x1018, 3) => ident(info.revision_number),
                             _ => None,
                         };
+                        why = if from_info.is_some() && (0x1008..=0x100A).contains(&obj.index) {
+                            "no DefaultValue in the file: empty, as the file says".into()
+                        } else {
+                            "no DefaultValue in the file: the drive's standard value".into()
+                        };
                         let d = from_info.unwrap_or_else(|| od.slots[slot].entry.default.clone());
                         e = e.with_default(d);
-                        why = "no DefaultValue in the file: the drive's standard value".into();
                     }
                     if (obj.index, s.sub) == (0x6502, 0) {
                         e = supported_modes(e, &mut report);
                     }
+                }
+                if let Some(w) = placeholder(&mut e, obj.index, s.sub, &axis_od) {
+                    why = w;
+                }
+                // a DCF's ParameterValue 0 there is what a master writes (load_configuration,
+                // a concise DCF): the drive then takes 0 as CiA 402 says; say so
+                let zero_pv = s.parameter_value.as_ref().is_some_and(|v| {
+                    v.resolve(s.data_type, Some(1))
+                        .is_ok_and(|b| b.iter().all(|&x| x == 0))
+                });
+                if s.sub == 0 && zero_pv && PLACEHOLDERS.iter().any(|p| p.0 == obj.index) {
+                    report.notes.push(format!(
+                        "0x{:04X} ({}): the DCF's ParameterValue is 0: a master that loads it \
+                         (load_configuration, a concise DCF) sets 0, which the drive takes as \
+                         CiA 402 says, not as a placeholder",
+                        obj.index, s.name
+                    ));
                 }
                 let fate = if std_slot.is_some() {
                     Fate::Simulated
@@ -387,12 +417,72 @@ impl ObjectDictionary {
             lss_supported: file.device_info.lss_supported.unwrap_or(false),
             dummy_usage: file.dummy_usage,
             shipped_read_only_rpdo_entries: Vec::new(),
+            shipped_short_entries: Vec::new(),
         };
+        od.device.shipped_short_entries = shipped_short_entries(file, &od, &mut report);
         od.device.shipped_read_only_rpdo_entries = shipped_read_only_rpdo_entries(&od, &mut report);
         report.lines.sort_by_key(|l| (l.index, l.sub));
         check_default_mappings(&od, &mut report);
         Ok((od, report))
     }
+}
+
+/// The limits and windows whose default 0 is a placeholder: the value a real drive never runs
+/// with (its vendor's tool sets it up), which would stop every move or fault at the first
+/// one. (index, what 0 would do, the standard object whose value the simulated axis has.)
+pub const PLACEHOLDERS: [(u16, &str, u16); 7] = [
+    (
+        0x607F,
+        "would clamp every profile move to zero speed",
+        0x607F,
+    ),
+    (0x6080, "would allow the motor no speed", 0x6080),
+    (0x6072, "would allow the motor no torque", 0x6072),
+    (0x6073, "would allow the motor no current", 0x6072),
+    (0x60C5, "would allow no acceleration", 0x6083),
+    (0x60C6, "would allow no deceleration", 0x6084),
+    (
+        0x6065,
+        "would fault the drive at the first motion (vendors document 0 as 'off')",
+        0x6065,
+    ),
+];
+
+/// A placeholder default (see [`PLACEHOLDERS`]) replaced by the simulated axis's value, and
+/// why; a window of 0xFFFFFFFF (CiA 402: the function off) said so. `axis`: the standard
+/// dictionary of the simulated axis.
+fn placeholder(e: &mut Entry, index: u16, sub: u8, axis: &ObjectDictionary) -> Option<String> {
+    if sub != 0 || !e.dtype.integer() {
+        return None;
+    }
+    let value = match e.default {
+        DefaultValue::Value(v) => v,
+        _ => return None,
+    };
+    let windows = [0x6065u16, 0x6067, 0x606D];
+    if windows.contains(&index) && e.dtype == DataType::U32 && value == u64::from(u32::MAX) {
+        return Some("0xFFFFFFFF: the window is off (CiA 402), as the file says".into());
+    }
+    let &(_, what, from) = PLACEHOLDERS.iter().find(|p| p.0 == index)?;
+    if value != 0 {
+        return None;
+    }
+    let slot = standard::slot_of(from, 0)?;
+    let axis = axis.slots[slot].entry.default_raw(1);
+    // the axis's value, within the file's type and limits
+    let max = e.dtype.range().map_or(0, |(_, hi)| hi.max(0) as u64);
+    let mut v = axis.min(max);
+    if let Some(hi) = e.high {
+        v = v.min(hi);
+    }
+    if v == 0 {
+        return None;
+    }
+    e.default = DefaultValue::Value(v);
+    Some(format!(
+        "the file's default 0 is a placeholder (it {what}): {v}, the simulated axis's value \
+         (0x{from:04X}), is served instead"
+    ))
 }
 
 /// 0x1000's default must say device profile 402.
@@ -504,6 +594,65 @@ fn check_default_mappings(od: &ObjectDictionary, report: &mut BuildReport) {
             }
         }
     }
+}
+
+/// The mapping entries of the file's default PDO maps that map fewer whole bytes of an object
+/// than it has (a DCF mapping 32 bits of a 64-bit object): the device takes its own file's
+/// mapping, so the drive takes it too, carrying the value's low bytes.
+fn shipped_short_entries(
+    file: &EdsFile,
+    od: &ObjectDictionary,
+    report: &mut BuildReport,
+) -> Vec<u32> {
+    let mut v: Vec<u32> = Vec::new();
+    for obj in &file.objects {
+        let (dir, n) = match obj.index {
+            0x1600..=0x17FF => ("RPDO", obj.index - 0x1600),
+            0x1A00..=0x1BFF => ("TPDO", obj.index - 0x1A00),
+            _ => continue,
+        };
+        for s in obj.subs.iter().filter(|s| s.sub >= 1) {
+            // the default, and a DCF's ParameterValue (what load_configuration writes)
+            for expr in [&s.default, &s.parameter_value].into_iter().flatten() {
+                let Ok(b) = expr.resolve(DataType::U32, Some(1)) else {
+                    continue;
+                };
+                let value = decode(DataType::U32, &b) as u32;
+                let bits = (value & 0xFF) as usize;
+                let Some((_, target)) = od.get((value >> 16) as u16, (value >> 8) as u8) else {
+                    continue;
+                };
+                let size_bits = target.dtype.size() * 8;
+                if !(target.pdo
+                    && bits.is_multiple_of(8)
+                    && bits > 0
+                    && bits < size_bits
+                    && size_bits <= 64)
+                    || v.contains(&value)
+                {
+                    continue;
+                }
+                v.push(value);
+                report.notes.push(format!(
+                    "{dir}{} (0x{:04X}): the file's mapping entry 0x{value:08X} maps {bits} of the \
+                     {size_bits} bits of 0x{:04X}:{} ({}): taken as the device takes it, the \
+                     value's low {} bytes{}",
+                    n + 1,
+                    obj.index,
+                    target.index,
+                    target.sub,
+                    target.dtype.name(),
+                    bits / 8,
+                    if dir == "RPDO" {
+                        " (a received value zero-extended)"
+                    } else {
+                        ""
+                    }
+                ));
+            }
+        }
+    }
+    v
 }
 
 /// The RPDO mapping entries of the file's defaults that map a read-only object: CiA 301 wants

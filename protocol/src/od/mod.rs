@@ -356,6 +356,10 @@ pub struct DeviceDescription {
     /// mapping CiA 301 would refuse, e.g. a scanned SCHUNK file): accepted as the device
     /// accepts them, a received value for such an object ignored.
     pub shipped_read_only_rpdo_entries: Vec<u32>,
+    /// Mapping entries of the device's default PDO maps (RPDO or TPDO) that map fewer whole
+    /// bytes of an object than it has (32 bits of a 64-bit object): taken as the device takes
+    /// them, the low bytes of the value (a received value zero-extended).
+    pub shipped_short_entries: Vec<u32>,
 }
 
 impl Default for DeviceDescription {
@@ -369,6 +373,7 @@ impl Default for DeviceDescription {
             lss_supported: true,
             dummy_usage: [false; 8],
             shipped_read_only_rpdo_entries: Vec::new(),
+            shipped_short_entries: Vec::new(),
         }
     }
 }

@@ -16,6 +16,9 @@ pub struct Mapped {
     /// An RPDO writes the received value (false: a read-only object the device ships in a
     /// default mapping; its bytes are skipped).
     pub write: bool,
+    /// Bytes in the PDO: the type's size, or fewer for an entry the device ships mapping
+    /// the low bytes of a longer object (`DeviceDescription::shipped_short_entries`).
+    pub len: u8,
 }
 
 impl Default for Mapped {
@@ -24,14 +27,15 @@ impl Default for Mapped {
             slot: None,
             dtype: DataType::U8,
             write: true,
+            len: 1,
         }
     }
 }
 
 impl Mapped {
-    /// Size in bytes.
+    /// Size in the PDO, bytes.
     pub fn bytes(&self) -> usize {
-        self.dtype.size()
+        self.len as usize
     }
 }
 
@@ -52,6 +56,7 @@ pub fn check_entry(od: &ObjectDictionary, entry: u32, tx: bool) -> Result<Mapped
             slot: None,
             dtype,
             write: false,
+            len: dtype.size() as u8,
         });
     }
     let Lookup::Found(slot) = od.find(index, sub) else {
@@ -66,12 +71,17 @@ pub fn check_entry(od: &ObjectDictionary, entry: u32, tx: bool) -> Result<Mapped
         e.access.writable() || shipped
     };
     let size = e.dtype.size();
+    // the device's own default map may take the low bytes of a longer object
+    let short = bits.is_multiple_of(8)
+        && bits > 0
+        && bits < size * 8
+        && od.device.shipped_short_entries.contains(&entry);
     if !e.pdo
         || !access_ok
         || e.backing != Backing::Stored
         || size == 0
         || size > 8
-        || bits != size * 8
+        || (bits != size * 8 && !short)
     {
         return Err(abort::NOT_MAPPABLE);
     }
@@ -79,6 +89,7 @@ pub fn check_entry(od: &ObjectDictionary, entry: u32, tx: bool) -> Result<Mapped
         slot: Some(slot.get() as u32),
         dtype: e.dtype,
         write: tx || e.access.writable(),
+        len: (bits / 8) as u8,
     })
 }
 
@@ -144,7 +155,10 @@ pub fn unpack(
             return false;
         };
         if let (Some(s), true) = (m.slot, m.write) {
-            let raw = od::decode(m.dtype, bytes);
+            // a short entry: the low bytes, zero-extended to the type's size
+            let mut full = [0u8; 8];
+            full[..n].copy_from_slice(bytes);
+            let raw = od::decode(m.dtype, &full[..m.dtype.size().max(n)]);
             if accept(store, s as usize, raw) {
                 store.set(s as usize, raw);
             } else {

@@ -1,0 +1,115 @@
+//! A vendor's file on the command line (issue 33): what the parser read past is said with the
+//! file, line, section and key; placeholders say which and why; a file without LSS and
+//! `--node 255` says the file is the reason and names `--force-lss`, which gets past it.
+//! (Refused or stopped before any bus is opened: the interface does not exist.)
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn eds_dir(sub: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/eds")
+        .join(sub)
+}
+
+fn drive_emu(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_drive-emu"))
+        .args(args)
+        .output()
+        .expect("run drive-emu")
+}
+
+#[test]
+fn eds_from_names_file_line_section_and_key_of_what_it_read_past() {
+    let path = eds_dir("lenient").join("objflags-word.eds");
+    let p = path.to_str().unwrap();
+    let out = drive_emu(&["eds", "--from", p]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let want = format!("warning: {p}: line 14, [1000] ObjFlags: 'NV' is not a 32-bit number");
+    assert!(stderr.contains(&want), "`{want}` missing in:\n{stderr}");
+}
+
+#[test]
+fn eds_from_says_which_placeholders_were_taken_from_the_axis_and_why() {
+    let path = eds_dir("minimal").join("placeholders.eds");
+    let out = drive_emu(&["eds", "--from", path.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    for (index, what) in [
+        ("0x607F", "would clamp every profile move to zero speed"),
+        ("0x6065", "would fault the drive at the first motion"),
+        ("0x6072", "would allow the motor no torque"),
+        ("0x60C5", "would allow no acceleration"),
+    ] {
+        let line = stderr
+            .lines()
+            .find(|l| l.trim_start().starts_with(index))
+            .unwrap_or_else(|| panic!("no line for {index} in:\n{stderr}"));
+        assert!(
+            line.contains("the file's default 0 is a placeholder") && line.contains(what),
+            "{line}"
+        );
+    }
+    assert!(
+        stderr.contains("0xFFFFFFFF: the window is off (CiA 402)"),
+        "{stderr}"
+    );
+    // the served EDS carries the axis's values, not the placeholders
+    let eds = String::from_utf8_lossy(&out.stdout);
+    let at = eds.find("[607F]").expect("607F exported");
+    let section = &eds[at..eds[at + 1..].find("\n[").map_or(eds.len(), |e| at + 1 + e)];
+    assert!(!section.contains("DefaultValue=0\n"), "{section}");
+}
+
+#[test]
+fn node_255_with_a_file_without_lss_names_the_file_and_the_flag() {
+    let path = eds_dir("minimal").join("placeholders.eds");
+    let p = path.to_str().unwrap();
+    let args = [
+        "run",
+        "--iface",
+        "nonexistent0",
+        "--eds",
+        p,
+        "--node",
+        "255",
+    ];
+    let out = drive_emu(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    for n in [p, "LSS_Supported=0", "--force-lss", "1..=127"] {
+        assert!(stderr.contains(n), "`{n}` missing in:\n{stderr}");
+    }
+    // with the flag the drive is built; only the missing interface stops it
+    let mut forced = args.to_vec();
+    forced.push("--force-lss");
+    let out = drive_emu(&forced);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(!stderr.contains("LSS_Supported"), "{stderr}");
+    assert!(stderr.contains("nonexistent0"), "{stderr}");
+}
+
+#[test]
+fn eds_from_says_what_one_user_unit_is() {
+    let path = eds_dir("minimal").join("factor-2000.eds");
+    let out = drive_emu(&["eds", "--from", path.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let note = stderr
+        .lines()
+        .find(|l| l.contains("note: 1 uu = "))
+        .unwrap_or_else(|| panic!("no user-unit note in:\n{stderr}"));
+    assert!(
+        note.contains("1 uu = 1 increments of the motor encoder = ")
+            && note.contains(" mm of the simulated axis"),
+        "{note}"
+    );
+    assert!(
+        note.contains(
+            "0x60A9 SI unit velocity = 0x00B44700 is served as the file says, not applied"
+        ),
+        "{note}"
+    );
+}

@@ -1,0 +1,125 @@
+//! python canopen 2.4.1 (over python-can's socketcand interface, no kernel CAN) against
+//! `drive-emu run --eds FILE` for the minimal files of issue 33 (tests/eds/minimal) and the
+//! real vendor files (tests/eds/vendors): every
+//! readable object uploads with its type's size, the identity is the file's,
+//! `load_configuration()` of the DCF whose default maps take 32 of 64 bits passes, the
+//! PDO maps read back as the file says, and BaseNode402 reaches a profile-position target
+//! (bit 10, within the position window) in the file's own units wherever 0x6502 offers PP
+//! (the placeholder file's 0x607F = 0 and 0x6065 = 0 included). One drive-emu process per file, one python process
+//! for all (tests/python/vendor_file_check.py). Needs python3 with python-can 4.6.1 and
+//! canopen 2.4.1 (tests/requirements.txt; `DRIVE_EMU_PYTHON` names another interpreter).
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+
+const BIN: &str = env!("CARGO_BIN_EXE_drive-emu");
+
+/// A running `drive-emu run --socketcand 127.0.0.1:0 --eds FILE`, killed when dropped.
+struct Drive {
+    child: Child,
+    port: u16,
+}
+
+impl Drive {
+    fn start(eds: &str) -> Drive {
+        let mut child = Command::new(BIN)
+            .args(["run", "--socketcand", "127.0.0.1:0", "--ready", "--json"])
+            .args([
+                "--rt-priority",
+                "0",
+                "--no-mlock",
+                "--node",
+                "5",
+                "--eds",
+                eds,
+            ])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start drive-emu");
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        stdout.read_line(&mut line).expect("read the ready line");
+        let ready: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|_| {
+            let mut err = String::new();
+            let _ = child.stderr.take().unwrap().read_to_string(&mut err);
+            panic!("{eds}: no ready line: {line:?}; stderr:\n{err}")
+        });
+        let port = ready["socketcand"]["port"].as_u64().expect("the port") as u16;
+        Drive { child, port }
+    }
+}
+
+impl Drop for Drive {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn python_canopen_uploads_every_object_and_loads_the_configuration_of_each_file() {
+    let eds = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/eds");
+    let mut paths: Vec<String> = ["short-pdo-map.dcf", "placeholders.eds", "factor-2000.eds"]
+        .iter()
+        .map(|f| eds.join("minimal").join(f).to_string_lossy().into_owned())
+        .collect();
+    let mut vendors: Vec<String> = std::fs::read_dir(eds.join("vendors"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| matches!(p.extension().and_then(|e| e.to_str()), Some("eds" | "dcf")))
+        .map(|p| p.to_string_lossy().into_owned())
+        .collect();
+    vendors.sort();
+    assert!(vendors.len() >= 7, "{vendors:?}");
+    paths.extend(vendors);
+    let drives: Vec<Drive> = paths.iter().map(|p| Drive::start(p)).collect();
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/python/vendor_file_check.py"
+    );
+    let python = std::env::var("DRIVE_EMU_PYTHON").unwrap_or_else(|_| "python3".into());
+    let out = Command::new(&python)
+        .arg(script)
+        .args(["--node", "5"])
+        .args(
+            drives
+                .iter()
+                .zip(&paths)
+                .map(|(d, p)| format!("{}:{p}", d.port)),
+        )
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {python}: {e}"));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "the master failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect();
+    assert_eq!(lines.len(), paths.len(), "{stdout}");
+    for (l, p) in lines.iter().zip(&paths) {
+        assert_eq!(l["file"], p.as_str(), "{l}");
+        assert!(l["uploads"].as_u64().unwrap() >= 10, "{l}");
+        assert_eq!(l["bad_sizes"], serde_json::json!([]), "{l}");
+        assert_eq!(l["identity_ok"], true, "{l}");
+        assert_eq!(l["configured"], true, "{l}");
+        assert_eq!(l["map_mismatches"], serde_json::json!([]), "{l}");
+        assert!(l["pp"] == "reached" || l["pp"] == "not offered", "{l}");
+    }
+    let reached = lines.iter().filter(|l| l["pp"] == "reached").count();
+    assert!(
+        reached >= 8,
+        "PP reached on {reached} files only:\n{stdout}"
+    );
+    for l in &lines[..3] {
+        if !l["file"].as_str().unwrap().ends_with(".dcf") {
+            assert_eq!(l["pp"], "reached", "{l}");
+        }
+    }
+}
