@@ -366,6 +366,7 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
         tick_hz: args.tick_hz,
         axes: vec![AxisEntry {
             node_id: args.node,
+            name: None,
             preset: args.preset.clone(),
             set,
             eds: args.eds.clone(),
@@ -374,6 +375,7 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
             quirks: None,
             behaviour: behaviour.map(Arc::new),
         }],
+        ballbar: None,
     };
     machine::validate(&m)?;
     Ok(m)
@@ -957,6 +959,7 @@ fn live_axes(
                 tick_hz: args.tick_hz,
                 axes: vec![AxisEntry {
                     node_id: args.node,
+                    name: None,
                     preset: cfg.name.clone(),
                     set: Default::default(),
                     eds: args.eds.clone(),
@@ -970,6 +973,7 @@ fn live_axes(
                     )?
                     .map(Arc::new),
                 }],
+                ballbar: None,
             }
         }
         None => machine_from_args(args)?,
