@@ -438,6 +438,15 @@ fn bad_arguments_give_clear_errors() {
             vec!["--feed-mm-min".into(), "40000".into()],
             "above axis X (cnc1)'s maximum speed of 30000 mm/min",
         ),
+        (
+            vec![
+                "--radius-mm".into(),
+                "1".into(),
+                "--feed-mm-min".into(),
+                "5000".into(),
+            ],
+            "deg per position cycle, above 1 deg",
+        ),
         (vec!["--preset".into(), "cnc3".into()], "is a rotary axis"),
         (
             vec!["--preset".into(), "cnc9".into()],

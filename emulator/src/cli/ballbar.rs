@@ -182,7 +182,16 @@ pub fn run(args: &BallbarArgs) -> anyhow::Result<()> {
         ),
         None => None,
     };
-    let run = ballbar::run(&setup, &AtomicBool::new(false))?;
+    let run = match ballbar::run(&setup, &AtomicBool::new(false)) {
+        Ok(r) => r,
+        Err(e) => {
+            // no empty trace left behind by a run that failed
+            if let (Some(p), Some(_)) = (&args.trace, &trace_file) {
+                let _ = std::fs::remove_file(p);
+            }
+            return Err(e);
+        }
+    };
     if let Some(file) = trace_file {
         let mut w = std::io::BufWriter::new(file);
         run.trace.write_csv(&mut w)?;

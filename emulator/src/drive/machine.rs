@@ -309,7 +309,7 @@ mod tests {
             ),
             (
                 "[ballbar]\naxes = [\"X\"]\n[[axis]]\nnode_id = 5\nname = \"X\"\npreset = \"cnc1\"\n",
-                "ballbar",
+                "expected an array of length 2",
             ),
         ] {
             let e = format!("{:#}", parse(text, "m.toml").unwrap_err());

@@ -118,7 +118,10 @@ pub fn polar_plot(
             let (tx, ty) = ((q + 0.02) * a.cos(), (q + 0.02) * a.sin());
             c.draw_series(std::iter::once(Text::new(
                 name,
-                (tx - if k == 2 { 0.18 } else { 0.0 }, ty + 0.04),
+                (
+                    tx - if k % 2 == 0 { 0.2 } else { 0.0 },
+                    ty + if k % 2 == 0 { 0.09 } else { 0.04 },
+                ),
                 ("sans-serif", 15),
             )))?;
         }

@@ -23,6 +23,9 @@ pub const DEFAULT_RADIUS_MM: f64 = 100.0;
 pub const DEFAULT_FEED_MM_PER_MIN: f64 = 1000.0;
 /// Longest radius accepted, mm (a QC20 with all its extensions reaches 1350 mm).
 pub const MAX_RADIUS_MM: f64 = 2000.0;
+/// Largest angle the circle may advance per position cycle, deg: the reversal windows
+/// (+-10 deg) need samples.
+pub const MAX_STEP_DEG: f64 = 1.0;
 /// Longest test accepted, simulated s (both passes with dwells): the trace is kept in memory.
 pub const MAX_DURATION_S: f64 = 1800.0;
 
@@ -187,6 +190,14 @@ pub fn validate(setup: &BallbarSetup) -> anyhow::Result<CircleTest> {
         }
     }
     let test = CircleTest::new((0.0, 0.0), r * 1e-3, f / 60.0 * 1e-3);
+    let cycle = cycle.unwrap_or(1e-3);
+    let step_deg = (f / 60.0 * cycle / r).to_degrees();
+    anyhow::ensure!(
+        step_deg <= MAX_STEP_DEG,
+        "--radius-mm {r} at --feed-mm-min {f}: the circle advances {step_deg:.2} deg per \
+         position cycle, above {MAX_STEP_DEG} deg: too few samples around each reversal; raise \
+         the radius or lower the feed"
+    );
     let d = test.duration_s();
     anyhow::ensure!(
         d <= MAX_DURATION_S,
