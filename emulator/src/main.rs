@@ -20,6 +20,9 @@ enum Command {
     Run(Box<cli::run::RunArgs>),
     /// Run a preset axis offline at constant velocity and analyse its vibration.
     Sim(cli::sim::SimArgs),
+    /// The virtual ballbar (ISO 230-4): a circle both ways on two linear axes, with the
+    /// master's backlash compensation; circular deviation, reversal spikes, backlash estimate.
+    Ballbar(cli::ballbar::BallbarArgs),
     /// Sweep k_v x backlash x preset on all cores; one CSV/JSON row per case.
     Sweep(cli::sweep::SweepArgs),
     /// The paper's Fig. 3, 10 and 11 from simulated runs (PNG + JSON).
@@ -44,6 +47,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => ok(cli::demo::run(&args)),
         Command::Run(args) => ok(cli::run::run(&args)),
         Command::Sim(args) => ok(cli::sim::run(&args)),
+        Command::Ballbar(args) => ok(cli::ballbar::run(&args)),
         Command::Sweep(args) => ok(cli::sweep::run(&args)),
         Command::Figures(args) => ok(cli::figures::run(&args)),
         Command::Scenario(args) => cli::scenario::run(&args),

@@ -1,6 +1,7 @@
 //! Signal analysis: spectra (fundamental frequency and amplitude) and the constant-velocity
 //! experiment of the paper (run an axis at constant speed, find its vibration).
 
+pub mod ballbar;
 pub mod capture;
 pub mod detector;
 pub mod experiment;

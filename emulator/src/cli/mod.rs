@@ -1,6 +1,7 @@
 //! Command-line subcommands.
 
 pub mod analyze;
+pub mod ballbar;
 pub mod demo;
 pub mod demo_panel;
 pub mod eds;

@@ -373,6 +373,7 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
         tick_hz: args.tick_hz,
         axes: vec![AxisEntry {
             node_id: args.node,
+            name: None,
             preset: args.preset.clone(),
             set,
             eds: args.eds.clone(),
@@ -381,6 +382,7 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
             quirks: None,
             behaviour: behaviour.map(Arc::new),
         }],
+        ballbar: None,
     };
     machine::validate(&m)?;
     Ok(m)
@@ -964,6 +966,7 @@ fn live_axes(
                 tick_hz: args.tick_hz,
                 axes: vec![AxisEntry {
                     node_id: args.node,
+                    name: None,
                     preset: cfg.name.clone(),
                     set: Default::default(),
                     eds: args.eds.clone(),
@@ -977,6 +980,7 @@ fn live_axes(
                     )?
                     .map(Arc::new),
                 }],
+                ballbar: None,
             }
         }
         None => machine_from_args(args)?,

@@ -14,6 +14,9 @@
 //! profile = "maxon-epos4"   # optional: vendor behaviour (profiles/, or a .toml beside this file)
 //! quirks = { sdo_response_delay = { delay_ms = 30 } }   # optional: switches on top
 //! ```
+//!
+//! An axis may carry a `name = "X"` (unique in the file), and `[ballbar] axes = ["X", "Y"]`
+//! names the two linear axes `drive-emu ballbar --config` runs its circle on (docs/ballbar.md).
 
 use super::profile::{Behaviour, Overlay};
 use anyhow::{bail, Context, Result};
@@ -32,12 +35,25 @@ pub struct MachineFile {
     pub tick_hz: u32,
     #[serde(rename = "axis")]
     pub axes: Vec<AxisEntry>,
+    /// The plane of `drive-emu ballbar --config`: which two named axes are its X and Y.
+    #[serde(default)]
+    pub ballbar: Option<BallbarPlane>,
+}
+
+/// `[ballbar] axes = ["X", "Y"]`: the circle's X and Y by the axes' `name`.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BallbarPlane {
+    pub axes: [String; 2],
 }
 
 #[derive(Debug, Clone, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct AxisEntry {
     pub node_id: u8,
+    /// The axis's name in the machine's kinematic (X, Y, Z, ...), unique in the file.
+    #[serde(default)]
+    pub name: Option<String>,
     pub preset: String,
     /// Preset overrides, `key = value` with the preset file's keys (units in the names).
     #[serde(default)]
@@ -99,6 +115,45 @@ pub fn validate(m: &MachineFile) -> Result<()> {
         }
         if !seen.insert(a.node_id) {
             bail!("axis {} key `node_id`: {} is used twice", i + 1, a.node_id);
+        }
+    }
+    let mut names = std::collections::BTreeSet::new();
+    for (i, a) in m.axes.iter().enumerate() {
+        if let Some(n) = &a.name {
+            if n.trim().is_empty() || n.chars().any(char::is_control) {
+                bail!(
+                    "axis {} key `name`: must be a non-empty printable name",
+                    i + 1
+                );
+            }
+            if !names.insert(n.as_str()) {
+                bail!("axis {} key `name`: {n:?} is used twice", i + 1);
+            }
+        }
+    }
+    if let Some(b) = &m.ballbar {
+        for n in &b.axes {
+            if !names.contains(n.as_str()) {
+                bail!(
+                    "key `ballbar.axes`: no axis is named {n:?} (give the axes `name = \"X\"`; \
+                     named here: {})",
+                    if names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names
+                            .iter()
+                            .map(|n| format!("{n:?}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    }
+                );
+            }
+        }
+        if b.axes[0] == b.axes[1] {
+            bail!(
+                "key `ballbar.axes`: X and Y are the same axis {:?}",
+                b.axes[0]
+            );
         }
     }
     Ok(())
@@ -226,6 +281,40 @@ mod tests {
             parse("[[axis]]\nnode_id = 0\npreset = \"a\"\n", "m.toml").unwrap_err()
         );
         assert!(e.contains("node_id") && e.contains("1..=127"), "{e}");
+    }
+
+    /// Axis names and the ballbar's plane: unique names, the plane's axes must exist.
+    #[test]
+    fn names_and_the_ballbar_plane() {
+        let m = parse(
+            "[ballbar]\naxes = [\"X\", \"Y\"]\n[[axis]]\nnode_id = 5\nname = \"X\"\npreset = \"cnc1\"\n\
+             [[axis]]\nnode_id = 6\nname = \"Y\"\npreset = \"cnc2\"\n",
+            "m.toml",
+        )
+        .unwrap();
+        assert_eq!(m.axes[1].name.as_deref(), Some("Y"));
+        assert_eq!(m.ballbar.unwrap().axes, ["X".to_string(), "Y".to_string()]);
+        for (text, want) in [
+            (
+                "[ballbar]\naxes = [\"X\", \"Z\"]\n[[axis]]\nnode_id = 5\nname = \"X\"\npreset = \"cnc1\"\n",
+                "no axis is named \"Z\"",
+            ),
+            (
+                "[[axis]]\nnode_id = 5\nname = \"X\"\npreset = \"cnc1\"\n[[axis]]\nnode_id = 6\nname = \"X\"\npreset = \"cnc1\"\n",
+                "used twice",
+            ),
+            (
+                "[ballbar]\naxes = [\"X\", \"X\"]\n[[axis]]\nnode_id = 5\nname = \"X\"\npreset = \"cnc1\"\n",
+                "same axis",
+            ),
+            (
+                "[ballbar]\naxes = [\"X\"]\n[[axis]]\nnode_id = 5\nname = \"X\"\npreset = \"cnc1\"\n",
+                "expected an array of length 2",
+            ),
+        ] {
+            let e = format!("{:#}", parse(text, "m.toml").unwrap_err());
+            assert!(e.contains(want), "{e}");
+        }
     }
 
     /// `profile` and `quirks` per axis: resolved when the file is read; a bad switch is an

@@ -11,6 +11,8 @@
 //! Positions are in the drive's user units (uu; by our factor-group default 1 um on a linear
 //! axis, 0.001 deg on a rotary one), velocities in uu/s.
 
+pub mod compensation;
+pub mod contour;
 pub mod on_bus;
 pub mod outer_loop;
 pub mod sdo_client;

@@ -3,6 +3,8 @@
 //! `assets/DejaVuSans-LICENSE.txt`) registered with plotters' ab_glyph backend, so drawing needs
 //! no system font library (no fontconfig, no freetype).
 
+pub mod ballbar;
+
 /// What one user unit ("uu") is on the bus: positions, speeds and accelerations of the CiA 402
 /// objects (0x607A, 0x6064, 0x606C, 0x60E4, ...) are in user units, set by the factor group
 /// 0x608F/0x6091/0x6092; by default 1 uu = 1 µm on linear axes and 0.001 deg on rotary ones.
