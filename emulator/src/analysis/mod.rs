@@ -4,6 +4,7 @@
 pub mod capture;
 pub mod detector;
 pub mod experiment;
+pub mod gap;
 pub mod spectrum;
 pub mod windows;
 
