@@ -1511,6 +1511,70 @@ mod tests {
         assert!(r.forced_windows.is_empty());
     }
 
+    /// A capture of a drive in real time whose master's SYNCs jitter (intervals 1..7 ms, one
+    /// in five 20 ms) and stall for 150 ms every second, each set-point taken from the
+    /// master's clock up to 3 ms before its SYNC's time stamp; the motor speed with a limit
+    /// cycle of `x` um at 18 Hz, on the stamps.
+    fn stalled(x: f64) -> AxisTrace {
+        let w = 2.0 * std::f64::consts::PI * 18.0;
+        let mut tr = AxisTrace::default();
+        let (mut now, mut next_stall, mut k) = (0.0, 1.0, 0usize);
+        while now < 6.0 {
+            let u = 0.5 * (uniform(k) + 1.0);
+            now += if u < 0.8 {
+                0.001 + 0.006 * 0.5 * (uniform(k + 7_000_000) + 1.0)
+            } else {
+                0.02
+            };
+            if now >= next_stall {
+                now += 0.15;
+                next_stall += 1.0;
+            }
+            let sent = now - 0.003 * 0.5 * (uniform(k + 1_000_000) + 1.0);
+            let p = cruise_um(sent).round();
+            let v = if now < 0.2 {
+                50_000.0 * now
+            } else {
+                10_000.0 + x * w * (w * now).cos()
+            };
+            tr.t_s.push(now);
+            tr.set_position.push(p);
+            tr.motor_velocity.push(v);
+            tr.current.push(0.0);
+            tr.motor_position.push(p);
+            tr.direct_position.push(p);
+            k += 1;
+        }
+        tr.position_unit = "um".into();
+        tr.set_velocity = super::super::windows::set_velocity_from_demand(
+            &tr.t_s,
+            &tr.set_position,
+            super::super::windows::DEMAND_SPAN_S,
+        );
+        tr
+    }
+
+    #[test]
+    fn stalled_jittery_syncs_get_a_verdict_on_the_capture_s_own_time_stamps() {
+        let cfg = DetectorConfig::new(30.0);
+        let r = analyze(&stalled(8.0), &cfg);
+        assert_eq!(r.verdict, Verdict::Backlash, "{:#?}", r.reasons);
+        assert!(
+            (r.frequency_hz.unwrap() - 18.0).abs() < 0.5,
+            "{:?}",
+            r.frequency_hz
+        );
+        assert!(r.window_source.contains("bridged"), "{}", r.window_source);
+        let r = analyze(&stalled(0.0), &cfg);
+        assert_eq!(r.verdict, Verdict::Ok, "{:#?}", r.reasons);
+        // Without the bridges (stalls end windows) nothing would be measured.
+        let tr = stalled(8.0);
+        let wo = window_options(&cfg);
+        assert!(scan_windows(&tr.t_s, &tr.set_velocity, &wo)
+            .windows
+            .is_empty());
+    }
+
     #[test]
     fn an_axis_that_does_not_follow_its_set_speed_is_inconclusive_not_ok() {
         // A drive in fault while the master keeps streaming: the motor stands still.
