@@ -8,7 +8,11 @@
 //! from the kernel's broadcast manager are read on their own time stamps, those of a
 //! lock-step drive on the SYNC count; where the master closes the position loop itself
 //! (truth: numpy's fit of its set-point on the direct encoder) the detector reports its k
-//! within 5 % of the master's configured gain.
+//! within 5 % of the master's configured gain. Issue 31: real-time captures whose python
+//! SYNCs jitter and stall in a busy guest get their verdict (constant speed on the capture's
+//! own time stamps), and the gap estimate (`backlash_estimate_mm`) is null wherever the truth
+//! has no limit cycle, within 30 % of the truth on the worn captures of a real-time drive, and
+//! given on the lock-step ones (whose limit cycle is about twice as large: docs/scenarios.md).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -91,6 +95,9 @@ fn analyze(capture: &Path, out: &Path, extra: &[&str]) -> (serde_json::Value, i3
     (json, code)
 }
 
+/// A worn capture's gap (truth, mm), the estimate and its range.
+type GapSeen = (f64, Option<f64>, Option<(f64, f64)>);
+
 #[test]
 fn every_corpus_verdict_is_right() {
     let cases = cases();
@@ -122,6 +129,7 @@ fn every_corpus_verdict_is_right() {
     let mut failures = Vec::new();
     let mut table = String::new();
     let mut traces = 0;
+    let mut gaps: Vec<GapSeen> = Vec::new();
     for c in &cases {
         let (j, code) = analyze(&c.capture, &tmp.join(&c.name), &[]);
         let rep = &j["report"];
@@ -199,6 +207,49 @@ fn every_corpus_verdict_is_right() {
                 failures.push(format!("{}: {f:.2} Hz, truth {ft:.2} Hz (> 5 %)", c.name));
             }
         }
+        // Issue 31: the gap in mm where the truth has a limit cycle; null everywhere else.
+        let est = rep["backlash_estimate_mm"].as_f64();
+        let range = rep["backlash_estimate_range_mm"]
+            .as_array()
+            .map(|r| (r[0].as_f64().unwrap(), r[1].as_f64().unwrap()));
+        if !rep
+            .as_object()
+            .unwrap()
+            .contains_key("backlash_estimate_mm")
+        {
+            failures.push(format!("{}: no backlash_estimate_mm in the report", c.name));
+        }
+        if want == "backlash" {
+            let gap = c.truth["case"]["gap"].as_f64().unwrap();
+            table += &format!(
+                "{:24}   gap {gap:.3} mm: estimate {} range {} ({})\n",
+                "",
+                est.map_or("-".into(), |e| format!("{e:.4}")),
+                range.map_or("-".into(), |(a, b)| format!("{a:.4}..{b:.4}")),
+                rep["backlash_estimate_method"]
+            );
+            if c.truth["case"]["master_kv"].is_number() {
+                // The master's own loop: its limit cycle, not the drive's cascade the
+                // estimate is calibrated on: it says nothing.
+                if est.is_some() {
+                    failures.push(format!("{}: a gap estimate in the master's loop", c.name));
+                }
+            } else if lockstep {
+                // A lock-step drive's limit cycle is about twice the real-time drive's and
+                // the simulator's (the truth's own displacement: 9-15 um at 0.05 mm against
+                // 5-7 um): its estimate comes out high (docs/scenarios.md); it is given.
+                if est.is_none() {
+                    failures.push(format!("{}: no gap estimate on a worn axis", c.name));
+                }
+            } else {
+                gaps.push((gap, est, range));
+            }
+        } else if est.is_some() || range.is_some() {
+            failures.push(format!(
+                "{}: a gap estimate ({est:?}) where the truth has no limit cycle",
+                c.name
+            ));
+        }
         // Every verdict says why.
         if rep["reasons"].as_array().is_none_or(|r| r.is_empty()) {
             failures.push(format!("{}: no reasons", c.name));
@@ -247,6 +298,29 @@ fn every_corpus_verdict_is_right() {
         }
     }
     assert!(traces >= 2, "{traces} drive traces in the corpus");
+    // The gap estimate on the worn captures of a drive in real time: within 30 % of the
+    // truth on 80 % or more, the truth inside the range on 90 % or more.
+    let n = gaps.len().max(1) as f64;
+    let within = gaps
+        .iter()
+        .filter(|(g, e, _)| e.is_some_and(|e| (e - g).abs() <= 0.3 * g))
+        .count() as f64
+        / n;
+    let inside = gaps
+        .iter()
+        .filter(|(g, _, r)| r.is_some_and(|(a, b)| a <= *g && *g <= b))
+        .count() as f64
+        / n;
+    table += &format!(
+        "gap estimate on {} worn real-time captures: within 30 % {:.0} %, truth inside the range {:.0} %\n",
+        gaps.len(),
+        100.0 * within,
+        100.0 * inside
+    );
+    assert!(gaps.len() >= 2, "{table}");
+    if within < 0.8 || inside < 0.9 {
+        failures.push("the gap estimate misses on the corpus (see the table)".into());
+    }
     let _ = std::fs::remove_dir_all(&tmp);
     eprintln!("{table}");
     assert!(failures.is_empty(), "{table}\n{}", failures.join("\n"));

@@ -50,6 +50,10 @@ fn run(
         vec![AxisFacts {
             rotary: false,
             kv_per_s: cfg.kv_per_s,
+            gap: drive_emu::analysis::gap::GapModel::for_axis(
+                &cfg,
+                drive_emu::analysis::gap::CurrentUnit::Permille,
+            ),
         }],
         DetectOptions {
             history_s: 60.0,
@@ -137,6 +141,16 @@ fn a_worn_drive_says_backlash_in_its_objects_and_an_emcy_and_agrees_with_analyze
     assert_eq!(live.verdict, offline.verdict);
     assert_eq!(live.frequency_hz, offline.frequency_hz);
     assert_eq!(live.amplitude, offline.amplitude);
+    // Issue 31: the gap in mm from the limit cycle, within 30 %.
+    let gap = live.backlash_estimate.value().expect("a gap estimate");
+    let [lo, hi] = live.backlash_estimate.range().unwrap();
+    assert!((gap - 0.05).abs() <= 0.3 * 0.05, "gap {gap} mm");
+    assert!(lo <= 0.05 && 0.05 <= hi, "range {lo}..{hi} mm");
+    let json = serde_json::to_value(live).unwrap();
+    assert_eq!(json["backlash_estimate_mm"].as_f64(), Some(gap));
+    // 0x6064 follows the direct encoder (cnc1 closes its loop on it): one encoder in the
+    // samples, the estimate from the amplitude.
+    assert_eq!(json["backlash_estimate_method"], "amplitude");
 }
 
 #[test]
@@ -157,5 +171,10 @@ fn a_healthy_drive_stays_ok_without_an_emcy() {
     assert!(!run.runtime.axes[0].node.error_active(EMCY_BACKLASH));
     assert!(run.master.emcys().iter().all(|e| e.code != EMCY_BACKLASH));
     let live = detector.finish().unwrap();
-    assert_eq!(live[0].as_ref().unwrap().verdict, Verdict::Ok);
+    let live = live[0].as_ref().unwrap();
+    assert_eq!(live.verdict, Verdict::Ok);
+    // No gap on a healthy axis: null in the JSON.
+    assert_eq!(live.backlash_estimate.value(), None);
+    let json = serde_json::to_value(live).unwrap();
+    assert!(json["backlash_estimate_mm"].is_null() && json["backlash_estimate_range_mm"].is_null());
 }

@@ -109,6 +109,19 @@ CASES = {
                                    remap=True, setpoints="answer", master_kv=30.0),
     "csvloop-4ms-lock-healthy": dict(gap=0.0, lockstep=True, sync_ms=4, mode="csvloop",
                                     remap=True, setpoints="answer", master_kv=30.0),
+    # Issue 31 item 5: a drive in real time (SCHED_FIFO 80, its own clock) and the master's
+    # own python SYNC thread in a busy guest (a CPU-bound process beside it, `busy`): the
+    # SYNCs jitter by milliseconds, so the set-points, taken from the master's clock, are
+    # never the same increment per SYNC twice; the set-point against the SYNC's time stamp
+    # is still a line.
+    "csp-4ms-rt-healthy-busy": dict(gap=0.0, lockstep=False, sync_ms=4, mode="csp",
+                                   remap=True, drive_rt=True, busy=True),
+    "csp-4ms-rt-worn05-busy": dict(gap=0.05, lockstep=False, sync_ms=4, mode="csp",
+                                  remap=True, drive_rt=True, busy=True),
+    "pp-4ms-rt-worn05-busy": dict(gap=0.05, lockstep=False, sync_ms=4, mode="pp",
+                                 remap=True, drive_rt=True, busy=True),
+    "pp-4ms-rt-healthy-busy": dict(gap=0.0, lockstep=False, sync_ms=4, mode="pp",
+                                  remap=True, drive_rt=True, busy=True),
 }
 SPEED_UU_S = 10_000.0  # 10 mm/s
 ACCEL_UU_S2 = 50_000.0
@@ -341,7 +354,11 @@ def run_case(name, case):
                             stdout=open(out_log, "w"))
     time.sleep(0.3)
     m = Master(case)
-    rt = "80" if case.get("sync") == "bcm" and not case["lockstep"] else "0"
+    rt = "80" if (case.get("sync") == "bcm" or case.get("drive_rt")) \
+        and not case["lockstep"] else "0"
+    # a busy guest: a CPU-bound process beside the master (the drive, SCHED_FIFO, preempts it)
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"]) \
+        if case.get("busy") else None
     emu_cmd = [EMU, "run", "--iface", IFACE, "--node", str(NODE), "--preset", "cnc1",
                "--set", f"backlash_mm={case['gap']}", "--rt-priority", rt, "--no-mlock"]
     if case["lockstep"]:
@@ -441,6 +458,9 @@ def run_case(name, case):
         except subprocess.TimeoutExpired:
             emu.kill()
             _, err = emu.communicate()
+        if busy is not None:
+            busy.kill()
+            busy.wait()
         time.sleep(0.3)
         dump.send_signal(signal.SIGINT)
         dump.wait(timeout=10)

@@ -19,10 +19,17 @@
 //!
 //! Alongside: the amplitude trend over time (least squares, per hour), the first time each
 //! level was confirmed, and the difference between motor and direct encoder (mean per window,
-//! fluctuation, and the lost motion between opposite directions when both are present).
+//! fluctuation, and the lost motion between opposite directions when both are present), and
+//! how large the gap is where a window is flagged ([`super::gap`]: from the two encoders, or
+//! from the amplitude, calibrated per preset).
+//!
+//! Windows where the set-points come unevenly (`find_windows`): exactly constant, else
+//! constant on average, else a line of the set-point against the samples' own time stamps;
+//! then the same with stalled SYNCs bridged where the position went on along its line.
 
+use super::gap::{BacklashEstimate, GapModel};
 use super::spectrum::{uniform_interval, WindowSpectra};
-use super::windows::{scan_windows, Window, WindowOptions};
+use super::windows::{Window, WindowOptions};
 use crate::samples::{Sample, SampleSource};
 
 /// A trace as the detector needs it. Positions in one unit `u` (um for a linear axis, mdeg for a
@@ -254,6 +261,8 @@ pub struct DetectorConfig {
     /// Windows in a row at a level before the verdict takes it.
     pub confirm_windows: usize,
     pub windows: WindowOptions,
+    /// The machine's mechanics for the gap estimate ([`super::gap`]); None: no estimate.
+    pub gap: Option<GapModel>,
 }
 
 impl DetectorConfig {
@@ -265,6 +274,7 @@ impl DetectorConfig {
             min_prominence: 8.0,
             confirm_windows: 2,
             windows: WindowOptions::default(),
+            gap: None,
         }
     }
     /// The paper's band, Hz: k_v/4 .. k_v (eq. 11, 12).
@@ -540,6 +550,11 @@ pub struct DetectorReport {
     /// (backlash plus elastic wind-up), position unit; None without both directions or when the
     /// trace has no independent motor position.
     pub lost_motion: Option<f64>,
+    /// How large the gap is ([`super::gap`]): `backlash_estimate_mm` and
+    /// `backlash_estimate_range_mm` [lo, hi] (`_deg` on a rotary axis), null on a healthy
+    /// axis or where it cannot be said, and `backlash_estimate_method`.
+    #[serde(flatten)]
+    pub backlash_estimate: BacklashEstimate,
     pub position_unit: String,
     pub windows: Vec<WindowResult>,
     /// Windows not measured: their line is the set-point's own motion
@@ -862,20 +877,80 @@ fn master_loop(trace: &AxisTrace, windows: &[&Window]) -> Option<MasterLoop> {
     })
 }
 
+/// How the constant-speed windows were found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FoundBy {
+    /// Stretches of exactly constant set speed.
+    Exact,
+    /// The set position's speed constant on average over a span.
+    Average,
+    /// The set position against the time stamps a line.
+    Line,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Found {
+    how: FoundBy,
+    bridged: bool,
+}
+
+/// The windows of a trace: stretches of exactly constant set speed; else, where the
+/// set-points jitter, constant on average ([`super::windows::set_velocity_on_average`]);
+/// else a line of the set position against the samples' times
+/// ([`super::windows::set_velocity_by_line`]). Where none of these gives a window, the same
+/// again with silences bridged where the position advanced as the speed says
+/// ([`super::windows::scan_windows_bridging`]: the set position, or where there is none the
+/// direct encoder's).
+fn find_windows(trace: &AxisTrace, wo: &WindowOptions) -> (super::windows::WindowScan, Found) {
+    use super::windows::{scan_windows_bridging, set_velocity_by_line, set_velocity_on_average};
+    let has_set_position = trace.set_position.iter().any(|x| x.is_finite());
+    let mut first = None;
+    for bridged in [false, true] {
+        let position: Option<&[f64]> = if !bridged {
+            None
+        } else if has_set_position {
+            Some(trace.set_position.as_slice())
+        } else {
+            Some(trace.direct_position.as_slice())
+        };
+        let scan = scan_windows_bridging(&trace.t_s, &trace.set_velocity, wo, position);
+        if !scan.windows.is_empty() {
+            return (
+                scan,
+                Found {
+                    how: FoundBy::Exact,
+                    bridged,
+                },
+            );
+        }
+        if has_set_position {
+            for how in [FoundBy::Average, FoundBy::Line] {
+                let v = match how {
+                    FoundBy::Average => set_velocity_on_average(&trace.t_s, &trace.set_position),
+                    _ => set_velocity_by_line(&trace.t_s, &trace.set_position),
+                };
+                let s = scan_windows_bridging(&trace.t_s, &v, wo, position);
+                if !s.windows.is_empty() {
+                    return (s, Found { how, bridged });
+                }
+            }
+        }
+        // The reason without windows is the exact scan's, unbridged.
+        first.get_or_insert(scan);
+    }
+    (
+        first.unwrap_or_default(),
+        Found {
+            how: FoundBy::Exact,
+            bridged: false,
+        },
+    )
+}
+
 /// Run the detector on a trace.
 pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
     let wo = window_options(cfg);
-    let mut scan = scan_windows(&trace.t_s, &trace.set_velocity, &wo);
-    // No stretch of exactly constant set speed, but set-points that jitter around one:
-    // constant on average.
-    let mut on_average = false;
-    if scan.windows.is_empty() && !trace.set_position.is_empty() {
-        let v = super::windows::set_velocity_on_average(&trace.t_s, &trace.set_position);
-        let avg = scan_windows(&trace.t_s, &v, &wo);
-        if !avg.windows.is_empty() {
-            (scan, on_average) = (avg, true);
-        }
-    }
+    let (scan, found) = find_windows(trace, &wo);
     let finite = |w: &Window| {
         trace.motor_velocity[w.start..w.end]
             .iter()
@@ -923,11 +998,29 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
             ),
         );
     }
-    if on_average {
+    if found.bridged {
+        rep.window_source.push_str(&format!(
+            "; silences longer than {:.3} s bridged (up to {} s) where the position advanced \
+             as the set speed says (SYNCs that stalled)",
+            wo.max_gap_s.unwrap_or(0.0),
+            super::windows::MAX_BRIDGE_S
+        ));
+    }
+    if found.how == FoundBy::Average {
         rep.window_source.push_str(&format!(
             "; constant on average over {} s (the set-points jitter: no stretch of exactly \
              constant set speed)",
             super::windows::AVERAGE_SPAN_S
+        ));
+    }
+    if found.how == FoundBy::Line {
+        rep.window_source.push_str(&format!(
+            "; constant where the set-point against the samples' time stamps is a line (blocks \
+             of {} s, rms residual <= {} s of travel or {} units; the increments per SYNC are \
+             uneven)",
+            super::windows::LINE_BLOCK_S,
+            super::windows::LINE_RESIDUAL_S,
+            super::windows::LINE_RESIDUAL_UNITS
         ));
     }
     rep.forced_windows.clone_from(&forced);
@@ -1014,6 +1107,7 @@ impl DetectorReport {
         self.inconclusive = Some(why);
         self.severity = 0.0;
         self.amplitude = 0.0;
+        self.backlash_estimate.estimate = None;
         self.reasons
             .insert(0, format!("inconclusive ({}): {text}", why.as_str()));
     }
@@ -1100,6 +1194,15 @@ fn summarize(
     );
     let amplitude_trend_per_h = amplitude_trend_per_h(&results);
     let lost_motion = lost_motion(trace, &results);
+    let backlash_estimate = BacklashEstimate {
+        rotary: trace.position_unit == "mdeg",
+        estimate: super::gap::estimate(trace, &results, verdict, cfg.gap.as_ref()),
+    };
+    let mut reasons = reasons;
+    if backlash_estimate.estimate.is_some() {
+        let at = usize::from(!reasons.is_empty());
+        reasons.insert(at, format!("the gap: {}", backlash_estimate.text()));
+    }
     DetectorReport {
         kv_per_s: cfg.kv_per_s,
         band_hz: cfg.band_hz(),
@@ -1126,6 +1229,7 @@ fn summarize(
         first_backlash_s,
         amplitude_trend_per_h,
         lost_motion,
+        backlash_estimate,
         position_unit: trace.position_unit.clone(),
         windows: results,
         forced_windows: Vec::new(),
@@ -1242,6 +1346,7 @@ fn unit_text(unit: &str) -> &str {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::analysis::windows::scan_windows;
 
     /// A synthetic cruise with a limit cycle of displacement amplitude `x` at `f` Hz.
     fn synth(x: f64, f: f64, secs: f64) -> AxisTrace {
@@ -1404,6 +1509,70 @@ mod tests {
         let r = analyze(&on_time, &DetectorConfig::new(30.0));
         assert_eq!(r.verdict, Verdict::Ok, "{:#?}", r.reasons);
         assert!(r.forced_windows.is_empty());
+    }
+
+    /// A capture of a drive in real time whose master's SYNCs jitter (intervals 1..7 ms, one
+    /// in five 20 ms) and stall for 150 ms every second, each set-point taken from the
+    /// master's clock up to 3 ms before its SYNC's time stamp; the motor speed with a limit
+    /// cycle of `x` um at 18 Hz, on the stamps.
+    fn stalled(x: f64) -> AxisTrace {
+        let w = 2.0 * std::f64::consts::PI * 18.0;
+        let mut tr = AxisTrace::default();
+        let (mut now, mut next_stall, mut k) = (0.0, 1.0, 0usize);
+        while now < 6.0 {
+            let u = 0.5 * (uniform(k) + 1.0);
+            now += if u < 0.8 {
+                0.001 + 0.006 * 0.5 * (uniform(k + 7_000_000) + 1.0)
+            } else {
+                0.02
+            };
+            if now >= next_stall {
+                now += 0.15;
+                next_stall += 1.0;
+            }
+            let sent = now - 0.003 * 0.5 * (uniform(k + 1_000_000) + 1.0);
+            let p = cruise_um(sent).round();
+            let v = if now < 0.2 {
+                50_000.0 * now
+            } else {
+                10_000.0 + x * w * (w * now).cos()
+            };
+            tr.t_s.push(now);
+            tr.set_position.push(p);
+            tr.motor_velocity.push(v);
+            tr.current.push(0.0);
+            tr.motor_position.push(p);
+            tr.direct_position.push(p);
+            k += 1;
+        }
+        tr.position_unit = "um".into();
+        tr.set_velocity = super::super::windows::set_velocity_from_demand(
+            &tr.t_s,
+            &tr.set_position,
+            super::super::windows::DEMAND_SPAN_S,
+        );
+        tr
+    }
+
+    #[test]
+    fn stalled_jittery_syncs_get_a_verdict_on_the_capture_s_own_time_stamps() {
+        let cfg = DetectorConfig::new(30.0);
+        let r = analyze(&stalled(8.0), &cfg);
+        assert_eq!(r.verdict, Verdict::Backlash, "{:#?}", r.reasons);
+        assert!(
+            (r.frequency_hz.unwrap() - 18.0).abs() < 0.5,
+            "{:?}",
+            r.frequency_hz
+        );
+        assert!(r.window_source.contains("bridged"), "{}", r.window_source);
+        let r = analyze(&stalled(0.0), &cfg);
+        assert_eq!(r.verdict, Verdict::Ok, "{:#?}", r.reasons);
+        // Without the bridges (stalls end windows) nothing would be measured.
+        let tr = stalled(8.0);
+        let wo = window_options(&cfg);
+        assert!(scan_windows(&tr.t_s, &tr.set_velocity, &wo)
+            .windows
+            .is_empty());
     }
 
     #[test]

@@ -5,6 +5,7 @@ pub mod ballbar;
 pub mod capture;
 pub mod detector;
 pub mod experiment;
+pub mod gap;
 pub mod spectrum;
 pub mod windows;
 

@@ -477,6 +477,12 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
     if let Some(a) = args.alarm {
         cfg.alarm_um = a;
     }
+    // The preset's mechanics for the gap estimate, in the trace's current unit.
+    cfg.gap = match (&built, crate::presets::AxisConfig::from_preset(&preset)) {
+        (Ok(tr), Ok(axis)) => crate::analysis::gap::GapModel::current_unit(&tr.current_unit)
+            .and_then(|u| crate::analysis::gap::GapModel::for_axis(&axis, u)),
+        _ => None,
+    };
     let unit = if rotary_units { "mdeg" } else { "um" };
     let rep = match &built {
         Ok(tr) => analyze(tr, &cfg),

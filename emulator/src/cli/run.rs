@@ -839,12 +839,15 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     let detect = args.detect.then(|| Arc::new(DetectTap::new(n_axes)));
     let detector = match &detect {
         Some(tap) => {
+            let gap = gap_models(&machine, scenario);
             let facts = rt
                 .axes
                 .iter()
-                .map(|a| AxisFacts {
+                .zip(gap)
+                .map(|(a, gap)| AxisFacts {
                     rotary: drive_protocol::Drive::info(&a.drive).rotary,
                     kv_per_s: a.drive.param(crate::drive::objects::AxisParam::Kv),
+                    gap,
                 })
                 .collect();
             let opts = DetectOptions {
@@ -1335,11 +1338,12 @@ fn finish_detector(
                 eprintln!("drive-emu: detector: node {n}: {}", inconclusive_text(r))
             }
             Some(r) => eprintln!(
-                "drive-emu: detector: node {n}: {} | frequency {} | amplitude {:.2} {} | k_v {:.2} 1/s{}",
+                "drive-emu: detector: node {n}: {} | frequency {} | amplitude {:.2} {} | gap {} | k_v {:.2} 1/s{}",
                 r.verdict.as_str(),
                 r.frequency_hz.map_or("-".into(), |f| format!("{f:.2} Hz")),
                 r.amplitude,
                 crate::report::unit_text(&r.position_unit),
+                r.backlash_estimate.text(),
                 r.kv_per_s,
                 if r.master_loop.is_some() {
                     " (the master's own position loop)"
@@ -1357,6 +1361,36 @@ fn finish_detector(
         );
     }
     Ok(node_ids.iter().copied().zip(reports).collect())
+}
+
+/// Per axis, the mechanics of the gap estimate (`--detect`): the scenario's machine, or each
+/// axis's preset with its overrides; the drive's samples carry the current in per mille.
+fn gap_models(
+    machine: &MachineFile,
+    scenario: Option<&Scenario>,
+) -> Vec<Option<crate::analysis::gap::GapModel>> {
+    use crate::analysis::gap::{CurrentUnit, GapModel};
+    let configs: Vec<Option<AxisConfig>> = match scenario {
+        Some(s) => vec![s.machine.configs.first().cloned()],
+        None => machine
+            .axes
+            .iter()
+            .map(|e| {
+                e.set
+                    .iter()
+                    .try_fold(AxisConfig::from_preset(&e.preset).ok()?, |cfg, (k, v)| {
+                        cfg.with_override(k, &machine::value_text(v)).ok()
+                    })
+            })
+            .collect(),
+    };
+    configs
+        .iter()
+        .map(|c| {
+            c.as_ref()
+                .and_then(|c| GapModel::for_axis(c, CurrentUnit::Permille))
+        })
+        .collect()
 }
 
 /// Drain and close the trace files, and say what they hold.

@@ -203,6 +203,9 @@ pub struct AxisFacts {
     pub rotary: bool,
     /// The axis's k_v when the loop has not published it yet, 1/s.
     pub kv_per_s: f64,
+    /// The axis's mechanics for the gap estimate (current in per mille of rated, as the
+    /// drive's samples have it); None: only from the two encoders, without the elastic part.
+    pub gap: Option<crate::analysis::gap::GapModel>,
 }
 
 /// The detector thread.
@@ -230,7 +233,11 @@ impl AxisHistory {
             _ => self.facts.kv_per_s,
         };
         let tr = AxisTrace::from_sample_log(&samples, SampleSource::Drive, self.facts.rotary);
-        let rep = analyze(&tr, &DetectorConfig::new(kv));
+        let cfg = DetectorConfig {
+            gap: self.facts.gap,
+            ..DetectorConfig::new(kv)
+        };
+        let rep = analyze(&tr, &cfg);
         self.analyses += 1;
         tap.offer(k, DetectResult::of(&rep, self.analyses));
         Some(rep)

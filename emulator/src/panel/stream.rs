@@ -367,7 +367,13 @@ impl Collector {
         {
             *d = f64::from(s.velocity_uu_s);
         }
-        let cfg = DetectorConfig::new(kv);
+        let cfg = DetectorConfig {
+            gap: crate::analysis::gap::GapModel::for_axis(
+                &sh.setup.axes[i].config,
+                crate::analysis::gap::CurrentUnit::Permille,
+            ),
+            ..DetectorConfig::new(kv)
+        };
         let band = cfg.band_hz();
         let peak = ax.spectrum.fundamental(&ax.speeds, rate, band);
         let res = rate / len as f64;
@@ -401,6 +407,10 @@ impl Collector {
                 "unit": d.position_unit,
                 "frequency_hz": d.frequency_hz.map(|f| r(f, 3)),
                 "frequency_over_kv": d.frequency_over_kv.map(|f| r(f, 4)),
+                "backlash_estimate": d.backlash_estimate.value().map(|v| r(v, 5)),
+                "backlash_estimate_range": d.backlash_estimate.range().map(|[a, b]| [r(a, 5), r(b, 5)]),
+                "backlash_estimate_unit": d.backlash_estimate.unit(),
+                "backlash_estimate_method": d.backlash_estimate.method().map(|m| m.as_str()),
                 "reason": d.reasons.first(),
             },
         }))

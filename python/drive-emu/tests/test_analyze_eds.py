@@ -38,6 +38,17 @@ def test_detector_finds_the_gap_the_run_has(preset, key, gap, velocity):
     assert worn.kv_source == "the run's kv_per_s"
     assert sound.verdict == "ok", sound.reasons
     assert sound.position_unit == ("mdeg" if key == "backlash_deg" else "um")
+    # issue 31: the gap in mm (deg), from the two encoders of the run, within 30 %; none on
+    # the sound axis
+    unit = "deg" if key == "backlash_deg" else "mm"
+    assert worn.backlash_estimate_unit == unit and sound.backlash_estimate_unit == unit
+    assert abs(worn.backlash_estimate - gap) <= 0.3 * gap, worn.backlash_estimate
+    lo, hi = worn.backlash_estimate_range
+    assert lo <= gap <= hi, worn.backlash_estimate_range
+    assert worn.backlash_estimate_method == "encoders"
+    assert worn.report[f"backlash_estimate_{unit}"] == worn.backlash_estimate
+    assert sound.backlash_estimate is None and sound.backlash_estimate_range is None
+    assert sound.report[f"backlash_estimate_{unit}"] is None
 
 
 def test_analyze_a_dataframe_equals_the_run():

@@ -268,6 +268,8 @@ function onSpectrum(m) {
   v.textContent = `detector (last ${d.window_s} s): ${d.verdict}` +
     (d.frequency_hz ? ` · f = ${d.frequency_hz} Hz (f/k_v ${d.frequency_over_kv})` : "") +
     (d.verdict !== "inconclusive" ? ` · amplitude ${d.amplitude} ${d.unit}` : "") +
+    (d.backlash_estimate != null ? ` · gap ${d.backlash_estimate} ${d.backlash_estimate_unit}` +
+      ` (${d.backlash_estimate_range[0]}..${d.backlash_estimate_range[1]}, ${d.backlash_estimate_method})` : "") +
     ` · band ${m.band_hz[0]}..${m.band_hz[1]} Hz · ${peak}` + (d.reason ? ` — ${d.reason}` : "");
   v.className = "verdict " + d.verdict;
 }

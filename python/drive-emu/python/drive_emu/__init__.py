@@ -180,7 +180,11 @@ class Detection:
     """The backlash detector's result (`drive-emu analyze --json`): the verdict ("ok",
     "backlash_suspected", "backlash" or "inconclusive") with its reasons, the limit cycle's
     frequency and amplitude (position unit: um or mdeg), every measured window, and what was
-    read. `report` is the whole detector report as a dict."""
+    read. `backlash_estimate` is the gap in `backlash_estimate_unit` ("mm", or "deg" on a
+    rotary axis; the report's `backlash_estimate_mm` / `_deg`), `backlash_estimate_range`
+    (lo, hi) the range it lies in, `backlash_estimate_method` "encoders" (motor minus direct
+    encoder) or "amplitude" (the limit cycle's); all None on a healthy axis or where it
+    cannot be said. `report` is the whole detector report as a dict."""
 
     verdict: str
     reasons: list
@@ -192,6 +196,10 @@ class Detection:
     severity: float
     position_unit: str
     lost_motion: Optional[float]
+    backlash_estimate: Optional[float]
+    backlash_estimate_range: Optional[tuple]
+    backlash_estimate_unit: str
+    backlash_estimate_method: Optional[str]
     first_suspected_s: Optional[float]
     first_backlash_s: Optional[float]
     amplitude_trend_per_h: Optional[float]
@@ -222,6 +230,12 @@ class Detection:
         values = {k: v for k, v in rep.items() if k in keys}
         values.update({k: v for k, v in out.items() if k in keys and k != "report"})
         values["band_hz"] = tuple(rep["band_hz"])
+        unit = "deg" if "backlash_estimate_deg" in rep else "mm"
+        values["backlash_estimate"] = rep.get(f"backlash_estimate_{unit}")
+        span = rep.get(f"backlash_estimate_range_{unit}")
+        values["backlash_estimate_range"] = None if span is None else tuple(span)
+        values["backlash_estimate_unit"] = unit
+        values["backlash_estimate_method"] = rep.get("backlash_estimate_method")
         values["report_dir"] = out.get("report_dir") or None
         values["capture"] = out.get("capture")
         values["plots"] = out.get("plots", [])
@@ -276,6 +290,9 @@ def analyze(trace: Any, *, kv: Optional[float] = None, preset: Optional[str] = N
         if kv is None:
             kv = trace.summary["kv_per_s"]
             kv_given_by = "the run's kv_per_s"
+        if preset is None:
+            # the run's preset: its mechanics for the gap estimate
+            preset = trace.summary["preset"]
         if rotary is None:
             rotary = trace.summary["unit"] == "deg"
     elif isinstance(trace, (str, os.PathLike)):
