@@ -2,7 +2,7 @@
 """Profile position (PP) with python canopen's BaseNode402 against drive-emu, default PDOs.
 
     drive-emu run --iface vcan0 --node 5 &
-    drive-emu eds --preset cnc1 --node 5 > drive.eds
+    drive-emu eds --preset cnc1 --node 5 --real32 decimal > drive.eds   # REAL32 as python canopen reads them
     python pp.py --iface vcan0 --node 5 --eds drive.eds
 
 Without kernel CAN (no vcan: macOS, Windows, containers) the drive serves its bus over
