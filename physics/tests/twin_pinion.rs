@@ -4,10 +4,10 @@
 //! - With the preload at 0 (and the one gap) the two motors move exactly as the lumped one:
 //!   the twin model reduces to the single-contact axis bit for bit, over a start ramp, a knock
 //!   on the load, a reversal and a stop.
-//! - The preload threshold against the deceleration torque: a deceleration whose torque per
-//!   motor stays below `T_p` keeps motor A on its flank (no lost motion between the motor
-//!   encoder and the direct encoder); one above it makes A cross its gap (lost motion of about
-//!   the gap at the direct encoder).
+//! - The preload threshold against the deceleration torque: a deceleration whose load torque
+//!   per pinion stays below `T_p` keeps pinion A on its flank (no lost motion between the
+//!   motor encoder and the direct encoder beyond the elastic wind-up); one above it makes A
+//!   cross its gap (lost motion of about the gap at the direct encoder).
 //! - A single-contact preset refuses a preload with a clear error; the drive disabled gives
 //!   neither motor any torque, the preload included.
 
