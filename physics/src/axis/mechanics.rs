@@ -16,7 +16,9 @@
 //! pinion, drive the one load (rack or gear wheel), the drive's torque split between them as
 //! `T/2 + T_p` (A) and `T/2 - T_p` (B), each clamped at its own limit. The bias `T_p` (the
 //! electrical preload) presses A against the load's positive flank and B against its negative
-//! one, so while `|T|/2 < T_p` the load sits between two preloaded springs: no gap to cross.
+//! one; each motor spends `J_m/2 alpha` on its own rotor, so the pinions carry only the
+//! load's share, and while that share per pinion, `|m/r^2 alpha + F|/2`, stays below `T_p`
+//! the load sits between two preloaded springs: no gap to cross (docs/physics.md).
 //! The parameters stay those of the lumped train (the pair as the speed loop sees it): each
 //! motor has half the rotor inertia and motor friction, each pinion's contact half the
 //! stiffness and damping, and both pinions the gap `contact.backlash`. Halving is exact in
