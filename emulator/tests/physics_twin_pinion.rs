@@ -141,3 +141,20 @@ fn no_limit_cycle_with_the_preload_holding() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+#[test]
+fn the_figure_shows_the_cycle_with_the_preload_lost_and_none_with_it_holding() {
+    let d = drive_emu::study::figures::fig_twin_data().unwrap();
+    assert_eq!(d.traces.len(), 2);
+    let (lost, held) = (&d.traces[0], &d.traces[1]);
+    assert_eq!((lost.preload_pct, held.preload_pct), (0.0, 40.0));
+    let f_over_kv = lost.fundamental_hz.unwrap() / d.kv_per_s;
+    assert!((0.45..=0.75).contains(&f_over_kv), "{f_over_kv}");
+    assert!(
+        held.motor_velocity_amplitude_rpm < 0.05 * lost.motor_velocity_amplitude_rpm,
+        "{} rpm held, {} rpm lost",
+        held.motor_velocity_amplitude_rpm,
+        lost.motor_velocity_amplitude_rpm
+    );
+    assert!(!held.time_s.is_empty() && held.time_s.len() == held.motor_velocity_rpm.len());
+}
