@@ -158,3 +158,24 @@ fn the_figure_shows_the_cycle_with_the_preload_lost_and_none_with_it_holding() {
     );
     assert!(!held.time_s.is_empty() && held.time_s.len() == held.motor_velocity_rpm.len());
 }
+
+#[test]
+fn the_drive_takes_the_preload_live_on_a_twin_and_refuses_it_on_a_single_contact() {
+    use drive_emu::drive::axis_drive::AxisDrive;
+    use drive_emu::drive::{AxisParam, ParamError};
+    let mut one = AxisDrive::from_config(&AxisConfig::from_preset("cnc1").unwrap()).unwrap();
+    assert_eq!(
+        one.set_param(AxisParam::Preload, 0.2),
+        Err(ParamError::OutOfRange { min: 0.0, max: 0.0 })
+    );
+    assert_eq!(one.param(AxisParam::Preload), 0.0);
+    one.set_param(AxisParam::Preload, 0.0).unwrap();
+    let mut two = AxisDrive::from_config(&AxisConfig::from_preset("cnc3").unwrap()).unwrap();
+    assert_eq!(two.param(AxisParam::Preload), 0.0);
+    two.set_param(AxisParam::Preload, 0.3).unwrap();
+    assert!((two.param(AxisParam::Preload) - 0.3).abs() < 1e-12);
+    for bad in [-0.1, 1.5, f64::NAN] {
+        assert!(two.set_param(AxisParam::Preload, bad).is_err(), "{bad}");
+    }
+    assert!((two.param(AxisParam::Preload) - 0.3).abs() < 1e-12);
+}
