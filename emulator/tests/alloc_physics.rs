@@ -1,5 +1,6 @@
 //! No allocation in the physics hot path: after construction, stepping the axis with the full
-//! cascade (all modes, encoder noise and faults) performs zero heap allocations.
+//! cascade (all modes, encoder noise and faults) performs zero heap allocations, on a
+//! single-contact axis and on a twin pinion with its preload changed while it runs.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -42,8 +43,17 @@ static GLOBAL: Counting = Counting;
 
 #[test]
 fn stepping_does_not_allocate() {
-    let built = AxisConfig::from_preset("cnc1")
+    let single = AxisConfig::from_preset("cnc1").unwrap();
+    steps_without_allocating(&single);
+    let twin = AxisConfig::from_preset("cnc4")
         .unwrap()
+        .with_override("preload_pct", "20")
+        .unwrap();
+    steps_without_allocating(&twin);
+}
+
+fn steps_without_allocating(cfg: &AxisConfig) {
+    let built = cfg
         .with_overrides([
             "motor_encoder_noise_counts=2",
             "direct_encoder_noise_counts=1",
@@ -83,13 +93,21 @@ fn stepping_does_not_allocate() {
         }
         if i == 6000 {
             servo.axis.motor_encoder.set_signal_lost(true);
+            if servo.axis.is_twin_pinion() {
+                servo.axis.set_preload(0.05).unwrap();
+            }
         }
         servo.step();
     }
     COUNTING.with(|c| c.set(false));
     let after = ALLOCS.load(Ordering::SeqCst);
     assert!(servo.time() > 19.0);
-    assert_eq!(after - before, 0, "allocations while stepping");
+    assert_eq!(
+        after - before,
+        0,
+        "{}: allocations while stepping",
+        cfg.name
+    );
     // The counter works: an allocation on this thread is seen.
     COUNTING.with(|c| c.set(true));
     let v: Vec<u64> = Vec::with_capacity(16);

@@ -63,7 +63,14 @@ fn the_counter_sees_an_allocation() {
 
 #[test]
 fn the_runtime_tick_does_not_allocate() {
-    runtime_tick_allocations(None);
+    runtime_tick_allocations(None, "cnc1", 0.0);
+}
+
+/// The same on a twin pinion (two motors, two contacts, the preload split), its preload
+/// written over SDO (0x200E) while it runs.
+#[test]
+fn the_runtime_tick_of_a_twin_pinion_does_not_allocate() {
+    runtime_tick_allocations(None, "cnc4", 20.0);
 }
 
 /// The same with a vendor profile and more switches on (docs/quirks.md): the switches' hooks
@@ -92,13 +99,21 @@ fn the_runtime_tick_with_vendor_switches_on_does_not_allocate() {
     let overlay = Overlay::from_args(&switches, &[]).unwrap();
     let b = Behaviour::resolve(Some("technosoft-ipos"), None, &[&overlay]).unwrap();
     assert_eq!(b.quirks.on().count(), 8);
-    runtime_tick_allocations(Some(b));
+    runtime_tick_allocations(Some(b), "cnc1", 0.0);
 }
 
-fn runtime_tick_allocations(behaviour: Option<drive_emu::drive::profile::Behaviour>) {
-    let cfg = AxisConfig::from_preset("cnc1")
+/// `preload_pct`: 0 on a single-contact preset, else the twin pinion's preload at the start
+/// (written again over SDO while the axis runs).
+fn runtime_tick_allocations(
+    behaviour: Option<drive_emu::drive::profile::Behaviour>,
+    preset: &str,
+    preload_pct: f64,
+) {
+    let cfg = AxisConfig::from_preset(preset)
         .unwrap()
         .with_override("backlash_mm", "0.05")
+        .unwrap()
+        .with_override("preload_pct", &format!("{preload_pct}"))
         .unwrap();
     let mut drive = AxisDrive::from_config(&cfg).unwrap();
     let opts = drive_emu::drive::NodeOptions {
@@ -131,6 +146,7 @@ fn runtime_tick_allocations(behaviour: Option<drive_emu::drive::profile::Behavio
     );
     let sdo_read = CanFrame::new(0x605, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]);
     let sdo_write_backlash = CanFrame::new(0x605, &[0x23, 0x00, 0x20, 0, 0, 0, 0, 0]);
+    let sdo_write_preload = CanFrame::new(0x605, &[0x23, 0x0E, 0x20, 0, 0, 0, 0, 0]);
     // `run --trace`: the loop also samples every axis into the recorder's queue.
     let tap = TraceTap::new(1);
     // `run --detect`: and into the detector's queue, and publishes the detector's results in
@@ -161,6 +177,14 @@ fn runtime_tick_allocations(behaviour: Option<drive_emu::drive::profile::Behavio
             let mut f = sdo_write_backlash;
             f.data[4..8].copy_from_slice(&0.06f32.to_le_bytes());
             run.inject(&f);
+        }
+        if k % 1000 == 700 && preload_pct > 0.0 {
+            {
+                let mut f = sdo_write_preload;
+                let pct = preload_pct - (k / 1000) as f64;
+                f.data[4..8].copy_from_slice(&(pct as f32).to_le_bytes());
+                run.inject(&f);
+            }
         }
         counted(|| {
             run.runtime.tick();
@@ -194,6 +218,13 @@ fn runtime_tick_allocations(behaviour: Option<drive_emu::drive::profile::Behavio
         (backlash - 0.06e-3).abs() < 1e-9,
         "the SDO write reached the axis: {backlash}"
     );
+    if preload_pct > 0.0 {
+        let preload = run.runtime.axes[0].drive.param(AxisParam::Preload);
+        assert!(
+            (preload - (preload_pct - 4.0) / 100.0).abs() < 1e-6,
+            "the SDO write reached the twin pinion: {preload}"
+        );
+    }
     assert_eq!(tap.lost(), 0);
     assert_eq!(
         allocs, 0,

@@ -40,6 +40,9 @@ pub enum AxisParam {
     DirectEncoderOffset,
     /// 1.0 = the direct encoder closes the position loop, 0.0 = the motor encoder does.
     PositionFromDirect,
+    /// Electrical preload of a twin pinion: bias torque per motor as a fraction of each
+    /// motor's rated torque (written in %). Only a twin-pinion axis takes a non-zero value.
+    Preload,
 }
 
 /// Which kinds of axis a spelling applies to.
@@ -195,6 +198,7 @@ pub const PARAMS: &[ParamSpec] = &[
     live(lin("stiffness_n_per_um", "N/µm", 1e6), rot("stiffness_nm_per_arcsec", "N m/arcsec", 1.0 / ARCSEC), AxisParam::Stiffness, 0x01, true, 1e-12, "drive-train stiffness at the load"),
     live(lin("damping_n_s_per_m", "N s/m", 1.0), rot("damping_nm_s_per_rad", "N m s/rad", 1.0), AxisParam::Damping, 0x02, false, 0.0, "drive-train damping at the load (the presets give `damping_ratio`)"),
     preset(any("damping_ratio", "-", 1.0), None, "damping ratio of the drive train's resonance"),
+    live(any("preload_pct", "%", 0.01), None, AxisParam::Preload, 0x0E, true, 0.0, "twin pinion's electrical preload: bias torque per motor, % of its rated torque"),
     // ---- load friction ----
     live(lin("load_coulomb_friction_n", "N", 1.0), rot("load_coulomb_friction_nm", "N m", 1.0), AxisParam::LoadCoulombFriction, 0x03, true, 0.0, "Coulomb friction at the load"),
     preset(any("load_static_friction_ratio", "-", 1.0), None, "static over Coulomb friction at the load (Stribeck)"),
@@ -369,6 +373,7 @@ mod tests {
             DirectEncoderNoise,
             DirectEncoderOffset,
             PositionFromDirect,
+            Preload,
         ];
         for a in all {
             assert_eq!(

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::study::figures::{fig10, fig11, fig3, fig_drag, fig_outer_loop};
+use crate::study::figures::{fig10, fig11, fig3, fig_drag, fig_outer_loop, fig_twin};
 
 /// Arguments of `drive-emu figures`.
 #[derive(clap::Args, Debug, Clone)]
@@ -14,8 +14,9 @@ pub struct FiguresArgs {
     pub out: PathBuf,
     /// Which figures: comma-separated from 3, 10, 11, drag (the limit cycle's drag
     /// boundary over k_v and the gap, docs/physics.md) and outer (the master closing the
-    /// position loop over the bus in CSV: f against its k_v, and against the SYNC period).
-    #[arg(long, default_value = "3,10,11,drag,outer")]
+    /// position loop over the bus in CSV: f against its k_v, and against the SYNC period) and
+    /// twin (CNC3's twin pinion with its preload lost and holding).
+    #[arg(long, default_value = "3,10,11,drag,outer,twin")]
     pub only: String,
     /// Preset whose speed loop Fig. 3 measures.
     #[arg(long, default_value = "cnc1")]
@@ -32,8 +33,10 @@ pub fn run(args: &FiguresArgs) -> anyhow::Result<()> {
     let mut which = Vec::new();
     for w in args.only.split(',') {
         match w.trim() {
-            "3" | "10" | "11" | "drag" | "outer" => which.push(w.trim().to_string()),
-            other => anyhow::bail!("--only: unknown figure `{other}` (3, 10, 11, drag, outer)"),
+            "3" | "10" | "11" | "drag" | "outer" | "twin" => which.push(w.trim().to_string()),
+            other => {
+                anyhow::bail!("--only: unknown figure `{other}` (3, 10, 11, drag, outer, twin)")
+            }
         }
     }
     std::fs::create_dir_all(&args.out)
@@ -96,6 +99,20 @@ pub fn run(args: &FiguresArgs) -> anyhow::Result<()> {
                     d.law.len(),
                     breaks.join(", ")
                 );
+            }
+            "twin" => {
+                let (p, d) = fig_twin(&args.out)?;
+                let s: Vec<String> = d
+                    .traces
+                    .iter()
+                    .map(|t| {
+                        format!(
+                            "preload {} %: {:.3} rpm",
+                            t.preload_pct, t.motor_velocity_amplitude_rpm
+                        )
+                    })
+                    .collect();
+                println!("Twin pinion {}: {}", p.display(), s.join("; "));
             }
             "drag" => {
                 let (p, d) = fig_drag(&args.out, args.threads)?;

@@ -57,7 +57,7 @@ pub struct RunArgs {
     /// `drive-emu eds --from FILE`.
     #[arg(long, value_name = "FILE")]
     pub eds: Option<PathBuf>,
-    /// First index of the emulator's own objects (axis parameters at +0x00..0x0D, loop
+    /// First index of the emulator's own objects (axis parameters at +0x00..0x0E, loop
     /// statistics at +0x100, fault injection at +0x101), e.g. 0x4000. Default 0x2000, or
     /// with --eds the first free base of 0x2000, 0x3000, 0x4000, 0x5000, ...
     #[arg(long, value_name = "INDEX", value_parser = parse_index)]

@@ -211,6 +211,7 @@ impl AxisDrive {
             AxisParam::PositionFromDirect => {
                 f64::from(u8::from(s.cascade.params.position_from_direct))
             }
+            AxisParam::Preload => s.axis.preload().unwrap_or(0.0),
         }
     }
 
@@ -297,6 +298,20 @@ impl AxisDrive {
             }
             AxisParam::PositionFromDirect => {
                 s.set_position_from_direct(check(value, 0.0, 1.0)? >= 0.5)
+            }
+            AxisParam::Preload => {
+                // A single-contact drive train has no preload: only 0 is accepted there.
+                let max = if s.axis.is_twin_pinion() {
+                    crate::presets::MAX_PRELOAD_PCT / 100.0
+                } else {
+                    0.0
+                };
+                let v = check(value, 0.0, max)?;
+                if s.axis.is_twin_pinion() {
+                    s.axis
+                        .set_preload(v)
+                        .map_err(|_| ParamError::OutOfRange { min: 0.0, max })?;
+                }
             }
         }
         Ok(())

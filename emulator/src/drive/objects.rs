@@ -1,7 +1,7 @@
 //! The emulator's own objects in the drive's object dictionary, registered when the node is
 //! built ([`register`]), at a base index (0x2000 unless a vendor's EDS has objects there):
 //!
-//! - base + 0x00 ..= 0x0D: the axis parameters of [`AxisParam`], one REAL32 each, in the
+//! - base + 0x00 ..= 0x0E: the axis parameters of [`AxisParam`], one REAL32 each, in the
 //!   unit the object's name says (`backlash_mm`, `kv_per_s`, ...): the parameter registry's
 //!   spelling (`drive_physics::params`, one name everywhere); the drive keeps them (a handler:
 //!   an SDO read or write converts with the spelling's SI scale and goes to

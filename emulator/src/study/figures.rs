@@ -1,6 +1,7 @@
 //! The paper's figures, every point measured from simulated runs: Fig. 3 (closed speed loop
 //! frequency response), Fig. 10 (rotary axis at two backlash values: same frequency, larger
-//! amplitude) and Fig. 11 (limit-cycle frequency against k_v for the five presets). Each is a
+//! amplitude), Fig. 11 (limit-cycle frequency against k_v for the five presets) and the
+//! twin-pinion figure (CNC3 with its preload lost and holding). Each is a
 //! PNG (plotters, bitmap backend, the embedded font of [`crate::report`]) and a JSON file.
 
 use std::path::{Path, PathBuf};
@@ -183,25 +184,50 @@ pub fn fig10(dir: &Path) -> anyhow::Result<(PathBuf, Fig10)> {
     let d = fig10_data()?;
     let png = dir.join("fig10-rotary-backlash.png");
     write_json(&dir.join("fig10-rotary-backlash.json"), &d)?;
+    let caption = format!(
+        "Fig. 10: rotary axis (ratio {}, {:.3} r/s, k_v {} 1/s), motor speed",
+        d.gear_ratio,
+        d.velocity_deg_per_s / 360.0,
+        d.kv_per_s
+    );
+    let series: Vec<SpeedSeries> = d
+        .traces
+        .iter()
+        .map(|t| SpeedSeries {
+            label: format!(
+                "backlash {} deg: f = {} Hz, amplitude {:.1} rpm",
+                t.backlash_deg,
+                t.fundamental_hz.map_or("-".into(), |f| format!("{f:.2}")),
+                t.motor_velocity_amplitude_rpm
+            ),
+            time_s: &t.time_s,
+            rpm: &t.motor_velocity_rpm,
+        })
+        .collect();
+    speed_plot(&png, &caption, &series)?;
+    Ok((png, d))
+}
+
+/// One line of a motor-speed plot.
+struct SpeedSeries<'a> {
+    label: String,
+    time_s: &'a [f64],
+    rpm: &'a [f64],
+}
+
+/// Motor speed over half a second, one line per series (blue, red, green, ...).
+fn speed_plot(png: &Path, caption: &str, series: &[SpeedSeries]) -> anyhow::Result<()> {
     font_ready();
     let draw = || -> Result<(), DynErr> {
-        let root = BitMapBackend::new(&png, (W, H)).into_drawing_area();
+        let root = BitMapBackend::new(png, (W, H)).into_drawing_area();
         root.fill(&WHITE)?;
-        let all = d.traces.iter().flat_map(|t| t.motor_velocity_rpm.iter());
+        let all = series.iter().flat_map(|t| t.rpm.iter());
         let (lo, hi) = all.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| {
             (l.min(x), h.max(x))
         });
         let m = 0.1 * (hi - lo).max(1e-6);
         let mut c = ChartBuilder::on(&root)
-            .caption(
-                format!(
-                    "Fig. 10: rotary axis (ratio {}, {:.3} r/s, k_v {} 1/s), motor speed",
-                    d.gear_ratio,
-                    d.velocity_deg_per_s / 360.0,
-                    d.kv_per_s
-                ),
-                ("sans-serif", 22),
-            )
+            .caption(caption, ("sans-serif", 22))
             .margin(10)
             .x_label_area_size(40)
             .y_label_area_size(70)
@@ -210,21 +236,12 @@ pub fn fig10(dir: &Path) -> anyhow::Result<(PathBuf, Fig10)> {
             .x_desc("time, s")
             .y_desc("motor speed, rpm")
             .draw()?;
-        for (t, col) in d.traces.iter().zip([BLUE, RED]) {
-            let label = format!(
-                "backlash {} deg: f = {} Hz, amplitude {:.1} rpm",
-                t.backlash_deg,
-                t.fundamental_hz.map_or("-".into(), |f| format!("{f:.2}")),
-                t.motor_velocity_amplitude_rpm
-            );
+        for (t, col) in series.iter().zip([BLUE, RED, GREEN, BLACK]) {
             c.draw_series(LineSeries::new(
-                t.time_s
-                    .iter()
-                    .copied()
-                    .zip(t.motor_velocity_rpm.iter().copied()),
+                t.time_s.iter().copied().zip(t.rpm.iter().copied()),
                 col.stroke_width(2),
             ))?
-            .label(label)
+            .label(t.label.clone())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
         }
         c.configure_series_labels()
@@ -235,7 +252,96 @@ pub fn fig10(dir: &Path) -> anyhow::Result<(PathBuf, Fig10)> {
         root.present()?;
         Ok(())
     };
-    draw().map_err(plot_err)?;
+    draw().map_err(plot_err)
+}
+
+/// One run of the twin-pinion figure.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TwinTrace {
+    pub preload_pct: f64,
+    pub fundamental_hz: Option<f64>,
+    pub motor_velocity_amplitude_rpm: f64,
+    pub time_s: Vec<f64>,
+    pub motor_velocity_rpm: Vec<f64>,
+}
+
+/// The twin-pinion figure's data.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FigTwin {
+    pub preset: String,
+    pub kv_per_s: f64,
+    pub backlash_deg: f64,
+    pub velocity_deg_per_s: f64,
+    pub traces: Vec<TwinTrace>,
+}
+
+/// The preloads of the twin-pinion figure, % of each motor's rated torque: lost (the paper's
+/// machine, as shipped) and the healthy machine of the preset file's comment.
+pub const FIG_TWIN_PRELOADS_PCT: [f64; 2] = [0.0, 40.0];
+
+/// Twin-pinion figure data: CNC3 (twin pinion and gear wheel) at its own k_v and gap, the
+/// sweep's run (start ramp and knock), with the preload lost and holding.
+pub fn fig_twin_data() -> anyhow::Result<FigTwin> {
+    let base = AxisConfig::from_preset("cnc3").map_err(cfg_err)?;
+    let v = default_velocity(&base);
+    let mut traces = Vec::new();
+    for pct in FIG_TWIN_PRELOADS_PCT {
+        let cfg = base
+            .with_override("preload_pct", &format!("{pct}"))
+            .map_err(cfg_err)?;
+        let mut o = RunOptions::new(v, DEFAULT_DURATION_S);
+        o.record = true;
+        let r = constant_velocity_run(&cfg, &o).map_err(cfg_err)?;
+        let t0 = r.summary.window_start_s + 2.0;
+        let idx: Vec<usize> = (0..r.trace.len())
+            .filter(|&i| r.trace.time_s[i] >= t0 && r.trace.time_s[i] < t0 + 0.5)
+            .collect();
+        traces.push(TwinTrace {
+            preload_pct: pct,
+            fundamental_hz: r.summary.fundamental_hz,
+            motor_velocity_amplitude_rpm: r.summary.motor_velocity_amplitude_rpm,
+            time_s: idx.iter().map(|&i| r.trace.time_s[i] - t0).collect(),
+            motor_velocity_rpm: idx.iter().map(|&i| r.trace.motor_velocity_rpm[i]).collect(),
+        });
+    }
+    Ok(FigTwin {
+        preset: base.name.clone(),
+        kv_per_s: base.kv_per_s,
+        backlash_deg: base.backlash_deg.unwrap_or(0.0),
+        velocity_deg_per_s: v,
+        traces,
+    })
+}
+
+/// The twin-pinion figure: motor speed with the preload lost and holding, on one plot.
+pub fn fig_twin(dir: &Path) -> anyhow::Result<(PathBuf, FigTwin)> {
+    let d = fig_twin_data()?;
+    let png = dir.join("fig-twin-pinion.png");
+    write_json(&dir.join("fig-twin-pinion.json"), &d)?;
+    let caption = format!(
+        "Twin pinion: {} ({} deg gap, k_v {} 1/s, {:.3} r/s), motor speed",
+        d.preset,
+        d.backlash_deg,
+        d.kv_per_s,
+        d.velocity_deg_per_s / 360.0
+    );
+    let series: Vec<SpeedSeries> = d
+        .traces
+        .iter()
+        .map(|t| SpeedSeries {
+            label: format!(
+                "preload {} %: amplitude {:.2} rpm{}",
+                t.preload_pct,
+                t.motor_velocity_amplitude_rpm,
+                t.fundamental_hz
+                    .filter(|_| t.preload_pct == 0.0)
+                    .map_or(String::new(), |f| format!(" at {f:.2} Hz"))
+            ),
+            time_s: &t.time_s,
+            rpm: &t.motor_velocity_rpm,
+        })
+        .collect();
+    speed_plot(&png, &caption, &series)?;
     Ok((png, d))
 }
 

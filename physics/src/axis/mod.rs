@@ -15,7 +15,7 @@ pub mod motor;
 pub use backlash::Contact;
 pub use encoder::{Encoder, EncoderParams, XorShift64};
 pub use friction::Friction;
-pub use mechanics::{MassState, MechParams, MechState, Mechanics, GRAVITY};
+pub use mechanics::{MassState, MechParams, MechState, Mechanics, TwinPinion, GRAVITY};
 pub use motor::{Motor, MotorParams};
 
 /// Everything needed to build an [`Axis`] (SI).
@@ -89,12 +89,67 @@ impl Axis {
         })
     }
 
-    /// One physics step: current loop, then mechanics.
+    /// One physics step: current loop, then mechanics. A twin pinion's motors share the
+    /// current loop's torque with the preload between them ([`TwinPinion::split`]); with the
+    /// power stage off neither has any torque, the preload included.
     #[inline(always)]
     pub fn substep(&mut self) {
         let tau = self.motor.step();
-        self.mech.step(tau, self.external_load, self.step);
+        if self.mech.params().twin.is_some() && !self.motor.enabled() {
+            self.mech.step_twin(0.0, 0.0, self.external_load, self.step);
+        } else {
+            self.mech.step(tau, self.external_load, self.step);
+        }
         self.steps += 1;
+    }
+
+    /// True for a twin-pinion drive (two motors and pinions on the load, with a preload).
+    pub fn is_twin_pinion(&self) -> bool {
+        self.mech.params().twin.is_some()
+    }
+
+    /// The torques of motors A and B now, N m (one motor: its torque and 0).
+    pub fn motor_torques(&self) -> (f64, f64) {
+        if self.is_twin_pinion() && !self.motor.enabled() {
+            return (0.0, 0.0);
+        }
+        self.mech.split_torque(self.motor.torque())
+    }
+
+    /// The drive's torque delivered to the drive train now, N m: the motor's, or the sum of a
+    /// twin pinion's two (less than the current loop's when a motor clamps at its limit).
+    pub fn torque(&self) -> f64 {
+        if self.is_twin_pinion() {
+            let (a, b) = self.motor_torques();
+            a + b
+        } else {
+            self.motor.torque()
+        }
+    }
+
+    /// The preload of a twin pinion as a fraction of each motor's rated torque (half the
+    /// pair's `rated_torque`); `None` with one motor.
+    pub fn preload(&self) -> Option<f64> {
+        self.mech
+            .params()
+            .twin
+            .map(|t| t.preload_torque / (0.5 * self.motor.params.rated_torque))
+    }
+
+    /// Set a twin pinion's preload as a fraction of each motor's rated torque (>= 0, at the
+    /// next step). Refused (`Err` with the reason, nothing changed) with one motor, where
+    /// there is no second pinion to bias against.
+    pub fn set_preload(&mut self, fraction_of_rated: f64) -> Result<(), &'static str> {
+        let mut p = *self.mech.params();
+        let Some(twin) = p.twin.as_mut() else {
+            return Err("a single-contact drive train has no preload (not a twin pinion)");
+        };
+        if !(fraction_of_rated >= 0.0 && fraction_of_rated.is_finite()) {
+            return Err("the preload must be a finite fraction >= 0 of the rated torque");
+        }
+        twin.preload_torque = fraction_of_rated * 0.5 * self.motor.params.rated_torque;
+        self.mech.set_params(p);
+        Ok(())
     }
 
     /// Physics step, s.
@@ -153,6 +208,7 @@ impl Axis {
         self.mech.state.motor.pos = load_position * self.mech.params().ratio;
         self.mech.state.motor.vel = 0.0;
         self.mech.state.load.vel = 0.0;
+        self.mech.state.motor_b = self.mech.state.motor;
     }
 
     // ---- parameter setters (take effect at the next step) ----

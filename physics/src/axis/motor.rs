@@ -33,6 +33,8 @@ pub struct Motor {
     torque_limit: f64,
     demand: f64,
     torque: f64,
+    /// False while the power stage is off ([`Motor::disable`] until the next demand).
+    enabled: bool,
 }
 
 impl Motor {
@@ -43,6 +45,7 @@ impl Motor {
             torque_limit: 0.0,
             demand: 0.0,
             torque: 0.0,
+            enabled: false,
         };
         m.set_params(params, step);
         m
@@ -64,6 +67,12 @@ impl Motor {
     #[inline(always)]
     pub fn set_demand(&mut self, torque: f64) {
         self.demand = torque.clamp(-self.torque_limit, self.torque_limit);
+        self.enabled = true;
+    }
+
+    /// True once a demand has been set, false after [`Motor::disable`] (power stage off).
+    pub fn enabled(&self) -> bool {
+        self.enabled
     }
 
     /// Torque demand after clipping, N m.
@@ -75,6 +84,7 @@ impl Motor {
     pub fn disable(&mut self) {
         self.demand = 0.0;
         self.torque = 0.0;
+        self.enabled = false;
     }
 
     /// Advance the current loop by one physics step; returns the air-gap torque.

@@ -405,13 +405,13 @@ impl Servo {
     pub fn velocity_demand(&self) -> f64 {
         self.cascade.out.velocity_demand
     }
-    /// Actual motor torque, N m.
+    /// Actual motor torque, N m (a twin pinion's: both motors' together).
     pub fn torque(&self) -> f64 {
-        self.axis.motor.torque()
+        self.axis.torque()
     }
-    /// Actual motor current, A.
+    /// Actual motor current, A (a twin pinion's: both motors' together).
     pub fn current(&self) -> f64 {
-        self.axis.motor.current()
+        self.axis.torque() / self.axis.motor.params.torque_constant
     }
     /// Following error, m or rad.
     pub fn following_error(&self) -> f64 {

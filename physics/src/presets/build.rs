@@ -7,9 +7,11 @@ use std::f64::consts::PI;
 
 use super::{
     at_most, finite, non_negative, pick, positive, AxisConfig, AxisKind, BuiltConfig, ConfigError,
-    Transmission, MAX_BACKLASH_M, MAX_BACKLASH_RAD,
+    Transmission, MAX_BACKLASH_M, MAX_BACKLASH_RAD, MAX_PRELOAD_PCT,
 };
-use crate::axis::{AxisParams, Contact, EncoderParams, Friction, MechParams, MotorParams, GRAVITY};
+use crate::axis::{
+    AxisParams, Contact, EncoderParams, Friction, MechParams, MotorParams, TwinPinion, GRAVITY,
+};
 use crate::control::cascade::{cycle_ratio, CascadeParams};
 
 /// The axis kind's display unit and limits, shared by the stages.
@@ -89,7 +91,7 @@ impl AxisConfig {
         let (motor, motor_friction) = self.read_motor()?;
         let (motor_encoder, direct_encoder) = self.read_encoders(&units)?;
         let (control, step) = self.derive_cascade(motor.inertia)?;
-        let mech = assemble_mechanics(
+        let mut mech = assemble_mechanics(
             ratio,
             motor.inertia,
             &load,
@@ -97,6 +99,7 @@ impl AxisConfig {
             motor_friction,
             load_friction,
         );
+        mech.twin = self.read_twin_pinion(&motor)?;
         self.check_physics_step(&mech, step)?;
         check_stiffness_holds_peak_force(&units, &mech, &motor)?;
         Ok(BuiltConfig {
@@ -233,6 +236,41 @@ impl AxisConfig {
             stiffness,
             damping_ratio: zeta,
         })
+    }
+
+    /// A twin pinion's second motor and preload; a single-contact drive train refuses a
+    /// preload (there is no second pinion to bias against).
+    fn read_twin_pinion(&self, motor: &MotorParams) -> Result<Option<TwinPinion>, ConfigError> {
+        let pct = non_negative("preload_pct", self.preload_pct)?;
+        let pct = at_most(
+            "preload_pct",
+            pct,
+            MAX_PRELOAD_PCT,
+            "the bias is a share of each motor's rated torque (real drives: 5-30 %)",
+        )?;
+        if !self.twin_pinion {
+            if pct != 0.0 {
+                return Err(ConfigError::new(
+                    "preload_pct",
+                    format!(
+                        "a single-contact drive train has no preload (got {pct}): set \
+                         `twin_pinion = true` for two motors biased against each other"
+                    ),
+                ));
+            }
+            return Ok(None);
+        }
+        if self.transmission == Transmission::LeadScrew {
+            return Err(ConfigError::new(
+                "twin_pinion",
+                "a lead screw has no twin pinion (use `rack_pinion` or `gear_wheel`)",
+            ));
+        }
+        // Each motor is half the pair: half the rated torque, half the torque limit.
+        Ok(Some(TwinPinion {
+            preload_torque: pct / 100.0 * 0.5 * motor.rated_torque,
+            motor_torque_limit: 0.5 * motor.torque_constant * motor.max_current,
+        }))
     }
 
     /// Coulomb, static (Stribeck) and viscous friction at the load.
@@ -573,6 +611,7 @@ fn assemble_mechanics(
         load_friction,
         gravity_force: load.gravity_force,
         counterbalance_force: load.counterbalance_force,
+        twin: None,
     };
     mech.contact.damping =
         2.0 * train.damping_ratio * (train.stiffness * mech.reduced_mass()).sqrt();

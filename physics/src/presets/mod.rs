@@ -96,6 +96,15 @@ pub struct AxisConfig {
     pub stiffness_n_per_um: Option<f64>,
     pub stiffness_nm_per_arcsec: Option<f64>,
     pub damping_ratio: f64,
+    /// Two motors and pinions on the one rack or gear wheel, biased against each other by
+    /// `preload_pct` (docs/physics.md, "Twin pinion"). The motor keys then describe the pair
+    /// as the speed loop sees it (both motors together); each motor is one half.
+    #[serde(default)]
+    pub twin_pinion: bool,
+    /// Electrical preload of a twin pinion: the bias torque per motor in % of each motor's
+    /// rated torque (half of `rated_torque_nm`). 0 on a single-contact drive train.
+    #[serde(default)]
+    pub preload_pct: f64,
     // ---- load friction ----
     pub load_coulomb_friction_n: Option<f64>,
     pub load_coulomb_friction_nm: Option<f64>,
@@ -179,6 +188,10 @@ fn positive(key: &str, v: f64) -> Result<f64, ConfigError> {
 /// axis, 0.1 rad (5.7 deg) on a rotary one; worn machines show 0.01-0.1 mm.
 pub const MAX_BACKLASH_M: f64 = 0.01;
 pub const MAX_BACKLASH_RAD: f64 = 0.1;
+
+/// Largest twin-pinion preload a configuration (and the drive's 0x200E) accepts, % of each
+/// motor's rated torque (real drives bias 5-30 %).
+pub const MAX_PRELOAD_PCT: f64 = 100.0;
 
 /// `v <= max`, else an error naming the key, the value, the limit and why.
 fn at_most(key: &str, v: f64, max: f64, why: &str) -> Result<f64, ConfigError> {
@@ -310,7 +323,14 @@ fn default_motor_thermal_time_constant_s() -> f64 {
 }
 
 /// The keys of a preset file that are not parameters (what the axis is).
-pub const STRUCTURAL_KEYS: [&str; 5] = ["name", "description", "kind", "transmission", "vertical"];
+pub const STRUCTURAL_KEYS: [&str; 6] = [
+    "name",
+    "description",
+    "kind",
+    "transmission",
+    "vertical",
+    "twin_pinion",
+];
 
 /// Every key a preset file and `--set` take: the registry's preset parameters and
 /// [`STRUCTURAL_KEYS`].
