@@ -178,3 +178,25 @@ fn a_device_type_of_the_wrong_type_does_not_export_a_file_that_refuses_itself() 
         }
     }
 }
+
+/// A sub-index of a standard ARRAY (0x1602 of a vendor file) whose DataType the file gets
+/// wrong: the standard entry is served in its place, with the object's ARRAY code, so the
+/// export reads back as the same ARRAY (it came back a RECORD once: found by the property
+/// test above).
+#[test]
+fn a_standard_entry_served_for_a_mistyped_sub_keeps_its_objects_code() {
+    let path = vendor_files()
+        .into_iter()
+        .find(|p| p.ends_with("yiyou-euservo.eds"))
+        .expect("yiyou-euservo.eds");
+    let text = decode_text(&std::fs::read(&path).unwrap());
+    let at = text.find("[1602sub5]").expect("[1602sub5]");
+    let dt = at + text[at..].find("DataType=").unwrap();
+    let end = dt + text[dt..].find('\n').unwrap();
+    let m = format!("{}DataType=0x9{}", &text[..dt], &text[end..]);
+    let f = parse(&m).unwrap();
+    let (od, _) = ObjectDictionary::from_eds(&f, &info()).unwrap();
+    let again = round_trip(&od).unwrap();
+    assert_eq!(objects_json(&again), objects_json(&od));
+    assert!(objects_json(&od).contains(r#""index":5634,"sub":5,"otype":"array""#));
+}

@@ -293,6 +293,9 @@ impl ObjectDictionary {
                             std_type.name()
                         ));
                         od.slots[slot].visible = true;
+                        // One object, one object code: the served entry takes the file's
+                        // (an ARRAY stays an ARRAY on export and read-back).
+                        od.slots[slot].entry.otype = otype;
                         continue;
                     }
                     let no_value = s.default.is_none() && s.parameter_value.is_none();
