@@ -565,7 +565,8 @@ pub struct DetectorReport {
     pub master_loop: Option<MasterLoop>,
 }
 
-fn median(v: &mut [f64]) -> Option<f64> {
+/// The median of `v` (sorted in place); `None` when empty.
+pub(crate) fn median(v: &mut [f64]) -> Option<f64> {
     if v.is_empty() {
         return None;
     }

@@ -26,7 +26,7 @@
 //! cycle, with its own delays, is not the drive's cascade the calibration is of). docs/scenarios.md ("How large is the gap") gives the method and its
 //! error over the sweep (`emulator/tests/gap_estimate.rs`).
 
-use super::detector::{AxisTrace, Verdict, WindowResult};
+use super::detector::{median, AxisTrace, Verdict, WindowResult};
 
 /// A measure over the gap as a function of the limit cycle's frequency f (Hz):
 /// `a + c_per_hz2 f^2`.
@@ -169,19 +169,6 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[i.min(sorted.len() - 1)]
 }
 
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    })
-}
-
 /// The gap one window shows between the two encoders: the spread of motor minus direct
 /// position minus the elastic deflection (`compliance` x current), trace position unit.
 pub fn encoder_spread(trace: &AxisTrace, w: &WindowResult, compliance: Option<f64>) -> Option<f64> {
@@ -219,7 +206,7 @@ pub fn estimate(
     // Per flagged window: its measure over the measure per unit of gap at its frequency.
     let per_window = |measure: &dyn Fn(&WindowResult) -> Option<f64>, cal: Calibration| {
         median(
-            flagged
+            &mut flagged
                 .iter()
                 .filter_map(|w| {
                     let f = w.speed_hz?;
@@ -227,7 +214,7 @@ pub fn estimate(
                     let per_gap = cal.per_gap(f);
                     (per_gap > 0.0 && m > 0.0).then(|| m / per_gap)
                 })
-                .collect(),
+                .collect::<Vec<f64>>(),
         )
     };
     // A master that closes the position loop itself: the limit cycle is its loop's, with
