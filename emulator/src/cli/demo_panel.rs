@@ -9,11 +9,11 @@
 
 use super::demo::DemoArgs;
 use crate::bus::fault::FaultyBus;
-use crate::bus::inproc::InProcBus;
+use crate::bus::inproc::{InProcBus, InProcEndpoint};
 use crate::bus::CanBus;
 use crate::drive::axis_drive::AxisDrive;
 use crate::master::{Master, MasterConfig, Step, MODE_CSP};
-use crate::panel::{PanelAxis, PanelSetup};
+use crate::panel::{PanelAxis, PanelLoop, PanelSetup};
 use crate::presets::AxisConfig;
 use crate::runtime::{AxisSlot, Runtime};
 use anyhow::{bail, Context, Result};
@@ -40,6 +40,30 @@ fn program(v_uu: f64, leg_s: f64) -> Vec<Step> {
         });
     }
     p
+}
+
+/// One tick of a drive on the in-process bus with the reference master beside it and the
+/// panel watching: the master's frames in, the drive's tick, the panel's fan-out, the
+/// drive's answers to the master. (The panel's test rig runs the same.)
+pub fn tick_with_master(
+    master: &mut Master,
+    master_bus: &mut InProcEndpoint,
+    rt: &mut Runtime<FaultyBus<InProcEndpoint>, AxisDrive>,
+    panel_loop: &mut PanelLoop,
+) {
+    master.poll(rt.sim_time_us);
+    while let Some(f) = master.pop_tx() {
+        let _ = master_bus.send(&f);
+    }
+    rt.tick();
+    rt.stats.record_tick(0, 0);
+    if rt.stats.ticks.is_multiple_of(256) {
+        rt.publish_stats();
+    }
+    panel_loop.on_tick(rt);
+    while let Ok(Some(f)) = master_bus.recv() {
+        master.handle(&f, rt.sim_time_us);
+    }
 }
 
 /// Run the demo with the panel until Ctrl-C / SIGTERM (or the master's program ends).
@@ -101,19 +125,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let start = Instant::now();
     let mut ticks: u32 = 0;
     while !stop.load(Ordering::Relaxed) && !master.finished() && master.error().is_none() {
-        master.poll(rt.sim_time_us);
-        while let Some(f) = master.pop_tx() {
-            let _ = master_bus.send(&f);
-        }
-        rt.tick();
-        rt.stats.record_tick(0, 0);
-        if rt.stats.ticks.is_multiple_of(256) {
-            rt.publish_stats();
-        }
-        panel_loop.on_tick(&mut rt);
-        while let Ok(Some(f)) = master_bus.recv() {
-            master.handle(&f, rt.sim_time_us);
-        }
+        tick_with_master(&mut master, &mut master_bus, &mut rt, &mut panel_loop);
         // Paced on the wall clock: tick k is due at start + k periods (a late tick is not
         // made up for by skipping: the drive's time is the master's, not the wall's).
         ticks += 1;

@@ -8,6 +8,7 @@
 use drive_emu::bus::fault::FaultyBus;
 use drive_emu::bus::inproc::{InProcBus, InProcEndpoint};
 use drive_emu::bus::{CanBus, CanFrame};
+use drive_emu::cli::demo_panel::tick_with_master;
 use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step};
 use drive_emu::panel::{self, Panel, PanelAxis, PanelLoop, PanelSetup};
@@ -161,19 +162,7 @@ impl Rig {
             let sleep = o.sleep_per_tick;
             std::thread::spawn(move || {
                 let mut step = |rt: &mut Runtime<FaultyBus<InProcEndpoint>, AxisDrive>| {
-                    master.poll(rt.sim_time_us);
-                    while let Some(f) = master.pop_tx() {
-                        let _ = master_bus.send(&f);
-                    }
-                    rt.tick();
-                    rt.stats.record_tick(0, 0);
-                    if rt.stats.ticks.is_multiple_of(256) {
-                        rt.publish_stats();
-                    }
-                    panel_loop.on_tick(rt);
-                    while let Ok(Some(f)) = master_bus.recv() {
-                        master.handle(&f, rt.sim_time_us);
-                    }
+                    tick_with_master(&mut master, &mut master_bus, rt, &mut panel_loop);
                     sim_time_us.store(rt.sim_time_us, Ordering::Relaxed);
                     if !sleep.is_zero() {
                         std::thread::sleep(sleep);
