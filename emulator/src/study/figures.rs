@@ -145,6 +145,31 @@ pub struct Fig10 {
     pub traces: Vec<Fig10Trace>,
 }
 
+/// Half a second of the motor speed, 2 s into the analysis window of a constant-velocity run
+/// of `cfg` at `v`, with the run's fundamental and its amplitude (Fig. 10, the twin figure).
+struct SpeedSnippet {
+    fundamental_hz: Option<f64>,
+    amplitude_rpm: f64,
+    time_s: Vec<f64>,
+    rpm: Vec<f64>,
+}
+
+fn speed_snippet(cfg: &AxisConfig, v: f64) -> anyhow::Result<SpeedSnippet> {
+    let mut o = RunOptions::new(v, DEFAULT_DURATION_S);
+    o.record = true;
+    let r = constant_velocity_run(cfg, &o).map_err(cfg_err)?;
+    let t0 = r.summary.window_start_s + 2.0;
+    let idx: Vec<usize> = (0..r.trace.len())
+        .filter(|&i| r.trace.time_s[i] >= t0 && r.trace.time_s[i] < t0 + 0.5)
+        .collect();
+    Ok(SpeedSnippet {
+        fundamental_hz: r.summary.fundamental_hz,
+        amplitude_rpm: r.summary.motor_velocity_amplitude_rpm,
+        time_s: idx.iter().map(|&i| r.trace.time_s[i] - t0).collect(),
+        rpm: idx.iter().map(|&i| r.trace.motor_velocity_rpm[i]).collect(),
+    })
+}
+
 /// Fig. 10 data: the paper's rotary axis (CNC3: ratio 1258.5, 0.026 r/s) at 0.01 and 0.04 deg.
 pub fn fig10_data() -> anyhow::Result<Fig10> {
     let base = AxisConfig::from_preset("cnc3").map_err(cfg_err)?;
@@ -154,20 +179,13 @@ pub fn fig10_data() -> anyhow::Result<Fig10> {
         let cfg = base
             .with_override("backlash_deg", &format!("{b}"))
             .map_err(cfg_err)?;
-        let mut o = RunOptions::new(v, DEFAULT_DURATION_S);
-        o.record = true;
-        let r = constant_velocity_run(&cfg, &o).map_err(cfg_err)?;
-        // Half a second of the analysis window.
-        let t0 = r.summary.window_start_s + 2.0;
-        let idx: Vec<usize> = (0..r.trace.len())
-            .filter(|&i| r.trace.time_s[i] >= t0 && r.trace.time_s[i] < t0 + 0.5)
-            .collect();
+        let s = speed_snippet(&cfg, v)?;
         traces.push(Fig10Trace {
             backlash_deg: b,
-            fundamental_hz: r.summary.fundamental_hz,
-            motor_velocity_amplitude_rpm: r.summary.motor_velocity_amplitude_rpm,
-            time_s: idx.iter().map(|&i| r.trace.time_s[i] - t0).collect(),
-            motor_velocity_rpm: idx.iter().map(|&i| r.trace.motor_velocity_rpm[i]).collect(),
+            fundamental_hz: s.fundamental_hz,
+            motor_velocity_amplitude_rpm: s.amplitude_rpm,
+            time_s: s.time_s,
+            motor_velocity_rpm: s.rpm,
         });
     }
     Ok(Fig10 {
@@ -289,19 +307,13 @@ pub fn fig_twin_data() -> anyhow::Result<FigTwin> {
         let cfg = base
             .with_override("preload_pct", &format!("{pct}"))
             .map_err(cfg_err)?;
-        let mut o = RunOptions::new(v, DEFAULT_DURATION_S);
-        o.record = true;
-        let r = constant_velocity_run(&cfg, &o).map_err(cfg_err)?;
-        let t0 = r.summary.window_start_s + 2.0;
-        let idx: Vec<usize> = (0..r.trace.len())
-            .filter(|&i| r.trace.time_s[i] >= t0 && r.trace.time_s[i] < t0 + 0.5)
-            .collect();
+        let s = speed_snippet(&cfg, v)?;
         traces.push(TwinTrace {
             preload_pct: pct,
-            fundamental_hz: r.summary.fundamental_hz,
-            motor_velocity_amplitude_rpm: r.summary.motor_velocity_amplitude_rpm,
-            time_s: idx.iter().map(|&i| r.trace.time_s[i] - t0).collect(),
-            motor_velocity_rpm: idx.iter().map(|&i| r.trace.motor_velocity_rpm[i]).collect(),
+            fundamental_hz: s.fundamental_hz,
+            motor_velocity_amplitude_rpm: s.amplitude_rpm,
+            time_s: s.time_s,
+            motor_velocity_rpm: s.rpm,
         });
     }
     Ok(FigTwin {
