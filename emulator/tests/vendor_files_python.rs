@@ -9,55 +9,11 @@
 //! for all (tests/python/vendor_file_check.py). Needs python3 with python-can 4.6.1 and
 //! canopen 2.4.1 (tests/requirements.txt; `DRIVE_EMU_PYTHON` names another interpreter).
 
-use std::io::{BufRead, BufReader, Read};
+mod socketcand_drive;
+
+use socketcand_drive::Drive;
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
-
-const BIN: &str = env!("CARGO_BIN_EXE_drive-emu");
-
-/// A running `drive-emu run --socketcand 127.0.0.1:0 --eds FILE`, killed when dropped.
-struct Drive {
-    child: Child,
-    port: u16,
-}
-
-impl Drive {
-    fn start(eds: &str) -> Drive {
-        let mut child = Command::new(BIN)
-            .args(["run", "--socketcand", "127.0.0.1:0", "--ready", "--json"])
-            .args([
-                "--rt-priority",
-                "0",
-                "--no-mlock",
-                "--node",
-                "5",
-                "--eds",
-                eds,
-            ])
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("start drive-emu");
-        let mut stdout = BufReader::new(child.stdout.take().unwrap());
-        let mut line = String::new();
-        stdout.read_line(&mut line).expect("read the ready line");
-        let ready: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|_| {
-            let mut err = String::new();
-            let _ = child.stderr.take().unwrap().read_to_string(&mut err);
-            panic!("{eds}: no ready line: {line:?}; stderr:\n{err}")
-        });
-        let port = ready["socketcand"]["port"].as_u64().expect("the port") as u16;
-        Drive { child, port }
-    }
-}
-
-impl Drop for Drive {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use std::process::Command;
 
 #[test]
 fn python_canopen_uploads_every_object_and_loads_the_configuration_of_each_file() {
@@ -75,7 +31,10 @@ fn python_canopen_uploads_every_object_and_loads_the_configuration_of_each_file(
     vendors.sort();
     assert!(vendors.len() >= 7, "{vendors:?}");
     paths.extend(vendors);
-    let drives: Vec<Drive> = paths.iter().map(|p| Drive::start(p)).collect();
+    let drives: Vec<Drive> = paths
+        .iter()
+        .map(|p| Drive::start(&["--node", "5", "--eds", p]))
+        .collect();
     let script = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../tests/python/vendor_file_check.py"
