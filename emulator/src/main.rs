@@ -41,9 +41,45 @@ enum Command {
     Profiles(cli::profiles::ProfilesArgs),
 }
 
+impl Command {
+    /// Whether the command writes only to its standard streams and to files: no socket a
+    /// peer could close under it (the panel, socketcand, a live scenario's bus).
+    fn offline(&self) -> bool {
+        match self {
+            Command::Demo(a) => a.panel.panel.is_none() && a.iface.is_none(),
+            Command::Scenario(a) => a.iface.is_none(),
+            Command::Run(_) => false,
+            Command::Sim(_)
+            | Command::Ballbar(_)
+            | Command::Sweep(_)
+            | Command::Figures(_)
+            | Command::Analyze(_)
+            | Command::Eds(_)
+            | Command::Fmu(_)
+            | Command::Presets
+            | Command::Profiles(_) => true,
+        }
+    }
+}
+
+/// An offline command whose reader goes away (`drive-emu demo | head`) ends quietly, as a
+/// Unix filter does, instead of panicking on "failed printing to stdout: Broken pipe". The
+/// Rust runtime ignores SIGPIPE; the default action is restored only for offline commands,
+/// since a drive serving sockets must not die when a peer closes one.
+fn end_quietly_on_broken_pipe() {
+    // SAFETY: setting a signal's disposition to its default, before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
     let ok = |r: anyhow::Result<()>| r.map(|()| ExitCode::SUCCESS);
-    let result = match Cli::parse().command {
+    let cli = Cli::parse();
+    if cli.command.offline() {
+        end_quietly_on_broken_pipe();
+    }
+    let result = match cli.command {
         Command::Demo(args) => ok(cli::demo::run(&args)),
         Command::Run(args) => ok(cli::run::run(&args)),
         Command::Sim(args) => ok(cli::sim::run(&args)),

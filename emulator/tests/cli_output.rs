@@ -342,3 +342,32 @@ fn demo_with_the_panel_serves_the_page_until_ctrl_c() {
     assert!(status.success(), "{status}: {rest}");
     assert!(rest.contains("stopped at"), "{rest}");
 }
+
+/// `drive-emu demo | head -1`: the reader goes away after the first line; the demo ends as a
+/// Unix filter does (SIGPIPE, or done), not with a panic "failed printing to stdout".
+#[test]
+fn a_reader_that_goes_away_ends_the_demo_without_a_panic() {
+    use std::io::{BufRead, BufReader};
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let mut child = bin()
+        .args(["demo"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start drive-emu demo");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .expect("the demo's first line");
+    assert!(!first.is_empty(), "the demo printed nothing");
+    // The read end is closed here; the demo's later lines meet a broken pipe.
+    let out = child.wait_with_output().expect("wait for the demo");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "the demo panicked: {err}");
+    assert!(
+        out.status.success() || out.status.signal() == Some(libc::SIGPIPE),
+        "the demo ended with {:?}: {err}",
+        out.status
+    );
+}
