@@ -79,6 +79,10 @@ pub struct PdoConfig {
     pub tpdo: [PdoMapping; 4],
     /// 0x1006 communication cycle period, us (0 = not set).
     pub cycle_period_us: u32,
+    /// 0x60C2 interpolation time period: value (sub 1) and index (sub 2, the power of ten of
+    /// seconds), as written.
+    pub ip_value: u32,
+    pub ip_index: i8,
 }
 
 impl PdoConfig {
@@ -110,7 +114,20 @@ impl PdoConfig {
             rpdo,
             tpdo,
             cycle_period_us: node.object_raw(0x1006, 0).unwrap_or(0),
+            ip_value: node.object_raw(0x60C2, 1).unwrap_or(0),
+            ip_index: node.object_raw(0x60C2, 2).map_or(0, |v| v as u8 as i8),
         })
+    }
+
+    /// The interpolation time period 0x60C2 (value x 10^index s) in us, when it is set and
+    /// is a whole number of us (None: not set).
+    pub fn interpolation_period_us(&self) -> Option<u32> {
+        if self.ip_value == 0 || !(-6..=0).contains(&self.ip_index) {
+            return None;
+        }
+        10u32
+            .checked_pow(u32::from((self.ip_index + 6) as u8))
+            .and_then(|scale| self.ip_value.checked_mul(scale))
     }
 
     /// The defaults of our drive for `preset` as node `node_id`; also whether the axis is
@@ -130,6 +147,8 @@ impl PdoConfig {
         let slot = |base: u16| usize::from(index.wrapping_sub(base));
         match (index, sub) {
             (0x1006, 0) => self.cycle_period_us = value,
+            (0x60C2, 1) => self.ip_value = value & 0xFF,
+            (0x60C2, 2) => self.ip_index = value as u8 as i8,
             (0x1400..=0x1403, 1) => self.rpdo[slot(0x1400)].cob_id = value,
             (0x1800..=0x1803, 1) => self.tpdo[slot(0x1800)].cob_id = value,
             (0x1400..=0x1403, 2) => self.rpdo[slot(0x1400)].transmission = value as u8,
@@ -340,6 +359,13 @@ pub struct BusLog {
     pub answered: Vec<bool>,
     pub period_us: u32,
     pub period_source: PeriodSource,
+    /// The simulated time a drive clocked by SYNC (`run --lockstep`) advances per SYNC, us,
+    /// and what says so, as the drive takes it: `--sync-period-us`, else 0x1006 as written,
+    /// else 0x60C2 as written (the drive's own rule: CiA 402 makes the interpolation period
+    /// the time between set-points, one per SYNC), else [`BusLog::period_us`]. Not checked
+    /// against the bus: such a drive takes it however slowly the SYNCs come.
+    pub lockstep_period_us: u32,
+    pub lockstep_period_source: &'static str,
     /// Median SYNC interval of the timestamps, us (None with fewer than two SYNCs).
     pub measured_period_us: Option<u32>,
     pub stats: DecodeStats,
@@ -723,6 +749,7 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
     require_node_and_sync(&dec, source, opts.node_id)?;
     let mut notes: Vec<String> = cut_line.into_iter().collect();
     let (period_us, period_source, measured) = sync_period(&dec, opts, source, &mut notes)?;
+    let (lockstep_period_us, lockstep_period_source) = lockstep_period(&dec.cfg, opts, period_us);
     let mut stats = dec.stats;
     let gap_us = GAP_PERIODS * f64::from(period_us);
     stats.sync_gaps = dec
@@ -742,6 +769,8 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
         answered: dec.answered,
         period_us,
         period_source,
+        lockstep_period_us,
+        lockstep_period_source,
         measured_period_us: measured,
         stats,
         kv_written: dec.kv_written,
@@ -861,6 +890,19 @@ fn sync_period(
     Ok((period_us, period_source, measured))
 }
 
+/// The time per SYNC of a drive clocked by SYNC ([`BusLog::lockstep_period_us`]).
+fn lockstep_period(cfg: &PdoConfig, opts: &DecodeOptions, period_us: u32) -> (u32, &'static str) {
+    if let Some(p) = opts.sync_period_us {
+        (p, "--sync-period-us")
+    } else if cfg.cycle_period_us > 0 {
+        (cfg.cycle_period_us, "0x1006 written in the log")
+    } else if let Some(p) = cfg.interpolation_period_us().filter(|&p| p > 0) {
+        (p, "0x60C2 written in the log")
+    } else {
+        (period_us, "the median SYNC interval")
+    }
+}
+
 /// Notes on what the decoder could not follow: SYNC gaps, backward timestamps, short PDOs,
 /// segmented SDOs.
 fn note_decoding_losses(stats: &DecodeStats, notes: &mut Vec<String>) {
@@ -978,6 +1020,48 @@ mod tests {
         assert_eq!(r.samples[1].velocity_uu_s, 1000);
         assert_eq!(r.period_us, 1100);
         assert_eq!(r.period_source, PeriodSource::MedianSyncInterval);
+    }
+
+    #[test]
+    fn a_lock_step_drive_takes_the_interpolation_period_the_master_wrote() {
+        // 0x60C2 = 1 x 10^-3 s written and confirmed; SYNCs every 1.3 ms (a slow master).
+        let log = "\
+(1.000000) can0 605#2FC2600101000000
+(1.000100) can0 585#60C2600100000000
+(1.000200) can0 605#2FC26002FD000000
+(1.000300) can0 585#60C2600200000000
+(1.001000) can0 080#
+(1.002300) can0 080#
+(1.003600) can0 080#
+";
+        let opts = DecodeOptions {
+            node_id: 5,
+            defaults: defaults(),
+            sync_period_us: None,
+        };
+        let r = decode(log, "x.log", &opts).unwrap();
+        assert_eq!(
+            r.period_us, 1300,
+            "the bus' own period is the median interval"
+        );
+        assert_eq!(r.lockstep_period_us, 1000);
+        assert_eq!(r.lockstep_period_source, "0x60C2 written in the log");
+        assert!((r.t_s(2) - 0.002).abs() < 1e-12);
+        // 0x1006 comes first, as the drive takes it; the command line before both.
+        let with_1006 = format!(
+            "(0.999000) can0 605#2306100020030000\n(0.999100) can0 585#6006100000000000\n{log}"
+        );
+        let r = decode(&with_1006, "x.log", &opts).unwrap();
+        assert_eq!(
+            (r.lockstep_period_us, r.lockstep_period_source),
+            (800, "0x1006 written in the log")
+        );
+        let given = DecodeOptions {
+            sync_period_us: Some(2000),
+            ..opts
+        };
+        let r = decode(log, "x.log", &given).unwrap();
+        assert_eq!(r.lockstep_period_us, 2000);
     }
 
     #[test]

@@ -176,9 +176,10 @@ impl BusLog {
         self.seen[o.slot()]
     }
 
-    /// Time of sample k at k times the period, s.
+    /// Time of sample k of a drive clocked by SYNC: k times its period per SYNC
+    /// ([`BusLog::lockstep_period_us`]), s.
     pub fn t_s(&self, k: usize) -> f64 {
-        k as f64 * f64::from(self.period_us) * 1e-6
+        k as f64 * f64::from(self.lockstep_period_us) * 1e-6
     }
 
     /// The SYNC time stamps, s, from the first one.
@@ -437,7 +438,19 @@ impl BusLog {
                 TimeBase::SyncCount,
                 format!("sample k at k x {} us (--sync-period-us)", self.period_us),
             ),
-            None => choose_time_base(stamps, &position),
+            None => {
+                let (b, why) = choose_time_base(stamps, &position);
+                match b {
+                    TimeBase::SyncCount => (
+                        b,
+                        format!(
+                            "{why}; period {} us per SYNC ({})",
+                            self.lockstep_period_us, self.lockstep_period_source
+                        ),
+                    ),
+                    TimeBase::Stamps => (b, why),
+                }
+            }
         };
         let (rows, t): (Vec<BusSample>, Vec<f64>) = match base {
             TimeBase::Stamps => (answered_rows, answered_stamps),
