@@ -183,7 +183,8 @@ class Detection:
     read. `backlash_estimate` is the gap in `backlash_estimate_unit` ("mm", or "deg" on a
     rotary axis; the report's `backlash_estimate_mm` / `_deg`), `backlash_estimate_range`
     (lo, hi) the range it lies in, `backlash_estimate_method` "encoders" (motor minus direct
-    encoder) or "amplitude" (the limit cycle's); all None on a healthy axis or where it
+    encoder), "amplitude" (the limit cycle's) or "amplitude_lower_bound" (set-points with
+    noise quench the limit cycle: the range reaches higher); all None on a healthy axis or where it
     cannot be said. `report` is the whole detector report as a dict."""
 
     verdict: str
