@@ -5,7 +5,7 @@ use drive_emu::cli;
 
 /// Hardware-in-the-loop CiA 402 servo-drive emulator with a backlashed CNC axis behind it.
 #[derive(Parser, Debug)]
-#[command(name = "drive-emu", version, about)]
+#[command(name = "drive-emu", version, about, after_help = cli::exit::HELP)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -106,7 +106,7 @@ fn main() -> ExitCode {
                     shown += &cause;
                 }
             }
-            ExitCode::FAILURE
+            ExitCode::from(cli::exit::code_of(&e))
         }
     }
 }

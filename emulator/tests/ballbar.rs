@@ -554,7 +554,8 @@ fn bad_arguments_give_clear_errors() {
         all.extend(["--trace".into(), trace.to_str().unwrap().into()]);
         let o = bin().args(&all).output().unwrap();
         let e = stderr(&o);
-        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        // what the user wrote: exit status 2 (crate::cli::exit)
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
         assert!(e.contains(want), "{args:?}: want {want:?} in {e}");
         assert!(
             !e.contains("panicked") && !e.contains("RUST_BACKTRACE"),

@@ -300,7 +300,7 @@ fn run_checks_lss_flags_and_the_store_file_before_touching_the_bus() {
     };
     refused(
         &["run", "--iface", "nonexistent0", "--node", "200"],
-        &["node_id", "200", "1..=127", "255"],
+        &["--node 200", "1..=127", "255"],
     );
     let good = file("good.lss", "node_id = 12\nbit_timing_index = 2\n");
     refused(
@@ -425,4 +425,121 @@ fn a_panel_on_a_non_loopback_address_needs_a_token() {
     );
     // The token needs the panel.
     refused(&["run", "--panel-token", "t0k"], &["--panel"]);
+}
+
+/// Issue 29: one exit status per kind of error, whichever command finds it
+/// (`cli::exit`, docs/getting-started.md "Exit status"): 2 for what the user wrote (an
+/// argument, or an input file's content), 4 for an input file that cannot be read, 1 for a
+/// run that failed; and the message names the flag the user wrote.
+#[test]
+fn each_kind_of_error_has_one_exit_status_in_every_command() {
+    let dir = std::env::temp_dir().join(format!("drive-emu-exit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad_toml = dir.join("bad.toml");
+    std::fs::write(&bad_toml, "[[axis]]\nnode_id = \"five\"\n").unwrap();
+    let bad_scenario = dir.join("bad-scenario.toml");
+    std::fs::write(&bad_scenario, "name = 3\n").unwrap();
+    let bad_eds = dir.join("bad.eds");
+    std::fs::write(&bad_eds, "[FileInfo]\nthis is not an EDS\n").unwrap();
+    let missing = dir.join("missing.toml");
+    let f = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let cases: Vec<(Vec<String>, i32, &str)> = vec![
+        // 2: an argument
+        (
+            vec!["run".into(), "--node".into(), "0".into()],
+            2,
+            "--node 0",
+        ),
+        (vec!["eds".into(), "--node".into(), "0".into()], 2, "--node"),
+        (
+            vec![
+                "sim".into(),
+                "--velocity".into(),
+                "10".into(),
+                "--set".into(),
+                "backlsh_mm=1".into(),
+            ],
+            2,
+            "did you mean `backlash_mm`",
+        ),
+        (
+            vec!["run".into(), "--set".into(), "backlash_mm".into()],
+            2,
+            "key=value",
+        ),
+        (
+            vec!["ballbar".into(), "--radius-mm".into(), "-1".into()],
+            2,
+            "radius",
+        ),
+        (
+            vec![
+                "scenario".into(),
+                "x.toml".into(),
+                "--idle-dwell".into(),
+                "0".into(),
+            ],
+            2,
+            "--idle-dwell",
+        ),
+        // 2: an input file's content
+        (
+            vec!["run".into(), "--config".into(), f(&bad_toml)],
+            2,
+            "node_id",
+        ),
+        (
+            vec!["scenario".into(), f(&bad_scenario), "--quiet".into()],
+            2,
+            "bad-scenario.toml",
+        ),
+        (
+            vec!["eds".into(), "--from".into(), f(&bad_eds)],
+            2,
+            "bad.eds",
+        ),
+        // 4: an input file that cannot be read
+        (
+            vec!["run".into(), "--config".into(), f(&missing)],
+            4,
+            "missing.toml",
+        ),
+        (
+            vec!["run".into(), "--config".into(), "/dev/zero".into()],
+            4,
+            "/dev/zero",
+        ),
+        (
+            vec!["run".into(), "--eds".into(), f(&missing)],
+            4,
+            "missing.toml",
+        ),
+        (
+            vec!["scenario".into(), f(&missing), "--quiet".into()],
+            4,
+            "missing.toml",
+        ),
+        (
+            vec!["eds".into(), "--from".into(), f(&missing)],
+            4,
+            "missing.toml",
+        ),
+        (vec!["analyze".into(), f(&missing)], 4, "missing.toml"),
+    ];
+    let mut wrong = Vec::new();
+    for (args, want, needle) in &cases {
+        let out = Command::new(env!("CARGO_BIN_EXE_drive-emu"))
+            .args(args)
+            .output()
+            .expect("run drive-emu");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        if out.status.code() != Some(*want) || !stderr.contains(needle) {
+            wrong.push(format!(
+                "{args:?}: exit {:?} (want {want}), stderr without `{needle}`?\n{stderr}",
+                out.status.code()
+            ));
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }

@@ -173,8 +173,9 @@ pub fn setup(args: &BallbarArgs) -> anyhow::Result<BallbarSetup> {
 }
 
 pub fn run(args: &BallbarArgs) -> anyhow::Result<()> {
-    let setup = setup(args)?;
-    ballbar::validate(&setup)?;
+    // what the user wrote: exit status 2 (4: a file that cannot be read)
+    let setup = setup(args).map_err(super::exit::usage)?;
+    ballbar::validate(&setup).map_err(super::exit::usage)?;
     // Outputs are opened before the run: a bad path fails at once, not after the circle.
     let trace_file = match &args.trace {
         Some(p) => Some(

@@ -203,7 +203,8 @@ pub fn eds_time_date(unix_s: u64) -> (String, String) {
 }
 
 pub fn run_eds(args: &EdsArgs) -> Result<()> {
-    let (eds, report) = eds_and_report(args)?;
+    // a bad file or argument: exit status 2 (4: a file that cannot be read)
+    let (eds, report) = eds_and_report(args).map_err(super::exit::usage)?;
     if let Some(r) = report {
         eprint!("{r}");
     }

@@ -5,6 +5,7 @@ pub mod ballbar;
 pub mod demo;
 pub mod demo_panel;
 pub mod eds;
+pub mod exit;
 pub mod figures;
 pub mod fmu;
 pub mod lss_store;

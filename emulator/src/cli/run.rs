@@ -237,13 +237,14 @@ pub fn build_axes(
     entries
         .iter_mut()
         .map(|e| {
+            let at = format!("axis node {}", e.node_id);
             let cfg = AxisConfig::from_preset(&e.preset)
-                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+                .map_err(|err| super::exit::config(&at, err.into()))?;
             let mut cfg = cfg;
             for (k, v) in &e.set {
                 cfg = cfg
                     .with_override(k, &machine::value_text(v))
-                    .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+                    .map_err(|err| super::exit::config(&at, err.into()))?;
             }
             axis_slot(cfg, e, boot_delay_us, lss)
         })
@@ -258,7 +259,9 @@ fn axis_setup(
     boot_delay_us: u64,
     lss: &LssOptions,
 ) -> Result<(drive_protocol::NodeConfig, AxisDrive)> {
-    let ctx = |err: anyhow::Error| anyhow::anyhow!("axis node {}: {err:#}", e.node_id);
+    // what the user wrote (preset, overrides, vendor file): exit status 2, or 4 (crate::cli::exit)
+    let at = format!("axis node {}", e.node_id);
+    let ctx = |err: anyhow::Error| super::exit::config(&at, err);
     let eds = match &e.eds {
         Some(p) => Some(Arc::new(VendorEds::load(p).map_err(ctx)?)),
         None => None,
@@ -342,7 +345,13 @@ pub fn parse_index(s: &str) -> Result<u16, String> {
 }
 
 /// The machine described by the command line (one axis) or by --config.
+/// Its errors are usage errors (exit status 2: docs/getting-started.md), or 4 where a file
+/// cannot be read.
 pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
+    machine_from_args_inner(args).map_err(super::exit::usage)
+}
+
+fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
     let behaviour = crate::drive::profile::Behaviour::from_args(
         args.profile.as_deref(),
         &args.quirk,
@@ -357,6 +366,14 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
             );
         }
         return machine::load(path);
+    }
+    // Said as the user wrote it (machine::validate would name the machine file's key).
+    if !(1..=127).contains(&args.node) && args.node != 255 {
+        bail!(
+            "--node {}: outside 1..=127 (255: non-configured, a drive out of the box that \
+             answers LSS only)",
+            args.node
+        );
     }
     let mut set = std::collections::BTreeMap::new();
     for s in &args.set {
@@ -617,7 +634,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         return run_ethercat(args, iface);
     }
     let scenario = match &args.scenario {
-        Some(path) => Some(crate::scenario::load(path).map_err(|e| anyhow::anyhow!("{e}"))?),
+        Some(path) => Some(crate::scenario::load(path).map_err(super::exit::scenario_file)?),
         None => None,
     };
     let outcome = run_live(args, scenario.as_ref())?;

@@ -57,16 +57,18 @@ pub struct ScenarioArgs {
 }
 
 pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
-    anyhow::ensure!(
-        args.idle_dwell.is_finite() && args.idle_dwell > 0.0 && args.idle_dwell <= 60.0,
-        "--idle-dwell {}: must be within 0..=60 s (> 0: the physical time an idle step keeps)",
-        args.idle_dwell
-    );
-    anyhow::ensure!(
-        args.max_memory_mb.is_finite() && args.max_memory_mb > 0.0,
-        "--max-memory-mb {}: must be > 0",
-        args.max_memory_mb
-    );
+    if !(args.idle_dwell.is_finite() && args.idle_dwell > 0.0 && args.idle_dwell <= 60.0) {
+        return Err(super::exit::usage_msg(format!(
+            "--idle-dwell {}: must be within 0..=60 s (> 0: the physical time an idle step keeps)",
+            args.idle_dwell
+        )));
+    }
+    if !(args.max_memory_mb.is_finite() && args.max_memory_mb > 0.0) {
+        return Err(super::exit::usage_msg(format!(
+            "--max-memory-mb {}: must be > 0",
+            args.max_memory_mb
+        )));
+    }
     if let Some(iface) = &args.iface {
         return run_live(args, iface);
     }
@@ -78,10 +80,8 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
     };
     let (out, dir) = match run_file(&args.file, args.out.as_deref(), &opts, !args.no_plots) {
         Ok(x) => x,
-        Err(RunError::File(e)) => {
-            eprintln!("error: {e}");
-            return Ok(ExitCode::from(2));
-        }
+        // 2: the file's content is wrong; 4: it cannot be read (crate::cli::exit)
+        Err(RunError::File(e)) => return Err(super::exit::scenario_file(e)),
         Err(RunError::Run(e)) => return Err(e),
     };
     if args.json {
@@ -146,13 +146,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<ExitCode> {
 /// `--iface`: the timeline injected into a drive running on a real bus.
 fn run_live(args: &ScenarioArgs, iface: &str) -> anyhow::Result<ExitCode> {
     use clap::Parser;
-    let s = match crate::scenario::load(&args.file) {
-        Ok(s) => s,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return Ok(ExitCode::from(2));
-        }
-    };
+    let s = crate::scenario::load(&args.file).map_err(super::exit::scenario_file)?;
     // The run command's defaults, with this command's interface, node and clock.
     #[derive(Parser)]
     struct Wrap {

@@ -113,11 +113,11 @@ fn validate(args: &SimArgs, cycle_s: f64) -> anyhow::Result<()> {
 pub fn simulate(args: &SimArgs, record: bool, stop: &AtomicBool) -> anyhow::Result<RunResult> {
     let cfg = AxisConfig::from_preset(&args.preset)
         .and_then(|c| c.with_overrides(args.set.iter().map(String::as_str)))
-        .map_err(|e| anyhow::anyhow!("invalid configuration: {e}"))?;
+        .map_err(|e| crate::cli::exit::usage_msg(format!("invalid configuration: {e}")))?;
     let built = cfg
         .build()
-        .map_err(|e| anyhow::anyhow!("invalid configuration: {e}"))?;
-    validate(args, built.control.position_cycle)?;
+        .map_err(|e| crate::cli::exit::usage_msg(format!("invalid configuration: {e}")))?;
+    validate(args, built.control.position_cycle).map_err(crate::cli::exit::usage)?;
     let opts = RunOptions {
         velocity: args.velocity,
         duration: args.duration,
