@@ -1,4 +1,5 @@
-//! Command-line subcommands.
+//! Command-line subcommands, and the command line itself ([`Cli`]: the binary parses it, the
+//! docs test checks every command the README and the book show against it).
 
 pub mod analyze;
 pub mod ballbar;
@@ -14,3 +15,64 @@ pub mod run;
 pub mod scenario;
 pub mod sim;
 pub mod sweep;
+
+use clap::{Parser, Subcommand};
+
+/// Hardware-in-the-loop CiA 402 servo-drive emulator with a backlashed CNC axis behind it.
+#[derive(Parser, Debug)]
+#[command(name = "drive-emu", version, about, after_help = exit::HELP)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Master and drive in one process, no CAN hardware: enable, move, and the backlash
+    /// vibration seen from the wire.
+    Demo(demo::DemoArgs),
+    /// Answer on a CAN bus as one or several CiA 402 drives, a simulated axis behind each.
+    Run(Box<run::RunArgs>),
+    /// Run a preset axis offline at constant velocity and analyse its vibration.
+    Sim(sim::SimArgs),
+    /// The virtual ballbar (ISO 230-4): a circle both ways on two linear axes, with the
+    /// master's backlash compensation; circular deviation, reversal spikes, backlash estimate.
+    Ballbar(ballbar::BallbarArgs),
+    /// Sweep k_v x backlash x preset on all cores; one CSV/JSON row per case.
+    Sweep(sweep::SweepArgs),
+    /// The paper's Fig. 3, 10 and 11 from simulated runs (PNG + JSON).
+    Figures(figures::FiguresArgs),
+    /// Run a scenario (wear, faults, expectations) offline and write its report.
+    Scenario(scenario::ScenarioArgs),
+    /// Run the backlash detector on a trace: trace CSV, sample log or candump log.
+    Analyze(analyze::AnalyzeArgs),
+    /// Write the drive's EDS (CiA 306) to stdout.
+    Eds(eds::EdsArgs),
+    /// Write the preset axis as an FMI 2.0 co-simulation FMU (for Simulink, VeriStand, FMPy).
+    Fmu(fmu::FmuArgs),
+    /// List the axis presets.
+    Presets,
+    /// List the vendor behaviour profiles and switches (docs/quirks.md), or show one.
+    Profiles(profiles::ProfilesArgs),
+}
+
+impl Command {
+    /// Whether the command writes only to its standard streams and to files: no socket a
+    /// peer could close under it (the panel, socketcand, a live scenario's bus).
+    pub fn offline(&self) -> bool {
+        match self {
+            Command::Demo(a) => a.panel.panel.is_none() && a.iface.is_none(),
+            Command::Scenario(a) => a.iface.is_none(),
+            Command::Run(_) => false,
+            Command::Sim(_)
+            | Command::Ballbar(_)
+            | Command::Sweep(_)
+            | Command::Figures(_)
+            | Command::Analyze(_)
+            | Command::Eds(_)
+            | Command::Fmu(_)
+            | Command::Presets
+            | Command::Profiles(_) => true,
+        }
+    }
+}
