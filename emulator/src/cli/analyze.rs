@@ -124,7 +124,8 @@ pub struct AnalyzeArgs {
     #[arg(long)]
     pub preset: Option<String>,
     /// candump log: SYNC period, us (default: 0x1006 if written in the log, else the median
-    /// SYNC interval of the timestamps); places sample k at k x this period.
+    /// SYNC interval of the timestamps; a lock-step drive's time per SYNC: 0x1006, else 0x60C2
+    /// as written, else that median); places sample k at k x this period.
     #[arg(long)]
     pub sync_period_us: Option<u32>,
     /// candump log: when each sample was taken: `stamps` (the SYNC's time stamp in the log: a
@@ -132,6 +133,14 @@ pub struct AnalyzeArgs {
     /// `run --lockstep`); default: told from the capture (which clock the axis moves on).
     #[arg(long, value_enum, default_value_t = TimeBaseArg::Auto)]
     pub time_base: TimeBaseArg,
+    /// candump log of a master interpolating the ballbar's circle (ISO 230-4, both ways) on two
+    /// drives in CSP: the ballbar's figures (G, reversal spikes, radius deviation, a backlash
+    /// estimate per axis) for nodes X,Y, as `drive-emu ballbar` reports them (docs/ballbar.md).
+    #[arg(long, value_name = "X,Y")]
+    pub ballbar: Option<String>,
+    /// With --ballbar: the nominal radius, mm (default: the commanded circle's, fitted).
+    #[arg(long, requires = "ballbar")]
+    pub radius_mm: Option<f64>,
 }
 
 /// `--time-base`.
@@ -172,6 +181,8 @@ impl Default for AnalyzeArgs {
             preset: None,
             sync_period_us: None,
             time_base: TimeBaseArg::Auto,
+            ballbar: None,
+            radius_mm: None,
         }
     }
 }
@@ -331,6 +342,10 @@ pub fn exit_code(verdict: Verdict, fail_on_backlash: bool) -> u8 {
 /// `drive-emu analyze`: exit 2 for usage errors, 4 when the trace cannot be read, else the
 /// verdict's code ([`exit_code`]).
 pub fn run(args: &AnalyzeArgs) -> anyhow::Result<std::process::ExitCode> {
+    if let Some(spec) = &args.ballbar {
+        super::analyze_ballbar::run(args, spec)?;
+        return Ok(std::process::ExitCode::SUCCESS);
+    }
     match run_inner(args) {
         Ok(code) => Ok(std::process::ExitCode::from(code)),
         Err(e) => {

@@ -2,6 +2,7 @@
 //! docs test checks every command the README and the book show against it).
 
 pub mod analyze;
+pub mod analyze_ballbar;
 pub mod ballbar;
 pub mod demo;
 pub mod demo_panel;

@@ -6,6 +6,7 @@
 //! ballbar reports (circular deviation G, reversal spikes, radius deviation, a backlash
 //! estimate per axis). docs/ballbar.md.
 
+pub mod capture;
 pub mod metrics;
 
 use std::sync::atomic::{AtomicBool, Ordering};
