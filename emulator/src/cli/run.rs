@@ -605,7 +605,7 @@ impl Status {
 
     /// The status block: the loop (time, ticks, overruns, SYNC lock, drops, link), then one
     /// line per axis with its node ID, NMT state, CiA 402 state, mode name, position and
-    /// following error (in user units, uu).
+    /// following error (in user units, uu), and under a worn axis the wear it runs with.
     fn lines(&self, iface: &str, lockstep: bool) -> Vec<String> {
         let mut head = format!(
             "{iface} t={:.1} s | ticks {} overruns {}",
@@ -633,10 +633,10 @@ impl Status {
         if !self.link_up.load(Ordering::Relaxed) {
             head += " | LINK DOWN";
         }
-        let axes = self.axes.iter().map(|a| {
+        let axes = self.axes.iter().flat_map(|a| {
             let nmt = a.nmt.load(Ordering::Relaxed) as u8;
-            format!(
-                "node {:<3} {:<15} {:<21} {:<7} pos {} ferr {} uu{}",
+            let line = format!(
+                "node {:<3} {:<15} {:<21} {:<7} pos {} ferr {} uu",
                 a.node_id.load(Ordering::Relaxed),
                 // The heartbeat's 0x00 is the boot-up; the state before it is initialising,
                 // or, without a node-ID, waiting for one by LSS.
@@ -651,8 +651,12 @@ impl Status {
                 crate::master::mode_short(a.mode.load(Ordering::Relaxed) as i8),
                 a.position_uu.load(Ordering::Relaxed),
                 a.following_error_uu.load(Ordering::Relaxed),
-                a.wear().map_or(String::new(), |w| format!(" | WORN: {w}")),
-            )
+            );
+            // a worn axis: a line of its own under it (the axis line fills 80 columns)
+            let wear = a
+                .wear()
+                .map(|w| format!("         WORN: {w} (healthy: without --worn)"));
+            std::iter::once(line).chain(wear)
         });
         std::iter::once(head).chain(axes).collect()
     }
@@ -1619,6 +1623,19 @@ mod tests {
         let s = Status::new(1);
         axis(&s.axes[0], 5, 0x05, 0x0637, -2);
         assert!(s.lines("can0", true)[1].contains("manufacturer-specific mode -2"));
+        // a worn axis (issue 33, item 4): a line under it says so, and fits the terminal
+        s.axes[0].gap_si.store(3e-5f64.to_bits(), Ordering::Relaxed);
+        let lines = s.lines("can0", false);
+        assert_eq!(lines.len(), 3, "{lines:#?}");
+        assert!(lines[2].contains("WORN: backlash 0.03 mm"), "{lines:#?}");
+        assert!(lines[2].chars().count() <= 80, "{lines:#?}");
+        s.axes[0].rotary.store(true, Ordering::Relaxed);
+        s.axes[0]
+            .gap_si
+            .store(0.02f64.to_radians().to_bits(), Ordering::Relaxed);
+        assert!(s.lines("can0", false)[2].contains("WORN: backlash 0.02 deg"));
+        s.axes[0].gap_si.store(0f64.to_bits(), Ordering::Relaxed);
+        assert_eq!(s.lines("can0", false).len(), 2, "healthy: no wear line");
     }
 
     #[test]
