@@ -41,6 +41,7 @@ fn args(preset: &str, node: Option<u8>, set: &[&str]) -> EdsArgs {
         preset: preset.into(),
         node,
         set: set.iter().map(|s| s.to_string()).collect(),
+        worn: false,
         real32: Real32Arg::Bits,
         canopen_monitor: false,
         from: None,
@@ -129,6 +130,11 @@ fn every_default_in_the_eds_is_what_an_sdo_read_returns() {
             .unwrap()
             .with_overrides(set.iter().copied())
             .unwrap();
+        // what `run` serves: healthy unless the overrides give a gap
+        let cfg = drive_emu::drive::machine::served(
+            cfg,
+            drive_emu::drive::machine::sets_ask_for_wear(set),
+        );
         let mut drive = AxisDrive::from_config(&cfg).unwrap();
         let mut node = drive_emu::drive::node(&mut drive, node_id).unwrap();
         node.boot(0);
@@ -562,4 +568,34 @@ fn docs_objects_md_is_current() {
         on_disk == md,
         "docs/objects.md is stale: run UPDATE_OBJECTS_MD=1 cargo test -p drive-emu --test eds_truth"
     );
+}
+
+/// Issue 33, item 4: the EDS describes the drive `run` serves: a healthy axis (the backlash
+/// object 0x2000 at 0) unless wear is asked for, by --worn (the preset's gap) or a gap of its
+/// own in --set.
+#[test]
+fn the_eds_describes_the_healthy_axis_unless_wear_is_asked_for() {
+    let backlash = |a: EdsArgs| -> f32 {
+        let ini = parse_ini(&eds_text(&a).unwrap());
+        let v = &ini["2000"]["DefaultValue"];
+        f32::from_bits(u32::from_str_radix(v.trim_start_matches("0x"), 16).unwrap())
+    };
+    for preset in preset_names() {
+        let cfg = AxisConfig::from_preset(preset).unwrap();
+        let shipped = cfg.backlash_mm.or(cfg.backlash_deg).unwrap() as f32;
+        assert!(
+            shipped > 0.0,
+            "{preset}: the preset is the paper's worn machine"
+        );
+        assert_eq!(backlash(args(preset, None, &[])), 0.0, "{preset}");
+        let worn = EdsArgs {
+            worn: true,
+            ..args(preset, None, &[])
+        };
+        assert_eq!(backlash(worn), shipped, "{preset}");
+    }
+    assert_eq!(backlash(args("cnc1", None, &["backlash_mm=0.05"])), 0.05);
+    assert_eq!(backlash(args("cnc3", None, &["backlash_deg=0.01"])), 0.01);
+    // other overrides leave the axis healthy
+    assert_eq!(backlash(args("cnc1", None, &["kv_per_s=20"])), 0.0);
 }

@@ -1,10 +1,11 @@
 //! The position window (0x6067) and window time (0x6068) at standstill after a profile-position
 //! move, on every preset, from the trace the master records (one sample per 1 ms SYNC):
 //!
-//! - A healthy axis (backlash 0) settles in the drive's default window: from the first "target
+//! - A healthy axis (backlash 0, what `drive-emu run` serves unless asked for wear) settles in
+//!   the drive's default window: from the first "target
 //!   reached" (statusword bit 10) on, every sample is inside 0x6067 and bit 10 stays set; the
 //!   position was inside for the window time before bit 10 came; it settles to the user unit.
-//! - The shipped (worn) axis hunts at standstill: once the end of the move has disturbed it,
+//! - The shipped (worn) axis (`run --worn`) hunts at standstill: once the end of the move has disturbed it,
 //!   the load coasts through the gap and the speed loop reverses it, a limit cycle at the
 //!   paper's frequency (k_v/4 < f < k_v, near 0.6 k_v) with a half-amplitude of about 0.6 x
 //!   the gap. The default window holds that hunting with margin, so bit 10 stays set: a master
@@ -16,6 +17,7 @@
 //! `cargo nextest run -p drive-emu --test position_window --no-capture` prints every run.
 
 use drive_emu::drive::axis_drive::AxisDrive;
+use drive_emu::drive::machine;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_PP};
 use drive_emu::presets::{preset_names, AxisConfig, AxisKind};
 use drive_emu::runtime::AxisSlot;
@@ -98,6 +100,18 @@ fn pp_move_and_stand(preset: &'static str, backlash: Option<f64>) -> Run {
     if let Some(b) = backlash {
         cfg = cfg.with_override(key, &b.to_string()).unwrap();
     }
+    pp_move_and_stand_on(preset, cfg)
+}
+
+/// The axis `drive-emu run` serves for this machine-file text's first axis.
+fn served(text: &str) -> AxisConfig {
+    machine::parse(text, "m.toml").unwrap().axes[0]
+        .run_config()
+        .unwrap()
+}
+
+/// [`pp_move_and_stand`] on this axis.
+fn pp_move_and_stand_on(preset: &'static str, cfg: AxisConfig) -> Run {
     let gap_uu = 1000.0 * cfg.backlash_mm.or(cfg.backlash_deg).unwrap_or(0.0);
     let mut drive = AxisDrive::from_config(&cfg).unwrap();
     let node = drive_emu::drive::node(&mut drive, NODE).unwrap();
@@ -141,10 +155,45 @@ fn pp_move_and_stand(preset: &'static str, backlash: Option<f64>) -> Run {
     }
 }
 
+/// Issue 33, item 4: `drive-emu run` with no wear flag or key serves this healthy axis (the
+/// preset with no gap), and only then; wear is one flag or key away.
+#[test]
+fn run_serves_a_healthy_axis_unless_wear_is_asked_for() {
+    for preset in preset_names() {
+        let shipped = AxisConfig::from_preset(preset).unwrap();
+        let gap = |c: &AxisConfig| c.backlash_mm.or(c.backlash_deg).unwrap();
+        assert!(
+            gap(&shipped) > 0.0,
+            "{preset}: the preset is the paper's worn machine"
+        );
+        let axis = format!("[[axis]]\nnode_id = 5\npreset = \"{preset}\"\n");
+        let healthy = served(&axis);
+        assert_eq!(gap(&healthy), 0.0, "{preset}");
+        // every other key as the preset says
+        assert_eq!(machine::healthy(shipped.clone()), healthy, "{preset}");
+        assert_eq!(gap(&served(&format!("{axis}worn = true\n"))), gap(&shipped));
+        let key = match shipped.kind {
+            AxisKind::Linear => "backlash_mm",
+            AxisKind::Rotary => "backlash_deg",
+        };
+        assert_eq!(
+            gap(&served(&format!("{axis}set = {{ {key} = 0.05 }}\n"))),
+            0.05
+        );
+        // an override that is not a gap leaves it healthy
+        assert_eq!(
+            gap(&served(&format!("{axis}set = {{ kv_per_s = 20.0 }}\n"))),
+            0.0
+        );
+    }
+}
+
 #[test]
 fn a_healthy_axis_settles_in_the_default_window_on_every_preset() {
     for preset in preset_names() {
-        let r = pp_move_and_stand(preset, Some(0.0));
+        // the axis `run` serves by default
+        let cfg = served(&format!("[[axis]]\nnode_id = 5\npreset = \"{preset}\"\n"));
+        let r = pp_move_and_stand_on(preset, cfg);
         assert!(r.master_error.is_none(), "{preset}: {:?}", r.master_error);
         let s = &r.samples;
         let first = s

@@ -106,10 +106,36 @@ fn eds_from_says_what_one_user_unit_is() {
             && note.contains(" mm of the simulated axis"),
         "{note}"
     );
+    // the SI unit velocity rev/min is the velocity user unit (issue 33, item 2)
     assert!(
         note.contains(
-            "0x60A9 SI unit velocity = 0x00B44700 is served as the file says, not applied"
-        ),
+            "0x60A9 SI unit velocity = 0x00B44700 (rev/min): applied, velocities in that unit, \
+             accelerations in that unit per second"
+        ) && !note.contains("speeds in uu/s"),
+        "{note}"
+    );
+    assert!(
+        note.contains("0x60A8 SI unit position = 0x00B50000 (unit 0xB5)"),
+        "{note}"
+    );
+    // a unit the drive cannot tell in increments: said, velocities in uu/s
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("DefaultValue=0x00B44700", "DefaultValue=0x00B49900");
+    let dir = std::env::temp_dir().join(format!("drive-emu-units-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let other = dir.join("unknown-time.eds");
+    std::fs::write(&other, text).unwrap();
+    let out = drive_emu(&["eds", "--from", other.to_str().unwrap()]);
+    let _ = std::fs::remove_dir_all(&dir);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let note = stderr
+        .lines()
+        .find(|l| l.contains("note: 1 uu = "))
+        .unwrap();
+    assert!(
+        note.contains("0x60A9 SI unit velocity = 0x00B49900 (rev/0x99): not applied")
+            && note.ends_with("; speeds in uu/s, accelerations in uu/s^2"),
         "{note}"
     );
 }

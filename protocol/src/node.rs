@@ -892,6 +892,8 @@ impl Node {
             }
             None => None,
         };
+        let fe_window_zero_off = od.device.following_error_window_zero_off;
+        let si_rows = si_unit_rows(&od);
         let mut core = Core {
             node_id,
             info,
@@ -906,7 +908,7 @@ impl Node {
             hbc: Consumer::default(),
             hb_lost: false,
             emcy: Emcy::with_history(history_len),
-            cia: Cia402::new(factor, quirks.cia402()),
+            cia: Cia402::new(factor, quirks.cia402()).with_device(fe_window_zero_off, si_rows),
             tx: Deque::new(),
             tx_overflows: 0,
             sync_window_missed: 0,
@@ -979,8 +981,14 @@ impl Node {
                 drive.reset();
                 c.take_lss_node_id(true);
                 c.restore_range(0x0000, 0xFFFF);
-                let f = Factor::from_info(&c.info).unwrap_or(Factor { inc_per_uu: 1.0 });
-                c.cia = Cia402::new(f, c.quirks.cia402());
+                let f = Factor::from_info(&c.info).unwrap_or(Factor {
+                    inc_per_uu: 1.0,
+                    vel_inc_per_uu: 1.0,
+                });
+                c.cia = Cia402::new(f, c.quirks.cia402()).with_device(
+                    c.od.device.following_error_window_zero_off,
+                    si_unit_rows(&c.od),
+                );
                 c.cw_latch = ControlwordLatch::default();
                 c.clear_all_emcy();
                 self.sdo.reset();
@@ -1689,4 +1697,15 @@ fn csp_period_us(store: &Store, measured_us: u64) -> u64 {
     } else {
         measured_us
     }
+}
+
+/// The rows of a dictionary's SI unit position 0x60A8 and velocity 0x60A9 (a vendor's file
+/// may have them; the CiA 402 layer applies 0x60A9 where it can), `None` without 0x60A9.
+fn si_unit_rows(od: &ObjectDictionary) -> Option<(Option<usize>, usize)> {
+    let row = |index: u16| {
+        od.get(index, 0)
+            .filter(|(_, e)| e.dtype == crate::od::DataType::U32)
+            .map(|(s, _)| s.get())
+    };
+    Some((row(0x60A8), row(0x60A9)?))
 }

@@ -191,10 +191,70 @@ fn identity_strings_are_the_files_empty_stays_empty() {
     );
 }
 
+/// A PP move of 5000 uu at `speed` (0x6081) with `acc` (0x6083/0x6084) in the file's own
+/// units: whether it reached its target (bit 10, within 100 uu) and the peak of 0x606C.
+fn pp_move(b: &mut Bench, speed: u32, acc: u32) -> (bool, i32, i32) {
+    b.start();
+    b.enable(1);
+    let p0 = b.node.position_actual();
+    b.w32(0x6081, 0, speed).unwrap();
+    b.w32(0x6083, 0, acc).unwrap();
+    b.w32(0x6084, 0, acc).unwrap();
+    b.w32(0x607A, 0, (p0 + 5000) as u32).unwrap();
+    b.cw(0x1F);
+    b.cw(0x0F);
+    let mut peak = 0i32;
+    for _ in 0..3000 {
+        b.tick();
+        peak = peak.max(b.ri32(0x606C, 0));
+        if b.statusword() & (1 << 10) != 0 && b.node.position_actual() > p0 + 4900 {
+            return (true, peak, p0);
+        }
+    }
+    (false, peak, p0)
+}
+
+/// Issue 33, item 2: the SI unit velocity 0x60A9 = 0xFFB44700 (0.1 rev/min) with 0x608F:1 =
+/// 2000 increments per revolution: 0x6081 = 3000 is 300 rev/min = 10000 increments/s = 10000
+/// position uu/s (1 uu = 1 increment by the factor group); 0x6083 = 30000 is 3000 rev/min per
+/// second. The move runs at that speed (0x606C reads back in 0.1 rev/min, the motor's
+/// increments per second agree) and ends at its target; the report says the unit applies.
+#[test]
+fn the_si_unit_velocity_is_the_velocity_user_unit() {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/eds/units/velocity-tenth-rpm.eds");
+    let f = parse(&decode_text(&std::fs::read(&p).unwrap())).unwrap();
+    let (mut b, _) = bench(&f);
+    let (reached, peak, p0) = pp_move(&mut b, 3000, 30_000);
+    assert!(
+        reached,
+        "moved {} of 5000 uu",
+        b.node.position_actual() - p0
+    );
+    assert!(
+        (2_850..=3_150).contains(&peak),
+        "peak speed {peak} x 0.1 rev/min, commanded 3000"
+    );
+    // the motor: 10000 increments/s at the peak (the test drive follows the command)
+    assert!(
+        (b.drive.pos - (p0 as f64 + 5000.0)).abs() < 60.0,
+        "motor at {} inc",
+        b.drive.pos
+    );
+    // the same file without 0x60A9 (velocities in uu/s): 0x6081 = 3000 is 3000 inc/s, a third
+    // of the speed, and 0x606C reads it in uu/s
+    let text = decode_text(&std::fs::read(&p).unwrap())
+        .replace("DefaultValue=0xFFB44700", "DefaultValue=0x00B50000");
+    let (mut b, _) = bench(&parse(&text).unwrap());
+    let (reached, peak, _) = pp_move(&mut b, 3000, 30_000);
+    assert!(reached);
+    assert!((2_850..=3_150).contains(&peak), "peak {peak} uu/s");
+}
+
 /// Issue 33, item 4: the file's factor group is the user unit on the bus. 0x608F:1 = 2000
-/// increments per revolution and 0x6092:1 = 2000 per revolution make 1 uu one increment: a
-/// PP move at 0x6081 = 10000 uu/s runs at 10000 uu/s (the speed the motor reaches, read in
-/// 0x606C) and ends at its target in those units.
+/// increments per revolution and 0x6092:1 = 2000 per revolution make 1 uu one increment;
+/// its SI unit velocity 0x60A9 = 0x00B44700 makes a velocity uu one rev/min: a PP move at
+/// 0x6081 = 300 rev/min runs at 10000 uu/s (the speed the motor reaches; 0x606C reads 300)
+/// and ends at its target in those units.
 #[test]
 fn the_files_factor_group_is_the_user_unit_and_the_move_runs_at_its_speed() {
     let f = load("factor-2000.eds");
@@ -202,9 +262,9 @@ fn the_files_factor_group_is_the_user_unit_and_the_move_runs_at_its_speed() {
     b.start();
     b.enable(1);
     let p0 = b.node.position_actual();
-    b.w32(0x6081, 0, 10_000).unwrap();
-    b.w32(0x6083, 0, 100_000).unwrap();
-    b.w32(0x6084, 0, 100_000).unwrap();
+    b.w32(0x6081, 0, 300).unwrap();
+    b.w32(0x6083, 0, 3000).unwrap();
+    b.w32(0x6084, 0, 3000).unwrap();
     b.w32(0x607A, 0, (p0 + 5000) as u32).unwrap();
     b.cw(0x1F);
     b.cw(0x0F);
@@ -224,8 +284,8 @@ fn the_files_factor_group_is_the_user_unit_and_the_move_runs_at_its_speed() {
         b.node.position_actual() - p0
     );
     assert!(
-        (9_500..=10_500).contains(&peak),
-        "peak speed {peak} uu/s, commanded 10000"
+        (285..=315).contains(&peak),
+        "peak speed {peak} rev/min, commanded 300"
     );
     // and the same number of increments reached the motor: 1 uu = 1 increment (the test
     // drive's axis counts what the node commands)
@@ -255,4 +315,64 @@ fn a_dcf_parameter_value_zero_for_a_placeholder_is_said() {
         report.notes
     );
     assert_ne!(b.r32(0x6065, 0), 0);
+}
+
+/// Issue 33, item 3: a DCF whose ParameterValue for the following-error window 0x6065 is 0
+/// (its vendor documents 0 as "off"): the drive boots with the file's default, a master's
+/// load_configuration() writes the 0, and the drive does not fault at the first motion, a
+/// stuck axis included (its following error grows without bound); the report says so. Our own
+/// drive, given 0 (CiA 402 defines only 0xFFFFFFFF as off), faults: the check is live.
+#[test]
+fn a_dcf_that_loads_a_following_error_window_of_0_switches_the_check_off() {
+    let f = load("fe-window-zero.dcf");
+    let (mut b, report) = bench(&f);
+    assert!(
+        report.notes.iter().any(|n| n
+            .starts_with("0x6065 (Following error window): the DCF's ParameterValue is 0")
+            && n.contains("the following-error check off")),
+        "{:?}",
+        report.notes
+    );
+    assert_eq!(b.r32(0x6065, 0), 2000, "the file's default at boot");
+    let stuck_move = |b: &mut Bench| {
+        b.start();
+        b.w32(0x6065, 0, 0).unwrap(); // load_configuration
+        let _ = b.w16(0x6066, 0, 5); // where the file has it
+        b.enable(1);
+        b.drive.stuck = true;
+        let p0 = b.node.position_actual();
+        b.w32(0x6081, 0, 300).unwrap();
+        b.w32(0x607A, 0, (p0 + 5000) as u32).unwrap();
+        b.cw(0x1F);
+        b.cw(0x0F);
+        b.ticks(200);
+    };
+    stuck_move(&mut b);
+    assert!(
+        b.node.following_error() > 100.0,
+        "following error {}",
+        b.node.following_error()
+    );
+    assert!(!b.emcys().contains(&0x8611), "{:?}", b.emcys());
+    assert_eq!(
+        b.node.cia402_state(),
+        drive_protocol::Cia402State::OperationEnabled
+    );
+    // unstuck, the move ends at its target
+    b.drive.stuck = false;
+    let p0 = b.node.position_actual();
+    let mut reached = false;
+    for _ in 0..3000 {
+        b.tick();
+        if b.statusword() & (1 << 10) != 0 {
+            reached = true;
+            break;
+        }
+    }
+    assert!(reached, "at {} from {p0}", b.node.position_actual());
+
+    let mut own = Bench::new();
+    stuck_move(&mut own);
+    assert!(own.emcys().contains(&0x8611), "{:?}", own.emcys());
+    assert_eq!(own.node.cia402_state(), drive_protocol::Cia402State::Fault);
 }

@@ -36,7 +36,8 @@ def test_ready_line_eds_and_live_statistics(drive_emu):
     else:
         assert ready["iface"] == drive_emu.iface
     assert ready["nodes"] == [
-        {"node_id": 21, "preset": "cnc1", "eds": None, "objects_base": "0x2000", "profile": None, "quirks": []}
+        {"node_id": 21, "preset": "cnc1", "worn": "backlash 0.04 mm", "eds": None, "objects_base": "0x2000",
+         "profile": None, "quirks": []}
     ]
     cfg = configparser.ConfigParser()
     cfg.optionxform = str

@@ -7,23 +7,34 @@ serving it (one drive-emu process per file, this one python process for all):
 - the identity 0x1018:1 is the file's;
 - load_configuration() writes every ParameterValue of a DCF (nothing refused);
 - the RPDO/TPDO maps read back as the file's defaults (or its ParameterValues once loaded);
-- BaseNode402 enables the drive in profile position (where 0x6502 offers it) and a move of a
-  quarter motor revolution in the file's units ends with bit 10 set within the position
-  window ("pp": "reached" / "not reached" / "not offered").
+- where the file offers LSS (the drive started non-configured, --node 255): LssMaster's
+  fast_scan() finds the drive by the file's identity, configure_node_id() gives it the node-ID
+  and it boots there ("lss": "fastscan" / "not offered" / what failed);
+- BaseNode402 enables the drive in profile position (where 0x6502 offers it) and a move of one
+  motor revolution at one revolution per second in the file's units (its factor group, and
+  its SI unit velocity 0x60A9 where that names revolutions per time or 0x60A8's unit per time)
+  ends with bit 10 set within the position window ("pp": "reached" / "not reached" / "not
+  offered"), its speed 0x606C peaking within 20 % of the speed asked ("pp_speed_ok");
+- where 0x6502 offers cyclic synchronous velocity: a CSV move at one revolution per second
+  runs at that speed (0x606C within 20 %) and the position advances ("csv": "ran" / "not
+  offered" / what failed).
 Prints one JSON line per file: {"file", "uploads", "bad_sizes", "identity_ok",
-"configured", "map_mismatches", "pp", ...}; exits non-zero on an exception.
+"configured", "map_mismatches", "lss", "pp", "csv", ...}; exits non-zero on an exception.
 
     drive-emu run --socketcand 127.0.0.1:0 --node 5 --eds FILE --ready --json &  # PORT
     python3 vendor_file_check.py --node 5 PORT:FILE [PORT2:FILE2 ...]
+    # a file with LSS_Supported=1, its drive started with --node 255: PORT:FILE:lss
 """
 import argparse
 import json
 import struct
 import sys
+import threading
 import time
 
 import canopen
 import logging
+from canopen import lss
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 
 SIZES = {0x1: 1, 0x2: 1, 0x3: 2, 0x4: 4, 0x5: 1, 0x6: 2, 0x7: 4, 0x8: 4,
@@ -92,6 +103,59 @@ def check(network, node_id, path):
     return out
 
 
+def connect(a, port):
+    network = canopen.Network()
+    network.connect(interface="socketcand", host=a.host, port=int(port), channel=a.channel)
+    return network
+
+
+def lss_fastscan(network, node_id, path):
+    """The drive, non-configured (--node 255), found by fast_scan() with the file's identity,
+    given `node_id` by LSS, and booted there."""
+    od = canopen.import_od(path, node_id)
+    ident = od.get(0x1018)
+    lss.LssMaster.RESPONSE_TIMEOUT = 1.5
+    found, lss_id = network.lss.fast_scan()
+    if not found:
+        return "fast_scan() found nobody"
+    for sub, got in zip((1, 2, 3), lss_id[:3]):
+        want = ident[sub].default if ident is not None and sub in ident else None
+        if want is not None and got != want:
+            return f"fast_scan() found 0x1018:{sub} = 0x{got:08X}, the file says 0x{want:08X}"
+    network.lss.configure_node_id(node_id)
+    booted = []
+    network.subscribe(0x700 + node_id, lambda can_id, data, ts: booted.append(bytes(data)))
+    network.lss.send_switch_state_global(network.lss.WAITING_STATE)
+    deadline = time.monotonic() + 10.0
+    while time.monotonic() < deadline and b"\x00" not in booted:
+        time.sleep(0.02)
+    network.unsubscribe(0x700 + node_id)
+    return "fastscan" if b"\x00" in booted else "no boot-up after configure_node_id"
+
+
+def velocity_per_rev_per_s(node, od, inc_per_rev, uu_per_rev):
+    """Velocity user units of one motor revolution per second as the drive serves them: the
+    SI unit velocity 0x60A9 where it names revolutions per time (0xB4) or 0x60A8's unit per
+    time, else position user units per second."""
+    times = {0x03: 1.0, 0x47: 60.0, 0x48: 3600.0}
+    if od.get(0x60A9) is None:
+        return uu_per_rev
+    v = sdo_u32(node, 0x60A9, 0)
+    prefix, unit, per = struct.unpack("b", bytes([v >> 24]))[0], (v >> 16) & 0xFF, (v >> 8) & 0xFF
+    if per not in times:
+        return uu_per_rev
+    if unit == 0xB4:  # revolutions (of the shaft: the factor group's gear as served)
+        gm = sdo_u32(node, 0x6091, 1) if od.get(0x6091) is not None else 1
+        gs = sdo_u32(node, 0x6091, 2) if od.get(0x6091) is not None else 1
+        return times[per] / (gm / gs) / 10.0 ** prefix
+    if od.get(0x60A8) is not None:
+        p = sdo_u32(node, 0x60A8, 0)
+        if (p >> 16) & 0xFF == unit and (p >> 8) & 0xFF == 0:
+            p_prefix = struct.unpack("b", bytes([p >> 24]))[0]
+            return uu_per_rev * times[per] * 10.0 ** (p_prefix - prefix)
+    return uu_per_rev
+
+
 def sdo_u32(node, index, sub):
     return int.from_bytes(node.sdo.upload(index, sub)[:4].ljust(4, b"\0"), "little")
 
@@ -99,7 +163,7 @@ def sdo_u32(node, index, sub):
 def pp_move(network, node_id, path):
     """BaseNode402 in profile position (where the drive offers it, 0x6502 as served): as a
     master does, its own profile (0x6081/0x6083/0x6084 within the file's limits), then a move
-    of a quarter motor revolution in the file's own units (its factor group as served);
+    of one motor revolution in the file's own units (its factor group as served);
     reached = bit 10 set after the set-point was taken, within the position window."""
     node = canopen.BaseNode402(node_id, path)
     network.add_node(node)
@@ -112,7 +176,7 @@ def pp_move(network, node_id, path):
     if not sdo_u32(node, 0x6502, 0) & 1:
         network.nodes.pop(node_id, None)
         return {"pp": "not offered"}
-    # a quarter motor revolution in user units, from the factor group as served
+    # one motor revolution in user units, from the factor group as served
     def served(index, sub, fallback):
         return sdo_u32(node, index, sub) if od.get(index) is not None else fallback
     enc, enc_r = served(0x608F, 1, 0), served(0x608F, 2, 1)
@@ -122,19 +186,26 @@ def pp_move(network, node_id, path):
         uu_per_motor_rev = (feed / feed_r) / (gm / gs)
     else:
         uu_per_motor_rev = 4000
-    delta = max(10, int(uu_per_motor_rev / 4))
+    delta = max(10, int(uu_per_motor_rev))
+    # one motor revolution per second, ten per second squared, in the velocity unit served
+    vel = velocity_per_rev_per_s(node, od, enc, uu_per_motor_rev)
     node.setup_402_state_machine(read_pdos=False)
     node.nmt.state = "OPERATIONAL"
     node.state = "SWITCH ON DISABLED"
     node.op_mode = "PROFILED POSITION"
     node.state = "OPERATION ENABLED"
-    for index, want in ((0x6081, delta * 4), (0x6083, delta * 40), (0x6084, delta * 40)):
+    asked = None
+    for index, want in ((0x6081, round(vel)), (0x6083, round(vel * 10)), (0x6084, round(vel * 10))):
         var = od.get(index)
         if var is None or "w" not in var.access_type:
             continue
         if var.max is not None:
             want = min(want, var.max)
         node.sdo.download(index, 0, struct.pack("<I", want))
+        if index == 0x6081:
+            asked = want
+    if asked is not None and od.get(0x607F) is not None:
+        asked = min(asked, sdo_u32(node, 0x607F, 0))
     # the position window as served; where the file has none (or 0xFFFFFFFF, off), a tenth
     # of the move
     window = served(0x6067, 0, 0xFFFFFFFF)
@@ -149,18 +220,70 @@ def pp_move(network, node_id, path):
         time.sleep(0.01)
     node.controlword = 0x0F
     reached = False
+    track = []
     while time.monotonic() < deadline:
         sw = sdo_u32(node, 0x6041, 0)
         if sw & (1 << 10):
             reached = True
             break
-        time.sleep(0.02)
+        track.append((time.monotonic(), struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]))
+    # the speed it moved at, in the velocity unit: the position's fastest 0.3 s (the cruise
+    # lasts 0.9 s; 0x606C of a coarse encoder jitters by an increment per sample)
+    speed = round(fastest(track, 0.3) * vel / uu_per_motor_rev)
+    measure = len(track) > 2
     end = struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]
     inside = abs(end - target) <= window
+    out = {"pp": "reached" if reached and inside else "not reached", "pp_start": start,
+           "pp_target": target, "pp_end": end, "pp_window": window,
+           "pp_speed_asked": asked, "pp_speed": speed if measure else None,
+           "pp_speed_ok": (None if not measure or not asked
+                           else 0.8 * asked <= speed <= 1.2 * asked)}
+    out.update(csv_move(node, od, vel, uu_per_motor_rev))
     node.nmt.state = "PRE-OPERATIONAL"
     network.nodes.pop(node_id, None)
-    return {"pp": "reached" if reached and inside else "not reached", "pp_start": start,
-            "pp_target": target, "pp_end": end, "pp_window": window}
+    return out
+
+
+def fastest(track, span_s):
+    """The highest mean speed over `span_s` seconds of (time, position) samples."""
+    best, j = 0.0, 0
+    for i, (t0, p0) in enumerate(track):
+        while j < len(track) and track[j][0] - t0 < span_s:
+            j += 1
+        if j == len(track):
+            break
+        t1, p1 = track[j]
+        best = max(best, (p1 - p0) / (t1 - t0))
+    return best
+
+
+def csv_move(node, od, vel, uu_per_rev):
+    """Cyclic synchronous velocity (where 0x6502 offers it, bit 8): 0x60FF = one motor
+    revolution per second in the velocity unit served for half a second; 0x606C within 20 %
+    and the position advanced."""
+    if od.get(0x60FF) is None or od.get(0x606C) is None or not sdo_u32(node, 0x6502, 0) & (1 << 8):
+        return {"csv": "not offered"}
+    want = round(vel)
+    if od.get(0x607F) is not None:
+        want = min(want, sdo_u32(node, 0x607F, 0))
+    node.op_mode = "CYCLIC SYNCHRONOUS VELOCITY"
+    start = struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]
+    node.sdo.download(0x60FF, 0, struct.pack("<i", want))
+    track = []
+    deadline = time.monotonic() + 0.8
+    while time.monotonic() < deadline:
+        track.append((time.monotonic(), struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]))
+    node.sdo.download(0x60FF, 0, struct.pack("<i", 0))
+    end = struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]
+    # the mean speed over the last half, in the velocity unit
+    half = [x for x in track if x[0] >= track[0][0] + 0.4]
+    speed = 0
+    if len(half) > 1:
+        (t0, p0), (t1, p1) = half[0], half[-1]
+        speed = round((p1 - p0) / (t1 - t0) * vel / uu_per_rev)
+    ok = 0.8 * want <= speed <= 1.2 * want and end > start
+    return {"csv": "ran" if ok else "failed", "csv_speed_asked": want,
+            "csv_speed": speed, "csv_moved": end - start}
 
 
 def main():
@@ -172,12 +295,39 @@ def main():
     a = ap.parse_args()
     # BaseNode402 warns at every SDO fallback (the files map no statusword TPDO by default)
     logging.getLogger("canopen").setLevel(logging.ERROR)
+    specs = []
     for spec in a.drives:
         port, path = spec.split(":", 1)
-        network = canopen.Network()
-        network.connect(interface="socketcand", host=a.host, port=int(port), channel=a.channel)
+        with_lss = path.endswith(":lss")
+        specs.append((port, path[: -len(":lss")] if with_lss else path, with_lss))
+    # LSS first, every drive on its own bus at once: fast_scan() waits out a missing answer
+    # for every 1 bit of the identity (tens of seconds per drive)
+    found = {}
+
+    def scan(port, path):
+        network = connect(a, port)
         try:
-            print(json.dumps(check(network, a.node, path)), flush=True)
+            found[port] = lss_fastscan(network, a.node, path)
+        except Exception as e:  # reported in that file's line
+            found[port] = f"exception: {e!r}"
+        finally:
+            network.disconnect()
+    threads = [threading.Thread(target=scan, args=(port, path))
+               for port, path, with_lss in specs if with_lss]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for port, path, with_lss in specs:
+        network = connect(a, port)
+        try:
+            found_here = found.get(port, "not offered")
+            if found_here in ("fastscan", "not offered"):
+                out = check(network, a.node, path)
+            else:
+                out = {"file": path}  # not configured: nothing else can run
+            out["lss"] = found_here
+            print(json.dumps(out), flush=True)
         finally:
             network.disconnect()
 

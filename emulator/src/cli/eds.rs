@@ -21,6 +21,11 @@ pub struct EdsArgs {
     /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
+    /// The EDS of `run --worn`: the preset's worn drive train (its backlash in the
+    /// emulator's backlash object). Without it, of the healthy axis `run` serves by default,
+    /// unless --set gives a gap (docs/decisions/0014-healthy-default.md).
+    #[arg(long)]
+    pub worn: bool,
     /// How REAL32 defaults (0x2000-0x200C) are written: `bits`, the IEEE 754 bit pattern in
     /// hex (kv_per_s 30.0 = 0x41F00000), as Lely's dcfchk/dcfgen and ros2_canopen read them;
     /// or `decimal` (30.0), as python canopen reads them (it leaves a hex REAL32 default
@@ -77,6 +82,10 @@ pub fn eds_text(args: &EdsArgs) -> Result<String> {
 pub fn eds_and_report(args: &EdsArgs) -> Result<(String, Option<String>)> {
     let cfg = AxisConfig::from_preset(&args.preset)?
         .with_overrides(args.set.iter().map(String::as_str))?;
+    let cfg = crate::drive::machine::served(
+        cfg,
+        args.worn || crate::drive::machine::sets_ask_for_wear(&args.set),
+    );
     let vendor = match &args.from {
         Some(p) => Some(std::sync::Arc::new(VendorEds::load(p)?)),
         None => None,

@@ -44,9 +44,16 @@ pub struct RunArgs {
     /// Preset of the (single) axis: cnc1 ... cnc5. Ignored with --config.
     #[arg(long, default_value = "cnc1")]
     pub preset: String,
-    /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable).
+    /// Override a preset key, e.g. --set backlash_mm=0.05 (repeatable). A gap of its own
+    /// (backlash_mm / backlash_deg) is wear, as --worn is.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
+    /// Serve the preset's worn drive train (its backlash, the paper's machine: a limit cycle
+    /// at constant speed, moves that end hunting around the target) instead of the healthy
+    /// axis `run` serves by default (no gap: every move ends within the position window). With
+    /// --config: every axis, as `worn = true` in the file.
+    #[arg(long)]
+    pub worn: bool,
     /// Machine file with several axes (docs/master.md, "Several axes in one process"); replaces --node/--preset/--set/--eds.
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -213,6 +220,58 @@ pub fn validate_args(args: &RunArgs) -> Result<()> {
     Ok(())
 }
 
+/// On stderr at start: whether the axis is healthy or worn (and how to have the other), and
+/// where its position window 0x6067 is tighter than the gap it was asked to have: a move then
+/// ends hunting around its target, outside the window, and never sets target reached.
+fn say_wear(e: &AxisEntry, ax: &mut AxisSlot<AxisDrive>) {
+    use crate::drive::objects::AxisParam;
+    use drive_protocol::Drive as _;
+    let info = ax.drive.info();
+    let gap = ax.drive.param(AxisParam::Backlash);
+    let node = e.node_id;
+    let Some(wear) = machine::wear_text(gap, info.rotary) else {
+        eprintln!(
+            "drive-emu: node {node}: a healthy axis (no backlash); the preset's worn drive \
+             train, the paper's machine: --worn (or --set backlash_mm=... / backlash_deg=...)"
+        );
+        return;
+    };
+    eprintln!(
+        "drive-emu: node {node}: WORN: {wear} (a healthy axis: leave out --worn and the gap)"
+    );
+    let mut read = |index: u16, sub: u8, fallback: u32| {
+        let mut b = [0u8; 4];
+        match ax.node.read_object(index, sub, &mut b, &mut ax.drive) {
+            Ok(n) if n > 0 => u32::from_le_bytes(b),
+            _ => fallback,
+        }
+    };
+    let window_uu = read(0x6067, 0, u32::MAX);
+    let terms = [
+        read(0x608F, 1, info.encoder_increments_per_rev),
+        read(0x608F, 2, 1),
+        read(0x6091, 1, info.gear_motor_revs),
+        read(0x6091, 2, info.gear_shaft_revs),
+        read(0x6092, 1, info.feed_user_units),
+        read(0x6092, 2, info.feed_shaft_revs),
+    ];
+    if window_uu == u32::MAX || terms.contains(&0) {
+        return; // no window, or off (CiA 402), or no factor to compare with
+    }
+    let [enc, enc_r, gm, gs, feed, feed_r] = terms.map(f64::from);
+    let inc_per_uu = enc / enc_r * (gm / gs) / (feed / feed_r);
+    let window_si = f64::from(window_uu) * inc_per_uu / ax.drive.inc_per_load();
+    if window_si < gap {
+        eprintln!(
+            "drive-emu: node {node}: its position window 0x6067 = {window_uu} uu ({}) is \
+             tighter than the {wear} asked for: moves end hunting around their target, outside \
+             the window, without target reached (statusword bit 10)",
+            machine::wear_text(window_si, info.rotary)
+                .map_or("0".into(), |t| t.replace("backlash ", ""))
+        );
+    }
+}
+
 /// Build the nodes and drives of a machine.
 /// The LSS slave of a live run's axes: what `--lss-store` holds, and the serial number that
 /// keeps the LSS address when the node-ID changes.
@@ -238,14 +297,7 @@ pub fn build_axes(
         .iter_mut()
         .map(|e| {
             let at = format!("axis node {}", e.node_id);
-            let cfg = AxisConfig::from_preset(&e.preset)
-                .map_err(|err| super::exit::config(&at, err.into()))?;
-            let mut cfg = cfg;
-            for (k, v) in &e.set {
-                cfg = cfg
-                    .with_override(k, &machine::value_text(v))
-                    .map_err(|err| super::exit::config(&at, err.into()))?;
-            }
+            let cfg = e.run_config().map_err(|err| super::exit::config(&at, err))?;
             axis_slot(cfg, e, boot_delay_us, lss)
         })
         .collect()
@@ -365,7 +417,11 @@ fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
                 path.display()
             );
         }
-        return machine::load(path);
+        let mut m = machine::load(path)?;
+        for a in &mut m.axes {
+            a.worn |= args.worn;
+        }
+        return Ok(m);
     }
     // Said as the user wrote it (machine::validate would name the machine file's key).
     if !(1..=127).contains(&args.node) && args.node != 255 {
@@ -393,6 +449,7 @@ fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
             name: None,
             preset: args.preset.clone(),
             set,
+            worn: args.worn,
             eds: args.eds.clone(),
             objects_base: args.objects_base,
             profile: args.profile.clone(),
@@ -408,6 +465,9 @@ fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
 /// What the loop thread publishes for the status line, per axis: plain atomics, no locks.
 #[derive(Default)]
 struct AxisStatus {
+    /// The drive train's gap now (f64 bits, m or rad): 0 on a healthy axis.
+    gap_si: AtomicU64,
+    rotary: AtomicBool,
     node_id: AtomicU64,
     nmt: AtomicU64,
     statusword: AtomicU64,
@@ -420,6 +480,16 @@ struct AxisStatus {
     lss_store_result: AtomicU8,
     /// LSS activate bit timing to report: 0 none, else `1 << 32 | index << 16 | delay_ms`.
     lss_activation: AtomicU64,
+}
+
+impl AxisStatus {
+    /// The wear the axis runs with now (`backlash 0.03 mm`), `None` on a healthy axis.
+    fn wear(&self) -> Option<String> {
+        machine::wear_text(
+            f64::from_bits(self.gap_si.load(Ordering::Relaxed)),
+            self.rotary.load(Ordering::Relaxed),
+        )
+    }
 }
 
 #[derive(Default)]
@@ -444,6 +514,10 @@ impl Status {
     fn publish(&self, rt: &Runtime<LiveBus, AxisDrive>) {
         for (a, st) in rt.axes.iter().zip(&self.axes) {
             let n = &a.node;
+            use drive_protocol::Drive as _;
+            let gap = a.drive.param(crate::drive::objects::AxisParam::Backlash);
+            st.gap_si.store(gap.to_bits(), Ordering::Relaxed);
+            st.rotary.store(a.drive.info().rotary, Ordering::Relaxed);
             st.node_id.store(u64::from(n.node_id()), Ordering::Relaxed);
             st.nmt.store(n.nmt_state() as u64, Ordering::Relaxed);
             st.statusword
@@ -548,7 +622,7 @@ impl Status {
 
     /// The status block: the loop (time, ticks, overruns, SYNC lock, drops, link), then one
     /// line per axis with its node ID, NMT state, CiA 402 state, mode name, position and
-    /// following error (in user units, uu).
+    /// following error (in user units, uu), and under a worn axis the wear it runs with.
     fn lines(&self, iface: &str, lockstep: bool) -> Vec<String> {
         let mut head = format!(
             "{iface} t={:.1} s | ticks {} overruns {}",
@@ -576,9 +650,9 @@ impl Status {
         if !self.link_up.load(Ordering::Relaxed) {
             head += " | LINK DOWN";
         }
-        let axes = self.axes.iter().map(|a| {
+        let axes = self.axes.iter().flat_map(|a| {
             let nmt = a.nmt.load(Ordering::Relaxed) as u8;
-            format!(
+            let line = format!(
                 "node {:<3} {:<15} {:<21} {:<7} pos {} ferr {} uu",
                 a.node_id.load(Ordering::Relaxed),
                 // The heartbeat's 0x00 is the boot-up; the state before it is initialising,
@@ -594,7 +668,12 @@ impl Status {
                 crate::master::mode_short(a.mode.load(Ordering::Relaxed) as i8),
                 a.position_uu.load(Ordering::Relaxed),
                 a.following_error_uu.load(Ordering::Relaxed),
-            )
+            );
+            // a worn axis: a line of its own under it (the axis line fills 80 columns)
+            let wear = a
+                .wear()
+                .map(|w| format!("         WORN: {w} (healthy: without --worn)"));
+            std::iter::once(line).chain(wear)
         });
         std::iter::once(head).chain(axes).collect()
     }
@@ -989,6 +1068,9 @@ fn live_axes(
                     name: None,
                     preset: cfg.name.clone(),
                     set: Default::default(),
+                    // the scenario's machine is as its file says (the preset's wear, its
+                    // overrides): scenarios are where wear is studied
+                    worn: true,
                     eds: args.eds.clone(),
                     objects_base: args.objects_base,
                     profile: args.profile.clone(),
@@ -1018,6 +1100,10 @@ fn live_axes(
         )?],
         None => build_axes(&mut machine.axes, boot_delay_us, &lss)?,
     };
+    let mut axes = axes;
+    for (e, ax) in machine.axes.iter().zip(&mut axes) {
+        say_wear(e, ax);
+    }
     for ax in &axes {
         if ax.node.node_id() == 255 {
             eprintln!(
@@ -1265,8 +1351,10 @@ fn watch(
                     "host": a.ip().to_string(), "port": a.port(),
                     "channel": crate::bus::socketcand::CHANNEL,
                 })),
-                "nodes": machine.axes.iter().map(|a| serde_json::json!({
+                "nodes": machine.axes.iter().zip(&status.axes).map(|(a, st)| serde_json::json!({
                     "node_id": a.node_id, "preset": a.preset,
+                    // the wear the axis runs with (null: healthy, no gap)
+                    "worn": st.wear(),
                     "eds": a.eds.as_ref().map(|p| p.display().to_string()),
                     "objects_base": a.objects_base.map(|b| format!("0x{b:04X}")),
                     "profile": a.behaviour.as_ref().and_then(|b| b.profile.clone()),
@@ -1389,17 +1477,7 @@ fn gap_models(
     use crate::analysis::gap::{CurrentUnit, GapModel};
     let configs: Vec<Option<AxisConfig>> = match scenario {
         Some(s) => vec![s.machine.configs.first().cloned()],
-        None => machine
-            .axes
-            .iter()
-            .map(|e| {
-                e.set
-                    .iter()
-                    .try_fold(AxisConfig::from_preset(&e.preset).ok()?, |cfg, (k, v)| {
-                        cfg.with_override(k, &machine::value_text(v)).ok()
-                    })
-            })
-            .collect(),
+        None => machine.axes.iter().map(|e| e.run_config().ok()).collect(),
     };
     configs
         .iter()
@@ -1442,13 +1520,7 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     let mut slaves = Vec::new();
     let mut drives = Vec::new();
     for e in machine.axes.iter_mut() {
-        let mut cfg = AxisConfig::from_preset(&e.preset)
-            .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
-        for (k, v) in &e.set {
-            cfg = cfg
-                .with_override(k, &machine::value_text(v))
-                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
-        }
+        let cfg = e.run_config()?;
         // no boot delay: an EtherCAT slave's mailbox is there from PRE-OP on
         let (config, mut drive) = axis_setup(cfg, e, 0, &lss)?;
         let slave = drive_ethercat::Slave::new(config, &mut drive)
@@ -1568,6 +1640,19 @@ mod tests {
         let s = Status::new(1);
         axis(&s.axes[0], 5, 0x05, 0x0637, -2);
         assert!(s.lines("can0", true)[1].contains("manufacturer-specific mode -2"));
+        // a worn axis (issue 33, item 4): a line under it says so, and fits the terminal
+        s.axes[0].gap_si.store(3e-5f64.to_bits(), Ordering::Relaxed);
+        let lines = s.lines("can0", false);
+        assert_eq!(lines.len(), 3, "{lines:#?}");
+        assert!(lines[2].contains("WORN: backlash 0.03 mm"), "{lines:#?}");
+        assert!(lines[2].chars().count() <= 80, "{lines:#?}");
+        s.axes[0].rotary.store(true, Ordering::Relaxed);
+        s.axes[0]
+            .gap_si
+            .store(0.02f64.to_radians().to_bits(), Ordering::Relaxed);
+        assert!(s.lines("can0", false)[2].contains("WORN: backlash 0.02 deg"));
+        s.axes[0].gap_si.store(0f64.to_bits(), Ordering::Relaxed);
+        assert_eq!(s.lines("can0", false).len(), 2, "healthy: no wear line");
     }
 
     #[test]

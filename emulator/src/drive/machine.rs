@@ -9,6 +9,7 @@
 //! [[axis]]
 //! node_id = 6
 //! preset = "cnc3"
+//! worn = true               # optional: the preset's worn drive train (its paper backlash)
 //! eds = "vendor/epos4.eds"  # optional: serve this vendor's EDS/DCF (relative to this file)
 //! objects_base = 0x4000     # optional: where the emulator's own objects go
 //! profile = "maxon-epos4"   # optional: vendor behaviour (profiles/, or a .toml beside this file)
@@ -17,8 +18,14 @@
 //!
 //! An axis may carry a `name = "X"` (unique in the file), and `[ballbar] axes = ["X", "Y"]`
 //! names the two linear axes `drive-emu ballbar --config` runs its circle on (docs/ballbar.md).
+//!
+//! Wear (docs/decisions/0014-healthy-default.md): `drive-emu run` serves a healthy axis (the
+//! preset with no gap in its drive train) unless the axis asks for wear: `worn = true` (the
+//! preset's own, the paper's, backlash) or a gap of its own in `set` (`backlash_mm` /
+//! `backlash_deg`). The study tools (`ballbar --config`) keep the presets' values.
 
 use super::profile::{Behaviour, Overlay};
+use crate::presets::AxisConfig;
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -58,6 +65,10 @@ pub struct AxisEntry {
     /// Preset overrides, `key = value` with the preset file's keys (units in the names).
     #[serde(default)]
     pub set: BTreeMap<String, toml::Value>,
+    /// `drive-emu run`: serve the preset's worn drive train (its backlash, the paper's) instead
+    /// of a healthy axis (`run --worn`). A gap in `set` is wear too.
+    #[serde(default)]
+    pub worn: bool,
     /// A vendor's EDS or DCF the drive serves as its own (`drive/vendor.rs`); in a machine
     /// file, relative to the file's directory.
     #[serde(default)]
@@ -82,6 +93,85 @@ pub struct AxisEntry {
 
 fn default_tick_hz() -> u32 {
     1000
+}
+
+/// The preset keys that are wear: a gap in the drive train.
+pub const WEAR_KEYS: [&str; 2] = ["backlash_mm", "backlash_deg"];
+
+impl AxisEntry {
+    /// Whether this axis asks for wear: `worn` (`run --worn`) or a gap of its own in `set`.
+    pub fn asks_for_wear(&self) -> bool {
+        self.worn || self.set.keys().any(|k| WEAR_KEYS.contains(&k.trim()))
+    }
+
+    /// The preset with this entry's overrides, as the study tools take it (the paper's worn
+    /// machine where the preset is one). Errors name the node.
+    pub fn preset_config(&self) -> Result<AxisConfig> {
+        let mut cfg = AxisConfig::from_preset(&self.preset)
+            .map_err(|err| anyhow::anyhow!("axis node {}: {err}", self.node_id))?;
+        for (k, v) in &self.set {
+            cfg = cfg
+                .with_override(k, &value_text(v))
+                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", self.node_id))?;
+        }
+        Ok(cfg)
+    }
+
+    /// The axis `drive-emu run` serves: [`preset_config`](Self::preset_config), made healthy
+    /// (no gap) unless the entry asks for wear.
+    pub fn run_config(&self) -> Result<AxisConfig> {
+        Ok(served(self.preset_config()?, self.asks_for_wear()))
+    }
+}
+
+/// Whether `--set key=value` overrides give the drive train a gap of their own (wear).
+pub fn sets_ask_for_wear<S: AsRef<str>>(sets: &[S]) -> bool {
+    sets.iter().any(|s| {
+        s.as_ref()
+            .split_once('=')
+            .is_some_and(|(k, _)| WEAR_KEYS.contains(&k.trim()))
+    })
+}
+
+/// The axis `drive-emu run` (and `drive-emu eds`, which describes it) serves: `cfg` as it is
+/// where wear was asked for, else [`healthy`].
+pub fn served(cfg: AxisConfig, asks_for_wear: bool) -> AxisConfig {
+    if asks_for_wear {
+        cfg
+    } else {
+        healthy(cfg)
+    }
+}
+
+/// The axis with no gap in its drive train (a twin pinion's pair then moves as one whatever
+/// its preload): every other key as the preset says.
+pub fn healthy(mut cfg: AxisConfig) -> AxisConfig {
+    cfg.backlash_mm = cfg.backlash_mm.map(|_| 0.0);
+    cfg.backlash_deg = cfg.backlash_deg.map(|_| 0.0);
+    cfg
+}
+
+/// The gap an axis was built with as a user writes it (`backlash 0.03 mm`), `None` without
+/// one; `gap_si` in m (linear) or rad (rotary).
+pub fn wear_text(gap_si: f64, rotary: bool) -> Option<String> {
+    (gap_si > 0.0).then(|| {
+        if rotary {
+            format!("backlash {} deg", round_sig(gap_si.to_degrees()))
+        } else {
+            format!("backlash {} mm", round_sig(gap_si * 1e3))
+        }
+    })
+}
+
+/// About 4 significant digits, no trailing zeros.
+fn round_sig(x: f64) -> String {
+    let digits = (3 - x.abs().log10().floor() as i32).clamp(0, 9) as usize;
+    let t = format!("{x:.digits$}");
+    if t.contains('.') {
+        t.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        t
+    }
 }
 
 /// Check the values serde cannot: ranges and uniqueness. Errors name the key.

@@ -128,8 +128,9 @@ impl VendorEds {
 /// What one user unit on the bus is, with the file's factor group (0x608F encoder
 /// resolution, 0x6091 gear ratio, 0x6092 feed constant; where the file lacks one, the
 /// simulated axis's): increments of the motor encoder and travel of the simulated axis.
-/// Speeds are user units per second, accelerations per second squared. SI unit objects
-/// (0x60A8 / 0x60A9) the file has are named: served as the file says, not applied.
+/// Speeds are user units per second, accelerations per second squared, unless the file's SI
+/// unit velocity 0x60A9 names a unit the drive applies (revolutions per time, or 0x60A8's
+/// unit per time): said here.
 pub fn user_unit_note(od: &ObjectDictionary, info: &DriveInfo) -> String {
     let v = |index: u16, sub: u8, fallback: u32| {
         od.get(index, sub)
@@ -174,22 +175,76 @@ pub fn user_unit_note(od: &ObjectDictionary, info: &DriveInfo) -> String {
             };
             format!(
                 "1 uu = {} increments of the motor encoder = {travel} of the simulated axis \
-                 (factor group 0x608F/0x6091/0x6092 as served); speeds in uu/s, \
-                 accelerations in uu/s^2",
+                 (factor group 0x608F/0x6091/0x6092 as served)",
                 sig(inc)
             )
         }
         _ => "1 uu: the factor group has a zero term; positions are in increments".into(),
     };
-    for (index, what) in [(0x60A8u16, "position"), (0x60A9, "velocity")] {
-        if let Some((_, e)) = od.get(index, 0) {
-            s.push_str(&format!(
-                "; 0x{index:04X} SI unit {what} = 0x{:08X} is served as the file says, not applied",
-                e.default_raw(1) as u32
-            ));
-        }
+    let si = |index: u16| od.get(index, 0).map(|(_, e)| e.default_raw(1) as u32);
+    let mut velocity_applied = false;
+    if let Some(p) = si(0x60A8) {
+        s.push_str(&format!(
+            "; 0x60A8 SI unit position = 0x{p:08X} ({}): positions stay in the factor \
+             group's user units",
+            si_unit_text(p)
+        ));
+    }
+    if let Some(v) = si(0x60A9) {
+        s.push_str(&format!(
+            "; 0x60A9 SI unit velocity = 0x{v:08X} ({})",
+            si_unit_text(v)
+        ));
+        let u = drive_protocol::cia402::SiUnit::decode(v);
+        let applies = u.per_seconds().is_some()
+            && (u.unit == drive_protocol::cia402::SI_REVOLUTION
+                || si(0x60A8).is_some_and(|p| {
+                    let p = drive_protocol::cia402::SiUnit::decode(p);
+                    p.unit == u.unit && p.per == 0
+                }));
+        velocity_applied = applies;
+        s.push_str(if applies {
+            ": applied, velocities in that unit, accelerations in that unit per second"
+        } else {
+            ": not applied (a unit this drive cannot tell in increments)"
+        });
+    }
+    if !velocity_applied {
+        s.push_str("; speeds in uu/s, accelerations in uu/s^2");
     }
     s
+}
+
+/// An SI unit object's value in words: `1e-1 rev/min`, `mm`, or its bytes where unknown.
+fn si_unit_text(raw: u32) -> String {
+    use drive_protocol::cia402 as c;
+    let u = c::SiUnit::decode(raw);
+    let name = |code: u8| match code {
+        c::SI_METRE => Some("m"),
+        c::SI_SECOND => Some("s"),
+        c::SI_RADIAN => Some("rad"),
+        c::SI_DEGREE => Some("deg"),
+        c::SI_MINUTE => Some("min"),
+        c::SI_HOUR => Some("h"),
+        c::SI_REVOLUTION => Some("rev"),
+        _ => None,
+    };
+    let unit = name(u.unit)
+        .map(str::to_string)
+        .unwrap_or_else(|| format!("unit 0x{:02X}", u.unit));
+    let per = match u.per {
+        0 => String::new(),
+        p => format!(
+            "/{}",
+            name(p).map(str::to_string).unwrap_or(format!("0x{p:02X}"))
+        ),
+    };
+    let prefix = if u.prefix == 0 {
+        String::new()
+    } else {
+        format!("1e{} ", u.prefix)
+    };
+    format!("{prefix}{unit}{per}")
 }
 
 /// A number with about 6 significant digits, without trailing zeros.

@@ -11,7 +11,11 @@ const BIN: &str = env!("CARGO_BIN_EXE_drive-emu");
 pub struct Drive {
     pub child: Child,
     pub stdout: BufReader<ChildStdout>,
+    #[allow(dead_code)] // not every test file talks to the port
     pub port: u16,
+    /// The ready line.
+    #[allow(dead_code)] // not every test file reads it
+    pub ready: serde_json::Value,
 }
 
 impl Drive {
@@ -46,6 +50,7 @@ impl Drive {
             child,
             stdout,
             port,
+            ready,
         }
     }
 

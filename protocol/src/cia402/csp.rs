@@ -89,7 +89,7 @@ impl Csp {
         let (pos, v) = self.eval(ctx.now);
         ctx.axis.pos = pos;
         ctx.axis.vel = v;
-        let vel_off = ctx.f.to_inc(ctx.store.i32(o::VEL_OFFSET) as f64);
+        let vel_off = ctx.f.vel_to_inc(ctx.store.i32(o::VEL_OFFSET) as f64);
         ModeOut {
             setpoint: Setpoint::Position {
                 position_inc: pos,

@@ -8,7 +8,7 @@ use crate::drive::Setpoint;
 pub fn step(ctx: &mut Ctx) -> ModeOut {
     let v = ctx
         .f
-        .to_inc(ctx.store.i32(o::TARGET_VELOCITY) as f64 + ctx.store.i32(o::VEL_OFFSET) as f64);
+        .vel_to_inc(ctx.store.i32(o::TARGET_VELOCITY) as f64 + ctx.store.i32(o::VEL_OFFSET) as f64);
     let max = ctx.vel_limit(f64::INFINITY);
     let vc = v.clamp(-max, max);
     ctx.axis.vel = vc;

@@ -3,8 +3,13 @@
 //!
 //! increments per user unit = (0x608F.1 / 0x608F.2) * (0x6091.1 / 0x6091.2) / (0x6092.1 / 0x6092.2)
 //!
-//! Velocity user unit = position user unit per second, acceleration = per second squared, so
-//! the same factor converts all three.
+//! Velocity user unit = position user unit per second, acceleration = per second squared,
+//! unless the device has an SI unit velocity 0x60A9 that names one (CiA 402-2: byte 3 the
+//! prefix, a signed power of ten; byte 2 the unit's notation index of CiA 303-2; byte 1 the
+//! denominator's, the time; byte 0 reserved): then a velocity user unit is that unit (e.g.
+//! 0x00B44700 one revolution of the drive shaft per minute, 0xFFB44700 a tenth of one;
+//! 0xFD010300 one mm/s where 0x60A8 is a metre) and an acceleration user unit that unit per
+//! second. [`Factor::with_si_units`] applies it.
 
 use crate::drive::DriveInfo;
 
@@ -13,6 +18,63 @@ use crate::drive::DriveInfo;
 pub struct Factor {
     /// Motor-encoder increments per user unit.
     pub inc_per_uu: f64,
+    /// Increments per second per velocity user unit (and per second squared per
+    /// acceleration user unit): `inc_per_uu` unless an SI velocity unit applies.
+    pub vel_inc_per_uu: f64,
+}
+
+/// An SI unit object's value (0x60A8 position, 0x60A9 velocity), decoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SiUnit {
+    /// Power of ten (byte 3, signed): -3 milli, -1 deci, 0 none.
+    pub prefix: i8,
+    /// Notation index of the unit (byte 2): [`SI_METRE`], [`SI_RADIAN`], [`SI_DEGREE`],
+    /// [`SI_REVOLUTION`], ...
+    pub unit: u8,
+    /// Notation index of the denominator (byte 1): [`SI_SECOND`], [`SI_MINUTE`],
+    /// [`SI_HOUR`]; 0 none.
+    pub per: u8,
+}
+
+/// CiA 303-2 notation index: metre.
+pub const SI_METRE: u8 = 0x01;
+/// CiA 303-2 notation index: second.
+pub const SI_SECOND: u8 = 0x03;
+/// CiA 303-2 notation index: radian.
+pub const SI_RADIAN: u8 = 0x10;
+/// CiA 303-2 notation index: degree.
+pub const SI_DEGREE: u8 = 0x41;
+/// CiA 303-2 notation index: minute.
+pub const SI_MINUTE: u8 = 0x47;
+/// CiA 303-2 notation index: hour.
+pub const SI_HOUR: u8 = 0x48;
+/// CiA 303-2 notation index: revolution.
+pub const SI_REVOLUTION: u8 = 0xB4;
+
+impl SiUnit {
+    /// The bytes of an SI unit object's value.
+    pub fn decode(raw: u32) -> SiUnit {
+        SiUnit {
+            prefix: (raw >> 24) as u8 as i8,
+            unit: (raw >> 16) as u8,
+            per: (raw >> 8) as u8,
+        }
+    }
+
+    /// Seconds of the denominator (a velocity's time), if it is one this drive knows.
+    pub fn per_seconds(self) -> Option<f64> {
+        match self.per {
+            SI_SECOND => Some(1.0),
+            SI_MINUTE => Some(60.0),
+            SI_HOUR => Some(3600.0),
+            _ => None,
+        }
+    }
+
+    /// 10^prefix.
+    pub fn scale(self) -> f64 {
+        10f64.powi(i32::from(self.prefix))
+    }
 }
 
 impl Factor {
@@ -37,9 +99,61 @@ impl Factor {
         let inc_per_motor_rev = enc_inc as f64 / enc_revs as f64;
         let motor_rev_per_shaft_rev = gear_motor as f64 / gear_shaft as f64;
         let uu_per_shaft_rev = feed as f64 / feed_revs as f64;
+        let inc_per_uu = inc_per_motor_rev * motor_rev_per_shaft_rev / uu_per_shaft_rev;
         Some(Factor {
-            inc_per_uu: inc_per_motor_rev * motor_rev_per_shaft_rev / uu_per_shaft_rev,
+            inc_per_uu,
+            vel_inc_per_uu: inc_per_uu,
         })
+    }
+
+    /// The factor with the SI units 0x60A8 (position, `None`: the device has none) and 0x60A9
+    /// (velocity) applied: a velocity user unit becomes 0x60A9's unit where this drive can
+    /// tell it in increments, i.e. revolutions of the drive shaft (0xB4: `inc_per_shaft_rev`
+    /// increments each) or the position's own unit with another prefix (0x60A8 and 0x60A9
+    /// name the same unit). Otherwise (an unknown unit or time, no time at all) unchanged:
+    /// position user units per second. Returns the factor and whether 0x60A9 applied.
+    pub fn with_si_units(
+        self,
+        position: Option<u32>,
+        velocity: u32,
+        inc_per_shaft_rev: f64,
+    ) -> (Factor, bool) {
+        let v = SiUnit::decode(velocity);
+        let Some(t) = v.per_seconds() else {
+            return (self, false);
+        };
+        let per_unit = if v.unit == SI_REVOLUTION {
+            inc_per_shaft_rev
+        } else {
+            match position.map(SiUnit::decode) {
+                // the same unit as a position user unit: the prefixes' ratio
+                Some(p) if p.unit == v.unit && p.per == 0 => self.inc_per_uu / p.scale(),
+                _ => return (self, false),
+            }
+        };
+        let vel = per_unit * v.scale() / t;
+        if !(vel.is_finite() && vel > 0.0) {
+            return (self, false);
+        }
+        (
+            Factor {
+                vel_inc_per_uu: vel,
+                ..self
+            },
+            true,
+        )
+    }
+
+    /// Velocity (or acceleration) user units to increments per second (squared).
+    #[inline]
+    pub fn vel_to_inc(self, uu: f64) -> f64 {
+        uu * self.vel_inc_per_uu
+    }
+
+    /// Increments per second to velocity user units.
+    #[inline]
+    pub fn vel_to_uu(self, inc: f64) -> f64 {
+        inc / self.vel_inc_per_uu
     }
 
     /// The default factor a drive starts with.
@@ -54,13 +168,13 @@ impl Factor {
         )
     }
 
-    /// User units (position, velocity or acceleration) to increments.
+    /// Position user units to increments.
     #[inline]
     pub fn to_inc(self, uu: f64) -> f64 {
         uu * self.inc_per_uu
     }
 
-    /// Increments to user units.
+    /// Increments to position user units.
     #[inline]
     pub fn to_uu(self, inc: f64) -> f64 {
         inc / self.inc_per_uu
@@ -111,5 +225,30 @@ mod tests {
         assert!((f.to_inc(10_000.0) - (1u32 << 20) as f64).abs() < 1e-6);
         assert!((f.to_uu((1u32 << 20) as f64) - 10_000.0).abs() < 1e-6);
         assert!(Factor::from_objects(1, 1, 0, 1, 1, 1).is_none());
+    }
+
+    #[test]
+    fn si_velocity_units() {
+        // 2000 inc/rev, 1 uu = 1 inc
+        let f = Factor::from_objects(2000, 1, 1, 1, 2000, 1).unwrap();
+        assert_eq!(f.vel_inc_per_uu, 1.0);
+        // rev/min: 2000/60 inc/s per uu; 0.1 rev/min a tenth of that
+        let (r, on) = f.with_si_units(None, 0x00B4_4700, 2000.0);
+        assert!(on && (r.vel_inc_per_uu - 2000.0 / 60.0).abs() < 1e-9);
+        assert_eq!(r.inc_per_uu, 1.0);
+        let (r, _) = f.with_si_units(None, 0xFFB4_4700, 2000.0);
+        assert!((r.vel_inc_per_uu - 200.0 / 60.0).abs() < 1e-9);
+        // rev/s
+        let (r, _) = f.with_si_units(None, 0x00B4_0300, 2000.0);
+        assert!((r.vel_inc_per_uu - 2000.0).abs() < 1e-9);
+        // position in um (0xFA010000), velocity in mm/s (0xFD010300): 1000 position uu per s
+        let g = Factor::from_objects(1 << 20, 1, 1, 1, 10_000, 1).unwrap();
+        let (r, on) = g.with_si_units(Some(0xFA01_0000), 0xFD01_0300, f64::from(1u32 << 20));
+        assert!(on && (r.vel_inc_per_uu - 1000.0 * g.inc_per_uu).abs() < 1e-6);
+        // not known: unchanged
+        for v in [0x00B5_0000, 0x0001_0300, 0x00B4_9900, 0] {
+            assert_eq!(f.with_si_units(None, v, 2000.0), (f, false), "{v:#x}");
+        }
+        assert!(!g.with_si_units(Some(0x0041_0000), 0xFD01_0300, 1.0).1);
     }
 }

@@ -96,7 +96,9 @@ impl Hm {
                     self.phase = Phase::Stopping;
                     ctx.axis.stop(acc, ctx.dt);
                 } else {
-                    let v = ctx.f.to_inc(ctx.store.u32(o::HOMING_SPEED_SWITCH) as f64);
+                    let v = ctx
+                        .f
+                        .vel_to_inc(ctx.store.u32(o::HOMING_SPEED_SWITCH) as f64);
                     ctx.axis.ramp_velocity(dir * v, acc, acc, ctx.dt);
                 }
             }
@@ -116,7 +118,7 @@ impl Hm {
                     self.phase = Phase::Stopping;
                     ctx.axis.stop(acc, ctx.dt);
                 } else {
-                    let v = ctx.f.to_inc(ctx.store.u32(o::HOMING_SPEED_ZERO) as f64);
+                    let v = ctx.f.vel_to_inc(ctx.store.u32(o::HOMING_SPEED_ZERO) as f64);
                     ctx.axis.ramp_velocity(dir * v, acc, acc, ctx.dt);
                 }
             }

@@ -25,6 +25,9 @@ use crate::od::Store;
 use crate::quirks::Cia402Quirks;
 use controlword::{BIT_FAULT_RESET, BIT_HALT};
 use factor::{sat_i32, Factor};
+pub use factor::{
+    SiUnit, SI_DEGREE, SI_HOUR, SI_METRE, SI_MINUTE, SI_RADIAN, SI_REVOLUTION, SI_SECOND,
+};
 use objects as o;
 use profile::Axis;
 pub use state_machine::State;
@@ -123,7 +126,7 @@ impl Ctx<'_> {
     /// A velocity in user units/s limited by 0x607F and 0x6080, in increments/s.
     pub fn vel_limit(&self, v_uu: f64) -> f64 {
         let v = v_uu.min(self.store.u32(o::MAX_PROFILE_VEL) as f64);
-        let inc = self.f.to_inc(v);
+        let inc = self.f.vel_to_inc(v);
         let motor = max_motor_inc_per_s(self.store);
         if motor > 0.0 {
             inc.min(motor)
@@ -137,7 +140,7 @@ impl Ctx<'_> {
         if a == 0 {
             NO_LIMIT_ACC
         } else {
-            self.f.to_inc(a as f64)
+            self.f.vel_to_inc(a as f64)
         }
     }
 }
@@ -207,6 +210,12 @@ pub(crate) struct Cia402 {
     pub statusword: u16,
     pub following_error_uu: f64,
     pub position_actual_uu: i32,
+    /// A following-error window 0x6065 of 0 is "off" on this device (its vendor's file says
+    /// so: `DeviceDescription::following_error_window_zero_off`), as 0xFFFFFFFF is in CiA 402.
+    pub fe_window_zero_off: bool,
+    /// The rows of 0x60A8 (if any) and 0x60A9 in the store, where the dictionary has an SI
+    /// unit velocity: applied to the factor each tick ([`Factor::with_si_units`]).
+    pub si_rows: Option<(Option<usize>, usize)>,
 }
 
 impl Cia402 {
@@ -236,7 +245,21 @@ impl Cia402 {
             statusword: 0,
             following_error_uu: 0.0,
             position_actual_uu: 0,
+            fe_window_zero_off: false,
+            si_rows: None,
         }
+    }
+
+    /// With what the device's dictionary says: a following-error window of 0 is off, the
+    /// rows of its SI unit objects.
+    pub(crate) fn with_device(
+        mut self,
+        fe_window_zero_off: bool,
+        si_rows: Option<(Option<usize>, usize)>,
+    ) -> Cia402 {
+        self.fe_window_zero_off = fe_window_zero_off;
+        self.si_rows = si_rows;
+        self
     }
 
     /// Request FAULT REACTION ACTIVE at the next tick (0x6007 reaction, injected fault).
@@ -384,7 +407,18 @@ impl Cia402 {
             store.u32(o::FEED),
             store.u32(o::FEED_REVS),
         ) {
-            self.factor = f;
+            self.factor = match self.si_rows {
+                Some((pos, vel)) => {
+                    let revs = store.u32(o::ENC_REVS).max(1) as f64;
+                    let shaft = store.u32(o::GEAR_SHAFT).max(1) as f64;
+                    let inc_per_shaft_rev = store.u32(o::ENC_INC) as f64 / revs
+                        * store.u32(o::GEAR_MOTOR) as f64
+                        / shaft;
+                    f.with_si_units(pos.map(|r| store.u32(r)), store.u32(vel), inc_per_shaft_rev)
+                        .0
+                }
+                None => f,
+            };
         }
         let act_inc = if fb.position_from_direct {
             fb.direct_position_inc
@@ -672,7 +706,8 @@ impl Cia402 {
         };
         let fe_uu = self.factor.to_uu(fe_inc);
         let window = ctx.store.u32(o::FE_WINDOW);
-        let over = mo.position_mode && window != u32::MAX && fe_uu.abs() > window as f64;
+        let off = window == u32::MAX || (window == 0 && self.fe_window_zero_off);
+        let over = mo.position_mode && !off && fe_uu.abs() > window as f64;
         if self
             .fe_timer
             .update(over, now_us, ctx.store.u32(o::FE_TIME))
@@ -752,9 +787,9 @@ impl Cia402 {
         st.set_i32(o::VEL_SENSOR, sat_i32(act_vel));
         st.set_i32(
             o::VEL_DEMAND,
-            sat_i32(f.to_uu(fb.velocity_demand_inc_per_s)),
+            sat_i32(f.vel_to_uu(fb.velocity_demand_inc_per_s)),
         );
-        st.set_i32(o::VEL_ACTUAL, sat_i32(f.to_uu(act_vel)));
+        st.set_i32(o::VEL_ACTUAL, sat_i32(f.vel_to_uu(act_vel)));
         st.set_i32(
             o::TORQUE_ACTUAL,
             sat_i32(fb.torque_permille).clamp(-32768, 32767),

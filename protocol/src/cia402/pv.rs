@@ -18,10 +18,10 @@ impl Pv {
 
     pub fn step(&mut self, ctx: &mut Ctx) -> ModeOut {
         let target_uu = ctx.store.i32(o::TARGET_VELOCITY) as f64;
-        let target = ctx.f.to_inc(target_uu);
+        let target = ctx.f.vel_to_inc(target_uu);
         let max = ctx.vel_limit(f64::INFINITY);
         let target = target.clamp(-max, max);
-        let limit = target != ctx.f.to_inc(target_uu);
+        let limit = target != ctx.f.vel_to_inc(target_uu);
         if ctx.halt {
             ctx.axis
                 .ramp_velocity(0.0, ctx.halt_dec, ctx.halt_dec, ctx.dt);
@@ -32,10 +32,10 @@ impl Pv {
         }
         // keep the generated position near the real one (no position loop in PV)
         ctx.axis.pos = ctx.act_inc;
-        let win = ctx.f.to_inc(ctx.store.u32(o::VEL_WINDOW) as f64);
+        let win = ctx.f.vel_to_inc(ctx.store.u32(o::VEL_WINDOW) as f64);
         let goal = if ctx.halt { 0.0 } else { target };
         let inside = (goal - ctx.act_vel).abs() <= win && ctx.axis.vel == goal;
-        let thr = ctx.f.to_inc(ctx.store.u32(o::VEL_THRESHOLD) as f64);
+        let thr = ctx.f.vel_to_inc(ctx.store.u32(o::VEL_THRESHOLD) as f64);
         ModeOut {
             setpoint: Setpoint::Velocity {
                 velocity_inc_per_s: ctx.axis.vel,

@@ -257,6 +257,8 @@ impl ObjectDictionary {
             ..BuildReport::default()
         };
         check_device_type(file)?;
+        // the file's 0x6065 is 0 (default or ParameterValue): its vendor's 0 means off
+        let mut fe_window_zero = false;
         for obj in &file.objects {
             if obj.defines_type()
                 || matches!(
@@ -330,6 +332,18 @@ impl ObjectDictionary {
                         e = supported_modes(e, &mut report);
                     }
                 }
+                let file_zero = |v: &Option<_>| {
+                    v.as_ref()
+                        .is_some_and(|v: &crate::od::eds_parse::ValueExpr| {
+                            v.resolve(s.data_type, Some(1))
+                                .is_ok_and(|b| b.iter().all(|&x| x == 0))
+                        })
+                };
+                if (obj.index, s.sub) == (0x6065, 0)
+                    && (file_zero(&s.default) || file_zero(&s.parameter_value))
+                {
+                    fe_window_zero = true;
+                }
                 if let Some(w) = placeholder(&mut e, obj.index, s.sub, &axis_od) {
                     why = w;
                 }
@@ -339,7 +353,15 @@ impl ObjectDictionary {
                     v.resolve(s.data_type, Some(1))
                         .is_ok_and(|b| b.iter().all(|&x| x == 0))
                 });
-                if s.sub == 0 && zero_pv && PLACEHOLDERS.iter().any(|p| p.0 == obj.index) {
+                if (obj.index, s.sub) == (0x6065, 0) && zero_pv {
+                    report.notes.push(format!(
+                        "0x6065 ({}): the DCF's ParameterValue is 0: a master that loads it \
+                         (load_configuration, a concise DCF) sets 0, which this drive takes as \
+                         its vendor documents it: the following-error check off, as \
+                         0xFFFFFFFF is in CiA 402",
+                        s.name
+                    ));
+                } else if s.sub == 0 && zero_pv && PLACEHOLDERS.iter().any(|p| p.0 == obj.index) {
                     report.notes.push(format!(
                         "0x{:04X} ({}): the DCF's ParameterValue is 0: a master that loads it \
                          (load_configuration, a concise DCF) sets 0, which the drive takes as \
@@ -421,6 +443,7 @@ impl ObjectDictionary {
             dummy_usage: file.dummy_usage,
             shipped_read_only_rpdo_entries: Vec::new(),
             shipped_short_entries: Vec::new(),
+            following_error_window_zero_off: fe_window_zero,
         };
         od.device.shipped_short_entries = shipped_short_entries(file, &od, &mut report);
         od.device.shipped_read_only_rpdo_entries = shipped_read_only_rpdo_entries(&od, &mut report);

@@ -360,6 +360,10 @@ pub struct DeviceDescription {
     /// bytes of an object than it has (32 bits of a 64-bit object): taken as the device takes
     /// them, the low bytes of the value (a received value zero-extended).
     pub shipped_short_entries: Vec<u32>,
+    /// The file's following-error window 0x6065 is 0 (its default, a placeholder, or a DCF's
+    /// ParameterValue): its vendor documents 0 as "off", so a 0 in 0x6065 switches the
+    /// following-error check off on this device, as 0xFFFFFFFF does in CiA 402.
+    pub following_error_window_zero_off: bool,
 }
 
 impl Default for DeviceDescription {
@@ -374,6 +378,7 @@ impl Default for DeviceDescription {
             dummy_usage: [false; 8],
             shipped_read_only_rpdo_entries: Vec::new(),
             shipped_short_entries: Vec::new(),
+            following_error_window_zero_off: false,
         }
     }
 }
