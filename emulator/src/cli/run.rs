@@ -134,8 +134,9 @@ pub struct RunArgs {
     pub ready: bool,
     /// Serve the run's drives as EtherCAT CoE slaves on this Ethernet interface (AF_PACKET,
     /// EtherType 0x88A4; a veth end, a TAP or a NIC; needs CAP_NET_RAW) instead of CAN: one
-    /// slave per axis in machine-file order, as on a line. Not yet with --scenario,
-    /// --lockstep, --detect, --trace or --panel.
+    /// slave per axis in machine-file order, as on a line. With --lockstep the drives' time
+    /// advances one tick per process-data frame (LRD/LWR/LRW). Not yet with --scenario,
+    /// --detect, --trace or --panel.
     #[arg(long, value_name = "IFACE")]
     pub ethercat: Option<String>,
     #[command(flatten)]
@@ -1433,8 +1434,8 @@ fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
 /// `run --ethercat IFACE`: the machine's axes as EtherCAT slaves on a raw Ethernet port.
 fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     validate_args(args)?;
-    if args.scenario.is_some() || args.lockstep || args.detect || args.trace.is_some() {
-        bail!("--ethercat: not yet with --scenario, --lockstep, --detect or --trace");
+    if args.scenario.is_some() || args.detect || args.trace.is_some() {
+        bail!("--ethercat: not yet with --scenario, --detect or --trace");
     }
     let mut machine = machine_from_args(args)?;
     machine::validate(&machine)?;
@@ -1460,9 +1461,14 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     let stop = stop_flag(args, None)?;
     let period_us = 1_000_000 / u64::from(machine.tick_hz);
     eprintln!(
-        "drive-emu: {} EtherCAT slave(s) on {iface}, {} Hz",
+        "drive-emu: {} EtherCAT slave(s) on {iface}, {} Hz{}",
         slaves.len(),
-        machine.tick_hz
+        machine.tick_hz,
+        if args.lockstep {
+            " per process-data cycle (lock-step)"
+        } else {
+            ""
+        }
     );
     if args.ready {
         let nodes: Vec<serde_json::Value> = machine
@@ -1479,7 +1485,14 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         std::io::stdout().flush().ok();
     }
     let mut seg = drive_ethercat::Segment::new(slaves);
-    let stats = crate::runtime::ethercat::serve(&mut sock, &mut seg, &mut drives, period_us, &stop);
+    let stats = crate::runtime::ethercat::serve(
+        &mut sock,
+        &mut seg,
+        &mut drives,
+        period_us,
+        args.lockstep,
+        &stop,
+    );
     eprintln!(
         "drive-emu: stopped. {} frames answered, {} refused, {} socket errors, {} cycles ({} late)",
         stats.frames, stats.refused, stats.socket_errors, stats.cycles, stats.late_cycles
