@@ -15,13 +15,41 @@
 mod ethercat_rig;
 use ethercat_rig::*;
 
+/// A directory of this test, removed when dropped (also when the test fails).
+struct TempDir(std::path::PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> TempDir {
+        let p = std::env::temp_dir().join(format!("drive-emu-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&p).unwrap();
+        TempDir(p)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
 #[test]
 fn pysoem_own_long_mapping_csp_csv_and_pp_from_the_process_data() {
     if !may_run("ethercat_modes") {
         return;
     }
     let veth = Veth::create('m').unwrap_or_else(|e| panic!("cannot create the veth pair: {e}"));
-    let mut emu = Emulator::start(&veth.slave, &["--preset", "cnc1", "--lockstep"]);
+    let dir = TempDir::new("modes");
+    let trace = dir.0.join("trace.csv");
+    let mut emu = Emulator::start(
+        &veth.slave,
+        &[
+            "--preset",
+            "cnc1",
+            "--lockstep",
+            "--trace",
+            trace.to_str().unwrap(),
+        ],
+    );
     let r = python("ethercat_modes.py", &[&veth.master, "modes"], 300);
     assert_eq!(r["expected_wkc"], 3);
     assert!(
@@ -38,6 +66,22 @@ fn pysoem_own_long_mapping_csp_csv_and_pp_from_the_process_data() {
     assert_eq!(stats["socket_errors"], 0, "{stats}");
     // lock-step: the drives ran one cycle per process-data frame, none on their own
     assert_eq!(stats["cycles"], r["cycles"], "{stats} / {r}");
+    // --trace: the drive's own sample of every cycle, 1 ms apart, through CSP, CSV and PP
+    let text = std::fs::read_to_string(&trace).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (t, mode) = (col("t_s"), col("mode_display"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len() as u64, stats["cycles"].as_u64().unwrap());
+    for w in rows.windows(2) {
+        assert!((w[1][t] - w[0][t] - 0.001).abs() < 1e-6, "{w:?}");
+    }
+    for m in [8.0, 9.0, 1.0] {
+        assert!(rows.iter().any(|r| r[mode] == m), "mode {m} in the trace");
+    }
 }
 
 #[test]
@@ -54,6 +98,7 @@ fn backlash_limit_cycle_in_0x606c_over_ethercat_follows_kv() {
             "--set",
             "backlash_mm=0.05",
             "--lockstep",
+            "--detect",
         ],
     );
     let kvs = ["20", "30", "45"];
@@ -99,6 +144,15 @@ fn backlash_limit_cycle_in_0x606c_over_ethercat_follows_kv() {
     }
     let (stats, _) = emu.stop();
     assert_eq!(stats["refused"], 0, "{stats}");
+    // --detect on the drive's own samples: the same worn axis, seen from inside
+    let rep = &stats["detect"][0]["report"];
+    assert_eq!(rep["verdict"], "backlash", "{stats}");
+    // ... and its warning, EMCY 0xFF01, reached the master over CoE
+    assert!(
+        r["emcys"].as_array().unwrap().iter().any(|c| c == 0xFF01),
+        "{}",
+        r["emcys"]
+    );
 }
 
 #[test]

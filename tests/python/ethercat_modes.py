@@ -86,6 +86,9 @@ class Master:
         check(n == 1, f"config_init found {n} slaves, expected 1")
         s = m.slaves[0]
         self.s = s
+        # the drive's emergencies over CoE (they come in the mailbox with SDO answers)
+        self.emcys = []
+        s.add_emergency_callback(lambda e: self.emcys.append(e.error_code))
 
         def hook(slave_pos):
             remap(s, 0x1C12, 0x1600, RX)
@@ -210,13 +213,14 @@ def law(mm, kvs):
                 vel.append(mm.inputs()["vel"])
         check(not mm.inputs()["sw"] & 0x08, f"k_v {kv}: fault {mm.inputs()}")
         runs.append({"kv_per_s": kv, "sample_period_s": 0.001, "velocity_actual": vel})
-    return {"runs": runs, "speed_uu_per_s": speed * 1000}
+    # one more mailbox exchange: an emergency waiting in the mailbox comes with it
+    s.sdo_read(0x1018, 1)
+    return {"runs": runs, "speed_uu_per_s": speed * 1000, "emcys": list(mm.emcys)}
 
 
 def watchdog(mm, options):
     s = mm.s
-    emcys = []
-    s.add_emergency_callback(lambda e: emcys.append(e.error_code))
+    emcys = mm.emcys
     rounds = []
     for option in options:
         s.sdo_write(0x6007, 0, struct.pack("<h", option))

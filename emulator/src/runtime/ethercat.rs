@@ -36,14 +36,15 @@ pub struct EthercatStats {
 }
 
 /// Serve `seg` with `drives` on `sock` until `stop`, one drive cycle per `period_us` (or,
-/// with `lockstep`, one per process-data frame).
+/// with `lockstep`, one per process-data frame); `after_cycle(seg, drives, t_us)` after each
+/// drive cycle of simulated time `t_us` (the trace, the detector: real-time safe).
 pub fn serve<D: SimulatedDrive>(
     sock: &mut PacketSocket,
     seg: &mut Segment,
     drives: &mut [D],
-    period_us: u64,
-    lockstep: bool,
+    (period_us, lockstep): (u64, bool),
     stop: &AtomicBool,
+    mut after_cycle: impl FnMut(&mut Segment, &mut [D], u64),
 ) -> EthercatStats {
     let mut clock = MonotonicClock::new();
     let mut stats = EthercatStats::default();
@@ -65,7 +66,9 @@ pub fn serve<D: SimulatedDrive>(
                         }
                         if lockstep && seg.process_data_frames != pd_before {
                             // the master's cycle: the drives' one period, after the answer
+                            let t = sim_us;
                             step(seg, drives, &mut sim_us, now_ns / 1000, period_us);
+                            after_cycle(seg, drives, t);
                             stats.cycles += 1;
                         }
                     } else {
@@ -86,7 +89,9 @@ pub fn serve<D: SimulatedDrive>(
             continue;
         }
         if now_us >= next_us {
+            let t = sim_us;
             step(seg, drives, &mut sim_us, now_us, period_us);
+            after_cycle(seg, drives, t);
             stats.cycles += 1;
             next_us += period_us;
             if now_us > next_us + period_us {
