@@ -438,6 +438,18 @@ impl Slave {
     pub fn sii(&self) -> &[u16] {
         &self.sii
     }
+    /// The ESI XML (ETG.2000) of the slave as it is served now: identity, sync managers,
+    /// the assigned PDOs with their entries, CoE details; what the SII says, as a file.
+    pub fn esi_xml(&self) -> Result<String, SlaveError> {
+        let cfg = self.sii_config()?;
+        let od = self.node.od();
+        Ok(crate::esi::xml(&cfg, |index, sub| {
+            od.get(index, sub).map_or_else(
+                || format!("0x{index:04X}:{sub}"),
+                |(_, e)| e.name.to_string(),
+            )
+        }))
+    }
     /// AL state.
     pub fn al_state(&self) -> AlState {
         self.al.state
