@@ -60,10 +60,9 @@ pub fn xml(cfg: &SiiConfig, entry_name: impl Fn(u16, u8) -> String) -> String {
     let _ = writeln!(x, r#"      <Device Physics="YY">"#);
     let _ = writeln!(
         x,
-        r##"        <Type ProductCode="#x{:08X}" RevisionNo="#x{:08X}" SerialNo="#x{:08X}">{}</Type>"##,
+        r##"        <Type ProductCode="#x{:08X}" RevisionNo="#x{:08X}">{}</Type>"##,
         id.product,
         id.revision,
-        id.serial,
         escape(&cfg.order)
     );
     let _ = writeln!(x, "        <Name>{}</Name>", escape(&cfg.name));

@@ -1431,12 +1431,11 @@ fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
     Ok(())
 }
 
-/// `run --ethercat IFACE`: the machine's axes as EtherCAT slaves on a raw Ethernet port.
-fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
-    validate_args(args)?;
-    if args.scenario.is_some() {
-        bail!("--ethercat: not yet with --scenario");
-    }
+/// The run's axes as EtherCAT slaves (in machine-file order) and their drives, as
+/// `run --ethercat` serves them and `drive-emu esi` describes them.
+pub fn ethercat_slaves(
+    args: &RunArgs,
+) -> Result<(MachineFile, Vec<drive_ethercat::Slave>, Vec<AxisDrive>)> {
     let mut machine = machine_from_args(args)?;
     machine::validate(&machine)?;
     let lss = LssOptions::default();
@@ -1457,6 +1456,16 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         slaves.push(slave);
         drives.push(drive);
     }
+    Ok((machine, slaves, drives))
+}
+
+/// `run --ethercat IFACE`: the machine's axes as EtherCAT slaves on a raw Ethernet port.
+fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
+    validate_args(args)?;
+    if args.scenario.is_some() {
+        bail!("--ethercat: not yet with --scenario");
+    }
+    let (machine, slaves, mut drives) = ethercat_slaves(args)?;
     let mut sock = crate::bus::ethercat::PacketSocket::open(iface)?;
     let stop = stop_flag(args, None)?;
     let period_us = 1_000_000 / u64::from(machine.tick_hz);
