@@ -16,7 +16,8 @@ it), PP (bit 4 new set-point, bit 12 acknowledge, bit 10 target reached at the t
 law: for each k_v (written to the drive's kv_per_s object over CoE), a constant-speed CSP
 run; 0x606C from the process data once per master cycle.
 
-watchdog: for each 0x6007 abort connection option code, in OP with the drive enabled, the
+watchdog: the master sets the SM watchdog to 1 s (a master stalled by a busy machine does not
+trip it); for each 0x6007 abort connection option code, in OP with the drive enabled, the
 master stops sending process data: the SM watchdog takes the slave to SAFE-OP with AL status
 0x001B, the drive reacts as 0x6007 says and sends EMCY 0x8250 over CoE; the master
 acknowledges, goes back to OP, resets the fault (controlword bit 7) and enables the drive again.
@@ -71,6 +72,8 @@ class Master:
         self.cw, self.target_pos, self.target_vel, self.mode = 0, 0, 0, 8
         # lock-step: no pause, one drive cycle per master cycle; else about the drive's tick
         self.pause_s = 0.0
+        # the SM watchdog time the master sets (None: the slave's default, 100 ms)
+        self.watchdog_ms = None
 
     def close(self):
         self.m.close()
@@ -96,6 +99,11 @@ class Master:
 
         s.config_func = hook
         size = m.config_map()
+        if self.watchdog_ms is not None:
+            # long enough that a master stalled by a busy machine does not trip it
+            s.set_watchdog("processdata", self.watchdog_ms)
+            got = s.get_watchdog("processdata")
+            check(abs(got - self.watchdog_ms) < 1, f"SM watchdog {got} ms")
         check(size == OUT_LEN + IN_LEN, f"process image {size} bytes, want {OUT_LEN + IN_LEN}")
         got = s.sdo_read(0x1600, 0, ca=True)
         check(got[0] == len(RX), f"0x1600 read back {got.hex()}")
@@ -121,7 +129,7 @@ class Master:
         self.s.output = struct.pack("<HiiB", self.cw, self.target_pos, self.target_vel,
                                     self.mode & 0xFF)
         self.m.send_processdata()
-        w = self.m.receive_processdata(20000)
+        w = self.m.receive_processdata(100000)
         self.wkcs.append(w)
         self.cycles += 1
         return w
@@ -227,7 +235,7 @@ def watchdog(mm, options):
         mm.enable(8)
         # the master stops: no process data; only AL status reads until SAFE-OP + error
         al = None
-        for _ in range(500):
+        for _ in range(1000):
             time.sleep(0.01)
             mm.m.read_state()
             if s.state == pysoem.SAFEOP_STATE | pysoem.STATE_ERROR:
@@ -270,6 +278,7 @@ def main():
     mm = Master(iface)
     if what == "watchdog":
         mm.pause_s = 0.001
+        mm.watchdog_ms = 1000.0
     try:
         mm.configure()
         if what == "modes":
