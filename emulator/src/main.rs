@@ -30,6 +30,7 @@ fn main() -> ExitCode {
         Command::Scenario(args) => cli::scenario::run(&args),
         Command::Analyze(args) => cli::analyze::run(&args),
         Command::Eds(args) => ok(cli::eds::run_eds(&args)),
+        Command::Esi(args) => ok(cli::esi::run_esi(&args)),
         Command::Presets => ok(cli::eds::run_presets()),
         Command::Fmu(args) => ok(cli::fmu::fmu(&args)),
         Command::Profiles(args) => ok(cli::profiles::run(&args)),

@@ -5,7 +5,8 @@
 //! - [`esc`]: the slave controller's register space and RAM as a master reads and writes it;
 //! - [`datagram`]: every command (APxx, FPxx, Bxx, Lxx, ARMW, FRMW) with auto-increment
 //!   addressing and working counters as an ESC counts them;
-//! - [`sii`]: the EEPROM image generated from the drive's identity;
+//! - [`sii`]: the EEPROM image generated from the drive's identity; [`esi`]: the same as the
+//!   ESI XML file a master imports;
 //! - [`al`]: the INIT / PRE-OP / SAFE-OP / OP / BOOT state machine and its AL status codes;
 //! - [`mailbox`] and [`coe`]: SM0 / SM1 mailboxes, CoE SDO, SDO information, emergency;
 //! - [`pdo`]: PDO assignment and the process image through the FMMUs;
@@ -13,7 +14,8 @@
 //!
 //! What is not emulated: EoE, FoE, SoE, port redundancy, the ESC's three-buffer mode (process
 //! data has one buffer), DC drift control (the system time is the slave's clock plus the
-//! offset the master writes), PDO mappings longer than 8 bytes (the drive core's PDO rules).
+//! offset the master writes). A PDO mapping may be as long as a sync manager buffer
+//! ([`pdo::MAX_IMAGE`]), not 8 bytes as on CAN.
 
 #![warn(missing_docs)]
 
@@ -21,6 +23,7 @@ pub mod al;
 pub mod coe;
 pub mod datagram;
 pub mod esc;
+pub mod esi;
 pub mod frame;
 pub mod mailbox;
 pub mod pdo;

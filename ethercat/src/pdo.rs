@@ -15,6 +15,11 @@ pub const MAX_ASSIGNED: usize = 8;
 pub const SM_OUTPUTS: usize = 2;
 /// Sync manager of the inputs.
 pub const SM_INPUTS: usize = 3;
+/// Bytes of process data one direction may carry: the ESC RAM between the outputs' buffer
+/// (SM2, 0x1100) and the inputs' (SM3, 0x1180). One PDO may be as long (the drive core's
+/// mapping limit on this front end, [`Node::set_pdo_max_len`]); the PDOs of an assignment
+/// together too (a longer assignment is refused at SAFE-OP, AL status 0x001D / 0x001E).
+pub const MAX_IMAGE: usize = 128;
 
 /// One assigned PDO: its mapping index, offset in the SM buffer and length.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -69,8 +74,14 @@ impl ProcessData {
     /// The PRE-OP -> SAFE-OP check: the assignment resolves and the process-data sync
     /// managers match it (enabled, right direction and mode, the image's length).
     pub fn configure(node: &Node, esc: &Esc) -> Result<ProcessData, u16> {
-        let outputs = resolve(node, 0x1C12).map_err(|_| code::INVALID_OUTPUT_CONFIG)?;
-        let inputs = resolve(node, 0x1C13).map_err(|_| code::INVALID_INPUT_CONFIG)?;
+        let outputs = resolve(node, 0x1C12)
+            .ok()
+            .filter(|l| l.len <= MAX_IMAGE)
+            .ok_or(code::INVALID_OUTPUT_CONFIG)?;
+        let inputs = resolve(node, 0x1C13)
+            .ok()
+            .filter(|l| l.len <= MAX_IMAGE)
+            .ok_or(code::INVALID_INPUT_CONFIG)?;
         let ok = |n: usize, len: usize, master_writes: bool| {
             let sm = esc.sm(n);
             if len == 0 {
@@ -96,8 +107,8 @@ impl ProcessData {
         let start = esc.sm(SM_OUTPUTS).start;
         let mut ok = true;
         for p in &self.outputs.pdos {
-            let mut buf = [0u8; 8];
-            let b = &mut buf[..p.len.min(8)];
+            let mut buf = [0u8; MAX_IMAGE];
+            let b = &mut buf[..p.len.min(MAX_IMAGE)];
             esc.get(start.wrapping_add(p.offset as u16), b);
             ok &= node.apply_rpdo_image(p.mapping, b).unwrap_or(false);
         }
@@ -108,7 +119,7 @@ impl ProcessData {
     pub fn write_inputs(&self, node: &Node, esc: &mut Esc) {
         let start = esc.sm(SM_INPUTS).start;
         for p in &self.inputs.pdos {
-            let mut buf = [0u8; 8];
+            let mut buf = [0u8; MAX_IMAGE];
             if let Ok(n) = node.tpdo_image(p.mapping, &mut buf) {
                 esc.set(start.wrapping_add(p.offset as u16), &buf[..n.min(p.len)]);
             }

@@ -15,6 +15,9 @@ pub struct Segment {
     pub slaves: Vec<Slave>,
     /// Frames refused as malformed.
     pub bad_frames: u64,
+    /// Frames that carried process data (a logical datagram: LRD, LWR or LRW): the
+    /// master's cycles, what a lock-step run advances the drives' time by.
+    pub process_data_frames: u64,
 }
 
 impl Segment {
@@ -23,6 +26,7 @@ impl Segment {
         Segment {
             slaves,
             bad_frames: 0,
+            process_data_frames: 0,
         }
     }
 
@@ -45,6 +49,9 @@ impl Segment {
                 return Err(e);
             }
         };
+        if d.list.iter().any(|g| matches!(g.cmd, 10..=12)) {
+            self.process_data_frames += 1;
+        }
         for (slave, drive) in self.slaves.iter_mut().zip(drives.iter_mut()) {
             for g in &d.list {
                 slave.execute(frame, g, now_ns, drive);

@@ -224,6 +224,11 @@ pub struct Slave {
     now_ns: u64,
     /// Outputs the drive refused (an RPDO value out of range), counted.
     pub refused_outputs: u32,
+    /// The SM watchdog took the slave out of OP; the drive core's connection is lost until
+    /// OP again.
+    outputs_lost: bool,
+    /// SM watchdog expiries, counted.
+    pub watchdog_expiries: u32,
 }
 
 struct Transition<'a> {
@@ -290,6 +295,8 @@ impl Slave {
     pub fn new(mut cfg: NodeConfig, drive: &mut impl Drive) -> Result<Slave, SlaveError> {
         add_coe_objects(&mut cfg.od).map_err(SlaveError::Dictionary)?;
         let mut node = Node::new(cfg).map_err(SlaveError::Node)?;
+        // a PDO is not one CAN frame here: a mapping may fill a sync manager's buffer
+        node.set_pdo_max_len(pdo::MAX_IMAGE);
         node.boot(0);
         while node.pop_tx().is_some() {}
         // EtherCAT has no COB-IDs: every PDO is "not valid" on CAN, which is also what lets a
@@ -327,6 +334,8 @@ impl Slave {
             last_outputs_ns: None,
             now_ns: 0,
             refused_outputs: 0,
+            outputs_lost: false,
+            watchdog_expiries: 0,
             node,
         };
         s.sii = sii::image(&s.sii_config()?);
@@ -429,6 +438,18 @@ impl Slave {
     pub fn sii(&self) -> &[u16] {
         &self.sii
     }
+    /// The ESI XML (ETG.2000) of the slave as it is served now: identity, sync managers,
+    /// the assigned PDOs with their entries, CoE details; what the SII says, as a file.
+    pub fn esi_xml(&self) -> Result<String, SlaveError> {
+        let cfg = self.sii_config()?;
+        let od = self.node.od();
+        Ok(crate::esi::xml(&cfg, |index, sub| {
+            od.get(index, sub).map_or_else(
+                || format!("0x{index:04X}:{sub}"),
+                |(_, e)| e.name.to_string(),
+            )
+        }))
+    }
     /// AL state.
     pub fn al_state(&self) -> AlState {
         self.al.state
@@ -492,6 +513,11 @@ impl Slave {
         if ev.al_control {
             let v = self.esc.u16(reg::AL_CONTROL);
             self.transition(|al, t| al.request(v, t));
+            if self.outputs_lost && self.al.state == AlState::Op {
+                self.outputs_lost = false;
+                self.node
+                    .connection_restored(drive_protocol::EMCY_RPDO_TIMEOUT);
+            }
         }
         if ev.eeprom_command {
             self.eeprom_command();
@@ -585,7 +611,8 @@ impl Slave {
     /// in OP the outputs go to the drive core (each RxPDO with the RPDO rules), the drive
     /// runs its cycle ([`Node::cycle`]), in SAFE-OP and OP the inputs are written; the
     /// drive's EMCYs become CoE emergencies; the SM watchdog takes an OP slave whose outputs
-    /// stopped down to SAFE-OP with AL status code 0x001B.
+    /// stopped down to SAFE-OP with AL status code 0x001B, and the drive reacts as 0x6007
+    /// says (EMCY 0x8250 held until OP again; 1: fault, 2: disable voltage, 3: quick stop).
     pub fn cycle(&mut self, clocks: Clocks, drive: &mut impl Drive) {
         let now_ns = clocks.comm_us.saturating_mul(1000);
         if self.al.state == AlState::Op {
@@ -594,6 +621,9 @@ impl Slave {
             if wd > 0 && now_ns.saturating_sub(last) > wd {
                 self.now_ns = now_ns;
                 self.transition(|al, t| al.fall_to(AlState::SafeOp, code::SM_WATCHDOG, t));
+                self.watchdog_expiries = self.watchdog_expiries.wrapping_add(1);
+                self.outputs_lost = true;
+                self.node.connection_lost(drive_protocol::EMCY_RPDO_TIMEOUT);
             }
         }
         if let (AlState::Op, Some(pd)) = (self.al.state, &self.pd) {

@@ -90,3 +90,37 @@ fn op_frame_path_and_cycle_allocate_nothing() {
     assert!(wkcs.iter().all(|&w| w == 3 * n as u16), "wkc every cycle");
     assert_eq!(answers, 50, "every SDO read answered in its frame");
 }
+
+#[test]
+fn watchdog_expiry_and_the_0x6007_fault_reaction_allocate_nothing() {
+    let (mut m, o, i) = op(1);
+    m.sdo_write(0, 0x6060, 0, false, &[8]).unwrap();
+    m.sdo_write(0, 0x6007, 0, false, &1i16.to_le_bytes())
+        .unwrap();
+    for cw in [0x06, 0x07, 0x0F] {
+        let mut v = vec![0u8; o + i];
+        v[..6].copy_from_slice(&outputs(cw, 0));
+        for _ in 0..3 {
+            m.lrw(&v);
+        }
+    }
+    assert_eq!(
+        m.seg.slaves[0].node().cia402_state(),
+        drive_protocol::Cia402State::OperationEnabled
+    );
+    // the outputs stop: SAFE-OP 0x001B, EMCY 0x8250 into the mailbox, the fault reaction
+    ALLOCS.with(|n| n.set(0));
+    ACTIVE.with(|a| a.set(true));
+    for _ in 0..300 {
+        m.cycle();
+    }
+    ACTIVE.with(|a| a.set(false));
+    let allocs = ALLOCS.with(|n| n.get());
+    assert_eq!(m.seg.slaves[0].al_state(), drive_ethercat::AlState::SafeOp);
+    assert_eq!(m.seg.slaves[0].al_status_code(), 0x001B);
+    assert_eq!(
+        m.seg.slaves[0].node().cia402_state(),
+        drive_protocol::Cia402State::Fault
+    );
+    assert_eq!(allocs, 0, "allocations in the watchdog path");
+}

@@ -39,6 +39,7 @@ pub use cia402::State as Cia402State;
 pub use drive::{Drive, DriveCommand, DriveInfo, Feedback, Setpoint};
 pub use event::{NodeEvent, SdoDirection, SdoTransfer, EVENT_QUEUE};
 pub use frame::CanFrame;
+pub use node::access::EMCY_RPDO_TIMEOUT;
 pub use node::{
     Clocks, ConfigError, FrameEvent, LssConfig, LssStore, Node, NodeConfig, DEFAULT_LSS_BIT_TIMING,
     TX_QUEUE,

@@ -3,7 +3,7 @@
 //! `pop_tx` hands out frames to send. Built once from a [`NodeConfig`]; nothing here
 //! allocates after `Node::new`.
 
-mod access;
+pub(crate) mod access;
 
 use heapless::Deque;
 

@@ -7,6 +7,7 @@ pub mod ballbar;
 pub mod demo;
 pub mod demo_panel;
 pub mod eds;
+pub mod esi;
 pub mod exit;
 pub mod figures;
 pub mod fmu;
@@ -49,6 +50,8 @@ pub enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Write the drive's EDS (CiA 306) to stdout.
     Eds(eds::EdsArgs),
+    /// Write the drive's ESI (EtherCAT slave information, ETG.2000) as `run --ethercat` serves it.
+    Esi(Box<esi::EsiArgs>),
     /// Write the preset axis as an FMI 2.0 co-simulation FMU (for Simulink, VeriStand, FMPy).
     Fmu(fmu::FmuArgs),
     /// List the axis presets.
@@ -71,6 +74,7 @@ impl Command {
             | Command::Figures(_)
             | Command::Analyze(_)
             | Command::Eds(_)
+            | Command::Esi(_)
             | Command::Fmu(_)
             | Command::Presets
             | Command::Profiles(_) => true,

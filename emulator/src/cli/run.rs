@@ -141,8 +141,9 @@ pub struct RunArgs {
     pub ready: bool,
     /// Serve the run's drives as EtherCAT CoE slaves on this Ethernet interface (AF_PACKET,
     /// EtherType 0x88A4; a veth end, a TAP or a NIC; needs CAP_NET_RAW) instead of CAN: one
-    /// slave per axis in machine-file order, as on a line. Not yet with --scenario,
-    /// --lockstep, --detect, --trace or --panel.
+    /// slave per axis in machine-file order, as on a line. With --lockstep the drives' time
+    /// advances one tick per process-data frame (LRD/LWR/LRW); --trace and --detect as on
+    /// CAN. Not yet with --scenario or --panel.
     #[arg(long, value_name = "IFACE")]
     pub ethercat: Option<String>,
     #[command(flatten)]
@@ -1508,12 +1509,11 @@ fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
     Ok(())
 }
 
-/// `run --ethercat IFACE`: the machine's axes as EtherCAT slaves on a raw Ethernet port.
-fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
-    validate_args(args)?;
-    if args.scenario.is_some() || args.lockstep || args.detect || args.trace.is_some() {
-        bail!("--ethercat: not yet with --scenario, --lockstep, --detect or --trace");
-    }
+/// The run's axes as EtherCAT slaves (in machine-file order) and their drives, as
+/// `run --ethercat` serves them and `drive-emu esi` describes them.
+pub fn ethercat_slaves(
+    args: &RunArgs,
+) -> Result<(MachineFile, Vec<drive_ethercat::Slave>, Vec<AxisDrive>)> {
     let mut machine = machine_from_args(args)?;
     machine::validate(&machine)?;
     let lss = LssOptions::default();
@@ -1528,13 +1528,28 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         slaves.push(slave);
         drives.push(drive);
     }
+    Ok((machine, slaves, drives))
+}
+
+/// `run --ethercat IFACE`: the machine's axes as EtherCAT slaves on a raw Ethernet port.
+fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
+    validate_args(args)?;
+    if args.scenario.is_some() {
+        bail!("--ethercat: not yet with --scenario");
+    }
+    let (machine, slaves, mut drives) = ethercat_slaves(args)?;
     let mut sock = crate::bus::ethercat::PacketSocket::open(iface)?;
     let stop = stop_flag(args, None)?;
     let period_us = 1_000_000 / u64::from(machine.tick_hz);
     eprintln!(
-        "drive-emu: {} EtherCAT slave(s) on {iface}, {} Hz",
+        "drive-emu: {} EtherCAT slave(s) on {iface}, {} Hz{}",
         slaves.len(),
-        machine.tick_hz
+        machine.tick_hz,
+        if args.lockstep {
+            " per process-data cycle (lock-step)"
+        } else {
+            ""
+        }
     );
     if args.ready {
         let nodes: Vec<serde_json::Value> = machine
@@ -1550,8 +1565,65 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         use std::io::Write;
         std::io::stdout().flush().ok();
     }
+    // --trace: the same tap and recorder as on CAN, fed after each drive cycle
+    let node_ids: Vec<u8> = slaves.iter().map(|s| s.node().node_id()).collect();
+    let tap = args
+        .trace
+        .as_ref()
+        .map(|_| Arc::new(TraceTap::new(slaves.len())));
+    let recorder = match (&args.trace, &tap) {
+        (Some(path), Some(tap)) => Some(Recorder::start(
+            Arc::clone(tap),
+            trace_paths(path, &node_ids),
+        )?),
+        _ => None,
+    };
+    // --detect: the same detector thread as on CAN, fed after each drive cycle
+    let detect = args.detect.then(|| Arc::new(DetectTap::new(slaves.len())));
+    let detector = match &detect {
+        Some(dtap) => {
+            let facts = drives
+                .iter()
+                .zip(gap_models(&machine, None))
+                .map(|(d, gap)| AxisFacts {
+                    rotary: drive_protocol::Drive::info(d).rotary,
+                    kv_per_s: d.param(crate::drive::objects::AxisParam::Kv),
+                    gap,
+                })
+                .collect();
+            let opts = DetectOptions {
+                history_s: args.detect_history,
+                ..DetectOptions::default()
+            };
+            Some(Detector::start(Arc::clone(dtap), facts, opts)?)
+        }
+        None => None,
+    };
     let mut seg = drive_ethercat::Segment::new(slaves);
-    let stats = crate::runtime::ethercat::serve(&mut sock, &mut seg, &mut drives, period_us, &stop);
+    let stats = crate::runtime::ethercat::serve(
+        &mut sock,
+        &mut seg,
+        &mut drives,
+        (period_us, args.lockstep),
+        &stop,
+        |seg, drives, t_us| {
+            if let Some(tap) = &tap {
+                tap.push_nodes(seg.slaves.iter().map(|s| s.node()), t_us);
+            }
+            if let Some(dtap) = &detect {
+                for (k, (s, d)) in seg.slaves.iter_mut().zip(drives.iter()).enumerate() {
+                    dtap.on_axis(k, s.node_mut(), d, t_us);
+                }
+            }
+        },
+    );
+    if let (Some(rec), Some(tap)) = (recorder, &tap) {
+        finish_trace(rec, tap)?;
+    }
+    let detector = match (detector, &detect) {
+        (Some(d), Some(dtap)) => finish_detector(d, dtap, &node_ids)?,
+        _ => Vec::new(),
+    };
     eprintln!(
         "drive-emu: stopped. {} frames answered, {} refused, {} socket errors, {} cycles ({} late)",
         stats.frames, stats.refused, stats.socket_errors, stats.cycles, stats.late_cycles
@@ -1561,7 +1633,10 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
             "{}",
             serde_json::json!({"frames": stats.frames, "refused": stats.refused,
                 "socket_errors": stats.socket_errors, "cycles": stats.cycles,
-                "late_cycles": stats.late_cycles})
+                "late_cycles": stats.late_cycles,
+                "detect": detector.iter().map(|(node_id, rep)|
+                    serde_json::json!({ "node_id": node_id, "report": rep }))
+                    .collect::<Vec<_>>()})
         );
     }
     Ok(())

@@ -137,37 +137,46 @@ impl DetectTap {
     pub fn on_tick<B: CanBus>(&self, rt: &mut Runtime<B, AxisDrive>) {
         let now = rt.sim_time_us;
         for (k, ax) in rt.axes.iter_mut().enumerate() {
-            let Some(q) = self.samples.get(k) else {
+            if k >= self.samples.len() {
                 break;
-            };
-            if q.push(node_sample(&ax.node, now)).is_err() {
-                self.lost.fetch_add(1, Ordering::Relaxed);
             }
-            self.kv_bits[k].store(ax.drive.param(AxisParam::Kv).to_bits(), Ordering::Relaxed);
-            let mut latest = None;
-            while let Some(r) = self.results[k].pop() {
-                latest = Some(r);
-            }
-            let Some(r) = latest else {
-                continue;
-            };
-            if let Some(obj) = ax.drive.objects {
-                let s = &obj.detector;
-                ax.node.set_value(s[0], u64::from(r.verdict));
-                ax.node.set_value(s[1], u64::from(r.frequency_hz.to_bits()));
-                ax.node.set_value(s[2], u64::from(r.amplitude.to_bits()));
-                ax.node.set_value(s[3], u64::from(r.kv_per_s.to_bits()));
-                ax.node.set_value(s[4], u64::from(r.analyses));
-            }
-            self.published[k].store(r.verdict, Ordering::Relaxed);
-            let warned = self.warned[k].load(Ordering::Relaxed);
-            if r.verdict == verdict_code(Verdict::Backlash) && !warned {
-                ax.node.raise_condition(EMCY_BACKLASH, r.emcy_info());
-                self.warned[k].store(true, Ordering::Relaxed);
-            } else if r.verdict == verdict_code(Verdict::Ok) && warned {
-                ax.node.clear_condition(EMCY_BACKLASH);
-                self.warned[k].store(false, Ordering::Relaxed);
-            }
+            self.on_axis(k, &mut ax.node, &ax.drive, now);
+        }
+    }
+
+    /// [`DetectTap::on_tick`] for axis `k` alone, its node and drive at `now`: for a loop
+    /// other than the CAN [`Runtime`] (the EtherCAT front end's). Real-time safe.
+    pub fn on_axis(&self, k: usize, node: &mut drive_protocol::Node, drive: &AxisDrive, now: u64) {
+        let Some(q) = self.samples.get(k) else {
+            return;
+        };
+        if q.push(node_sample(node, now)).is_err() {
+            self.lost.fetch_add(1, Ordering::Relaxed);
+        }
+        self.kv_bits[k].store(drive.param(AxisParam::Kv).to_bits(), Ordering::Relaxed);
+        let mut latest = None;
+        while let Some(r) = self.results[k].pop() {
+            latest = Some(r);
+        }
+        let Some(r) = latest else {
+            return;
+        };
+        if let Some(obj) = drive.objects {
+            let s = &obj.detector;
+            node.set_value(s[0], u64::from(r.verdict));
+            node.set_value(s[1], u64::from(r.frequency_hz.to_bits()));
+            node.set_value(s[2], u64::from(r.amplitude.to_bits()));
+            node.set_value(s[3], u64::from(r.kv_per_s.to_bits()));
+            node.set_value(s[4], u64::from(r.analyses));
+        }
+        self.published[k].store(r.verdict, Ordering::Relaxed);
+        let warned = self.warned[k].load(Ordering::Relaxed);
+        if r.verdict == verdict_code(Verdict::Backlash) && !warned {
+            node.raise_condition(EMCY_BACKLASH, r.emcy_info());
+            self.warned[k].store(true, Ordering::Relaxed);
+        } else if r.verdict == verdict_code(Verdict::Ok) && warned {
+            node.clear_condition(EMCY_BACKLASH);
+            self.warned[k].store(false, Ordering::Relaxed);
         }
     }
 

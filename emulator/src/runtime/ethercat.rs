@@ -3,7 +3,10 @@
 //! back the moment it arrives; between frames, each drive's cycle runs at the fixed tick rate
 //! as the CAN runtime steps it (the node's cycle with the simulated time, then the axis
 //! advances one period). Frames carry the wall clock (DC, watchdog); the drive's cycle the
-//! simulated time. Nothing allocates in the loop.
+//! simulated time. With `lockstep`, the drives' time advances by one period per frame that
+//! carries process data (the master's cycle, as per SYNC on CAN) instead of by the tick: the
+//! drive then sees exactly one cycle per master cycle however busy the machine is. Nothing
+//! allocates in the loop.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -32,13 +35,16 @@ pub struct EthercatStats {
     pub late_cycles: u64,
 }
 
-/// Serve `seg` with `drives` on `sock` until `stop`, one drive cycle per `period_us`.
+/// Serve `seg` with `drives` on `sock` until `stop`, one drive cycle per `period_us` (or,
+/// with `lockstep`, one per process-data frame); `after_cycle(seg, drives, t_us)` after each
+/// drive cycle of simulated time `t_us` (the trace, the detector: real-time safe).
 pub fn serve<D: SimulatedDrive>(
     sock: &mut PacketSocket,
     seg: &mut Segment,
     drives: &mut [D],
-    period_us: u64,
+    (period_us, lockstep): (u64, bool),
     stop: &AtomicBool,
+    mut after_cycle: impl FnMut(&mut Segment, &mut [D], u64),
 ) -> EthercatStats {
     let mut clock = MonotonicClock::new();
     let mut stats = EthercatStats::default();
@@ -52,10 +58,18 @@ pub fn serve<D: SimulatedDrive>(
                 Ok(Some(n)) if n <= buf.len() => {
                     let now_ns = clock.now_us().saturating_mul(1000);
                     let frame = &mut buf[..n];
+                    let pd_before = seg.process_data_frames;
                     if seg.process(frame, now_ns, drives).is_ok() {
                         match sock.send(frame) {
                             Ok(()) => stats.frames += 1,
                             Err(_) => stats.socket_errors += 1,
+                        }
+                        if lockstep && seg.process_data_frames != pd_before {
+                            // the master's cycle: the drives' one period, after the answer
+                            let t = sim_us;
+                            step(seg, drives, &mut sim_us, now_ns / 1000, period_us);
+                            after_cycle(seg, drives, t);
+                            stats.cycles += 1;
                         }
                     } else {
                         stats.refused += 1;
@@ -70,16 +84,14 @@ pub fn serve<D: SimulatedDrive>(
             }
         }
         let now_us = clock.now_us();
+        if lockstep {
+            clock.wait_until_or_readable(now_us + 100_000, Some(sock.fd()));
+            continue;
+        }
         if now_us >= next_us {
-            let clocks = Clocks {
-                app_us: sim_us,
-                comm_us: now_us,
-            };
-            seg.cycle(clocks, drives);
-            for d in drives.iter_mut() {
-                d.advance(period_us);
-            }
-            sim_us += period_us;
+            let t = sim_us;
+            step(seg, drives, &mut sim_us, now_us, period_us);
+            after_cycle(seg, drives, t);
             stats.cycles += 1;
             next_us += period_us;
             if now_us > next_us + period_us {
@@ -91,4 +103,24 @@ pub fn serve<D: SimulatedDrive>(
         clock.wait_until_or_readable(next_us, Some(sock.fd()));
     }
     stats
+}
+
+/// One drive cycle of every slave at simulated time `sim_us` (frames' clock `comm_us`), then
+/// each axis advances one period.
+fn step<D: SimulatedDrive>(
+    seg: &mut Segment,
+    drives: &mut [D],
+    sim_us: &mut u64,
+    comm_us: u64,
+    period_us: u64,
+) {
+    let clocks = Clocks {
+        app_us: *sim_us,
+        comm_us,
+    };
+    seg.cycle(clocks, drives);
+    for d in drives.iter_mut() {
+        d.advance(period_us);
+    }
+    *sim_us += period_us;
 }

@@ -64,8 +64,14 @@ impl TraceTap {
     }
 
     fn push_all<D>(&self, axes: &[AxisSlot<D>], now_us: u64) {
-        for (q, ax) in self.queues.iter().zip(axes) {
-            if q.push(node_sample(&ax.node, now_us)).is_err() {
+        self.push_nodes(axes.iter().map(|a| &a.node), now_us);
+    }
+
+    /// One sample per node at `now_us`, in axis order: for a loop other than the CAN
+    /// [`Runtime`] (the EtherCAT front end's). Real-time safe.
+    pub fn push_nodes<'a>(&self, nodes: impl IntoIterator<Item = &'a Node>, now_us: u64) {
+        for (q, node) in self.queues.iter().zip(nodes) {
+            if q.push(node_sample(node, now_us)).is_err() {
                 self.lost.fetch_add(1, Ordering::Relaxed);
             }
         }

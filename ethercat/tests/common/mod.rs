@@ -83,6 +83,8 @@ pub struct Master {
     pub drives: Vec<TestDrive>,
     pub now_ns: u64,
     pub counter: u8,
+    /// The counter of the last request to each slave (a slave ignores a repeat of it).
+    pub last_counter: Vec<u8>,
     /// Frames that came back (the others were dropped by the segment).
     pub returned: u64,
 }
@@ -108,6 +110,7 @@ impl Master {
             drives,
             now_ns: 0,
             counter: 0,
+            last_counter: vec![0; n],
             returned: 0,
         }
     }
@@ -243,11 +246,12 @@ impl Master {
         let st = Self::station(k);
         let status = self.fprd(st, 0x0805, 1).0[0];
         assert_eq!(status & 0x08, 0, "SM0 mailbox empty before a write");
-        self.counter = if self.counter >= 7 {
-            1
-        } else {
-            self.counter + 1
-        };
+        let next = |c: u8| if c >= 7 { 1 } else { c + 1 };
+        self.counter = next(self.counter);
+        if self.counter == self.last_counter[k] {
+            self.counter = next(self.counter);
+        }
+        self.last_counter[k] = self.counter;
         let mut m = vec![0u8; MBX];
         m[0..2].copy_from_slice(&(body.len() as u16).to_le_bytes());
         m[5] = kind | self.counter << 4;

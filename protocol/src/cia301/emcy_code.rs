@@ -67,6 +67,12 @@ pub fn meaning(code: u16) -> EmcyMeaning {
             "heartbeat / life guard error: the master's heartbeat (0x1016) stopped",
             "make the master send its heartbeat, with 0x1016's time 2-3 times its period",
         ),
+        0x8250 => m(
+            "RPDO timeout: the master's process data stopped (EtherCAT: the SM watchdog took \
+             the slave from OP to SAFE-OP, AL status 0x001B)",
+            "send the process data every cycle, within the SM watchdog time (0x0420); then OP \
+             again and a fault reset (controlword bit 7)",
+        ),
         0x8140 => m(
             "recovered from bus-off",
             "check the bus: termination, bit rate, a node sending errors",
@@ -133,6 +139,7 @@ mod tests {
             rpdo::EMCY_PDO_LENGTH_EXCEEDED,
             crate::node::EMCY_HEARTBEAT,
             crate::node::EMCY_RPDO_VALUE,
+            crate::node::access::EMCY_RPDO_TIMEOUT,
             crate::cia402::EMCY_FOLLOWING_ERROR,
         ] {
             let mm = meaning(code);

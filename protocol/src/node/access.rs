@@ -14,6 +14,10 @@ use crate::drive::Drive;
 use crate::node::Clocks;
 use crate::od::Store;
 
+/// EMCY of a front end whose master's process data stopped (CiA 301 0x8250, RPDO timeout):
+/// [`Node::connection_lost`] on EtherCAT's SM watchdog.
+pub const EMCY_RPDO_TIMEOUT: u16 = 0x8250;
+
 impl Node {
     /// Read object (`index`, `sub`) into `out` as an SDO upload does (the entry must exist
     /// and be readable; a value the drive keeps comes from [`Drive::read_object`]). Returns
@@ -90,7 +94,8 @@ impl Node {
     }
 
     /// The mapping `mapping_index` (0x1600.. RPDO, 0x1A00.. TPDO) compiled from the values the
-    /// dictionary holds now, with the PDO engine's rules (mappable, size, at most 8 bytes).
+    /// dictionary holds now, with the PDO engine's rules (mappable, size, at most
+    /// [`Node::pdo_max_len`] bytes).
     fn compiled(&self, mapping_index: u16, dir: Direction) -> Result<(Pdo, usize), u32> {
         let param = match Param::of(mapping_index) {
             Some(p) if p.mapping && p.dir == dir => p,
@@ -113,6 +118,7 @@ impl Node {
             &pdo.slots,
             count,
             dir == Direction::Tx,
+            self.core.pdo.max_len,
         )?;
         let mut p = *pdo;
         p.map = map;
@@ -142,10 +148,23 @@ impl Node {
         if out.len() < len {
             return Err(abort::OUT_OF_MEMORY);
         }
-        let mut buf = [0u8; 8];
-        let n = mapping::pack(&p, &self.core.store, &mut buf);
-        out[..n].copy_from_slice(&buf[..n]);
-        Ok(n)
+        Ok(mapping::pack(&p, &self.core.store, &mut out[..len]))
+    }
+
+    /// Bytes a PDO mapping may carry (8, one CAN frame, unless the front end set more).
+    pub fn pdo_max_len(&self) -> usize {
+        self.core.pdo.max_len
+    }
+
+    /// Let a PDO mapping carry up to `bytes` (at most 255; at least 8): for a front end whose
+    /// process data is not one CAN frame per PDO (EtherCAT: what its sync managers hold).
+    /// The node's PDOs are rebuilt with the new limit. The CAN front end keeps 8; a PDO
+    /// longer than 8 bytes is never sent or received as a CAN frame (it is cut to the values
+    /// that fit), so set this only where the PDOs are not valid on CAN.
+    pub fn set_pdo_max_len(&mut self, bytes: usize) {
+        let c = &mut self.core;
+        c.pdo.max_len = bytes.clamp(mapping::CAN_MAX_LEN, usize::from(u8::MAX));
+        c.pdo.refresh_all(&c.od, &c.store);
     }
 
     /// Apply an RxPDO byte image of mapping `mapping_index` (0x1600..) as a received RPDO is
@@ -186,6 +205,28 @@ impl Node {
             c.pending_sync = Some(clocks.app_us);
         }
         self.poll_with(clocks, drive);
+    }
+
+    /// The front end lost its master's process data (EtherCAT: the SM watchdog took the slave
+    /// out of OP): EMCY `code` raised and held as a condition until
+    /// [`Node::connection_restored`], and the CiA 402 reaction 0x6007 (abort connection
+    /// option code: 0 none, 1 fault, 2 disable voltage, 3 quick stop), as a lost heartbeat
+    /// or SYNC on CAN. Returns true when the reaction is a fault.
+    pub fn connection_lost(&mut self, code: u16) -> bool {
+        let c = &mut self.core;
+        c.raise_emcy(code, [0; 5], Cause::Condition);
+        let fault = c.cia.comm_loss(&c.store, code);
+        c.observe();
+        fault
+    }
+
+    /// The front end's process data is back (EtherCAT: OP again): the condition EMCY `code`
+    /// of [`Node::connection_lost`] is cleared (a fault it led to stays until the master's
+    /// fault reset, controlword bit 7).
+    pub fn connection_restored(&mut self, code: u16) {
+        let c = &mut self.core;
+        c.clear_emcy(code, Cause::Condition);
+        c.observe();
     }
 
     /// PDO numbers (0-based: 0x1600 + n / 0x1A00 + n) the dictionary has, RPDOs then TPDOs,

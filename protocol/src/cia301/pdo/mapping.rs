@@ -93,14 +93,19 @@ pub fn check_entry(od: &ObjectDictionary, entry: u32, tx: bool) -> Result<Mapped
     })
 }
 
-/// Build a PDO's mapping from the store (`count` entries of `slots`). Fails with 0x06040041 /
-/// 0x06040042.
+/// Bytes a PDO carries on CAN (one frame): the PDO engine's default limit.
+pub const CAN_MAX_LEN: usize = 8;
+
+/// Build a PDO's mapping from the store (`count` entries of `slots`), at most `max_len`
+/// bytes (the front end's limit: [`CAN_MAX_LEN`] on CAN, more where a PDO is not one CAN
+/// frame). Fails with 0x06040041 / 0x06040042.
 pub fn compile(
     od: &ObjectDictionary,
     store: &Store,
     slots: &PdoSlots,
     count: usize,
     tx: bool,
+    max_len: usize,
 ) -> Result<([Mapped; MAX_ENTRIES], u8, u8), u32> {
     let mut map = [Mapped::default(); MAX_ENTRIES];
     if count > MAX_ENTRIES {
@@ -114,22 +119,26 @@ pub fn compile(
         *m = check_entry(od, store.u32(s as usize), tx)?;
         len += m.bytes();
     }
-    if len > 8 {
+    if len > max_len.min(usize::from(u8::MAX)) {
         return Err(abort::PDO_LENGTH);
     }
     Ok((map, count as u8, len as u8))
 }
 
-/// Pack the mapped values of `p` into `out`; returns the length.
-pub fn pack(p: &Pdo, store: &Store, out: &mut [u8; 8]) -> usize {
+/// Pack the mapped values of `p` into `out`; returns the length (the values that fit: a
+/// mapping longer than `out` is cut at the last whole value).
+pub fn pack(p: &Pdo, store: &Store, out: &mut [u8]) -> usize {
     let mut pos = 0;
     for m in &p.map[..p.n as usize] {
         let n = m.bytes();
+        let Some(dst) = out.get_mut(pos..pos + n) else {
+            break;
+        };
         match m.slot {
             Some(s) => {
-                store.read_bytes(s as usize, n, &mut out[pos..pos + n]);
+                store.read_bytes(s as usize, n, dst);
             }
-            None => out[pos..pos + n].fill(0),
+            None => dst.fill(0),
         }
         pos += n;
     }

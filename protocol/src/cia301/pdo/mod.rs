@@ -148,7 +148,7 @@ pub struct Pdo {
 
 impl Pdo {
     /// Pack the mapped values into `out`; returns the length.
-    pub fn pack(&self, store: &Store, out: &mut [u8; 8]) -> usize {
+    pub fn pack(&self, store: &Store, out: &mut [u8]) -> usize {
         mapping::pack(self, store, out)
     }
 
@@ -190,6 +190,9 @@ pub struct PdoEngine {
     pub tpdo: Vec<Pdo>,
     /// The write rules a vendor profile changes (docs/quirks.md 3.9, 3.10, 3.15).
     pub(crate) rules: crate::quirks::PdoRules,
+    /// Bytes a PDO may carry: [`mapping::CAN_MAX_LEN`] on CAN (a front end whose PDOs are not
+    /// CAN frames, EtherCAT, sets more with [`crate::Node::set_pdo_max_len`]).
+    pub max_len: usize,
 }
 
 impl PdoEngine {
@@ -210,6 +213,7 @@ impl PdoEngine {
             rpdo: list(Direction::Rx),
             tpdo: list(Direction::Tx),
             rules: Default::default(),
+            max_len: mapping::CAN_MAX_LEN,
         }
     }
 
@@ -245,13 +249,14 @@ impl PdoEngine {
 
     /// Rebuild PDO `k` (position in its list) from its parameters in the store.
     pub fn refresh(&mut self, od: &ObjectDictionary, store: &Store, k: usize, dir: Direction) {
+        let max_len = self.max_len;
         let p = &mut self.list_mut(dir)[k];
         let cob = p.comm_value(store, layout::COB_ID);
         let ttype = TransmissionType::from_u8(p.comm_value(store, layout::TRANSMISSION_TYPE) as u8);
         let count = p.slots.count.map_or(0, |s| store.u32(s as usize)) as usize;
         p.cob = cob;
         p.ttype = ttype;
-        match compile(od, store, &p.slots, count, dir == Direction::Tx) {
+        match compile(od, store, &p.slots, count, dir == Direction::Tx, max_len) {
             Ok((map, n, len)) => {
                 p.map = map;
                 p.n = n;
@@ -304,10 +309,12 @@ impl PdoEngine {
         let k = self.position(param)?;
         let pdo = self.list(param.dir)[k];
         Some(
-            rules::check_write(od, store, &pdo, param, sub, raw, &self.rules).map(|()| {
-                store.set(slot, raw);
-                self.refresh(od, store, k, param.dir);
-            }),
+            rules::check_write(od, store, &pdo, param, sub, raw, &self.rules, self.max_len).map(
+                |()| {
+                    store.set(slot, raw);
+                    self.refresh(od, store, k, param.dir);
+                },
+            ),
         )
     }
 }

@@ -14,7 +14,9 @@ pub fn is_valid(store: &Store, pdo: &Pdo) -> bool {
     pdo.comm_value(store, layout::COB_ID) & COB_INVALID == 0
 }
 
-/// Check a write of `raw` to sub `sub` of one of `pdo`'s records; `Ok` means store it.
+/// Check a write of `raw` to sub `sub` of one of `pdo`'s records (a mapping of at most
+/// `max_len` bytes); `Ok` means store it.
+#[allow(clippy::too_many_arguments)]
 pub fn check_write(
     od: &ObjectDictionary,
     store: &Store,
@@ -23,9 +25,10 @@ pub fn check_write(
     sub: u8,
     raw: u64,
     rules: &PdoRules,
+    max_len: usize,
 ) -> Result<(), u32> {
     if param.mapping {
-        check_mapping_write(od, store, pdo, param, sub, raw, rules)
+        check_mapping_write(od, store, pdo, param, sub, raw, rules, max_len)
     } else {
         check_comm_write(store, pdo, param, sub, raw, rules)
     }
@@ -33,8 +36,10 @@ pub fn check_write(
 
 /// Mapping record: only while the PDO is invalid; entries only while sub 0 is 0 (CiA 301
 /// 7.5.2.36; with `lenient_remap` also while it is not, if the mapping with the new entry
-/// still fits); sub 0 only to a count whose entries map (0x06040041) and fit in 8 bytes
-/// (0x06040042). An entry naming an object of `unmappable` is refused (0x06040041).
+/// still fits); sub 0 only to a count whose entries map (0x06040041) and fit in `max_len`
+/// bytes (0x06040042; 8 on CAN). An entry naming an object of `unmappable` is refused
+/// (0x06040041).
+#[allow(clippy::too_many_arguments)]
 fn check_mapping_write(
     od: &ObjectDictionary,
     store: &Store,
@@ -43,13 +48,14 @@ fn check_mapping_write(
     sub: u8,
     raw: u64,
     rules: &PdoRules,
+    max_len: usize,
 ) -> Result<(), u32> {
     let tx = param.dir == Direction::Tx;
     if is_valid(store, pdo) {
         return Err(abort::UNSUPPORTED_ACCESS);
     }
     if sub == 0 {
-        compile(od, store, &pdo.slots, raw as usize, tx)?;
+        compile(od, store, &pdo.slots, raw as usize, tx, max_len)?;
         return Ok(());
     }
     let count = pdo
@@ -71,12 +77,13 @@ fn check_mapping_write(
     }
     if count != 0 && usize::from(sub) <= count {
         // lenient: the mapping in force, with this entry in place, must still compile
-        mapped_length_with(od, store, pdo, count, tx, sub, raw as u32)?;
+        mapped_length_with(od, store, pdo, count, tx, sub, raw as u32, max_len)?;
     }
     Ok(())
 }
 
 /// The length of `pdo`'s first `count` entries with entry `sub` replaced by `entry`.
+#[allow(clippy::too_many_arguments)]
 fn mapped_length_with(
     od: &ObjectDictionary,
     store: &Store,
@@ -85,6 +92,7 @@ fn mapped_length_with(
     tx: bool,
     sub: u8,
     entry: u32,
+    max_len: usize,
 ) -> Result<usize, u32> {
     let mut len = 0;
     for k in 0..count {
@@ -96,7 +104,7 @@ fn mapped_length_with(
         };
         len += check_entry(od, value, tx)?.bytes();
     }
-    if len > 8 {
+    if len > max_len {
         return Err(abort::PDO_LENGTH);
     }
     Ok(len)

@@ -65,7 +65,10 @@ impl PdoEngine {
                 continue;
             }
             if p.ttype == TransmissionType::RtrSync {
-                out(CanFrame::new(p.id(), &p.sampled[..p.len as usize]));
+                out(CanFrame::new(
+                    p.id(),
+                    &p.sampled[..usize::from(p.len).min(p.sampled.len())],
+                ));
             } else {
                 send(p, store, now_us, out);
             }
