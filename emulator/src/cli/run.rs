@@ -297,8 +297,8 @@ pub fn build_axes(
     entries
         .iter_mut()
         .map(|e| {
-            let at = format!("axis node {}", e.node_id);
-            let cfg = e.run_config().map_err(|err| super::exit::config(&at, err))?;
+            // what the user wrote (its message names the axis): exit status 2
+            let cfg = e.run_config().map_err(super::exit::usage)?;
             axis_slot(cfg, e, boot_delay_us, lss)
         })
         .collect()
