@@ -4,9 +4,9 @@
 #   1a. the emulator without SocketCAN: its library, binary and the bus tests built and run with
 #      --no-default-features (the cargo feature `socketcan` off, as where there is no SocketCAN:
 #      portability; the rest of the suite is the same code either way)
-#   1b. the `cargo fuzz` targets built (fuzz/fuzz_targets/*.rs) and a bounded run of frames.rs
-#      (FUZZ_SECONDS, default 60; stable Rust, no sanitizer, overflow checks on; needs
-#      cargo-fuzz, which .ci/run installs: a missing cargo-fuzz fails this phase)
+#   1b. every `cargo fuzz` target (`cargo fuzz list`) built once, each run for a bounded time
+#      (frames FUZZ_SECONDS, default 45, the others FUZZ_SECONDS_EACH, default 12), RSS capped,
+#      any crash fails (stable Rust, no sanitizer, overflow checks on; needs cargo-fuzz)
 #   2. end-to-end tests on a real virtual CAN bus (package e2e): built and archived here
 #      with `cargo nextest archive`, then run from the archive through ./vcan-setup.sh
 #      (natively where the kernel has CAN, inside user-mode Linux otherwise), followed in
@@ -20,8 +20,8 @@
 #      socketcand where the host has no vcan0).
 # Exits non-zero if any phase fails (all always run). See docs/vcan.md.
 #
-# Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase, FUZZ_SECONDS the
-# fuzz run; TEST_ALL_FREE_DISK=1 (set by .ci/run) deletes the fuzz build after its run; the CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
+# Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase, FUZZ_SECONDS and
+# FUZZ_SECONDS_EACH the fuzz runs; TEST_ALL_FREE_DISK=1 (set by .ci/run) deletes the fuzz build after its run; the CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
 set -euo pipefail
 
 case "${1:-}" in
@@ -54,14 +54,35 @@ t=$(now); nosc_rc=0
 cargo nextest run "${nosc[@]}" --no-fail-fast || nosc_rc=$?
 nosc_time=$(secs "$t")
 
-# ---- 1b. bounded fuzz run (the frames target asserts the Node::poll_at contract after
-# every poll; -s none: sanitizers need nightly; -a: debug assertions and overflow checks)
-banner "fuzz: cargo fuzz run frames for ${FUZZ_SECONDS:-60} s"
-t=$(now); fuzz_rc=0
+# ---- 1b. bounded fuzz runs: every target `cargo fuzz list` names (a new one joins without
+# an edit here), seeded from fuzz/seeds/TARGET when that exists; -s none: sanitizers need
+# nightly; -a: debug assertions and overflow checks; -rss_limit_mb makes unbounded memory a
+# crash, -timeout an input that runs for ever. Each target's new corpus is thrown away.
+banner "fuzz: every cargo fuzz target, frames ${FUZZ_SECONDS:-45} s, the others ${FUZZ_SECONDS_EACH:-12} s each"
+t=$(now); fuzz_rc=0; fuzz_failed=()
 if cargo fuzz --version >/dev/null 2>&1; then
-    (cd fuzz && cargo fuzz build --sanitizer none --debug-assertions &&
-        cargo fuzz run --sanitizer none --debug-assertions frames -- \
-            -max_total_time="${FUZZ_SECONDS:-60}" -print_final_stats=1) || fuzz_rc=$?
+    if (cd fuzz && cargo fuzz build --sanitizer none --debug-assertions) &&
+        fuzz_targets=$(cd fuzz && cargo fuzz list) && [[ -n $fuzz_targets ]]; then
+        for target in $fuzz_targets; do
+            fuzz_s=${FUZZ_SECONDS_EACH:-12}
+            [[ $target == frames ]] && fuzz_s=${FUZZ_SECONDS:-45}
+            corpus=$tmp/fuzz-corpus/$target
+            mkdir -p "$corpus"
+            seeds=()
+            [[ -d fuzz/seeds/$target ]] && seeds=("seeds/$target")
+            banner "fuzz: $target for $fuzz_s s"
+            (cd fuzz && cargo fuzz run --sanitizer none --debug-assertions "$target" \
+                "$corpus" "${seeds[@]}" -- -max_total_time="$fuzz_s" -rss_limit_mb=1024 \
+                -timeout=10 -print_final_stats=1) || fuzz_failed+=("$target")
+        done
+        if ((${#fuzz_failed[@]})); then
+            echo "test-all.sh: fuzz targets that failed: ${fuzz_failed[*]} (inputs in fuzz/artifacts/)" >&2
+            fuzz_rc=1
+        fi
+    else
+        echo "test-all.sh: the fuzz targets did not build, or cargo fuzz list named none" >&2
+        fuzz_rc=1
+    fi
 else
     echo "test-all.sh: cargo-fuzz missing: cargo install cargo-fuzz --version 0.13.2 --locked" >&2
     fuzz_rc=127

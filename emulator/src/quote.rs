@@ -34,16 +34,7 @@ fn push_char(out: &mut String, c: char) {
 
 /// `s` for a message: control characters escaped, at most [`MAX_CHARS`] characters.
 pub fn text(s: &str) -> String {
-    let mut out = String::with_capacity(s.len().min(4 * MAX_CHARS));
-    let mut chars = s.chars();
-    for c in chars.by_ref().take(MAX_CHARS) {
-        push_char(&mut out, c);
-    }
-    let more = chars.count();
-    if more > 0 {
-        let _ = write!(out, "...({more} more characters)");
-    }
-    out
+    text_max(s, MAX_CHARS)
 }
 
 /// Bytes for a message: valid UTF-8 as [`text`], every invalid byte as `\xNN`; at most
@@ -113,6 +104,48 @@ pub fn number(x: f64) -> String {
             format!("{m}e{e}")
         }
         None => s,
+    }
+}
+
+/// `s` for a message as [`text`], at most `max` characters (a parser's own message, which
+/// may repeat file content, gets more room than a quotation).
+pub fn text_max(s: &str, max: usize) -> String {
+    let mut out = String::with_capacity(s.len().min(4 * max));
+    let mut chars = s.chars();
+    for c in chars.by_ref().take(max) {
+        push_char(&mut out, c);
+    }
+    let more = chars.count();
+    if more > 0 {
+        let _ = write!(out, "...({more} more characters)");
+    }
+    out
+}
+
+/// Longest parser message in [`toml_error`], characters.
+pub const MAX_MESSAGE_CHARS: usize = 400;
+
+/// A TOML reader's error on `src` as one line: `line N, column C: message: `the line``. The
+/// toml crate's own text quotes the offending line raw over several lines; here the
+/// message and the line are rendered by [`text`] (control characters escaped, capped).
+pub fn toml_error(e: &toml::de::Error, src: &str) -> String {
+    let msg = e.message().trim();
+    let msg = text_max(msg, MAX_MESSAGE_CHARS);
+    match e.span() {
+        Some(span) => {
+            let (line, col) = line_col(src.as_bytes(), span.start);
+            let start = src[..span.start.min(src.len())]
+                .rfind('\n')
+                .map_or(0, |i| i + 1);
+            let end = src[start..].find('\n').map_or(src.len(), |i| start + i);
+            let at = &src[start..end];
+            if at.trim().is_empty() {
+                format!("line {line}, column {col}: {msg}")
+            } else {
+                format!("line {line}, column {col}: {msg}: `{}`", text(at))
+            }
+        }
+        None => msg,
     }
 }
 

@@ -162,11 +162,22 @@ impl AxisTrace {
     /// demand `target_uu` (0x6062); in a velocity mode (CSV, PV: mode display 9 or 3) 0x606B is
     /// the commanded velocity itself (0x60FF, or PV's ramp), and the set position its integral.
     pub fn from_sample_log(samples: &[Sample], source: SampleSource, rotary: bool) -> Self {
-        let t_s: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
-        let demand: Vec<f64> = samples.iter().map(|s| s.target_uu).collect();
+        Self::from_sample_rows(samples.len(), |k| samples[k], source, rotary)
+    }
+
+    /// [`AxisTrace::from_sample_log`] of `n` samples that `row` gives by index (`analyze`
+    /// reads a CSV sample log by columns, without a copy of it as samples).
+    pub fn from_sample_rows(
+        n: usize,
+        row: impl Fn(usize) -> Sample,
+        source: SampleSource,
+        rotary: bool,
+    ) -> Self {
+        let t_s: Vec<f64> = (0..n).map(|k| row(k).t_s).collect();
+        let demand: Vec<f64> = (0..n).map(|k| row(k).target_uu).collect();
         let (set_velocity, set_position, set_velocity_source) = match source {
             SampleSource::Master => (
-                samples.iter().map(|s| s.setpoint_velocity_uu_s).collect(),
+                (0..n).map(|k| row(k).setpoint_velocity_uu_s).collect(),
                 demand,
                 "the master's interpolator velocity".to_string(),
             ),
@@ -176,11 +187,15 @@ impl AxisTrace {
                     &demand,
                     super::windows::DEMAND_SPAN_S,
                 );
+                drop(demand);
                 let velocity_mode = |s: &Sample| matches!(s.mode_display, 3 | 9);
-                let (mut v, mut sp) = (Vec::with_capacity(samples.len()), Vec::new());
+                let (mut v, mut sp) = (Vec::with_capacity(n), Vec::new());
                 let mut x = f64::NAN;
-                for (k, s) in samples.iter().enumerate() {
-                    if velocity_mode(s) {
+                let mut any_velocity_mode = false;
+                for k in 0..n {
+                    let s = row(k);
+                    if velocity_mode(&s) {
+                        any_velocity_mode = true;
                         let dt = if k > 0 { t_s[k] - t_s[k - 1] } else { 0.0 };
                         x = if x.is_finite() { x } else { s.target_uu }
                             + s.setpoint_velocity_uu_s * dt;
@@ -192,7 +207,7 @@ impl AxisTrace {
                         sp.push(s.target_uu);
                     }
                 }
-                let text = if samples.iter().any(velocity_mode) {
+                let text = if any_velocity_mode {
                     "position demand 0x6062; in CSV/PV velocity demand 0x606B"
                 } else {
                     "position demand 0x6062"
@@ -203,15 +218,11 @@ impl AxisTrace {
         Self {
             t_s,
             set_velocity,
-            motor_velocity: samples.iter().map(|s| f64::from(s.velocity_uu_s)).collect(),
-            current: samples
-                .iter()
-                .map(|s| f64::from(s.current_permille))
-                .collect(),
-            motor_position: samples.iter().map(|s| f64::from(s.position_uu)).collect(),
-            direct_position: samples
-                .iter()
-                .map(|s| f64::from(s.direct_position_uu))
+            motor_velocity: (0..n).map(|k| f64::from(row(k).velocity_uu_s)).collect(),
+            current: (0..n).map(|k| f64::from(row(k).current_permille)).collect(),
+            motor_position: (0..n).map(|k| f64::from(row(k).position_uu)).collect(),
+            direct_position: (0..n)
+                .map(|k| f64::from(row(k).direct_position_uu))
                 .collect(),
             position_unit: if rotary { "mdeg" } else { "um" }.into(),
             current_unit: "permille".into(),

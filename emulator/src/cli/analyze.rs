@@ -19,7 +19,9 @@ use crate::analysis::detector::{
     analyze, AxisTrace, DetectorConfig, DetectorReport, Inconclusive, Verdict,
 };
 use crate::analysis::windows::{set_velocity_from_demand, DEMAND_SPAN_S};
-use crate::samples::csv::{parse_csv, read_trace_text, Columns};
+use crate::samples::csv::{
+    read_csv_stream, read_trace_text, read_trace_text_from, Columns, Streamed, TraceLines,
+};
 use crate::samples::{Sample, SampleSource};
 use anyhow::Context;
 use std::path::{Path, PathBuf};
@@ -187,27 +189,68 @@ impl Default for AnalyzeArgs {
     }
 }
 
+/// The columns `analyze` keeps of a CSV trace (either layout); the others are read as
+/// numbers, checked for whole values where that decides the layout, and dropped.
+const ANALYZE_COLUMNS: &[&str] = &[
+    // the sample log (and the t_s layout)
+    "t_s",
+    "mode_display",
+    "target_uu",
+    "setpoint_velocity_uu_s",
+    "position_uu",
+    "direct_position_uu",
+    "velocity_uu_s",
+    "current_permille",
+    // the simulator's trace
+    "time_s",
+    "position_setpoint_mm",
+    "position_setpoint_deg",
+    "motor_encoder_position_mm",
+    "motor_encoder_position_deg",
+    "direct_encoder_position_mm",
+    "direct_encoder_position_deg",
+    "motor_velocity_rpm",
+    "motor_current_a",
+];
+
 /// Build the detector's trace from either CSV layout.
 pub fn trace_from_csv(path: &Path, rotary: bool) -> anyhow::Result<AxisTrace> {
-    let text = read_trace_text(path)?;
-    Ok(trace_from_csv_text(path, &text, rotary)?.0)
+    match trace_from_csv_lines(path, TraceLines::open(path)?, rotary)? {
+        Some((t, _)) => Ok(t),
+        None => anyhow::bail!("{}: a candump log, not a CSV trace", path.display()),
+    }
 }
 
-fn trace_from_csv_text(
+/// The trace of a CSV read line by line (never held whole), and the reader's notes; `None`
+/// when the file is a candump log.
+fn trace_from_csv_lines(
     path: &Path,
-    text: &str,
+    lines: TraceLines<'_>,
     rotary: bool,
-) -> anyhow::Result<(AxisTrace, Vec<String>)> {
-    let (cols, notes) = parse_csv(path, text)?;
-    Ok((
-        trace_from_columns(&path.display().to_string(), &cols, rotary)?,
-        notes,
-    ))
+) -> anyhow::Result<Option<(AxisTrace, Vec<String>)>> {
+    let csv = match read_csv_stream(lines, |n| ANALYZE_COLUMNS.contains(&n))? {
+        Streamed::Candump => return Ok(None),
+        Streamed::Csv(c) => c,
+    };
+    let source = path.display().to_string();
+    let tr = trace_from_parts(&source, &csv.columns, &csv.whole, rotary)?;
+    Ok(Some((tr, csv.notes)))
 }
 
 /// Build the detector's trace from named columns as either CSV layout has them (the
 /// simulator's trace or the sample log; see the module doc); `source` names them in errors.
 pub fn trace_from_columns(source: &str, cols: &Columns, rotary: bool) -> anyhow::Result<AxisTrace> {
+    trace_from_parts(source, cols, &[], rotary)
+}
+
+/// [`trace_from_columns`], where `whole` names columns read but not kept, with whether each
+/// held only finite whole numbers.
+fn trace_from_parts(
+    source: &str,
+    cols: &Columns,
+    whole: &[(String, bool)],
+    rotary: bool,
+) -> anyhow::Result<AxisTrace> {
     let find = |names: &[&str]| -> Option<&Vec<f64>> {
         cols.iter()
             .find(|(n, _)| names.contains(&n.as_str()))
@@ -216,11 +259,11 @@ pub fn trace_from_columns(source: &str, cols: &Columns, rotary: bool) -> anyhow:
     let need = |names: &[&str]| -> anyhow::Result<&Vec<f64>> {
         find(names).with_context(|| format!("{source}: no column {}", names.join(" or ")))
     };
-    let tr = if let Some(samples) = sample_rows(&find) {
+    let tr = if let Some(tr) = sample_log_trace(&find, whole, rotary) {
         // A sample log (`run --trace`, a scenario's samples.csv): read as the drive's own
         // samples, as `run --detect` reads them (the set speed from the position demand;
         // in CSV/PV from the velocity column).
-        let mut tr = AxisTrace::from_sample_log(&samples, SampleSource::Drive, rotary);
+        let mut tr = tr;
         tr.set_velocity_source = format!("columns of the sample log: {}", tr.set_velocity_source);
         tr
     } else if find(&["t_s"]).is_some() {
@@ -260,13 +303,24 @@ pub fn trace_from_columns(source: &str, cols: &Columns, rotary: bool) -> anyhow:
     Ok(tr)
 }
 
-/// The rows of a sample log with every column of [`Sample::CSV_HEADER`] and whole numbers in
-/// its integer columns, else None.
-fn sample_rows<'a>(find: &impl Fn(&[&str]) -> Option<&'a Vec<f64>>) -> Option<Vec<Sample>> {
+/// The trace of a sample log with every column of [`Sample::CSV_HEADER`] and whole numbers in
+/// its integer columns (kept in `find`, or read and dropped: `whole`), else None.
+fn sample_log_trace<'a>(
+    find: &impl Fn(&[&str]) -> Option<&'a Vec<f64>>,
+    whole: &[(String, bool)],
+    rotary: bool,
+) -> Option<AxisTrace> {
     let col = |n: &str| find(&[n]);
+    // A column only checked: present, and whether all its values were whole.
+    let checked = |n: &str| -> Option<bool> {
+        match col(n) {
+            Some(c) => Some(c.iter().all(|x| x.is_finite() && x.fract() == 0.0)),
+            None => whole.iter().find(|(w, _)| w == n).map(|(_, ok)| *ok),
+        }
+    };
     let t = col("t_s")?;
     let (sw, mode, target, sv) = (
-        col("statusword")?,
+        checked("statusword")?,
         col("mode_display")?,
         col("target_uu")?,
         col("setpoint_velocity_uu_s")?,
@@ -277,35 +331,38 @@ fn sample_rows<'a>(find: &impl Fn(&[&str]) -> Option<&'a Vec<f64>>) -> Option<Ve
         col("velocity_uu_s")?,
     );
     let (torque, current, ferr) = (
-        col("torque_permille")?,
+        checked("torque_permille")?,
         col("current_permille")?,
-        col("following_error_uu")?,
+        checked("following_error_uu")?,
     );
     // Whole numbers in the drive's objects; anything else (NaN, a value cut) is read by
     // columns as it is.
-    let whole = [sw, mode, pos, direct, vel, torque, current, ferr]
-        .iter()
-        .all(|c| c.iter().all(|x| x.is_finite() && x.fract() == 0.0));
+    let whole = sw
+        && torque
+        && ferr
+        && [mode, pos, direct, vel, current]
+            .iter()
+            .all(|c| c.iter().all(|x| x.is_finite() && x.fract() == 0.0));
     if !whole {
         return None;
     }
-    Some(
-        (0..t.len())
-            .map(|k| Sample {
-                t_s: t[k],
-                statusword: sw[k] as u16,
-                mode_display: mode[k] as i8,
-                target_uu: target[k],
-                setpoint_velocity_uu_s: sv[k],
-                position_uu: pos[k] as i32,
-                direct_position_uu: direct[k] as i32,
-                velocity_uu_s: vel[k] as i32,
-                torque_permille: torque[k] as i16,
-                current_permille: current[k] as i16,
-                following_error_uu: ferr[k] as i32,
-            })
-            .collect(),
-    )
+    // The analysis reads no statusword, torque or following error: left 0.
+    Some(AxisTrace::from_sample_rows(
+        t.len(),
+        |k| Sample {
+            t_s: t[k],
+            mode_display: mode[k] as i8,
+            target_uu: target[k],
+            setpoint_velocity_uu_s: sv[k],
+            position_uu: pos[k] as i32,
+            direct_position_uu: direct[k] as i32,
+            velocity_uu_s: vel[k] as i32,
+            current_permille: current[k] as i16,
+            ..Sample::default()
+        },
+        SampleSource::Drive,
+        rotary,
+    ))
 }
 
 /// Everything `analyze` says, for `--json`.
@@ -377,6 +434,9 @@ fn preset_kv(name: &str) -> anyhow::Result<f64> {
 pub enum AnalyzeInput<'a> {
     /// The file `args.trace`: a candump log or a CSV trace.
     File,
+    /// The content of such a file, in memory (named `args.trace` in messages), read as the
+    /// file would be (gzip or plain, the same caps).
+    Bytes(&'a [u8]),
     /// Named columns as a CSV trace has them (the Python module's arrays), named `source` in
     /// errors.
     Columns {
@@ -425,19 +485,31 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
         preset_kv(&preset)?;
     }
     let path = &args.trace;
-    let text = match input {
-        AnalyzeInput::File => read_trace_text(path)?,
-        AnalyzeInput::Columns { .. } => String::new(),
-    };
     let mut notes = Vec::new();
     let mut capture = None;
     let mut kv_written = None;
-    let candump = matches!(input, AnalyzeInput::File) && candump::looks_like_candump(&text);
     let rotary_units = args.rotary;
+    // A CSV is read line by line; a candump log (found by its first line) whole.
+    let csv = match input {
+        AnalyzeInput::File => trace_from_csv_lines(path, TraceLines::open(path)?, rotary_units)?,
+        AnalyzeInput::Bytes(b) => {
+            trace_from_csv_lines(path, TraceLines::from_reader(path, b)?, rotary_units)?
+        }
+        AnalyzeInput::Columns { .. } => None,
+    };
+    let from_file = matches!(input, AnalyzeInput::File | AnalyzeInput::Bytes(_));
+    let candump = from_file && csv.is_none();
     let built: Result<AxisTrace, String> = if let AnalyzeInput::Columns { source, columns } = input
     {
         Ok(trace_from_columns(source, columns, rotary_units)?)
-    } else if candump {
+    } else if let Some((t, n)) = csv {
+        notes.extend(n);
+        Ok(t)
+    } else {
+        let text = match input {
+            AnalyzeInput::Bytes(b) => read_trace_text_from(path, b)?,
+            _ => read_trace_text(path)?,
+        };
         let (defaults, preset_rotary) = candump::PdoConfig::drive_defaults(args.node, &preset)?;
         let log = candump::decode(
             &text,
@@ -448,6 +520,7 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
                 sync_period_us: args.sync_period_us,
             },
         )?;
+        drop(text);
         capture = Some(log.summary());
         kv_written = log.kv_written;
         match log.to_axis_trace_on(rotary_units || preset_rotary, args.time_base.base()) {
@@ -457,10 +530,6 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
                 Err(e) => return Err(e),
             },
         }
-    } else {
-        let (t, n) = trace_from_csv_text(path, &text, rotary_units)?;
-        notes.extend(n);
-        Ok(t)
     };
     if let (None, Some(k)) = (args.kv, kv_written) {
         if !kv_in_range(k) {
@@ -518,13 +587,13 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
     };
     let output = AnalyzeOutput {
         trace: match input {
-            AnalyzeInput::File => path.display().to_string(),
+            AnalyzeInput::File | AnalyzeInput::Bytes(_) => path.display().to_string(),
             AnalyzeInput::Columns { source, .. } => source.to_string(),
         },
         format: match input {
             AnalyzeInput::Columns { .. } => "columns",
-            AnalyzeInput::File if candump => "candump",
-            AnalyzeInput::File => "csv",
+            AnalyzeInput::File | AnalyzeInput::Bytes(_) if candump => "candump",
+            AnalyzeInput::File | AnalyzeInput::Bytes(_) => "csv",
         },
         kv_per_s: kv,
         kv_source,
@@ -668,7 +737,10 @@ mod tests {
                 s.write_csv_row(&mut text).unwrap();
             }
             let text = String::from_utf8(text).unwrap();
-            let (read, notes) = trace_from_csv_text(Path::new("trace.csv"), &text, false).unwrap();
+            let lines = TraceLines::from_reader(Path::new("trace.csv"), text.as_bytes()).unwrap();
+            let (read, notes) = trace_from_csv_lines(Path::new("trace.csv"), lines, false)
+                .unwrap()
+                .expect("a CSV");
             prop_assert!(notes.is_empty(), "{:?}", notes);
             let mut live = AxisTrace::from_sample_log(&samples, SampleSource::Drive, false);
             live.set_velocity_source = read.set_velocity_source.clone();

@@ -36,7 +36,8 @@ pub struct Stored {
 /// Parse the text of a store file; `origin` names it in errors (with line and key from the
 /// TOML reader, or the key and the allowed values).
 pub fn parse(text: &str, origin: &str) -> Result<Stored> {
-    let f: StoreFile = toml::from_str(text).map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
+    let f: StoreFile = toml::from_str(text)
+        .map_err(|e| anyhow::anyhow!("{origin}: {}", crate::quote::toml_error(&e, text)))?;
     if !(1..=127).contains(&f.node_id) && f.node_id != UNCONFIGURED_NODE_ID {
         bail!(
             "{origin}: key `node_id`: {} is outside 1..=127 (255: non-configured)",

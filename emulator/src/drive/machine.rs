@@ -256,10 +256,8 @@ pub fn parse(text: &str, origin: &str) -> Result<MachineFile> {
 
 /// [`parse`], with profile paths relative to `dir`.
 fn parse_in(text: &str, origin: &str, dir: Option<&Path>) -> Result<MachineFile> {
-    let mut m: MachineFile = toml::from_str(text).map_err(|e| {
-        // toml's message carries the line, column and key; prefix the file.
-        anyhow::anyhow!("{origin}: {e}")
-    })?;
+    let mut m: MachineFile = toml::from_str(text)
+        .map_err(|e| anyhow::anyhow!("{origin}: {}", crate::quote::toml_error(&e, text)))?;
     validate(&m).with_context(|| origin.to_string())?;
     for (i, a) in m.axes.iter_mut().enumerate() {
         let overlay = match &a.quirks {

@@ -382,10 +382,12 @@ impl std::fmt::Display for ProfileError {
         if let Some(l) = self.line {
             write!(f, ":{l}")?;
         }
+        // The reason may repeat the file's text: control characters escaped, length capped.
+        let reason = crate::quote::text_max(&self.reason, 2 * crate::quote::MAX_MESSAGE_CHARS);
         if self.key.is_empty() {
-            write!(f, ": {}", self.reason)
+            write!(f, ": {reason}")
         } else {
-            write!(f, ": {}: {}", self.key, self.reason)
+            write!(f, ": {}: {reason}", crate::quote::text(&self.key))
         }
     }
 }
@@ -441,7 +443,8 @@ fn unknown(what: &str, name: &str, known: &[&str]) -> String {
         .map(|n| format!("did you mean `{n}`? "))
         .unwrap_or_default();
     format!(
-        "unknown {what} `{name}` ({hint}known: {})",
+        "unknown {what} `{}` ({hint}known: {})",
+        crate::quote::text(name),
         known.join(", ")
     )
 }
@@ -870,7 +873,7 @@ fn toml_error(e: &toml::de::Error, src: &str, origin: &str) -> ProfileError {
         return ProfileError {
             origin: origin.to_string(),
             line,
-            key: name.to_string(),
+            key: crate::quote::text(name),
             reason: unknown("top-level key", name, &TOP_KEYS),
         };
     }
@@ -878,7 +881,7 @@ fn toml_error(e: &toml::de::Error, src: &str, origin: &str) -> ProfileError {
         origin: origin.to_string(),
         line,
         key: String::new(),
-        reason: msg.to_string(),
+        reason: crate::quote::text_max(msg, crate::quote::MAX_MESSAGE_CHARS),
     }
 }
 

@@ -154,9 +154,10 @@ pub struct Refused {
 
 impl Refused {
     fn new(key: Option<&str>, reason: impl Into<String>) -> Self {
+        // The key and the reason may repeat the request's own text: rendered.
         Refused {
-            key: key.map(str::to_string),
-            reason: reason.into(),
+            key: key.map(crate::quote::text),
+            reason: crate::quote::text_max(&reason.into(), crate::quote::MAX_MESSAGE_CHARS),
         }
     }
 
@@ -263,10 +264,10 @@ impl Controls {
         );
         let mut s = crate::scenario::parse(&text, Path::new("panel")).map_err(|e| {
             let key = e.key.rsplit('.').next().unwrap_or(&e.key).to_string();
-            Refused {
-                key: (!key.is_empty() && key != "event[0]").then_some(key),
-                reason: e.reason,
-            }
+            Refused::new(
+                (!key.is_empty() && key != "event[0]").then_some(key.as_str()),
+                e.reason,
+            )
         })?;
         s.events.pop().ok_or_else(|| Refused::new(None, "no event"))
     }

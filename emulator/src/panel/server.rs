@@ -198,12 +198,21 @@ fn host_part(authority: &str) -> &str {
 /// `application/json` (a browser sends that cross-site only after a preflight, which the
 /// panel does not grant).
 fn cross_site(sh: &Shared, req: &Request) -> Option<(StatusCode, &'static str)> {
-    let h = req.headers();
+    cross_site_refusal(sh.auth.required(), req.method(), req.headers())
+}
+
+/// [`cross_site`] on a request's method and headers alone (a pure function: the fuzz target
+/// `panel` calls it); `token_required`: the panel has a token.
+pub fn cross_site_refusal(
+    token_required: bool,
+    method: &axum::http::Method,
+    h: &axum::http::HeaderMap,
+) -> Option<(StatusCode, &'static str)> {
     let host = h
         .get(header::HOST)
         .and_then(|v| v.to_str().ok())
         .unwrap_or("");
-    if !sh.auth.required() {
+    if !token_required {
         let name = host_part(host);
         let loopback = name.eq_ignore_ascii_case("localhost")
             || name
@@ -238,7 +247,7 @@ fn cross_site(sh: &Shared, req: &Request) -> Option<(StatusCode, &'static str)> 
             ));
         }
     }
-    if req.method() == axum::http::Method::POST {
+    if method == axum::http::Method::POST {
         let json = h
             .get(header::CONTENT_TYPE)
             .and_then(|v| v.to_str().ok())
@@ -473,12 +482,36 @@ fn json_body(sh: &Shared, body: Result<Bytes, BytesRejection>) -> Result<Value, 
         };
         refuse(status, why)
     })?;
-    serde_json::from_slice(&b).map_err(|e| {
-        refuse(
-            StatusCode::BAD_REQUEST,
-            format!("the body is not JSON: {e}"),
-        )
-    })
+    parse_json_body(&b).map_err(|why| refuse(StatusCode::BAD_REQUEST, why))
+}
+
+/// A request body as JSON, or why not (the reason sent back).
+pub fn parse_json_body(b: &[u8]) -> Result<Value, String> {
+    serde_json::from_slice(b).map_err(|e| format!("the body is not JSON: {e}"))
+}
+
+/// What `POST /api/record` asks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RecordAction {
+    Start,
+    Stop,
+}
+
+/// The action of a `POST /api/record` body: exactly `{"action": "start"}` or
+/// `{"action": "stop"}`; anything else is refused with the reply's JSON.
+pub fn record_action(v: &Value) -> Result<RecordAction, Value> {
+    let action = v.get("action").and_then(Value::as_str);
+    let extra = v
+        .as_object()
+        .is_some_and(|o| o.keys().any(|k| k != "action"));
+    match action {
+        Some("start") if !extra => Ok(RecordAction::Start),
+        Some("stop") if !extra => Ok(RecordAction::Stop),
+        _ => Err(
+            json!({"error": "expected {\"action\": \"start\"} or {\"action\": \"stop\"}",
+                    "key": "action"}),
+        ),
+    }
 }
 
 async fn inject(State(sh): State<Arc<Shared>>, body: Result<Bytes, BytesRejection>) -> Response {
@@ -601,28 +634,20 @@ async fn record_cmd(
         Ok(v) => v,
         Err(r) => return *r,
     };
-    let action = v.get("action").and_then(Value::as_str);
-    let extra = v
-        .as_object()
-        .is_some_and(|o| o.keys().any(|k| k != "action"));
-    if extra || !matches!(action, Some("start") | Some("stop")) {
-        sh.refused.fetch_add(1, Ordering::Relaxed);
-        return (
-            StatusCode::BAD_REQUEST,
-            Json(
-                json!({"error": "expected {\"action\": \"start\"} or {\"action\": \"stop\"}",
-                        "key": "action"}),
-            ),
-        )
-            .into_response();
-    }
+    let action = match record_action(&v) {
+        Ok(a) => a,
+        Err(reply) => {
+            sh.refused.fetch_add(1, Ordering::Relaxed);
+            return (StatusCode::BAD_REQUEST, Json(reply)).into_response();
+        }
+    };
     let Ok(mut st) = sh.record.lock() else {
         return error(
             StatusCode::INTERNAL_SERVER_ERROR,
             "recording state poisoned",
         );
     };
-    if action == Some("start") {
+    if action == RecordAction::Start {
         if st.active.is_some() {
             sh.refused.fetch_add(1, Ordering::Relaxed);
             return error(StatusCode::CONFLICT, "a recording is running already");

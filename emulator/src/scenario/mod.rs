@@ -35,17 +35,25 @@ pub struct ScenarioError {
     pub reason: String,
 }
 
+impl ScenarioError {
+    /// The reason as printed: it may repeat the file's text (a name, a value), so control
+    /// characters are escaped and its length capped.
+    fn reason(&self) -> String {
+        crate::quote::text_max(&self.reason, 2 * crate::quote::MAX_MESSAGE_CHARS)
+    }
+}
+
 impl fmt::Display for ScenarioError {
     fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
         match (self.line, self.key.is_empty()) {
-            (0, _) => write!(f, "{}: {}", self.file.display(), self.reason),
+            (0, _) => write!(f, "{}: {}", self.file.display(), self.reason()),
             (_, true) => write!(
                 f,
                 "{}:{}:{}: {}",
                 self.file.display(),
                 self.line,
                 self.column,
-                self.reason
+                self.reason()
             ),
             _ => write!(
                 f,
@@ -53,8 +61,8 @@ impl fmt::Display for ScenarioError {
                 self.file.display(),
                 self.line,
                 self.column,
-                self.key,
-                self.reason
+                crate::quote::text(&self.key),
+                self.reason()
             ),
         }
     }
@@ -277,7 +285,7 @@ pub fn parse(src: &str, file: &Path) -> Result<Scenario, ScenarioError> {
             .strip_prefix("unknown field `")
             .and_then(|r| r.split('`').next())
             .map(str::to_string);
-        let reason = msg.lines().next().unwrap_or_default().to_string();
+        let reason = crate::quote::text_max(msg.trim(), crate::quote::MAX_MESSAGE_CHARS);
         error_at(src, file, span, key.as_deref(), reason)
     })?;
     validate::validate(raw, src, file)

@@ -800,13 +800,18 @@ fn follow_lines(dec: &mut Decoder, text: &str, source: &str) -> Result<Option<St
                 "{source}:{}: last line cut short (no newline at the end: the writer was \
                  stopped mid-line): skipped: `{}`",
                 i + 1,
-                line.chars().take(60).collect::<String>()
+                crate::quote::text_max(line, 60)
             ));
             continue;
         }
         let parsed = match parse_line(line) {
             Ok(p) => p,
-            Err(e) => bail!("{source}:{}: {e}", i + 1),
+            // The reason repeats the line's text: rendered (control characters escaped).
+            Err(e) => bail!(
+                "{source}:{}: {}",
+                i + 1,
+                crate::quote::text_max(&e, crate::quote::MAX_MESSAGE_CHARS)
+            ),
         };
         if let Some(f) = parsed {
             after_error_frame = f.kind == FrameKind::Error;
