@@ -5,7 +5,7 @@
 #      --no-default-features (the cargo feature `socketcan` off, as where there is no SocketCAN:
 #      portability; the rest of the suite is the same code either way)
 #   1b. every `cargo fuzz` target (`cargo fuzz list`) built once, each run for a bounded time
-#      (frames FUZZ_SECONDS, default 45, the others FUZZ_SECONDS_EACH, default 12), RSS capped,
+#      (frames FUZZ_SECONDS, default 30, the others FUZZ_SECONDS_EACH, default 8), RSS capped,
 #      any crash fails (stable Rust, no sanitizer, overflow checks on; needs cargo-fuzz)
 #   2. end-to-end tests on a real virtual CAN bus (package e2e): built and archived here
 #      with `cargo nextest archive`, then run from the archive through ./vcan-setup.sh
@@ -59,14 +59,14 @@ nosc_time=$(secs "$t")
 # nightly; -a: debug assertions and overflow checks; -rss_limit_mb makes unbounded memory a
 # crash, -timeout an input that runs for ever. Each target's new corpus is thrown away.
 # --codegen-units 16: the build (the whole emulator) in a third of the time, the runs a little slower.
-banner "fuzz: every cargo fuzz target, frames ${FUZZ_SECONDS:-45} s, the others ${FUZZ_SECONDS_EACH:-12} s each"
+banner "fuzz: every cargo fuzz target, frames ${FUZZ_SECONDS:-30} s, the others ${FUZZ_SECONDS_EACH:-8} s each"
 t=$(now); fuzz_rc=0; fuzz_failed=()
 if cargo fuzz --version >/dev/null 2>&1; then
     if (cd fuzz && cargo fuzz build --sanitizer none --debug-assertions --codegen-units 16) &&
         fuzz_targets=$(cd fuzz && cargo fuzz list) && [[ -n $fuzz_targets ]]; then
         for target in $fuzz_targets; do
-            fuzz_s=${FUZZ_SECONDS_EACH:-12}
-            [[ $target == frames ]] && fuzz_s=${FUZZ_SECONDS:-45}
+            fuzz_s=${FUZZ_SECONDS_EACH:-8}
+            [[ $target == frames ]] && fuzz_s=${FUZZ_SECONDS:-30}
             corpus=$tmp/fuzz-corpus/$target
             mkdir -p "$corpus"
             seeds=()

@@ -29,18 +29,22 @@ pub const HELP: &str = "Exit status: 0 done; 1 a check failed (a scenario's expe
 --fail-on-backlash) or the run failed (bus, system); 2 an argument or an input file's content is \
 wrong; 3 inconclusive (analyze); 4 an input file cannot be read.";
 
-/// An error in what the user wrote (exit status 2). Its text and causes are the inner
-/// error's.
+/// An error marked with its exit status `STATUS`; its text and causes are the inner error's.
 #[derive(Debug)]
-pub struct Usage(anyhow::Error);
+pub struct Marked<const STATUS: u8>(anyhow::Error);
 
-impl fmt::Display for Usage {
+/// An error in what the user wrote (exit status 2).
+pub type Usage = Marked<USAGE>;
+/// An input file that could not be read, where the error is only a message (exit status 4).
+pub type Unreadable = Marked<UNREADABLE>;
+
+impl<const STATUS: u8> fmt::Display for Marked<STATUS> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         fmt::Display::fmt(&self.0, f)
     }
 }
 
-impl std::error::Error for Usage {
+impl<const STATUS: u8> std::error::Error for Marked<STATUS> {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         self.0.source()
     }
@@ -53,28 +57,12 @@ pub fn usage(e: impl Into<anyhow::Error>) -> anyhow::Error {
     if e.downcast_ref::<Usage>().is_some() {
         return e;
     }
-    anyhow::Error::new(Usage(e))
-}
-
-/// An input file that could not be read, where the error is only a message (exit status 4).
-#[derive(Debug)]
-pub struct Unreadable(anyhow::Error);
-
-impl fmt::Display for Unreadable {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        fmt::Display::fmt(&self.0, f)
-    }
-}
-
-impl std::error::Error for Unreadable {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        self.0.source()
-    }
+    anyhow::Error::new(Marked::<USAGE>(e))
 }
 
 /// Mark `e` as an input file that could not be read: exit status 4.
 pub fn unreadable(e: impl Into<anyhow::Error>) -> anyhow::Error {
-    anyhow::Error::new(Unreadable(e.into()))
+    anyhow::Error::new(Marked::<UNREADABLE>(e.into()))
 }
 
 /// A scenario file's error: 4 when it could not be read (no line), else 2.

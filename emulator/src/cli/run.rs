@@ -935,24 +935,12 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     // --detect: the detector thread, fed by the loop.
     let detect = args.detect.then(|| Arc::new(DetectTap::new(n_axes)));
     let detector = match &detect {
-        Some(tap) => {
-            let gap = gap_models(&machine, scenario);
-            let facts = rt
-                .axes
-                .iter()
-                .zip(gap)
-                .map(|(a, gap)| AxisFacts {
-                    rotary: drive_protocol::Drive::info(&a.drive).rotary,
-                    kv_per_s: a.drive.param(crate::drive::objects::AxisParam::Kv),
-                    gap,
-                })
-                .collect();
-            let opts = DetectOptions {
-                history_s: args.detect_history,
-                ..DetectOptions::default()
-            };
-            Some(Detector::start(Arc::clone(tap), facts, opts)?)
-        }
+        Some(tap) => Some(start_detector(
+            args,
+            tap,
+            rt.axes.iter().map(|a| &a.drive),
+            gap_models(&machine, scenario),
+        )?),
         None => None,
     };
     announce(args, &label, &machine, lockstep.as_ref(), scenario);
@@ -1471,6 +1459,29 @@ fn finish_detector(
 
 /// Per axis, the mechanics of the gap estimate (`--detect`): the scenario's machine, or each
 /// axis's preset with its overrides; the drive's samples carry the current in per mille.
+/// The detector thread of `--detect`, fed through `tap`, with each drive's facts: the same
+/// for the drives on CAN and on EtherCAT.
+fn start_detector<'a>(
+    args: &RunArgs,
+    tap: &Arc<DetectTap>,
+    drives: impl Iterator<Item = &'a AxisDrive>,
+    gap: Vec<Option<crate::analysis::gap::GapModel>>,
+) -> Result<Detector> {
+    let facts = drives
+        .zip(gap)
+        .map(|(d, gap)| AxisFacts {
+            rotary: drive_protocol::Drive::info(d).rotary,
+            kv_per_s: d.param(crate::drive::objects::AxisParam::Kv),
+            gap,
+        })
+        .collect();
+    let opts = DetectOptions {
+        history_s: args.detect_history,
+        ..DetectOptions::default()
+    };
+    Ok(Detector::start(Arc::clone(tap), facts, opts)?)
+}
+
 fn gap_models(
     machine: &MachineFile,
     scenario: Option<&Scenario>,
@@ -1581,22 +1592,12 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     // --detect: the same detector thread as on CAN, fed after each drive cycle
     let detect = args.detect.then(|| Arc::new(DetectTap::new(slaves.len())));
     let detector = match &detect {
-        Some(dtap) => {
-            let facts = drives
-                .iter()
-                .zip(gap_models(&machine, None))
-                .map(|(d, gap)| AxisFacts {
-                    rotary: drive_protocol::Drive::info(d).rotary,
-                    kv_per_s: d.param(crate::drive::objects::AxisParam::Kv),
-                    gap,
-                })
-                .collect();
-            let opts = DetectOptions {
-                history_s: args.detect_history,
-                ..DetectOptions::default()
-            };
-            Some(Detector::start(Arc::clone(dtap), facts, opts)?)
-        }
+        Some(dtap) => Some(start_detector(
+            args,
+            dtap,
+            drives.iter(),
+            gap_models(&machine, None),
+        )?),
         None => None,
     };
     let mut seg = drive_ethercat::Segment::new(slaves);
