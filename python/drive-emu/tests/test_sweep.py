@@ -1,6 +1,7 @@
 """drive_emu.sweep: a 1000-run sweep on two local threads and on a Dask LocalCluster with two
 workers gives equal results; rows equal `drive-emu sweep`'s for the same grid; Parquet holds
 the table; the grid forms."""
+import itertools
 import json
 
 import numpy as np
@@ -113,3 +114,24 @@ def test_progress_bar_counts_every_run(capsys):
     drive_emu.sweep({"kv_per_s": [20, 30, 40], "duration": 2.0}, progress=True)
     err = capsys.readouterr().err
     assert "3/3" in err, err
+
+
+def test_a_grid_beyond_the_cap_is_refused_before_it_is_built(monkeypatch):
+    # issue 32: a grid over range(10**9) built 10**9 cases first (MemoryError); it is counted
+    # and refused with the cap, as is a product of smaller axes and an endless generator
+    assert drive_emu.MAX_SWEEP_CASES == 1_000_000
+    cap = 1000  # the same rule at a size a test can build
+    monkeypatch.setattr(drive_emu, "MAX_SWEEP_CASES", cap)
+    for grid, said in [
+        ({"kv_per_s": range(10**9)}, "1,000,000,000 cases"),
+        ({"kv_per_s": range(20), "backlash": range(100)}, "2,000 cases"),
+        ({"kv_per_s": (20.0 + i for i in itertools.count())}, "more than"),
+        ((({"kv_per_s": 20.0}) for _ in itertools.count()), "more than"),
+    ]:
+        with pytest.raises(ValueError, match="split the grid") as e:
+            drive_emu.sweep(grid, progress=False)
+        assert said in str(e.value), str(e.value)
+        assert f"{cap:,}" in str(e.value)
+    # at the cap itself the grid is built (not run here)
+    assert len(drive_emu._grid_cases({"kv_per_s": range(cap)})) == cap
+    assert len(drive_emu._grid_cases(({"kv_per_s": k} for k in range(cap)))) == cap

@@ -352,10 +352,31 @@ def eds(preset: str = "cnc1", *, node: Optional[int] = None, set: Any = None,
 _RUN_KEYS = ("preset", "velocity", "duration")
 
 
+#: Most cases one sweep takes: its table is held in memory, and a grid beyond this is refused
+#: before any of it is built (a grid over range(10**9) said MemoryError).
+MAX_SWEEP_CASES = 1_000_000
+
+
+def _too_many(n: Any) -> ValueError:
+    return ValueError(f"grid: {n} cases, above the {MAX_SWEEP_CASES:,} one sweep takes (its "
+                      "table is held in memory): split the grid into several sweeps")
+
+
+def _bounded(values: Iterable, what: str) -> list:
+    """At most MAX_SWEEP_CASES items of `values` (refused beyond: never a list without end)."""
+    out = list(itertools.islice(values, MAX_SWEEP_CASES + 1))
+    if len(out) > MAX_SWEEP_CASES:
+        raise _too_many(f"{what}: more than {MAX_SWEEP_CASES:,}")
+    return out
+
+
 def _grid_cases(grid: Any) -> list[dict]:
     """The cases of a grid: a dict of key -> value or list of values (every combination, the
     first key varying slowest), a list of dicts (one case each) or a DataFrame (one case per
-    row)."""
+    row). At most MAX_SWEEP_CASES, counted before they are built."""
+    n = _grid_size(grid)
+    if isinstance(n, int) and n > MAX_SWEEP_CASES:
+        raise _too_many(f"{n:,}")
     if hasattr(grid, "to_dict") and hasattr(grid, "columns"):
         return [dict(r) for r in grid.to_dict("records")]
     if isinstance(grid, Mapping):
@@ -366,16 +387,20 @@ def _grid_cases(grid: Any) -> list[dict]:
             if isinstance(v, (str, bytes, numbers.Number)) or v is None:
                 axes.append([v])
             elif isinstance(v, Iterable):
-                values = list(v.tolist() if isinstance(v, np.ndarray) else v)
+                values = (v.tolist() if isinstance(v, np.ndarray)
+                          else _bounded(v, f"grid[{k!r}]"))
                 if not values:
                     raise ValueError(f"grid[{k!r}]: no values")
                 axes.append(values)
             else:
                 raise TypeError(f"grid[{k!r}]: expected a value or a list of values, got "
                                 f"{type(v).__name__}")
+        total = math.prod(len(a) for a in axes)
+        if total > MAX_SWEEP_CASES:
+            raise _too_many(f"{total:,}")
         return [dict(zip(keys, combo)) for combo in itertools.product(*axes)]
     if isinstance(grid, Iterable) and not isinstance(grid, (str, bytes)):
-        cases = list(grid)
+        cases = _bounded(grid, "grid")
         for i, c in enumerate(cases):
             if not isinstance(c, Mapping):
                 raise TypeError(f"grid[{i}]: a case is a dict, got {type(c).__name__}")
@@ -457,7 +482,7 @@ def sweep(grid: Any, *, workers: int = 0, client: Any = None, progress: bool = T
     amplitudes, the window (the columns of `drive-emu sweep`).
 
     `grid`: {key: value or list of values} (every combination), a list of case dicts or a
-    DataFrame. Keys: `preset` (default cnc1), `velocity` (default 20 mm/s, tables 0.026 r/s),
+    DataFrame; at most MAX_SWEEP_CASES (10^6) cases, counted before any is built. Keys: `preset` (default cnc1), `velocity` (default 20 mm/s, tables 0.026 r/s),
     `duration` (default 8 s, 2..600), `backlash` (in the preset's unit: backlash_mm or
     backlash_deg), and any preset key (kv_per_s, load_coulomb_friction_n,
     motor_encoder_noise_counts, noise_seed, ...).
