@@ -29,7 +29,8 @@ pub const HELP: &str = "Exit status: 0 done; 1 a check failed (a scenario's expe
 --fail-on-backlash) or the run failed (bus, system); 2 an argument or an input file's content is \
 wrong; 3 inconclusive (analyze); 4 an input file cannot be read.";
 
-/// An error marked with its exit status `STATUS`; its text and causes are the inner error's.
+/// An error marked with its exit status `STATUS`; its text is the inner error's, which is
+/// its source (a message printer skips a cause it has already printed).
 #[derive(Debug)]
 pub struct Marked<const STATUS: u8>(anyhow::Error);
 
@@ -46,7 +47,7 @@ impl<const STATUS: u8> fmt::Display for Marked<STATUS> {
 
 impl<const STATUS: u8> std::error::Error for Marked<STATUS> {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        self.0.source()
+        Some(self.0.as_ref())
     }
 }
 
@@ -97,10 +98,6 @@ pub fn code_of(e: &anyhow::Error) -> u8 {
     let unreadable = e.chain().any(|c| {
         c.downcast_ref::<crate::infile::InputError>().is_some()
             || c.downcast_ref::<Unreadable>().is_some()
-            || c.downcast_ref::<Usage>().is_some_and(|u| {
-                u.0.downcast_ref::<crate::infile::InputError>().is_some()
-                    || u.0.downcast_ref::<Unreadable>().is_some()
-            })
     });
     if unreadable {
         UNREADABLE

@@ -924,14 +924,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     });
     // The trace files are created before the loop starts: a bad path loses nothing.
     let node_ids: Vec<u8> = rt.axes.iter().map(|a| a.node.node_id()).collect();
-    let tap = args.trace.as_ref().map(|_| Arc::new(TraceTap::new(n_axes)));
-    let recorder = match (&args.trace, &tap) {
-        (Some(path), Some(tap)) => Some(Recorder::start(
-            Arc::clone(tap),
-            trace_paths(path, &node_ids),
-        )?),
-        _ => None,
-    };
+    let (tap, recorder) = start_trace(args, &node_ids)?;
     // --detect: the detector thread, fed by the loop.
     let detect = args.detect.then(|| Arc::new(DetectTap::new(n_axes)));
     let detector = match &detect {
@@ -1500,6 +1493,21 @@ fn gap_models(
         .collect()
 }
 
+/// `--trace`: the tap the loop feeds (one axis per node of `node_ids`) and the recorder that
+/// writes it, the same for the drives on CAN and on EtherCAT. The files are created here,
+/// before the loop starts: a bad path loses nothing.
+fn start_trace(
+    args: &RunArgs,
+    node_ids: &[u8],
+) -> Result<(Option<Arc<TraceTap>>, Option<Recorder>)> {
+    let Some(path) = &args.trace else {
+        return Ok((None, None));
+    };
+    let tap = Arc::new(TraceTap::new(node_ids.len()));
+    let recorder = Recorder::start(Arc::clone(&tap), trace_paths(path, node_ids))?;
+    Ok((Some(tap), Some(recorder)))
+}
+
 /// Drain and close the trace files, and say what they hold.
 fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
     let t = rec.finish(tap).context("writing the trace")?;
@@ -1578,17 +1586,7 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     }
     // --trace: the same tap and recorder as on CAN, fed after each drive cycle
     let node_ids: Vec<u8> = slaves.iter().map(|s| s.node().node_id()).collect();
-    let tap = args
-        .trace
-        .as_ref()
-        .map(|_| Arc::new(TraceTap::new(slaves.len())));
-    let recorder = match (&args.trace, &tap) {
-        (Some(path), Some(tap)) => Some(Recorder::start(
-            Arc::clone(tap),
-            trace_paths(path, &node_ids),
-        )?),
-        _ => None,
-    };
+    let (tap, recorder) = start_trace(args, &node_ids)?;
     // --detect: the same detector thread as on CAN, fed after each drive cycle
     let detect = args.detect.then(|| Arc::new(DetectTap::new(slaves.len())));
     let detector = match &detect {
