@@ -8,7 +8,8 @@
 #      (frames FUZZ_SECONDS, default 30, the others FUZZ_SECONDS_EACH, default 8), RSS capped,
 #      any crash fails (stable Rust, no sanitizer, overflow checks on; needs cargo-fuzz)
 #   2. end-to-end tests on a real virtual CAN bus (package e2e): built and archived here
-#      with `cargo nextest archive`, then run from the archive through ./vcan-setup.sh
+#      with `cargo nextest archive` (before 1b), then run from the archive through ./vcan-setup.sh
+#      in the background while 1b, 3 and 3b run (its output is printed when it ends)
 #      (natively where the kernel has CAN, inside user-mode Linux otherwise), followed in
 #      the same vcan run by the python package's pytest tests (python/tests: the drive_emu
 #      fixture and the examples; needs `pip install ./python`; "no tests" fails).
@@ -21,11 +22,11 @@
 # Exits non-zero if any phase fails (all always run). See docs/vcan.md.
 #
 # Environment: VCAN_TIMEOUT (seconds, default 1800) bounds the vcan phase, FUZZ_SECONDS and
-# FUZZ_SECONDS_EACH the fuzz runs; TEST_ALL_FREE_DISK=1 (set by .ci/run) deletes the fuzz build after its run; the CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
+# FUZZ_SECONDS_EACH the fuzz runs; TEST_ALL_FREE_DISK=1 (set by .ci/run) deletes the debug build once the e2e archive is made and the fuzz build after its run; the CARGO_TARGET_DIR, DRIVE_EMU_* and NEXTEST_* variables reach the e2e tests.
 set -euo pipefail
 
 case "${1:-}" in
-    -h|--help) sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,25p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     "") ;;
     *) echo "test-all.sh: no arguments expected (see --help)" >&2; exit 2 ;;
 esac
@@ -38,7 +39,8 @@ secs() { awk -v a="$1" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }'; }
 banner() { printf '\n==== %s\n' "$*"; }
 
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/test-all.XXXXXX")
-trap 'rm -rf "$tmp"' EXIT
+vcan_pid=
+trap '[[ -z $vcan_pid ]] || kill "$vcan_pid" 2>/dev/null; rm -rf "$tmp"' EXIT
 
 # ---- 1. host tests
 banner "host tests: cargo nextest run --workspace --exclude e2e"
@@ -53,6 +55,61 @@ banner "host tests without SocketCAN: cargo nextest run ${nosc[*]}"
 t=$(now); nosc_rc=0
 cargo nextest run "${nosc[@]}" --no-fail-fast || nosc_rc=$?
 nosc_time=$(secs "$t")
+
+# ---- 2. vcan (e2e) tests
+banner "vcan tests: build + archive e2e on the host, run it through ./vcan-setup.sh"
+t=$(now); e2e_rc=0
+archive=$tmp/e2e.tar.zst
+mkdir "$tmp/extract"
+# The emulator binary, for e2e tests that start it as a process (e2e::drive_emu_bin(),
+# see docs/vcan.md): built here, before the archive, in whatever target dir cargo uses
+# (CARGO_TARGET_DIR or the workspace's target/), unless DRIVE_EMU_BIN names one already.
+emu_ok=1
+if [[ -z ${DRIVE_EMU_BIN:-} ]]; then
+    if cargo build --release -p drive-emu --bin drive-emu; then
+        tdir=$(cargo metadata --no-deps --format-version 1 |
+            python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])') ||
+            tdir=${CARGO_TARGET_DIR:-$ROOT/target}
+        export DRIVE_EMU_BIN=$tdir/release/drive-emu
+        [[ -x $DRIVE_EMU_BIN ]] || { echo "test-all.sh: $DRIVE_EMU_BIN missing after the build" >&2; emu_ok=0; }
+    else
+        echo "test-all.sh: building drive-emu failed" >&2; emu_ok=0
+    fi
+fi
+if [[ $emu_ok == 1 ]] && cargo nextest archive -p e2e --archive-file "$archive"; then
+    echo "test-all.sh: DRIVE_EMU_BIN=$DRIVE_EMU_BIN"
+    build_time=$(secs "$t"); t=$(now)
+    # nextest, then pytest (python/tests), both inside one vcan run; either failing fails it.
+    # pytest's exit 5 (no tests collected) is non-zero and so fails too.
+    if ! python3 -c 'import drive_emu_testing' 2>/dev/null; then
+        echo "test-all.sh: python package drive_emu_testing missing: pip install ./python" >&2
+    fi
+    # In the background (user-mode Linux keeps about one core busy) while the fuzz runs and
+    # the Python tests use the other; its output is printed when it ends. `trap - INT`: an
+    # asynchronous command would otherwise start with SIGINT ignored (tests send Ctrl-C).
+    (
+        trap - INT
+        exec ./vcan-setup.sh --ifaces 2 --timeout "${VCAN_TIMEOUT:-1800}" -- bash -c '
+        rc=0
+        cargo nextest run --archive-file "$1" --workspace-remap "$2" \
+            --extract-to "$3" --no-fail-fast || rc=$?
+        printf "\n==== python tests: pytest python/tests (drive_emu fixture, examples)\n"
+        python3 -m pytest -p no:cacheprovider -q python/tests || { py=$?; echo "pytest: exit $py"; rc=1; }
+        exit $rc' vcan-tests "$archive" "$ROOT" "$tmp/extract"
+    ) >"$tmp/vcan.log" 2>&1 &
+    vcan_pid=$!; vcan_t=$(now)
+    # The debug build (host tests, the archive's source) is not needed from here on: in CI its
+    # room goes to the fuzz build.
+    if [[ ${TEST_ALL_FREE_DISK:-0} == 1 ]]; then
+        rm -rf "$(cargo metadata --no-deps --format-version 1 |
+            python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')/debug"
+    fi
+    echo "test-all.sh: the vcan run goes on in the background (pid $vcan_pid); its output follows when it ends"
+else
+    e2e_rc=$?
+    build_time=$(secs "$t"); run_time=0
+    echo "test-all.sh: building/archiving the e2e tests failed" >&2
+fi
 
 # ---- 1b. bounded fuzz runs: every target `cargo fuzz list` names (a new one joins without
 # an edit here), seeded from fuzz/seeds/TARGET when that exists; -s none: sanitizers need
@@ -92,48 +149,6 @@ fuzz_time=$(secs "$t")
 if [[ ${TEST_ALL_FREE_DISK:-0} == 1 ]]; then rm -rf fuzz/target; fi
 df -h . | tail -n 1
 
-# ---- 2. vcan (e2e) tests
-banner "vcan tests: build + archive e2e on the host, run it through ./vcan-setup.sh"
-t=$(now); e2e_rc=0
-archive=$tmp/e2e.tar.zst
-mkdir "$tmp/extract"
-# The emulator binary, for e2e tests that start it as a process (e2e::drive_emu_bin(),
-# see docs/vcan.md): built here, before the archive, in whatever target dir cargo uses
-# (CARGO_TARGET_DIR or the workspace's target/), unless DRIVE_EMU_BIN names one already.
-emu_ok=1
-if [[ -z ${DRIVE_EMU_BIN:-} ]]; then
-    if cargo build --release -p drive-emu --bin drive-emu; then
-        tdir=$(cargo metadata --no-deps --format-version 1 |
-            python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])') ||
-            tdir=${CARGO_TARGET_DIR:-$ROOT/target}
-        export DRIVE_EMU_BIN=$tdir/release/drive-emu
-        [[ -x $DRIVE_EMU_BIN ]] || { echo "test-all.sh: $DRIVE_EMU_BIN missing after the build" >&2; emu_ok=0; }
-    else
-        echo "test-all.sh: building drive-emu failed" >&2; emu_ok=0
-    fi
-fi
-if [[ $emu_ok == 1 ]] && cargo nextest archive -p e2e --archive-file "$archive"; then
-    echo "test-all.sh: DRIVE_EMU_BIN=$DRIVE_EMU_BIN"
-    build_time=$(secs "$t"); t=$(now)
-    # nextest, then pytest (python/tests), both inside one vcan run; either failing fails it.
-    # pytest's exit 5 (no tests collected) is non-zero and so fails too.
-    if ! python3 -c 'import drive_emu_testing' 2>/dev/null; then
-        echo "test-all.sh: python package drive_emu_testing missing: pip install ./python" >&2
-    fi
-    ./vcan-setup.sh --ifaces 2 --timeout "${VCAN_TIMEOUT:-1800}" -- bash -c '
-        rc=0
-        cargo nextest run --archive-file "$1" --workspace-remap "$2" \
-            --extract-to "$3" --no-fail-fast || rc=$?
-        printf "\n==== python tests: pytest python/tests (drive_emu fixture, examples)\n"
-        python3 -m pytest -p no:cacheprovider -q python/tests || { py=$?; echo "pytest: exit $py"; rc=1; }
-        exit $rc' vcan-tests "$archive" "$ROOT" "$tmp/extract" || e2e_rc=$?
-    run_time=$(secs "$t")
-else
-    e2e_rc=$?
-    build_time=$(secs "$t"); run_time=0
-    echo "test-all.sh: building/archiving the e2e tests failed" >&2
-fi
-
 # ---- 3. the Python module (drive_emu), on the host: compared with the CLI binary built above
 banner "python module tests: pytest python/drive-emu/tests"
 t=$(now); py_rc=0
@@ -169,11 +184,20 @@ fi
 low_time=$(secs "$t")
 rm -rf "$tmp/lowest" "$tmp/wheel"
 
+# ---- 2 (end). the vcan run started above
+if [[ -n $vcan_pid ]]; then
+    banner "vcan tests: waiting for the run started in the background"
+    wait "$vcan_pid" || e2e_rc=$?
+    vcan_pid=
+    run_time=$(secs "$vcan_t")
+    cat "$tmp/vcan.log"
+fi
+
 banner "summary"
 printf 'host tests: %s (%ss)\n' "$([[ $host_rc == 0 ]] && echo ok || echo "FAILED ($host_rc)")" "$host_time"
 printf 'host tests without SocketCAN: %s (%ss)\n' "$([[ $nosc_rc == 0 ]] && echo ok || echo "FAILED ($nosc_rc)")" "$nosc_time"
 printf 'fuzz run: %s (%ss)\n' "$([[ $fuzz_rc == 0 ]] && echo ok || echo "FAILED ($fuzz_rc)")" "$fuzz_time"
-printf 'vcan tests: %s (build+archive %ss, run via vcan-setup.sh %ss)\n' \
+printf 'vcan tests: %s (build+archive %ss, run via vcan-setup.sh %ss, beside phases 1b, 3 and 3b)\n' \
     "$([[ $e2e_rc == 0 ]] && echo ok || echo "FAILED ($e2e_rc)")" "$build_time" "$run_time"
 printf 'python module tests: %s (%ss)\n' "$([[ $py_rc == 0 ]] && echo ok || echo "FAILED ($py_rc)")" "$py_time"
 printf 'python packages at their lowest versions: %s (%ss)\n' "$([[ $low_rc == 0 ]] && echo ok || echo "FAILED ($low_rc)")" "$low_time"
