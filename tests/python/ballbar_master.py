@@ -45,7 +45,9 @@ def plan(radius, feed, overrun=math.pi / 2, dwell=0.5):
         for sign, t0, start in ((-1.0, dwell, overrun), (1.0, 2 * dwell + pass_s, -overrun)):
             if t0 <= t < t0 + pass_s:
                 return point(start + sign * path(t - t0) / radius)
-        if t < dwell or t >= 3 * dwell + 2 * pass_s:
+        # at rest: before the CW pass and after the CCW pass at its start (the CCW pass ends
+        # where the CW pass began), between the passes at the CW pass's end
+        if t < dwell or t >= 2 * dwell + 2 * pass_s:
             return point(overrun)
         return point(-overrun)
 

@@ -318,6 +318,11 @@ impl AxisDrive {
     }
 
     /// Increments per load unit (m or rad): the adapter's conversion factor.
+    /// The servo's position-control cycle, s (the preset's `position_cycle_us`).
+    pub fn position_cycle_s(&self) -> f64 {
+        self.position_cycle_us * 1e-6
+    }
+
     pub fn inc_per_load(&self) -> f64 {
         self.inc_per_load
     }

@@ -9,7 +9,8 @@
 //! radius by a least-squares circle through the commanded points, the angle about it, the
 //! passes (runs of one direction of rotation that sweep 360 deg or more), each pass's data
 //! circle the middle 360 deg of its sweep (the arc-in and arc-out equal, as ISO 230-4 runs
-//! them), and the feed's ramps (where the angular speed is below 98 % of the pass's median).
+//! them), and the feed's ramps (at the pass's ends, where the angular speed over 16 SYNCs is
+//! below 98 % of the pass's median: a command in whole user units steps unevenly per SYNC).
 //! The data circle must start at +X (0 deg), as the ballbar's reversal angles assume.
 
 use anyhow::{bail, Context, Result};
@@ -20,6 +21,8 @@ use crate::analysis::capture::{decode, BusLog, DecodeOptions, PdoConfig};
 
 /// Share of a pass's median angular speed below which the feed is taken as ramping.
 const RAMP_SHARE: f64 = 0.98;
+/// SYNCs over which the angular speed is taken.
+const SPEED_WINDOW: usize = 16;
 /// How far the data circle's start may be from +X, deg.
 const START_TOLERANCE_DEG: f64 = 5.0;
 
@@ -163,20 +166,29 @@ pub fn from_capture(
                     if d < 0 { "CW" } else { "CCW" }
                 );
             }
-            let mut speeds: Vec<f64> = (start + 1..=end)
-                .map(|i| (angle[i] - angle[i - 1]).abs())
-                .collect();
+            // The angular speed over SPEED_WINDOW SYNCs: a command in whole user units steps
+            // unevenly from one SYNC to the next (at 1 um and 16 um per SYNC, +-6 %).
+            let speed = |i: usize| {
+                let j = i.saturating_sub(SPEED_WINDOW).max(start);
+                if i > j {
+                    (angle[i] - angle[j]).abs() / (i - j) as f64
+                } else {
+                    0.0
+                }
+            };
+            let mut speeds: Vec<f64> = (start + 1..=end).map(speed).collect();
             speeds.sort_by(f64::total_cmp);
             let median = speeds[speeds.len() / 2];
+            // The ramps are at the pass's ends: up to where the feed first reaches the
+            // median's share, from where it last leaves it.
+            let at_feed = |i: &usize| speed(*i) >= RAMP_SHARE * median;
+            let up_end = (start..=end).find(at_feed).unwrap_or(end);
+            let down_start = (start..=end).rev().find(at_feed).unwrap_or(start);
             for i in start..=end {
                 t.direction[i] = d;
                 t.travelled_deg[i] = ((angle[i] - angle[start]).abs() - overrun).to_degrees();
-                let speed = if i > start {
-                    (angle[i] - angle[i - 1]).abs()
-                } else {
-                    0.0
-                };
-                t.ramping[i] = speed < RAMP_SHARE * median;
+                // the window lags the feed: the ramp down is found up to a window late
+                t.ramping[i] = i < up_end || i > down_start.saturating_sub(SPEED_WINDOW);
             }
             passes.push((d, end - start + 1));
         }

@@ -8,15 +8,20 @@
 
 pub mod capture;
 pub mod metrics;
+pub mod through_drives;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::control::{Command, Servo, Setpoint};
+use crate::drive::axis_drive::AxisDrive;
 use crate::master::compensation::BacklashCompensation;
 use crate::master::contour::{CircleTest, Direction};
 use crate::presets::{AxisConfig, AxisKind, MAX_BACKLASH_M};
 
 pub use metrics::{analyze, BallbarReport, DirectionReport};
+use through_drives::DrivePair;
+
+/// Controlword enable operation.
+const ENABLED: u16 = 0x0F;
 
 /// Default ballbar radius, mm (the common 100 mm bar).
 pub const DEFAULT_RADIUS_MM: f64 = 100.0;
@@ -215,21 +220,23 @@ const STOP_CHECK_CYCLES: usize = 1024;
 /// set.
 pub fn run(setup: &BallbarSetup, stop: &AtomicBool) -> anyhow::Result<BallbarRun> {
     let test = validate(setup)?;
-    let mut servos = Vec::with_capacity(2);
     let (x0, y0) = test.start_point();
-    for (a, p0) in setup.axes.iter().zip([x0, y0]) {
-        let built = a.config.build().map_err(|e| anyhow::anyhow!("{e}"))?;
-        let mut s = Servo::new(built.axis, built.control)
+    let mut drives = Vec::with_capacity(2);
+    for a in &setup.axes {
+        let d = AxisDrive::from_config(&a.config)
             .map_err(|e| anyhow::anyhow!("axis {}: {e}", a.name))?;
-        s.reset_at_rest(p0);
-        servos.push(s);
+        drives.push(d);
     }
+    let cycle_s = drives[0].position_cycle_s();
+    let period_us = (cycle_s * 1e6).round() as u64;
+    let drives: [AxisDrive; 2] = drives.try_into().map_err(|_| anyhow::anyhow!("two axes"))?;
+    let mut pair = DrivePair::new(drives, period_us, [x0, y0])?;
     let mut comp = [
         BacklashCompensation::new(setup.axes[0].backlash_comp_mm * 1e-3),
         BacklashCompensation::new(setup.axes[1].backlash_comp_mm * 1e-3),
     ];
-    let dt = servos[0].cycle_time();
-    let n = (test.duration_s() / dt).ceil() as usize;
+    let dt = period_us as f64 * 1e-6;
+    let n = (test.duration_s() / dt).ceil() as usize + 1;
     let mut t = BallbarTrace::default();
     for v in [
         &mut t.time_s,
@@ -251,27 +258,22 @@ pub fn run(setup: &BallbarSetup, stop: &AtomicBool) -> anyhow::Result<BallbarRun
         if i % STOP_CHECK_CYCLES == 0 && stop.load(Ordering::Relaxed) {
             anyhow::bail!("the run was stopped at {:.3} s", i as f64 * dt);
         }
-        // The set-point for the cycle that starts now, as the master sends it at a SYNC.
+        // The set-point for the SYNC period that starts now, as the master sends it before
+        // the SYNC; the drives interpolate it over the period.
         let s = test.sample(i as f64 * dt);
         let sp = [comp[0].apply(s.x), comp[1].apply(s.y)];
-        for (servo, p) in servos.iter_mut().zip(sp) {
-            servo.set_command(Command::new(Setpoint::Position {
-                position: p,
-                velocity_ff: 0.0,
-                torque_ff: 0.0,
-            }));
-            servo.step();
-        }
-        // the encoders were sampled at the start of the cycle, with this set-point
+        pair.cycle(ENABLED, sp)?;
+        let [x, y] = pair.direct_m();
+        let [xm, ym] = pair.motor_m();
         t.time_s.push(i as f64 * dt);
         t.x_cmd_mm.push(s.x * 1e3);
         t.y_cmd_mm.push(s.y * 1e3);
         t.x_setpoint_mm.push(sp[0] * 1e3);
         t.y_setpoint_mm.push(sp[1] * 1e3);
-        t.x_mm.push(servos[0].direct_encoder_position() * 1e3);
-        t.y_mm.push(servos[1].direct_encoder_position() * 1e3);
-        t.x_motor_mm.push(servos[0].motor_encoder_position() * 1e3);
-        t.y_motor_mm.push(servos[1].motor_encoder_position() * 1e3);
+        t.x_mm.push(x * 1e3);
+        t.y_mm.push(y * 1e3);
+        t.x_motor_mm.push(xm * 1e3);
+        t.y_motor_mm.push(ym * 1e3);
         t.direction.push(match s.direction {
             Some(Direction::Cw) => -1,
             Some(Direction::Ccw) => 1,
@@ -280,6 +282,12 @@ pub fn run(setup: &BallbarSetup, stop: &AtomicBool) -> anyhow::Result<BallbarRun
         t.travelled_deg.push(s.travelled_rad.to_degrees());
         t.ramping.push(s.ramping);
     }
+    let sw = pair.statuswords();
+    anyhow::ensure!(
+        sw.iter().all(|s| s & 0x08 == 0),
+        "a drive faulted during the test (statusword {sw:04X?}): a parameter puts the axis \
+         outside what its drive supervises"
+    );
     if let Some(i) = (0..t.len()).find(|&i| !(t.x_mm[i].is_finite() && t.y_mm[i].is_finite())) {
         anyhow::bail!(
             "the simulation diverged at t = {:.6} s: a parameter is outside what the model \

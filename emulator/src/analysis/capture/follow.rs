@@ -401,6 +401,10 @@ struct Decoder<'a> {
     answered: Vec<bool>,
     /// The answer being filled: its row and the TPDOs (bits 0..3) already in it.
     answer: Option<(usize, u8)>,
+    /// A SYNC came after the answer being filled began: only a TPDO numbered above every one
+    /// it holds still belongs to it (a drive sends its answer in TPDO order; a master that
+    /// sends the next SYNC on the first part of the answer logs the rest after it).
+    answer_past_sync: bool,
     /// The oldest SYNC not answered yet.
     next_unanswered: usize,
     /// Answers in a row that came after a later SYNC.
@@ -435,6 +439,7 @@ impl<'a> Decoder<'a> {
             rows: Vec::new(),
             answered: Vec::new(),
             answer: None,
+            answer_past_sync: false,
             next_unanswered: 0,
             behind_in_a_row: 0,
             last_t_us: None,
@@ -563,8 +568,8 @@ impl<'a> Decoder<'a> {
         row.mode = sample.mode;
         self.rows.push(row);
         self.answered.push(false);
-        // A new SYNC closes the answer being filled.
-        self.answer = None;
+        // A new SYNC: the answer being filled takes only its later TPDOs from now on.
+        self.answer_past_sync = true;
     }
 
     /// The row a frame of synchronous TPDO `k` answers: the row of the answer being filled if
@@ -576,11 +581,14 @@ impl<'a> Decoder<'a> {
         let latest = self.rows.len().checked_sub(1)?;
         let bit = 1u8 << k;
         if let Some((j, mask)) = self.answer {
-            if mask & bit == 0 {
+            let highest = 1u32 << (31 - u32::from(mask).leading_zeros());
+            let later = u32::from(bit) > highest;
+            if mask & bit == 0 && (!self.answer_past_sync || later) {
                 self.answer = Some((j, mask | bit));
                 return Some(j);
             }
         }
+        self.answer_past_sync = false;
         let mut j = self
             .next_unanswered
             .max(latest.saturating_sub(MAX_BEHIND))
@@ -1025,6 +1033,39 @@ mod tests {
         assert_eq!(r.samples[1].velocity_uu_s, 1000);
         assert_eq!(r.period_us, 1100);
         assert_eq!(r.period_source, PeriodSource::MedianSyncInterval);
+    }
+
+    #[test]
+    fn the_rest_of_an_answer_logged_after_the_next_sync_stays_with_its_sync() {
+        // A lock-step master sends SYNC 2 as soon as TPDO2 answered SYNC 1: TPDO3 and TPDO4
+        // of SYNC 1 (velocity 0x606C, direct position 0x60E4) are logged after SYNC 2, before
+        // the drive's answer to it. Each SYNC's row holds its own answer.
+        let log = "\
+(1.000000) can0 080#
+(1.000100) can0 185#370208
+(1.000200) can0 285#3702E8030000
+(1.000300) can0 080#
+(1.000400) can0 385#37020A000000
+(1.000500) can0 485#3702E9030000
+(1.000600) can0 185#370208
+(1.000700) can0 285#3702D0070000
+(1.000800) can0 385#370214000000
+(1.000900) can0 485#3702D1070000
+";
+        let opts = DecodeOptions {
+            node_id: 5,
+            defaults: defaults(),
+            sync_period_us: None,
+        };
+        let r = decode(log, "x.log", &opts).unwrap();
+        assert_eq!(r.rows.len(), 2);
+        let row = |k: usize| {
+            let s = &r.rows[k];
+            (s.position_uu, s.velocity_uu_s, s.direct_position_uu)
+        };
+        assert_eq!(row(0), (1000, 10, 1001));
+        assert_eq!(row(1), (2000, 20, 2001));
+        assert!(r.answered.iter().all(|&a| a));
     }
 
     #[test]
