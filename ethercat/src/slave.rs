@@ -362,6 +362,7 @@ impl Slave {
             node,
         };
         s.sii = sii::image(&s.sii_config()?);
+        s.set_line_ports(false);
         s.publish_al();
         Ok(s)
     }
@@ -485,6 +486,17 @@ impl Slave {
     pub fn process_data(&self) -> Option<&ProcessData> {
         self.pd.as_ref()
     }
+    /// The slave's place on the line, in DL status (0x0110): port 0 (towards the master)
+    /// open with a link and communication; port 1 the same when a slave follows
+    /// (`downstream`), else closed (looped back), as are ports 2 and 3 (not there); the PDI
+    /// operational and its watchdog reloaded. Masters read it for the topology (ethercrab
+    /// needs it for a line of more than one slave).
+    pub fn set_line_ports(&mut self, downstream: bool) {
+        let mut v = 0x0003 | 0x0010 | 0x0200 | 0x1000 | 0x4000;
+        v |= if downstream { 0x0020 | 0x0800 } else { 0x0400 };
+        self.esc.set_u16(reg::DL_STATUS, v);
+    }
+
     /// The SYNC0 unit as the master activated it (0x0981, 0x0990, 0x09A0).
     pub fn sync0(&self) -> &Sync0 {
         &self.sync0
