@@ -3,7 +3,7 @@
 //! registers ignore writes; sync managers in mailbox mode gate access to their buffer (a
 //! write into a full mailbox or a read of an empty one is refused: no working counter); a
 //! write that completes a mailbox, a write to AL control, an EEPROM command, a DC receive
-//! time latch and a process-data write are reported as [`Events`] for the slave to act on
+//! time latch, a DC activation and a process-data write are reported as [`Events`] for the slave to act on
 //! after the datagram. Nothing here allocates after [`Esc::new`].
 
 /// ESC type register value (0x0000); 0x04: an emulated ESC answers as a generic one.
@@ -180,6 +180,8 @@ pub struct Events {
     pub outputs_written: bool,
     /// The DC receive times were latched (a write to 0x0900).
     pub dc_latch: bool,
+    /// The DC activation register (0x0981) was written: the SYNC0 unit starts or stops.
+    pub dc_activation: bool,
 }
 
 /// The ESC memory.
@@ -385,6 +387,9 @@ impl Esc {
         }
         if touches(reg::DC_RECV_TIME0, 4) {
             self.events.dc_latch = true;
+        }
+        if touches(reg::DC_ACTIVATION, 1) {
+            self.events.dc_activation = true;
         }
         if touches(reg::EEP_CONTROL + 1, 1) {
             self.events.eeprom_command = true;

@@ -22,7 +22,11 @@ pub struct Segment {
 
 impl Segment {
     /// A segment of these slaves.
-    pub fn new(slaves: Vec<Slave>) -> Segment {
+    pub fn new(mut slaves: Vec<Slave>) -> Segment {
+        let n = slaves.len();
+        for (k, s) in slaves.iter_mut().enumerate() {
+            s.set_line_ports(k + 1 < n);
+        }
         Segment {
             slaves,
             bad_frames: 0,

@@ -9,6 +9,7 @@ use drive_protocol::{Clocks, ConfigError, Drive, Node, NodeConfig};
 use crate::al::{code, Al, AlState, Checks};
 use crate::coe::{self, Coe};
 use crate::datagram;
+use crate::dc::{self, Sync0};
 use crate::esc::{eep, reg, Esc};
 use crate::frame::DatagramAt;
 use crate::mailbox::{self, Header, Mailbox, TYPE_COE};
@@ -229,6 +230,10 @@ pub struct Slave {
     outputs_lost: bool,
     /// SM watchdog expiries, counted.
     pub watchdog_expiries: u32,
+    /// The SYNC0 unit as last activated through 0x0981.
+    sync0: Sync0,
+    /// DC SYNC0 chosen (0x1C32:1 = 2) and checked at SAFE-OP: the drive follows SYNC0.
+    dc_synchronised: bool,
 }
 
 struct Transition<'a> {
@@ -240,6 +245,15 @@ struct Transition<'a> {
     outputs_seen: &'a mut bool,
     last_outputs_ns: &'a mut Option<u64>,
     now_ns: u64,
+    sync0: &'a Sync0,
+    dc_synchronised: &'a mut bool,
+}
+
+impl Transition<'_> {
+    /// The synchronisation type of the outputs, 0x1C32:1.
+    fn sync_type(&self) -> u16 {
+        self.node.object_raw(0x1C32, 1).unwrap_or(0) as u16
+    }
 }
 
 impl Checks for Transition<'_> {
@@ -263,6 +277,8 @@ impl Checks for Transition<'_> {
     }
 
     fn process_data(&mut self) -> Result<(), u16> {
+        let min_cycle_ns = self.node.object_raw(0x1C32, 5).unwrap_or(0);
+        dc::check(self.sync_type(), self.sync0, min_cycle_ns)?;
         *self.pd = Some(ProcessData::configure(self.node, self.esc)?);
         Ok(())
     }
@@ -279,10 +295,15 @@ impl Checks for Transition<'_> {
                 *self.pd = None;
                 self.esc.set_mailbox_full(0, false);
                 self.esc.set_mailbox_full(1, false);
+                *self.dc_synchronised = false;
             }
-            AlState::PreOp => *self.pd = None,
+            AlState::PreOp => {
+                *self.pd = None;
+                *self.dc_synchronised = false;
+            }
             AlState::SafeOp => {
                 *self.outputs_seen = false;
+                *self.dc_synchronised = self.sync_type() == dc::SYNC_DC_SYNC0;
             }
             AlState::Op => *self.last_outputs_ns = Some(self.now_ns),
         }
@@ -336,9 +357,12 @@ impl Slave {
             refused_outputs: 0,
             outputs_lost: false,
             watchdog_expiries: 0,
+            sync0: Sync0::default(),
+            dc_synchronised: false,
             node,
         };
         s.sii = sii::image(&s.sii_config()?);
+        s.set_line_ports(false);
         s.publish_al();
         Ok(s)
     }
@@ -462,6 +486,38 @@ impl Slave {
     pub fn process_data(&self) -> Option<&ProcessData> {
         self.pd.as_ref()
     }
+    /// The slave's place on the line, in DL status (0x0110): port 0 (towards the master)
+    /// open with a link and communication; port 1 the same when a slave follows
+    /// (`downstream`), else closed (looped back), as are ports 2 and 3 (not there); the PDI
+    /// operational and its watchdog reloaded. Masters read it for the topology (ethercrab
+    /// needs it for a line of more than one slave).
+    pub fn set_line_ports(&mut self, downstream: bool) {
+        let mut v = 0x0003 | 0x0010 | 0x0200 | 0x1000 | 0x4000;
+        v |= if downstream { 0x0020 | 0x0800 } else { 0x0400 };
+        self.esc.set_u16(reg::DL_STATUS, v);
+    }
+
+    /// The SYNC0 unit as the master activated it (0x0981, 0x0990, 0x09A0).
+    pub fn sync0(&self) -> &Sync0 {
+        &self.sync0
+    }
+    /// Whether the drive follows SYNC0: DC SYNC0 chosen (0x1C32:1 = 2) and accepted at
+    /// SAFE-OP, in SAFE-OP or OP.
+    pub fn dc_synchronised(&self) -> bool {
+        self.dc_synchronised && matches!(self.al.state, AlState::SafeOp | AlState::Op)
+    }
+    /// The next SYNC0 pulse at or after `local_ns` on the slave's clock (the clock of
+    /// [`Slave::execute`]'s `now_ns`), in that clock, while the drive follows SYNC0 (else
+    /// `None`): the pulse grid is in system time, the slave's clock plus the offset 0x0920.
+    pub fn next_sync0_ns(&self, local_ns: u64) -> Option<u64> {
+        if !self.dc_synchronised() {
+            return None;
+        }
+        let offset = self.esc.u64(reg::DC_OFFSET);
+        let system = self.sync0.next_at_or_after(local_ns.wrapping_add(offset))?;
+        Some(system.wrapping_sub(offset))
+    }
+
     /// Mailbox messages dropped because the queue was full.
     pub fn mailbox_dropped(&self) -> u32 {
         self.mbx.dropped
@@ -482,6 +538,8 @@ impl Slave {
             outputs_seen: &mut self.outputs_seen,
             last_outputs_ns: &mut self.last_outputs_ns,
             now_ns: self.now_ns,
+            sync0: &self.sync0,
+            dc_synchronised: &mut self.dc_synchronised,
         };
         let r = f(&mut self.al, &mut t);
         self.publish_al();
@@ -501,10 +559,17 @@ impl Slave {
     ) -> u16 {
         self.now_ns = now_ns;
         let offset = self.esc.u64(reg::DC_OFFSET);
-        self.esc
-            .set_u64(reg::DC_SYSTEM_TIME, now_ns.wrapping_add(offset));
+        let system_ns = now_ns.wrapping_add(offset);
+        self.esc.set_u64(reg::DC_SYSTEM_TIME, system_ns);
+        if let Some(next) = self.sync0.next_at_or_after(system_ns) {
+            // read back while active, the start time register is the next pulse
+            self.esc.set_u64(reg::DC_START_TIME, next);
+        }
         let add = datagram::execute(&mut self.esc, frame, d);
         let ev = core::mem::take(&mut self.esc.events);
+        if ev.dc_activation {
+            self.sync0 = Sync0::activate(&self.esc, system_ns);
+        }
         if ev.dc_latch {
             self.esc.set_u32(reg::DC_RECV_TIME0, now_ns as u32);
             self.esc.set_u32(reg::DC_RECV_TIME0 + 4, now_ns as u32);

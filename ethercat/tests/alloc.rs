@@ -124,3 +124,55 @@ fn watchdog_expiry_and_the_0x6007_fault_reaction_allocate_nothing() {
     );
     assert_eq!(allocs, 0, "allocations in the watchdog path");
 }
+
+#[test]
+fn dc_sync0_frames_cycle_and_pulse_times_allocate_nothing() {
+    // PRE-OP, mapped, DC SYNC0 at 1 ms as SOEM's ecx_dcsync0 writes it, SAFE-OP, OP
+    let mut m = preop(1);
+    let (o, i) = m.map_pdos(0, 0, 6);
+    let st = Master::station(0);
+    m.sdo_write(0, 0x1C32, 1, false, &2u16.to_le_bytes())
+        .unwrap();
+    m.sdo_write(0, 0x6060, 0, false, &[8]).unwrap();
+    assert_eq!(m.fpwr(st, 0x0920, &5_000_000u64.to_le_bytes()), 1);
+    assert_eq!(m.fpwr(st, 0x0981, &[0]), 1);
+    let start = (m.now_ns + 5_000_000 + 100_000_000) / 1_000_000 * 1_000_000;
+    assert_eq!(m.fpwr(st, 0x0990, &start.to_le_bytes()), 1);
+    assert_eq!(m.fpwr(st, 0x09A0, &1_000_000u32.to_le_bytes()), 1);
+    assert_eq!(m.fpwr(st, 0x0981, &[3]), 1);
+    assert_eq!(m.request(0, 0x04), 0x04);
+    m.lrw(&vec![0; o + i]);
+    assert_eq!(m.request(0, 0x08), 0x08);
+    // the process-data frame as SOEM sends it with DC: LRW and an FRMW of the system time
+    let mut image = vec![0u8; o + i];
+    image[..6].copy_from_slice(&outputs(0x0F, 0));
+    let sys_time = [0u8; 8];
+    let pd = frame::build(
+        [1; 6],
+        &[
+            (14, 0, u32::from(st) | 0x0910 << 16, &sys_time),
+            (12, 1, 0, &image),
+        ],
+    );
+    let mut buf = vec![0u8; 1600];
+    let mut now_ns = m.now_ns;
+    let mut pulses = 0u64;
+    ALLOCS.with(|n| n.set(0));
+    ACTIVE.with(|a| a.set(true));
+    for _ in 0..500 {
+        now_ns += 1_000_000;
+        let f = &mut buf[..pd.len()];
+        f.copy_from_slice(&pd);
+        m.seg.process(f, now_ns, &mut m.drives).unwrap();
+        let s = &m.seg.slaves[0];
+        if let Some(p) = s.next_sync0_ns(now_ns) {
+            pulses += u64::from(p >= now_ns);
+        }
+        m.seg.cycle(Clocks::same(now_ns / 1000), &mut m.drives);
+    }
+    ACTIVE.with(|a| a.set(false));
+    let allocs = ALLOCS.with(|n| n.get());
+    assert_eq!(allocs, 0, "allocations with DC SYNC0 active");
+    assert!(m.seg.slaves[0].dc_synchronised());
+    assert_eq!(pulses, 500);
+}

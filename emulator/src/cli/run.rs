@@ -1633,6 +1633,10 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
             serde_json::json!({"frames": stats.frames, "refused": stats.refused,
                 "socket_errors": stats.socket_errors, "cycles": stats.cycles,
                 "late_cycles": stats.late_cycles,
+                "sync0_locked_cycles": stats.sync0_locked_cycles,
+                "sync0_phase_p50_us": stats.sync0_phase_p50_us,
+                "sync0_phase_p99_us": stats.sync0_phase_p99_us,
+                "sync0_phase_max_us": stats.sync0_phase_max_us,
                 "detect": detector.iter().map(|(node_id, rep)|
                     serde_json::json!({ "node_id": node_id, "report": rep }))
                     .collect::<Vec<_>>()})
