@@ -4,7 +4,8 @@
 //! working counters not incremented, a late cycle, the slave dropping out of OP with AL status
 //! code 0x001A; then the master brings it back to OP, the drive is enabled again, every cycle
 //! has the expected working counter and a CoE read answers. The emulator's own account (the
-//! scenario's events, EMCY 0x8250, the fault counts) is checked against it.
+//! scenario's events, EMCY 0x8250, the fault counts) is checked against it. A drive fault
+//! of a scenario (encoder loss) reaches the master as on CAN.
 //!
 //! Root (or CI, where a veth pair that cannot be made fails the test): see ethercat_rig.
 
@@ -70,4 +71,43 @@ fn pysoem_sees_each_scenario_fault_and_recovers() {
     assert_eq!(sc["passed"], true, "{sc}");
     assert_eq!(stats["refused"], 0, "{stats}");
     assert_eq!(stats["socket_errors"], 0, "{stats}");
+}
+
+/// A drive fault from a scenario works on EtherCAT as on CAN: scenarios/encoder-loss.toml
+/// (the motor encoder's signal lost 1 s after operation enabled) as SOEM sees it: the fault
+/// state in the statusword from the process data while the slave stays in OP, 0x603F =
+/// 0x7300 and EMCY 0x7300 over CoE; the scenario's own expectations pass.
+#[test]
+fn a_scenarios_drive_fault_reaches_the_master_over_ethercat() {
+    if !may_run("ethercat_faults") {
+        return;
+    }
+    let veth = Veth::create('e').unwrap_or_else(|e| panic!("cannot create the veth pair: {e}"));
+    let file = repo().join("scenarios/encoder-loss.toml");
+    let mut emu = Emulator::start(
+        &veth.slave,
+        &["--scenario", file.to_str().unwrap(), "--duration", "600"],
+    );
+    let report = python("ethercat_faults.py", &[&veth.master, "encoder"], 180);
+    assert_eq!(report["error_code"], 0x7300, "{report}");
+    assert_eq!(
+        report["statusword"].as_u64().unwrap() & 0x4F,
+        0x08,
+        "{report}"
+    );
+    let (stats, _) = emu.stop();
+    let sc = &stats["scenario"];
+    assert_eq!(sc["events"].as_array().map(Vec::len), Some(1), "{sc}");
+    assert!(
+        sc["emcys"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|e| e["code"] == "0x7300"),
+        "{sc}"
+    );
+    assert_eq!(sc["passed"], true, "{sc}");
+    // no EtherCAT fault was injected: nothing lost, held or corrupted
+    assert_eq!(stats["faults"]["lost"], 0, "{stats}");
+    assert_eq!(stats["faults"]["bad_wkc"], 0, "{stats}");
 }

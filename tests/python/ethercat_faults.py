@@ -1,7 +1,11 @@
 """EtherCAT faults as a master sees them: SOEM (pysoem) against
 `drive-emu run --ethercat IFACE --scenario scenarios/ethercat-faults.toml`.
 
-Usage: ethercat_faults.py IFACE
+Usage: ethercat_faults.py IFACE [encoder]
+
+With `encoder` (against scenarios/encoder-loss.toml): a drive fault the scenario injects (the
+motor encoder's signal lost) as the master sees it: the statusword's fault state in the
+process data, the slave still in OP, the error code 0x7300 in 0x603F and its EMCY over CoE.
 
 One slave, CSP, enabled and holding its position in OP while the scenario injects, one after
 the other: 20 lost frames, bad working counters, late cycles, the link down, and the slave
@@ -38,12 +42,16 @@ def main():
     m = pysoem.Master()
     m.open(sys.argv[1])
     try:
-        run(m)
+        if sys.argv[2:] == ["encoder"]:
+            encoder(m)
+        else:
+            run(m)
     finally:
         m.close()
 
 
-def run(m):
+def setup(m):
+    """One slave in OP, CSP, enabled; what the checks use of it."""
     n = 0
     for _ in range(50):
         n = m.config_init()
@@ -111,6 +119,11 @@ def run(m):
     cycle(0, 0)
     to_op()
     enable()
+    return s, cycle, statusword, position, emcys, to_op, enable, expected
+
+
+def run(m):
+    s, cycle, statusword, position, emcys, to_op, enable, expected = setup(m)
     hold = position()
     # the scenario's faults start 0.5 s after operation enabled and end with the drop out of
     # OP at 2.5 s (the drive's time): watch the working counter until the slave left OP
@@ -161,6 +174,29 @@ def run(m):
                       "al_status": al_state, "al_status_code": al_code,
                       "recovered_cycles": len(after), "statusword": statusword(),
                       "emcys": emcys}))
+
+
+def encoder(m):
+    s, cycle, statusword, position, emcys, _, _, expected = setup(m)
+    hold = position()
+    wkcs = []
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and statusword() & 0x4F != 0x08:
+        wkcs.append(cycle(0x0F, hold))
+    check(statusword() & 0x4F == 0x08, f"no fault in the statusword: 0x{statusword():04X}")
+    bad = [w for w in wkcs if w != expected]
+    check(not bad, f"{len(bad)} of {len(wkcs)} cycles with a working counter other than "
+          f"{expected}: the slave left OP?")
+    m.read_state()
+    check(s.state == pysoem.OP_STATE, f"AL state 0x{s.state:02X}: a drive fault is not a "
+          f"slave's")
+    code = struct.unpack("<H", s.sdo_read(0x603F, 0))[0]
+    check(code == 0x7300, f"0x603F = 0x{code:04X}, expected 0x7300 (sensor)")
+    check(0x7300 in emcys, f"no EMCY 0x7300 over CoE: {[hex(c) for c in emcys]}")
+    m.state = pysoem.INIT_STATE
+    m.write_state()
+    print(json.dumps({"cycles": len(wkcs), "error_code": code, "emcys": emcys,
+                      "statusword": statusword()}))
 
 
 def summary(seen):
