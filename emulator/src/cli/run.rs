@@ -1577,10 +1577,10 @@ fn ethercat_slaves_for(
 fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     validate_args(args)?;
     if args.panel.panel.is_some() {
-        bail!(
+        return Err(super::exit::usage_msg(
             "--ethercat: not yet with --panel (the panel drives a CAN run; inject EtherCAT \
-             faults with --scenario FILE)"
-        );
+             faults with --scenario FILE)",
+        ));
     }
     let scenario = match &args.scenario {
         Some(path) => Some(crate::scenario::load(path).map_err(super::exit::scenario_file)?),
