@@ -337,3 +337,83 @@ fn the_masters_position_loop_is_checked() {
     );
     assert!(e.to_string().contains("unknown field `gain`"), "{e}");
 }
+
+/// The shipped EtherCAT scenario: its five faults in order, as the live loop gets them; and
+/// every bad EtherCAT event is refused with its line, key and reason.
+#[test]
+fn ethercat_faults_parse_and_bad_ones_are_refused() {
+    use drive_emu::bus::ethercat::EcatFault;
+    use drive_emu::scenario::timeline::Action;
+    let s = scenario::load(&scenarios_dir().join("ethercat-faults.toml")).unwrap();
+    let got: Vec<(EcatFault, Option<u64>)> = s
+        .events
+        .iter()
+        .map(|e| match e.action {
+            Action::Ethercat { fault, over_us } => (fault, over_us),
+            ref a => panic!("not an EtherCAT fault: {a:?}"),
+        })
+        .collect();
+    assert_eq!(
+        got,
+        [
+            (
+                EcatFault::Lost {
+                    frames: 20,
+                    share: 0.0
+                },
+                None
+            ),
+            (EcatFault::BadWkc { share: 1.0 }, Some(50_000)),
+            (EcatFault::Late { hold_us: 20_000 }, Some(50_000)),
+            (EcatFault::LinkDown, Some(50_000)),
+            (EcatFault::OutOfOp { al_code: 0x001A }, None),
+        ]
+    );
+    // live on CAN or offline: refused with the event's line and why
+    let e = drive_emu::scenario::live::check_bus(&s, "can").unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        msg.contains(&format!("line {}:", s.events[0].line)) && msg.contains("run --ethercat"),
+        "{msg}"
+    );
+    let ramp = "ramp = \"backlash_mm\"\nto = 0.05\nover = \"10 min\"";
+    for (to, key, reason) in [
+        ("ethercat = \"lost\"", "ethercat", "either `frames`"),
+        (
+            "ethercat = \"lost\"\nframes = 3\nshare = 0.5",
+            "ethercat",
+            "not both",
+        ),
+        ("ethercat = \"lost\"\nframes = 0", "frames", "0 frames"),
+        (
+            "ethercat = \"lost\"\nframes = 2\nover = \"1 s\"",
+            "over",
+            "`over` goes with `share`",
+        ),
+        ("ethercat = \"late\"", "hold", "needs `hold`"),
+        ("ethercat = \"late\"\nhold = \"2 s\"", "hold", "at most 1 s"),
+        (
+            "ethercat = \"out_of_op\"\nal_code = \"0x0000\"",
+            "al_code",
+            "means no error",
+        ),
+        (
+            "ethercat = \"link_down\"\nhold = \"1 ms\"",
+            "hold",
+            "does not apply to an EtherCAT link down",
+        ),
+        (
+            "ethercat = \"unplug\"",
+            "ethercat",
+            "unknown variant `unplug`",
+        ),
+        (
+            "ethercat = \"restore\"\ncan = \"restore\"",
+            "ethercat",
+            "takes only one of",
+        ),
+    ] {
+        let e = bad(ramp, to);
+        check(&e, key, reason);
+    }
+}

@@ -662,6 +662,20 @@ impl Slave {
         self.coe.pump(&self.node, &mut self.mbx);
     }
 
+    /// A local error (an injected fault): an OP slave drops to SAFE-OP with the error flag and
+    /// AL status code `code` (ETG.1000.6), as a real slave does, and its drive loses the
+    /// outputs as on a watchdog expiry (EMCY 0x8250, the reaction per 0x6007) until the
+    /// master acknowledges and requests OP again. Outside OP: nothing (false).
+    pub fn drop_out_of_op(&mut self, code: u16) -> bool {
+        if self.al.state != AlState::Op {
+            return false;
+        }
+        self.transition(|al, t| al.fall_to(AlState::SafeOp, code, t));
+        self.outputs_lost = true;
+        self.node.connection_lost(drive_protocol::EMCY_RPDO_TIMEOUT);
+        true
+    }
+
     /// The SM watchdog time, ns (0: off).
     fn watchdog_ns(&self) -> u64 {
         let sm = self.esc.sm(pdo::SM_OUTPUTS);

@@ -175,4 +175,31 @@ fn dc_sync0_frames_cycle_and_pulse_times_allocate_nothing() {
     assert_eq!(allocs, 0, "allocations with DC SYNC0 active");
     assert!(m.seg.slaves[0].dc_synchronised());
     assert_eq!(pulses, 500);
+fn a_drop_out_of_op_allocates_nothing() {
+    let (mut m, o, i) = op(1);
+    m.sdo_write(0, 0x6060, 0, false, &[8]).unwrap();
+    for cw in [0x06, 0x07, 0x0F] {
+        let mut v = vec![0u8; o + i];
+        v[..6].copy_from_slice(&outputs(cw, 0));
+        for _ in 0..3 {
+            m.lrw(&v);
+        }
+    }
+    ALLOCS.with(|n| n.set(0));
+    ACTIVE.with(|a| a.set(true));
+    let dropped = m.seg.slaves[0].drop_out_of_op(0x001A);
+    m.cycle();
+    let again = m.seg.slaves[0].drop_out_of_op(0x001A);
+    ACTIVE.with(|a| a.set(false));
+    assert!(
+        dropped && !again,
+        "dropped from OP once; not again from SAFE-OP"
+    );
+    assert_eq!(m.seg.slaves[0].al_state(), drive_ethercat::AlState::SafeOp);
+    assert_eq!(m.seg.slaves[0].al_status_code(), 0x001A);
+    assert_eq!(
+        ALLOCS.with(|n| n.get()),
+        0,
+        "allocations in the drop out of OP"
+    );
 }

@@ -138,3 +138,276 @@ impl PacketSocket {
         self.fd.as_raw_fd()
     }
 }
+
+/// An EtherCAT fault, as a master sees it (scenario `ethercat = "..."`, the panel).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum EcatFault {
+    /// Frames lost on the way to the slave (it never sees them, nothing comes back): the next
+    /// `frames` frames if non-zero, else `share` of the frames while the fault lasts.
+    Lost { frames: u32, share: f64 },
+    /// A late cycle: the slave holds each answered frame for `hold_us` before it returns it.
+    Late { hold_us: u64 },
+    /// The link is down: nothing reaches the slave, nothing answers.
+    LinkDown,
+    /// A corrupted datagram: `share` of the frames come back with the working counters the
+    /// master sent (not incremented by any slave), so the master sees a working-counter
+    /// error.
+    BadWkc { share: f64 },
+    /// The first slave drops out of OP to SAFE-OP with the error flag and this AL status code
+    /// (ETG.1000.6), as a real slave does on a local error; applied to the slave, not the wire.
+    OutOfOp { al_code: u16 },
+}
+
+impl EcatFault {
+    /// For people: what the master sees.
+    pub fn describe(&self) -> String {
+        match *self {
+            EcatFault::Lost { frames, .. } if frames > 0 => {
+                format!("EtherCAT: the next {frames} frames lost (no answer)")
+            }
+            EcatFault::Lost { share, .. } => {
+                format!("EtherCAT: {:.0} % of the frames lost", share * 100.0)
+            }
+            EcatFault::Late { hold_us } => format!(
+                "EtherCAT: late cycle (each frame held {} ms)",
+                hold_us as f64 / 1000.0
+            ),
+            EcatFault::LinkDown => "EtherCAT: link down (nothing answers)".into(),
+            EcatFault::BadWkc { share } => format!(
+                "EtherCAT: working counter not incremented in {:.0} % of the frames",
+                share * 100.0
+            ),
+            EcatFault::OutOfOp { al_code } => {
+                format!("EtherCAT: slave drops out of OP (AL status code 0x{al_code:04X})")
+            }
+        }
+    }
+}
+
+/// Frames held back at once by a late-cycle fault: a 1 kHz master with several frames per
+/// cycle, held for up to [`MAX_HOLD_US`].
+pub const HELD_FRAMES: usize = 64;
+/// Longest hold of a late-cycle fault, us.
+pub const MAX_HOLD_US: u64 = 1_000_000;
+/// Largest frame a late-cycle fault holds (the loop's receive buffer).
+pub const HELD_FRAME_LEN: usize = 1600;
+
+/// What the fault injector did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct EcatFaultStats {
+    /// Frames lost (a lost-frames fault or the link down).
+    pub lost: u64,
+    /// Frames held back (late cycle).
+    pub held: u64,
+    /// Held frames that found the hold buffer full: lost.
+    pub hold_full: u64,
+    /// Frames returned with their working counters not incremented.
+    pub bad_wkc: u64,
+}
+
+/// What to do with a frame the segment has answered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Answer {
+    /// Send it now.
+    Send,
+    /// Held (late cycle) or lost: sent by [`EcatFaults::due`] later, or never.
+    Kept,
+}
+
+/// The wire faults in force on one EtherCAT port, on the frames' clock (us). Sans-IO and
+/// deterministic (a seeded splitmix64 decides shares); everything is allocated with it, so
+/// nothing on the frame path allocates.
+pub struct EcatFaults {
+    rng: u64,
+    /// Frames still to lose, and (share, until) of a lost-share fault.
+    lost_count: u32,
+    lost_share: Option<(f64, Option<u64>)>,
+    late: Option<(u64, Option<u64>)>,
+    link_down: Option<Option<u64>>,
+    bad_wkc: Option<(f64, Option<u64>)>,
+    /// Held frames: (due us, length), their bytes in `held_buf`, in order of arrival.
+    held: heapless::Deque<(u64, u16), HELD_FRAMES>,
+    held_buf: Box<[[u8; HELD_FRAME_LEN]; HELD_FRAMES]>,
+    held_head: usize,
+    /// Working counters as the master sent them (bad-wkc), per datagram of the frame.
+    wkc_in: heapless::Vec<(usize, [u8; 2]), { drive_ethercat::frame::MAX_DATAGRAMS }>,
+    stats: EcatFaultStats,
+    /// The frames' clock as last seen ([`EcatFaults::admit`], [`EcatFaults::due`]), us.
+    clock_us: u64,
+}
+
+impl EcatFaults {
+    pub fn new(seed: u64) -> Self {
+        Self {
+            rng: seed,
+            lost_count: 0,
+            lost_share: None,
+            late: None,
+            link_down: None,
+            bad_wkc: None,
+            held: heapless::Deque::new(),
+            held_buf: Box::new([[0; HELD_FRAME_LEN]; HELD_FRAMES]),
+            held_head: 0,
+            wkc_in: heapless::Vec::new(),
+            stats: EcatFaultStats::default(),
+            clock_us: 0,
+        }
+    }
+
+    /// The frames' clock as the injector last saw it, us: when a fault started from the
+    /// drive's cycle begins.
+    pub fn clock_us(&self) -> u64 {
+        self.clock_us
+    }
+
+    pub fn stats(&self) -> EcatFaultStats {
+        self.stats
+    }
+
+    /// Whether any wire fault is in force (or frames are held).
+    pub fn active(&self) -> bool {
+        self.lost_count > 0
+            || self.lost_share.is_some()
+            || self.late.is_some()
+            || self.link_down.is_some()
+            || self.bad_wkc.is_some()
+            || !self.held.is_empty()
+    }
+
+    /// Start `fault` at `now_us` for `over_us` (None: until [`EcatFaults::clear`]); a fault of
+    /// the same kind in force is replaced. `OutOfOp` is the slave's, not the wire's: ignored.
+    pub fn start(&mut self, fault: EcatFault, over_us: Option<u64>, now_us: u64) {
+        let until = over_us.map(|o| now_us.saturating_add(o));
+        match fault {
+            EcatFault::Lost { frames, .. } if frames > 0 => self.lost_count = frames,
+            EcatFault::Lost { share, .. } => self.lost_share = Some((share, until)),
+            EcatFault::Late { hold_us } => self.late = Some((hold_us.min(MAX_HOLD_US), until)),
+            EcatFault::LinkDown => self.link_down = Some(until),
+            EcatFault::BadWkc { share } => self.bad_wkc = Some((share, until)),
+            EcatFault::OutOfOp { .. } => {}
+        }
+    }
+
+    /// End every wire fault; frames already held still go out when due.
+    pub fn clear(&mut self) {
+        self.lost_count = 0;
+        self.lost_share = None;
+        self.late = None;
+        self.link_down = None;
+        self.bad_wkc = None;
+    }
+
+    /// End the faults whose time is over at `now_us`.
+    fn expire(&mut self, now_us: u64) {
+        let over = |until: Option<u64>| until.is_some_and(|u| now_us >= u);
+        if self.lost_share.is_some_and(|(_, u)| over(u)) {
+            self.lost_share = None;
+        }
+        if self.late.is_some_and(|(_, u)| over(u)) {
+            self.late = None;
+        }
+        if self.link_down.is_some_and(over) {
+            self.link_down = None;
+        }
+        if self.bad_wkc.is_some_and(|(_, u)| over(u)) {
+            self.bad_wkc = None;
+        }
+    }
+
+    /// splitmix64: uniform in [0, 1).
+    fn uniform(&mut self) -> f64 {
+        self.rng = self.rng.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.rng;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// A frame arrived at `now_us`: whether the slaves see it (false: lost on the way, the
+    /// link down or a lost-frames fault). When they do, `frame`'s working counters are noted
+    /// for a bad-wkc fault.
+    pub fn admit(&mut self, frame: &[u8], now_us: u64) -> bool {
+        self.wkc_in.clear();
+        self.clock_us = now_us;
+        if !self.active() {
+            return true;
+        }
+        self.expire(now_us);
+        if self.link_down.is_some() {
+            self.stats.lost += 1;
+            return false;
+        }
+        if self.lost_count > 0 {
+            self.lost_count -= 1;
+            self.stats.lost += 1;
+            return false;
+        }
+        if let Some((share, _)) = self.lost_share {
+            if self.uniform() < share {
+                self.stats.lost += 1;
+                return false;
+            }
+        }
+        if let Some((share, _)) = self.bad_wkc {
+            if self.uniform() < share {
+                if let Ok(d) = drive_ethercat::frame::Datagrams::<
+                    { drive_ethercat::frame::MAX_DATAGRAMS },
+                >::parse(frame)
+                {
+                    for g in &d.list {
+                        let w = g.wkc();
+                        let _ = self.wkc_in.push((w, [frame[w], frame[w + 1]]));
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// The slaves answered `frame` (admitted at `now_us`): restore the working counters of a
+    /// bad-wkc fault, hold it for a late cycle. [`Answer::Send`]: send it now.
+    pub fn answer(&mut self, frame: &mut [u8], now_us: u64) -> Answer {
+        if !self.wkc_in.is_empty() {
+            for &(w, v) in &self.wkc_in {
+                if w + 1 < frame.len() {
+                    frame[w..w + 2].copy_from_slice(&v);
+                }
+            }
+            self.wkc_in.clear();
+            self.stats.bad_wkc += 1;
+        }
+        let Some((hold_us, _)) = self.late else {
+            return Answer::Send;
+        };
+        if self.held.is_full() || frame.len() > HELD_FRAME_LEN {
+            self.stats.hold_full += 1;
+            return Answer::Kept;
+        }
+        let slot = (self.held_head + self.held.len()) % HELD_FRAMES;
+        self.held_buf[slot][..frame.len()].copy_from_slice(frame);
+        let _ = self
+            .held
+            .push_back((now_us.saturating_add(hold_us), frame.len() as u16));
+        self.stats.held += 1;
+        Answer::Kept
+    }
+
+    /// When the next held frame is due, us.
+    pub fn next_due_us(&self) -> Option<u64> {
+        self.held.front().map(|&(due, _)| due)
+    }
+
+    /// Send the held frames due at `now_us`, in order, with `send`.
+    pub fn due(&mut self, now_us: u64, mut send: impl FnMut(&[u8])) {
+        self.clock_us = now_us;
+        while let Some(&(due, len)) = self.held.front() {
+            if due > now_us {
+                break;
+            }
+            self.held.pop_front();
+            send(&self.held_buf[self.held_head][..usize::from(len)]);
+            self.held_head = (self.held_head + 1) % HELD_FRAMES;
+        }
+    }
+}

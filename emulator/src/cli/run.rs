@@ -893,6 +893,10 @@ fn open_transport(args: &RunArgs) -> Result<LiveTransport> {
 /// scenario thread, the loop thread, the status line until the run stops, the summary.
 pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> {
     validate_args(args)?;
+    if let Some(s) = scenario {
+        // its bus faults must be CAN's
+        crate::scenario::live::check_bus(s, "can").map_err(super::exit::usage)?;
+    }
     crate::panel::check_args(&args.panel)?;
     let (machine, axes) = live_axes(args, scenario)?;
     let seed = scenario.map_or(1, |s| s.run.seed);
@@ -1036,37 +1040,7 @@ fn live_axes(
     scenario: Option<&Scenario>,
 ) -> Result<(MachineFile, Vec<AxisSlot<AxisDrive>>)> {
     let machine = match scenario {
-        // The scenario's machine: its first preset with the file's overrides applied.
-        Some(s) => {
-            let cfg = s
-                .machine
-                .configs
-                .first()
-                .context("the scenario has no machine")?;
-            MachineFile {
-                tick_hz: args.tick_hz,
-                axes: vec![AxisEntry {
-                    node_id: args.node,
-                    name: None,
-                    preset: cfg.name.clone(),
-                    set: Default::default(),
-                    // the scenario's machine is as its file says (the preset's wear, its
-                    // overrides): scenarios are where wear is studied
-                    worn: true,
-                    eds: args.eds.clone(),
-                    objects_base: args.objects_base,
-                    profile: args.profile.clone(),
-                    quirks: None,
-                    behaviour: crate::drive::profile::Behaviour::from_args(
-                        args.profile.as_deref(),
-                        &args.quirk,
-                        &args.no_quirk,
-                    )?
-                    .map(Arc::new),
-                }],
-                ballbar: None,
-            }
-        }
+        Some(s) => scenario_machine(args, s)?,
         None => machine_from_args(args)?,
     };
     machine::validate(&machine)?;
@@ -1095,6 +1069,39 @@ fn live_axes(
         }
     }
     Ok((machine, axes))
+}
+
+/// The scenario's machine: its first preset with the file's overrides applied, one axis on
+/// `--node` (the same on CAN and on EtherCAT).
+fn scenario_machine(args: &RunArgs, s: &Scenario) -> Result<MachineFile> {
+    let cfg = s
+        .machine
+        .configs
+        .first()
+        .context("the scenario has no machine")?;
+    Ok(MachineFile {
+        tick_hz: args.tick_hz,
+        axes: vec![AxisEntry {
+            node_id: args.node,
+            name: None,
+            preset: cfg.name.clone(),
+            set: Default::default(),
+            // the scenario's machine is as its file says (the preset's wear, its
+            // overrides): scenarios are where wear is studied
+            worn: true,
+            eds: args.eds.clone(),
+            objects_base: args.objects_base,
+            profile: args.profile.clone(),
+            quirks: None,
+            behaviour: crate::drive::profile::Behaviour::from_args(
+                args.profile.as_deref(),
+                &args.quirk,
+                &args.no_quirk,
+            )?
+            .map(Arc::new),
+        }],
+        ballbar: None,
+    })
 }
 
 /// `--lss-store FILE`: the drive's non-volatile memory (one axis). What it holds replaces the
@@ -1533,13 +1540,27 @@ fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
 pub fn ethercat_slaves(
     args: &RunArgs,
 ) -> Result<(MachineFile, Vec<drive_ethercat::Slave>, Vec<AxisDrive>)> {
-    let mut machine = machine_from_args(args)?;
+    ethercat_slaves_for(args, None)
+}
+
+/// [`ethercat_slaves`], or with a scenario its machine (one axis, as on CAN).
+fn ethercat_slaves_for(
+    args: &RunArgs,
+    scenario: Option<&Scenario>,
+) -> Result<(MachineFile, Vec<drive_ethercat::Slave>, Vec<AxisDrive>)> {
+    let mut machine = match scenario {
+        Some(s) => scenario_machine(args, s)?,
+        None => machine_from_args(args)?,
+    };
     machine::validate(&machine)?;
     let lss = LssOptions::default();
     let mut slaves = Vec::new();
     let mut drives = Vec::new();
     for e in machine.axes.iter_mut() {
-        let cfg = e.run_config()?;
+        let cfg = match scenario {
+            Some(s) => s.machine.configs[0].clone(),
+            None => e.run_config()?,
+        };
         // no boot delay: an EtherCAT slave's mailbox is there from PRE-OP on
         let (config, mut drive) = axis_setup(cfg, e, 0, &lss)?;
         let slave = drive_ethercat::Slave::new(config, &mut drive)
@@ -1550,25 +1571,40 @@ pub fn ethercat_slaves(
     Ok((machine, slaves, drives))
 }
 
-/// `run --ethercat IFACE`: the machine's axes as EtherCAT slaves on a raw Ethernet port.
+/// `run --ethercat IFACE`: the machine's axes as EtherCAT slaves on a raw Ethernet port; with
+/// `--scenario`, its machine on one slave and its timeline (parameters, sensor and EtherCAT
+/// faults) injected as on CAN.
 fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     validate_args(args)?;
-    if args.scenario.is_some() {
-        bail!("--ethercat: not yet with --scenario");
+    if args.panel.panel.is_some() {
+        return Err(super::exit::usage_msg(
+            "--ethercat: not yet with --panel (the panel drives a CAN run; inject EtherCAT \
+             faults with --scenario FILE)",
+        ));
     }
-    let (machine, slaves, mut drives) = ethercat_slaves(args)?;
+    let scenario = match &args.scenario {
+        Some(path) => Some(crate::scenario::load(path).map_err(super::exit::scenario_file)?),
+        None => None,
+    };
+    if let Some(s) = &scenario {
+        crate::scenario::live::check_bus(s, "ethercat").map_err(super::exit::usage)?;
+    }
+    let (machine, slaves, mut drives) = ethercat_slaves_for(args, scenario.as_ref())?;
     let mut sock = crate::bus::ethercat::PacketSocket::open(iface)?;
-    let stop = stop_flag(args, None)?;
+    let stop = stop_flag(args, scenario.as_ref())?;
     let period_us = 1_000_000 / u64::from(machine.tick_hz);
     eprintln!(
-        "drive-emu: {} EtherCAT slave(s) on {iface}, {} Hz{}",
+        "drive-emu: {} EtherCAT slave(s) on {iface}, {} Hz{}{}",
         slaves.len(),
         machine.tick_hz,
         if args.lockstep {
             " per process-data cycle (lock-step)"
         } else {
             ""
-        }
+        },
+        scenario
+            .as_ref()
+            .map_or(String::new(), |s| format!("; scenario {}", s.name)),
     );
     if args.ready {
         let nodes: Vec<serde_json::Value> = machine
@@ -1579,6 +1615,7 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         println!(
             "{}",
             serde_json::json!({"event": "ready", "ethercat": iface, "nodes": nodes,
+                "scenario": scenario.as_ref().map(|s| s.name.clone()),
                 "pid": std::process::id()})
         );
         use std::io::Write;
@@ -1594,10 +1631,21 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
             args,
             dtap,
             drives.iter(),
-            gap_models(&machine, None),
+            gap_models(&machine, scenario.as_ref()),
         )?),
         None => None,
     };
+    // --scenario: its thread follows the drives' time and feeds the first slave injections
+    let link = Arc::new(LiveLink::new());
+    let mut injector = scenario
+        .as_ref()
+        .map(|s| LoopInjector::new(s.run.master.master_id));
+    let scenario_thread = match &scenario {
+        Some(s) => Some(spawn_scenario(args, s, &link, &stop)?),
+        None => None,
+    };
+    let mut faults =
+        crate::bus::ethercat::EcatFaults::new(scenario.as_ref().map_or(1, |s| s.run.seed));
     let mut seg = drive_ethercat::Segment::new(slaves);
     let stats = crate::runtime::ethercat::serve(
         &mut sock,
@@ -1605,7 +1653,15 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         &mut drives,
         (period_us, args.lockstep),
         &stop,
-        |seg, drives, t_us| {
+        &mut faults,
+        |seg, drives, faults, t_us| {
+            if let (Some(inj), Some(slave), Some(drive)) = (
+                injector.as_mut(),
+                seg.slaves.first_mut(),
+                drives.first_mut(),
+            ) {
+                inj.on_ethercat_cycle(&link, t_us, slave, drive, faults);
+            }
             if let Some(tap) = &tap {
                 tap.push_nodes(seg.slaves.iter().map(|s| s.node()), t_us);
             }
@@ -1616,6 +1672,8 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
             }
         },
     );
+    // the loop has stopped: a scenario still running ends now
+    stop.store(true, Ordering::Relaxed);
     if let (Some(rec), Some(tap)) = (recorder, &tap) {
         finish_trace(rec, tap)?;
     }
@@ -1623,24 +1681,74 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         (Some(d), Some(dtap)) => finish_detector(d, dtap, &node_ids)?,
         _ => Vec::new(),
     };
+    let outcome = match scenario_thread {
+        Some(t) => Some(
+            t.join()
+                .map_err(|_| anyhow::anyhow!("the scenario thread panicked"))?,
+        ),
+        None => None,
+    };
+    let fs = faults.stats();
     eprintln!(
-        "drive-emu: stopped. {} frames answered, {} refused, {} socket errors, {} cycles ({} late)",
-        stats.frames, stats.refused, stats.socket_errors, stats.cycles, stats.late_cycles
+        "drive-emu: stopped. {} frames answered, {} refused, {} socket errors, {} cycles ({} late); \
+         faults: {} frames lost, {} held, {} with bad working counters",
+        stats.frames,
+        stats.refused,
+        stats.socket_errors,
+        stats.cycles,
+        stats.late_cycles,
+        fs.lost + fs.hold_full,
+        fs.held,
+        fs.bad_wkc
     );
+    if let (Some(o), Some(s)) = (&outcome, &scenario) {
+        if !args.json {
+            print_outcome(o);
+            println!(
+                "{} (live on EtherCAT {iface}): {}",
+                s.name,
+                if o.passed() { "passed" } else { "FAILED" }
+            );
+        }
+    }
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({"frames": stats.frames, "refused": stats.refused,
-                "socket_errors": stats.socket_errors, "cycles": stats.cycles,
-                "late_cycles": stats.late_cycles,
-                "sync0_locked_cycles": stats.sync0_locked_cycles,
-                "sync0_phase_p50_us": stats.sync0_phase_p50_us,
-                "sync0_phase_p99_us": stats.sync0_phase_p99_us,
-                "sync0_phase_max_us": stats.sync0_phase_max_us,
-                "detect": detector.iter().map(|(node_id, rep)|
-                    serde_json::json!({ "node_id": node_id, "report": rep }))
-                    .collect::<Vec<_>>()})
-        );
+        let mut v = serde_json::json!({"frames": stats.frames, "refused": stats.refused,
+            "socket_errors": stats.socket_errors, "cycles": stats.cycles,
+            "late_cycles": stats.late_cycles, "faults": fs,
+            "sync0_locked_cycles": stats.sync0_locked_cycles,
+            "sync0_phase_p50_us": stats.sync0_phase_p50_us,
+            "sync0_phase_p99_us": stats.sync0_phase_p99_us,
+            "sync0_phase_max_us": stats.sync0_phase_max_us,
+            "detect": detector.iter().map(|(node_id, rep)|
+                serde_json::json!({ "node_id": node_id, "report": rep }))
+                .collect::<Vec<_>>()});
+        if let (Some(o), Some(s)) = (outcome, &scenario) {
+            let run = LiveRun {
+                stats: Default::default(),
+                detector: Vec::new(),
+                lockstep_period_us: None,
+                free_run_ticks: 0,
+                scenario: Some(o),
+            };
+            v["scenario"] = outcome_json(&run, s)["scenario"].take();
+            println!("{v}");
+            let o = run.scenario.as_ref().expect("just set");
+            return scenario_status(o);
+        }
+        println!("{v}");
+    } else if let Some(o) = &outcome {
+        return scenario_status(o);
+    }
+    Ok(())
+}
+
+/// The exit status of a live scenario: it did not finish, or an expectation failed.
+fn scenario_status(o: &LiveOutcome) -> Result<()> {
+    if let Some(why) = o.unfinished() {
+        bail!("{why}");
+    }
+    if !o.passed() {
+        bail!("scenario expectations failed");
     }
     Ok(())
 }

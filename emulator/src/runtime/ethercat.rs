@@ -26,7 +26,7 @@ use hdrhistogram::Histogram;
 use super::pll::{LockState, SyncPll};
 use super::stats::StatsValues;
 use super::{SimulatedDrive, SYNC_LEAD_US};
-use crate::bus::ethercat::PacketSocket;
+use crate::bus::ethercat::{Answer, EcatFaults, PacketSocket};
 use crate::time::{Clock, MonotonicClock};
 
 /// Largest frame taken (a standard Ethernet frame without FCS, and some room).
@@ -237,14 +237,17 @@ fn publish<D: SimulatedDrive>(seg: &mut Segment, drives: &[D], values: &StatsVal
 
 /// Serve `seg` with `drives` on `sock` until `stop`, one drive cycle per `period_us` (or,
 /// with `lockstep`, one per process-data frame); `after_cycle(seg, drives, t_us)` after each
-/// drive cycle of simulated time `t_us` (the trace, the detector: real-time safe).
+/// drive cycle of simulated time `t_us` (the trace, the detector, a scenario's injections:
+/// real-time safe). `faults` (lost frames, a late cycle, the link down, bad working counters)
+/// act on the frames on the frames' clock; `after_cycle` may start and end them.
 pub fn serve<D: SimulatedDrive>(
     sock: &mut PacketSocket,
     seg: &mut Segment,
     drives: &mut [D],
     (period_us, lockstep): (u64, bool),
     stop: &AtomicBool,
-    mut after_cycle: impl FnMut(&mut Segment, &mut [D], u64),
+    faults: &mut EcatFaults,
+    mut after_cycle: impl FnMut(&mut Segment, &mut [D], &mut EcatFaults, u64),
 ) -> EthercatStats {
     let mut clock = MonotonicClock::new();
     let mut stats = EthercatStats::default();
@@ -256,19 +259,25 @@ pub fn serve<D: SimulatedDrive>(
         loop {
             match sock.recv(&mut buf) {
                 Ok(Some(n)) if n <= buf.len() => {
-                    let now_ns = clock.now_us().saturating_mul(1000);
+                    let now_us = clock.now_us();
+                    let now_ns = now_us.saturating_mul(1000);
                     let frame = &mut buf[..n];
+                    if !faults.admit(frame, now_us) {
+                        continue;
+                    }
                     let pd_before = seg.process_data_frames;
                     if seg.process(frame, now_ns, drives).is_ok() {
-                        match sock.send(frame) {
-                            Ok(()) => stats.frames += 1,
-                            Err(_) => stats.socket_errors += 1,
+                        if faults.answer(frame, now_us) == Answer::Send {
+                            match sock.send(frame) {
+                                Ok(()) => stats.frames += 1,
+                                Err(_) => stats.socket_errors += 1,
+                            }
                         }
                         if lockstep && seg.process_data_frames != pd_before {
                             // the master's cycle: the drives' one period, after the answer
                             let t = sim_us;
                             step(seg, drives, &mut sim_us, now_ns / 1000, period_us);
-                            after_cycle(seg, drives, t);
+                            after_cycle(seg, drives, faults, t);
                             stats.cycles += 1;
                             if stats.cycles.is_multiple_of(PUBLISH_EVERY) {
                                 let mut v = lock.stats_values();
@@ -289,15 +298,21 @@ pub fn serve<D: SimulatedDrive>(
             }
         }
         let now_us = clock.now_us();
+        // frames a late-cycle fault held, now due
+        faults.due(now_us, |f| match sock.send(f) {
+            Ok(()) => stats.frames += 1,
+            Err(_) => stats.socket_errors += 1,
+        });
+        let held_due = faults.next_due_us().unwrap_or(u64::MAX);
         if lockstep {
-            clock.wait_until_or_readable(now_us + 100_000, Some(sock.fd()));
+            clock.wait_until_or_readable((now_us + 100_000).min(held_due), Some(sock.fd()));
             continue;
         }
         lock.pulses(now_us, |t| next_pulse(seg, t));
         if now_us >= lock.deadline_us() {
             let t = sim_us;
             step(seg, drives, &mut sim_us, now_us, period_us);
-            after_cycle(seg, drives, t);
+            after_cycle(seg, drives, faults, t);
             stats.cycles += 1;
             if lock.state() == LockState::Locked {
                 stats.sync0_locked_cycles += 1;
@@ -308,7 +323,7 @@ pub fn serve<D: SimulatedDrive>(
             }
             continue;
         }
-        clock.wait_until_or_readable(lock.deadline_us(), Some(sock.fd()));
+        clock.wait_until_or_readable(lock.deadline_us().min(held_due), Some(sock.fd()));
     }
     if !lockstep {
         publish(seg, drives, &lock.stats_values());

@@ -236,6 +236,18 @@ pub enum CanKind {
     Restore,
 }
 
+/// `ethercat = "..."`: an EtherCAT fault (`run --ethercat` only).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EcatKind {
+    Lost,
+    Late,
+    LinkDown,
+    BadWkc,
+    OutOfOp,
+    Restore,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ProfileShape {
@@ -245,7 +257,7 @@ pub enum ProfileShape {
 }
 
 /// One `[[event]]`: a trigger (`at`, or `on_state` / `on_emcy` with an optional `after`) and
-/// one action (`set`, `ramp`, `profile`, `sensor` or `can`).
+/// one action (`set`, `ramp`, `profile`, `sensor`, `can` or `ethercat`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawEvent {
@@ -271,6 +283,13 @@ pub struct RawEvent {
     pub share: Option<Spanned<Share>>,
     pub ticks: Option<Spanned<u32>>,
     pub cob_id: Option<Spanned<CobId>>,
+    pub ethercat: Option<Spanned<EcatKind>>,
+    /// `ethercat = "lost"`: this many frames.
+    pub frames: Option<Spanned<u32>>,
+    /// `ethercat = "late"`: how long each frame is held.
+    pub hold: Option<Spanned<Time>>,
+    /// `ethercat = "out_of_op"`: the AL status code (ETG.1000.6).
+    pub al_code: Option<Spanned<EmcyCode>>,
 }
 
 pub use crate::analysis::detector::Verdict;

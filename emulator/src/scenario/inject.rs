@@ -31,6 +31,12 @@ pub enum Injection {
         until_us: Option<u64>,
     },
     CanRestore,
+    /// An EtherCAT fault for `over_us` from when the loop applies it (on the frames' clock).
+    Ecat {
+        fault: crate::bus::ethercat::EcatFault,
+        over_us: Option<u64>,
+    },
+    EcatRestore,
     /// The injections of event `event` (index in the timeline) are in: the loop answers with
     /// the simulated time it applied them, so the reported event time is the bus's.
     Mark {
@@ -54,6 +60,8 @@ impl Injection {
                 until_us: over_us.map(|o| now_us + o),
             }),
             Action::CanRestore => Some(Self::CanRestore),
+            Action::Ethercat { fault, over_us } => Some(Self::Ecat { fault, over_us }),
+            Action::EthercatRestore => Some(Self::EcatRestore),
         }
     }
 }
@@ -101,7 +109,39 @@ impl<const N: usize> Injector<N> {
                 bus.clear_rules();
                 self.rules.clear();
             }
-            Injection::Mark { .. } => {}
+            // EtherCAT faults belong to `run --ethercat` (a scenario with them is refused on
+            // CAN before it starts)
+            Injection::Mark { .. } | Injection::Ecat { .. } | Injection::EcatRestore => {}
+        }
+        Ok(())
+    }
+
+    /// Apply one injection on EtherCAT: parameters and sensors to the first slave's `drive`,
+    /// wire faults to `faults` (from now on the frames' clock), a drop out of OP to
+    /// `slave`. CAN faults do nothing here (a scenario with them is refused on EtherCAT).
+    pub fn apply_ethercat(
+        &mut self,
+        inj: Injection,
+        drive: &mut AxisDrive,
+        slave: &mut drive_ethercat::slave::Slave,
+        faults: &mut crate::bus::ethercat::EcatFaults,
+    ) -> Result<(), ParamError> {
+        use crate::bus::ethercat::EcatFault;
+        match inj {
+            Injection::Param { param, value_si } => drive.set_param(param, value_si)?,
+            Injection::Sensor { kind, counts } => sensor(drive, kind, counts),
+            Injection::Ecat {
+                fault: EcatFault::OutOfOp { al_code },
+                ..
+            } => {
+                slave.drop_out_of_op(al_code);
+            }
+            Injection::Ecat { fault, over_us } => {
+                let now_us = faults.clock_us();
+                faults.start(fault, over_us, now_us)
+            }
+            Injection::EcatRestore => faults.clear(),
+            Injection::Can { .. } | Injection::CanRestore | Injection::Mark { .. } => {}
         }
         Ok(())
     }

@@ -136,10 +136,60 @@ impl LoopInjector {
         self.injector.expire(now, &mut rt.bus);
     }
 
+    /// After every drive cycle of `run --ethercat` at simulated time `now_us`: apply the queued injections to the first slave, its drive and the port's
+    /// faults, and publish its actual values and the EMCYs its node raised (drained here).
+    pub fn on_ethercat_cycle(
+        &mut self,
+        link: &LiveLink,
+        now_us: u64,
+        slave: &mut drive_ethercat::slave::Slave,
+        drive: &mut AxisDrive,
+        faults: &mut crate::bus::ethercat::EcatFaults,
+    ) {
+        link.now_us.store(now_us, Ordering::Relaxed);
+        while let Some(inj) = link.injections.pop() {
+            if let Injection::Mark { event } = inj {
+                let _ = link.applied.push((event, now_us));
+            }
+            let _ = self.injector.apply_ethercat(inj, drive, slave, faults);
+        }
+        let sample = node_sample(slave.node(), now_us);
+        if link.samples.push(sample).is_err() {
+            link.samples_lost.fetch_add(1, Ordering::Relaxed);
+        }
+        while let Some(e) = slave.node_mut().poll_event() {
+            if let NodeEvent::EmcyRaised { code } = e {
+                let _ = link.emcys.push((now_us, code));
+            }
+        }
+    }
+
     /// The node ID whose heartbeat a heartbeat-loss fault drops from now on.
     pub fn set_master_id(&mut self, master_id: u8) {
         self.injector.set_master_id(master_id);
     }
+}
+
+/// Refuse a scenario whose bus faults are not of the bus `on` ("can", "ethercat"; the
+/// offline runner's simulated bus is CAN): the file, the event's line and why.
+pub fn check_bus(s: &Scenario, on: &str) -> anyhow::Result<()> {
+    for e in &s.events {
+        if let Some(bus) = e.action.bus().filter(|b| *b != on) {
+            anyhow::bail!(
+                "{}: line {}: `{bus}` fault ({}) on {}: {}",
+                s.name,
+                e.line,
+                e.describe(),
+                if on == "can" { "a CAN bus" } else { "EtherCAT" },
+                if bus == "ethercat" {
+                    "EtherCAT faults need `drive-emu run --ethercat IFACE --scenario FILE`"
+                } else {
+                    "CAN faults need a CAN bus (`drive-emu run --scenario` or `drive-emu scenario`)"
+                }
+            );
+        }
+    }
+    Ok(())
 }
 
 /// What a live scenario run found.
@@ -257,7 +307,9 @@ fn settle_us(s: &Scenario) -> (u64, u64) {
 fn event_length_us(a: &Action) -> u64 {
     match a {
         Action::Ramp { over_us, .. } => *over_us,
-        Action::Profile { over_us, .. } | Action::Can { over_us, .. } => over_us.unwrap_or(0),
+        Action::Profile { over_us, .. }
+        | Action::Can { over_us, .. }
+        | Action::Ethercat { over_us, .. } => over_us.unwrap_or(0),
         _ => 0,
     }
 }
@@ -332,7 +384,11 @@ impl LiveTimeline {
                         .map_or(0.0, |(_, v)| *v);
                     self.drivers.start(&ev.action, now, from);
                 }
-                Action::Sensor { .. } | Action::Can { .. } | Action::CanRestore => {}
+                Action::Sensor { .. }
+                | Action::Can { .. }
+                | Action::CanRestore
+                | Action::Ethercat { .. }
+                | Action::EthercatRestore => {}
             }
             if let Some(inj) = Injection::of_action(&ev.action, now) {
                 inject(inj);

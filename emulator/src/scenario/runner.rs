@@ -313,7 +313,11 @@ impl TimelineState {
                     let cur = drive.param(key.param) / key.scale;
                     self.drivers.start(&ev.action, now, cur);
                 }
-                Action::Sensor { .. } | Action::Can { .. } | Action::CanRestore => {
+                Action::Sensor { .. }
+                | Action::Can { .. }
+                | Action::CanRestore
+                | Action::Ethercat { .. }
+                | Action::EthercatRestore => {
                     let inj = Injection::of_action(&ev.action, now).expect("injects");
                     // Only a `Param` injection can be refused.
                     let _ = self.injector.apply(inj, drive, bus);
@@ -564,6 +568,8 @@ fn conclude(
 
 /// Run every preset of a scenario.
 pub fn run(s: &Scenario, opts: &RunOptions) -> anyhow::Result<Outcome> {
+    // the simulated bus here is CAN
+    super::live::check_bus(s, "can")?;
     let wall = Instant::now();
     let mut runs = Vec::new();
     for cfg in &s.machine.configs {

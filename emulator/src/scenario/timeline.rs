@@ -70,6 +70,24 @@ pub enum Action {
     },
     /// Remove every CAN fault.
     CanRestore,
+    /// EtherCAT fault for `over_us` (or until a restore); `run --ethercat` only.
+    Ethercat {
+        fault: crate::bus::ethercat::EcatFault,
+        over_us: Option<u64>,
+    },
+    /// Remove every EtherCAT wire fault.
+    EthercatRestore,
+}
+
+impl Action {
+    /// A CAN fault (the CAN bus's), or an EtherCAT one (the EtherCAT port's).
+    pub fn bus(&self) -> Option<&'static str> {
+        match self {
+            Action::Can { .. } | Action::CanRestore => Some("can"),
+            Action::Ethercat { .. } | Action::EthercatRestore => Some("ethercat"),
+            _ => None,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -117,6 +135,15 @@ impl Event {
                 ))
             ),
             Action::CanRestore => "CAN: faults removed".into(),
+            Action::Ethercat { fault, over_us } => format!(
+                "{}{}",
+                fault.describe(),
+                over_us.map_or(String::new(), |o| format!(
+                    " for {}",
+                    super::expect::seconds_text(o)
+                ))
+            ),
+            Action::EthercatRestore => "EtherCAT: faults removed".into(),
         }
     }
 }

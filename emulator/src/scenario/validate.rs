@@ -548,7 +548,10 @@ fn event_action_keys(e: &RawEvent) -> Vec<(&'static str, Range<usize>)> {
         counts,
         share,
         ticks,
-        cob_id
+        cob_id,
+        frames,
+        hold,
+        al_code
     );
     present
 }
@@ -564,6 +567,7 @@ fn event_action(ctx: &Ctx, e: &RawEvent, span: &Range<usize>) -> R<Action> {
             ("profile", span_of(&e.profile)),
             ("sensor", span_of(&e.sensor)),
             ("can", span_of(&e.can)),
+            ("ethercat", span_of(&e.ethercat)),
         ],
         "an event",
     )?;
@@ -596,8 +600,111 @@ fn event_action(ctx: &Ctx, e: &RawEvent, span: &Range<usize>) -> R<Action> {
         }
         2 => profile_action(ctx, e, span, &present),
         3 => sensor_action(ctx, e, span, &present),
-        _ => can_action(ctx, e, span, &present),
+        4 => can_action(ctx, e, span, &present),
+        _ => ethercat_action(ctx, e, span, &present),
     }
+}
+
+/// `ethercat`: lost frames (`frames`, or `share` with `over`), a late cycle (`hold`), the
+/// link down, bad working counters (`share`), a slave out of OP (`al_code`), or restore.
+fn ethercat_action(
+    ctx: &Ctx,
+    e: &RawEvent,
+    span: &Range<usize>,
+    present: &[(&'static str, Range<usize>)],
+) -> R<Action> {
+    use crate::bus::ethercat::{EcatFault, MAX_HOLD_US};
+    let kind = *e.ethercat.as_ref().unwrap().get_ref();
+    let over_us = e.over.as_ref().map(|o| o.get_ref().us());
+    let share = e.share.as_ref().map(|s| s.get_ref().0);
+    let fault = match kind {
+        EcatKind::Lost => {
+            ctx.only(
+                present,
+                &["frames", "share", "over"],
+                "lost EtherCAT frames",
+            )?;
+            match (&e.frames, share) {
+                (Some(f), None) => {
+                    if let Some(o) = &e.over {
+                        return Err(ctx.err(
+                            o.span(),
+                            Some("over"),
+                            "`frames` counts the frames lost; `over` goes with `share`",
+                        ));
+                    }
+                    if *f.get_ref() == 0 {
+                        return Err(ctx.err(
+                            f.span(),
+                            Some("frames"),
+                            "0 frames: give at least 1 (or `share` with `over`)",
+                        ));
+                    }
+                    EcatFault::Lost {
+                        frames: *f.get_ref(),
+                        share: 0.0,
+                    }
+                }
+                (None, Some(share)) => EcatFault::Lost { frames: 0, share },
+                _ => {
+                    return Err(ctx.err(
+                        e.ethercat.as_ref().unwrap().span(),
+                        Some("ethercat"),
+                        "lost EtherCAT frames take either `frames` (the next N frames) or `share` (0..1 of the frames, with `over`), not both nor neither",
+                    ))
+                }
+            }
+        }
+        EcatKind::Late => {
+            ctx.only(present, &["hold", "over"], "a late EtherCAT cycle")?;
+            need(ctx, span, span_of(&e.hold), "hold", "a late EtherCAT cycle")?;
+            let hold = e.hold.as_ref().unwrap();
+            let hold_us = hold.get_ref().us();
+            if hold_us == 0 || hold_us > MAX_HOLD_US {
+                return Err(ctx.err(
+                    hold.span(),
+                    Some("hold"),
+                    format!(
+                        "{} us: a late cycle holds a frame for more than 0 and at most {} s (a frame later than that is lost to every master: use `ethercat = \"lost\"`)",
+                        hold_us,
+                        MAX_HOLD_US / 1_000_000
+                    ),
+                ));
+            }
+            EcatFault::Late { hold_us }
+        }
+        EcatKind::LinkDown => {
+            ctx.only(present, &["over"], "an EtherCAT link down")?;
+            EcatFault::LinkDown
+        }
+        EcatKind::BadWkc => {
+            ctx.only(present, &["share", "over"], "bad EtherCAT working counters")?;
+            EcatFault::BadWkc {
+                share: share.unwrap_or(1.0),
+            }
+        }
+        EcatKind::OutOfOp => {
+            ctx.only(present, &["al_code"], "a slave out of OP")?;
+            let al_code = match &e.al_code {
+                Some(c) if c.get_ref().0 == 0 => {
+                    return Err(ctx.err(
+                        c.span(),
+                        Some("al_code"),
+                        "AL status code 0 means no error: give the code the slave reports (ETG.1000.6, e.g. \"0x001A\" synchronization error)",
+                    ))
+                }
+                Some(c) => c.get_ref().0,
+                // ETG.1000.6: unspecified error
+                None => 0x0001,
+            };
+            EcatFault::OutOfOp { al_code }
+        }
+        EcatKind::Restore => {
+            ctx.only(present, &[], "an EtherCAT restore")?;
+            return Ok(Action::EthercatRestore);
+        }
+    };
+    Ok(Action::Ethercat { fault, over_us })
 }
 
 /// `profile`: a periodic parameter (shape, mean, amplitude, frequency, optional duration).
