@@ -298,3 +298,48 @@ fn a_value_just_outside_a_live_parameters_range_is_refused_at_every_entry() {
     );
     assert!(checked > 100, "{checked} values checked");
 }
+
+/// Issue 32: a live preset parameter at either end of its range gives a short `sim` run (what
+/// `sim --set` and Python's `sim` run) that ends with finite samples: no accepted value gives
+/// NaN or a run without end. A linear axis and a rotary twin-pinion table.
+#[test]
+fn a_live_parameter_at_either_end_of_its_range_gives_a_finite_short_sim() {
+    use clap::Parser;
+    use drive_emu::cli::sim::{simulate, SimArgs};
+    use drive_emu::scenario::inject::param_bounds;
+    use drive_emu::scenario::units::param_key;
+    #[derive(Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        sim: SimArgs,
+    }
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let mut runs = 0;
+    for name in ["cnc1", "cnc3"] {
+        let cfg = AxisConfig::from_preset(name).unwrap();
+        let rotary = cfg.kind == AxisKind::Rotary;
+        for p in PARAMS.iter().filter(|p| p.live.is_some() && p.preset) {
+            let form = p.form(rotary);
+            let mut drive = AxisDrive::from_config(&cfg).unwrap();
+            let (lo, hi) = param_bounds(&mut drive, param_key(form.key).unwrap()).unwrap();
+            for v in [lo, hi].into_iter().filter(|v| v.abs() < 1e30) {
+                let set = format!("{}={}", form.key, set_text(form.key, v));
+                let args =
+                    Wrap::parse_from(["sim", "--velocity", "5", "--preset", name, "--set", &set])
+                        .sim;
+                let args = SimArgs {
+                    duration: 0.3,
+                    ..args
+                };
+                let r = simulate(&args, false, &stop)
+                    .unwrap_or_else(|e| panic!("{name}: sim --set {set}: {e:#}"));
+                assert!(
+                    r.trace.motor_velocity_rpm.iter().all(|x| x.is_finite()),
+                    "{name}: sim --set {set}: a non-finite sample"
+                );
+                runs += 1;
+            }
+        }
+    }
+    assert!(runs >= 30, "{runs} runs");
+}
