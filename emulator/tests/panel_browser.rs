@@ -7,7 +7,9 @@
 //! - a backlash set on the page (its control, typed and clicked) reads back over SDO from
 //!   0x2000, and the page's detector then reports the limit cycle it causes;
 //! - messages that arrive while the page is busy are drawn together, not one by one;
-//! - each plot is as wide as its column of the page's grid, each y axis as its longest label.
+//! - each plot is as wide as its column of the page's grid, each y axis as its longest label;
+//! - a page opened with `?token=T` drops the token from the address bar and the history at
+//!   once, and still works (its stream and its API calls carry the token).
 //!
 //! With `DRIVE_EMU_PANEL_SCREENSHOT=PATH` the page's screenshot at the end is written there
 //! (docs/img/panel.png was made so). A missing chromium or chromedriver fails the test with
@@ -247,5 +249,45 @@ fn a_headless_screenshot_of_the_snapshot_page_returns() {
         bytes.len()
     );
     let _ = std::fs::remove_dir_all(&dir);
+    rig.stop();
+}
+
+/// Issue 32, finding 3: the page opened as `/?token=T` (the address `drive-emu` prints) takes
+/// the token, then drops it from the address bar and the history (`history.replaceState`),
+/// keeping the other query parameters and the fragment; the page still works: its stream
+/// shows the drive, and an API call with the token it kept is answered where one without
+/// the token is refused.
+#[test]
+fn the_page_drops_its_token_from_the_address_bar_and_still_works() {
+    const TOKEN: &str = "T0ken-in-the-URL";
+    let rig = Rig::start(RigOptions {
+        token: Some(TOKEN.into()),
+        ..Default::default()
+    });
+    let d = Driver::start();
+    d.go(&format!("{}/?span=10&token={TOKEN}#axis-0", rig.base));
+    // The stream needs the token: the state reaches the page only if the page kept it.
+    let st = d.wait_js(
+        Duration::from_secs(60),
+        "const s = panel.state(0); return s && s !== '-' ? s : null",
+    );
+    assert!(st.is_string(), "the page shows no state: {st}");
+    let href = d.js("return location.href", json!([]));
+    let href = href.as_str().expect("location.href");
+    assert!(!href.contains(TOKEN) && !href.contains("token"), "{href}");
+    assert_eq!(href, format!("{}/?span=10#axis-0", rig.base));
+    // An API call the page makes with its kept token is answered; without it, refused.
+    d.js(
+        "window.__st = {}; \
+         fetch(withToken('/api/info')).then((r) => { window.__st.with = r.status; }); \
+         fetch('/api/info').then((r) => { window.__st.without = r.status; }); return 1",
+        json!([]),
+    );
+    let st = d.wait_js(
+        Duration::from_secs(60),
+        "return window.__st.with && window.__st.without ? window.__st : null",
+    );
+    assert_eq!(st, json!({"with": 200, "without": 401}), "{st}");
+    drop(d);
     rig.stop();
 }

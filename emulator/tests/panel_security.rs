@@ -185,6 +185,12 @@ fn a_cross_site_write_or_stream_is_refused() {
         let (st, _, body) = post(&rig, "/api/inject", &inj, &[&h]);
         assert_eq!(st, 403, "{site}: {body}");
         assert!(body.contains("Sec-Fetch-Site"), "{body}");
+        // Issue 32, finding 8: the reason reads as one sentence (it had 18 stray spaces).
+        let why: Value = serde_json::from_str(&body).unwrap();
+        assert_eq!(
+            why["error"], "a request from a page of another site is refused (Sec-Fetch-Site)",
+            "{body}"
+        );
         let (st, _, _) = post(&rig, "/api/record", &json!({"action": "start"}), &[&h]);
         assert_eq!(st, 403, "{site}");
         let (st, _, _) = get(&rig, "/api/stream", &[&h]);
@@ -203,9 +209,17 @@ fn a_cross_site_write_or_stream_is_refused() {
     assert_eq!(st, 403);
     let v: Value = serde_json::from_str(&body).unwrap();
     let why = v["error"].as_str().unwrap();
-    assert!(
-        !why.contains("  ") && why.contains("localhost only"),
-        "{why:?}"
+    assert_eq!(
+        why,
+        "without a token the panel answers requests to 127.0.0.1, [::1] or localhost only"
+    );
+    // Another origin's page: refused, the reason one clean sentence.
+    let (st, _, body) = post(&rig, "/api/inject", &inj, &["Origin: http://evil.example"]);
+    assert_eq!(st, 403, "{body}");
+    let v: Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(
+        v["error"], "a request from a page of another origin is refused",
+        "{body}"
     );
     rig.stop();
 }
@@ -391,4 +405,122 @@ fn a_stream_outlives_the_header_and_idle_timeout() {
     assert!(late > 0, "nothing arrived after the header timeout");
     drop(s);
     rig.stop();
+}
+
+/// A child process, killed and reaped when dropped.
+struct Running(std::process::Child);
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// A `drive-emu run --socketcand 127.0.0.1:0 --panel 127.0.0.1:0` started with `args` and
+/// `env`, up to its panel line on stderr: the child and the panel's address.
+fn start_run_with_panel(args: &[&str], env: &[(&str, &str)]) -> (Running, String) {
+    use std::io::BufRead;
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_drive-emu"));
+    c.args([
+        "run",
+        "--socketcand",
+        "127.0.0.1:0",
+        "--rt-priority",
+        "0",
+        "--no-mlock",
+    ])
+    .args(["--panel", "127.0.0.1:0"])
+    .args(args)
+    .env_remove("DRIVE_EMU_PANEL_TOKEN")
+    .stdin(std::process::Stdio::null())
+    .stdout(std::process::Stdio::null())
+    .stderr(std::process::Stdio::piped());
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    let mut child = Running(c.spawn().expect("start drive-emu"));
+    let mut err = std::io::BufReader::new(child.0.stderr.take().unwrap());
+    let mut seen = String::new();
+    loop {
+        let mut line = String::new();
+        if err.read_line(&mut line).unwrap_or(0) == 0 {
+            drop(child);
+            panic!("{args:?}: no panel line on stderr:\n{seen}");
+        }
+        seen.push_str(&line);
+        if let Some(rest) = line.trim().strip_prefix("drive-emu: panel on http://") {
+            let addr = rest.split(['/', ' ']).next().unwrap().to_string();
+            // Keep draining stderr so the drive never blocks on a full pipe.
+            std::thread::spawn(move || std::io::copy(&mut err, &mut std::io::sink()));
+            return (child, addr);
+        }
+    }
+}
+
+/// `GET path` on `addr` with `headers`: the status.
+fn status_at(addr: &str, path: &str, headers: &[&str]) -> u16 {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    let mut req = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
+    for h in headers {
+        req.push_str(h);
+        req.push_str("\r\n");
+    }
+    req.push_str("\r\n");
+    s.write_all(req.as_bytes()).unwrap();
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    let text = String::from_utf8_lossy(&out);
+    text.split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0)
+}
+
+/// Issue 32, finding 3: what every user of the machine sees of a running drive (`ps`, that
+/// is /proc/PID/cmdline) holds no token when the token comes from the environment or a
+/// file, while the drive does take that token; on the command line it is there to see (and
+/// `run` warns of it: the test above).
+#[test]
+fn ps_shows_no_token_from_the_environment_or_a_file() {
+    const SECRET: &str = "s3cret-not-in-ps";
+    let dir = std::env::temp_dir().join(format!("panel-sec-ps-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("token");
+    std::fs::write(&file, format!("{SECRET}\n")).unwrap();
+    let file_args = ["--panel-token-file", file.to_str().unwrap()];
+    let cli_args = ["--panel-token", SECRET];
+    // (how, arguments, environment, whether ps shows the token)
+    type Case<'a> = (&'a str, &'a [&'a str], &'a [(&'a str, &'a str)], bool);
+    let cases: [Case; 3] = [
+        (
+            "environment",
+            &[],
+            &[("DRIVE_EMU_PANEL_TOKEN", SECRET)],
+            false,
+        ),
+        ("file", &file_args, &[], false),
+        ("command line", &cli_args, &[], true),
+    ];
+    for (how, args, env, shown) in cases {
+        let (child, addr) = start_run_with_panel(args, env);
+        let cmdline = std::fs::read(format!("/proc/{}/cmdline", child.0.id())).unwrap();
+        let cmdline = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+        // The token is the panel's: refused without it, taken with it.
+        let without = status_at(&addr, "/api/info", &[]);
+        let with = status_at(
+            &addr,
+            "/api/info",
+            &[&format!("Authorization: Bearer {SECRET}")],
+        );
+        drop(child);
+        assert_eq!((without, with), (401, 200), "{how}");
+        assert_eq!(
+            cmdline.contains(SECRET),
+            shown,
+            "{how}: ps shows `{cmdline}`"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -31,6 +31,7 @@ mod frame;
 mod node;
 pub mod od;
 pub mod quirks;
+pub mod quote;
 pub mod wire;
 
 pub use cia301::emcy_code::{self, EmcyMeaning};

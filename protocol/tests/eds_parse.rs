@@ -1044,3 +1044,76 @@ fn our_exported_eds_parses_back_to_the_dictionary_in_both_real32_notations() {
         assert!(f.warnings.is_empty(), "{real32:?}: {:?}", f.warnings);
     }
 }
+
+/// A character that must not reach a terminal as is (checked here independently of the
+/// renderer): a control character or a bidirectional control.
+fn raw_control(c: char) -> bool {
+    c.is_control()
+        || matches!(c, '\u{200E}' | '\u{200F}' | '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}')
+}
+
+/// Bad content in a key of object 0x2000 (line 3 of its section), for the quoting tests.
+fn eds_with_bad_data_type(value: &str) -> (String, usize) {
+    let text = eds(
+        &[0x2000],
+        &format!("[2000]\nParameterName=p\nDataType={value}\nAccessType=rw\n"),
+    );
+    // The last DataType= of the file is the one of [2000].
+    let line = text
+        .split('\n')
+        .enumerate()
+        .filter(|(_, l)| l.starts_with("DataType="))
+        .map(|(i, _)| i + 1)
+        .last()
+        .expect("a DataType line");
+    (text, line)
+}
+
+/// Issue 32, finding 8: the file's text in an error (a section, a key, a value the reason
+/// quotes) is rendered by `drive_protocol::quote`: an escape sequence, a lone carriage return
+/// or a 10 kB value give one line with the line number and the key, control characters
+/// escaped, the length capped.
+#[test]
+fn file_content_in_an_error_is_escaped_and_capped_on_one_line() {
+    let cases = [
+        (
+            "an escape sequence",
+            "0x0007\u{1b}[2J\u{1b}[31m".to_string(),
+        ),
+        (
+            "a lone carriage return",
+            "0x0007\rAccessType=ro".to_string(),
+        ),
+        ("a 10 kB value", "7".repeat(10_000)),
+        ("a bidi override", "\u{202e}7000x0".to_string()),
+    ];
+    for (what, value) in cases {
+        let (text, line) = eds_with_bad_data_type(&value);
+        let e = fails(&text);
+        assert_eq!(e.line, line, "{what}: {e}");
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(&format!("line {line}, [2000] DataType: ")),
+            "{what}: {msg:?}"
+        );
+        assert!(
+            !msg.chars().any(raw_control),
+            "{what}: a raw control character in {msg:?}"
+        );
+        assert!(
+            msg.chars().count() < 600,
+            "{what}: {} characters",
+            msg.len()
+        );
+    }
+    // The escape is shown, not dropped: what was in the file can still be read.
+    let (text, _) = eds_with_bad_data_type("0x0007\u{1b}[2J");
+    assert!(fails(&text).to_string().contains("\\u{1b}[2J"));
+    // A section header's text and a warning's key are rendered the same way.
+    let e = fails(&eds(&[], "[20\u{1b}[2J00\n"));
+    assert!(!e.to_string().chars().any(raw_control), "{e}");
+    let f = ok(&eds(&[], "[FileInfo]\nX\u{1b}Y=1\nX\u{1b}Y=2\n"));
+    for w in &f.warnings {
+        assert!(!w.to_string().chars().any(raw_control), "{w}");
+    }
+}

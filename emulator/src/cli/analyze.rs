@@ -19,9 +19,7 @@ use crate::analysis::detector::{
     analyze, AxisTrace, DetectorConfig, DetectorReport, Inconclusive, Verdict,
 };
 use crate::analysis::windows::{set_velocity_from_demand, DEMAND_SPAN_S};
-use crate::samples::csv::{
-    read_csv_stream, read_trace_text, read_trace_text_from, Columns, Streamed, TraceLines,
-};
+use crate::samples::csv::{read_csv_stream, Columns, Streamed, TraceLines};
 use crate::samples::{Sample, SampleSource};
 use anyhow::Context;
 use std::path::{Path, PathBuf};
@@ -489,7 +487,7 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
     let mut capture = None;
     let mut kv_written = None;
     let rotary_units = args.rotary;
-    // A CSV is read line by line; a candump log (found by its first line) whole.
+    // A CSV is read line by line, and so is a candump log (found by its first line).
     let csv = match input {
         AnalyzeInput::File => trace_from_csv_lines(path, TraceLines::open(path)?, rotary_units)?,
         AnalyzeInput::Bytes(b) => {
@@ -506,13 +504,14 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
         notes.extend(n);
         Ok(t)
     } else {
-        let text = match input {
-            AnalyzeInput::Bytes(b) => read_trace_text_from(path, b)?,
-            _ => read_trace_text(path)?,
+        // Streamed as the CSV is: only the decoded samples are kept, never the log's text.
+        let mut lines = match input {
+            AnalyzeInput::Bytes(b) => TraceLines::from_reader(path, b)?,
+            _ => TraceLines::open(path)?,
         };
         let (defaults, preset_rotary) = candump::PdoConfig::drive_defaults(args.node, &preset)?;
-        let log = candump::decode(
-            &text,
+        let log = candump::decode_lines(
+            &mut lines,
             &path.display().to_string(),
             &candump::DecodeOptions {
                 node_id: args.node,
@@ -520,7 +519,7 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
                 sync_period_us: args.sync_period_us,
             },
         )?;
-        drop(text);
+        drop(lines);
         capture = Some(log.summary());
         kv_written = log.kv_written;
         match log.to_axis_trace_on(rotary_units || preset_rotary, args.time_base.base()) {

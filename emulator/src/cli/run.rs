@@ -899,6 +899,11 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     }
     crate::panel::check_args(&args.panel)?;
     let (machine, axes) = live_axes(args, scenario)?;
+    // The timeline's values within what axis 0's drive accepts (the live loop would drop a
+    // refused one silently).
+    if let Some((s, cfg)) = scenario.and_then(|s| Some((s, s.machine.configs.first()?))) {
+        crate::scenario::inject::check_ranges(s, cfg).map_err(super::exit::scenario_file)?;
+    }
     let seed = scenario.map_or(1, |s| s.run.seed);
     let transport = open_transport(args)?;
     let socketcand = transport.socketcand().map(SocketcandBus::local_addr);

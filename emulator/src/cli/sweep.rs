@@ -8,7 +8,7 @@ use anyhow::Context;
 use crate::presets::{preset_names, AxisConfig};
 use crate::study::{
     default_velocity, own_backlash, rows_csv, run_cases, Case, ValueSpec, CASE_DURATION_S,
-    DEFAULT_DURATION_S,
+    DEFAULT_DURATION_S, MAX_SWEEP_CASES,
 };
 
 /// Arguments of `drive-emu sweep`.
@@ -61,7 +61,21 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
             .map(|s| s.trim().to_string())
             .collect()
     };
-    let mut cases = Vec::new();
+    // Counted before any case is built: a grid of millions is refused, not allocated.
+    let total = names
+        .len()
+        .saturating_mul(kv.len())
+        .saturating_mul(bl.len());
+    if total > MAX_SWEEP_CASES {
+        return Err(crate::cli::exit::usage_msg(format!(
+            "{total} cases ({} presets x {} k_v x {} backlash): at most {MAX_SWEEP_CASES} in \
+             one sweep (its table is held in memory); split the grid into several sweeps",
+            names.len(),
+            kv.len(),
+            bl.len()
+        )));
+    }
+    let mut cases = Vec::with_capacity(total);
     for name in &names {
         let cfg = AxisConfig::from_preset(name).map_err(|e| anyhow::anyhow!("--preset: {e}"))?;
         for k in kv.resolve(cfg.kv_per_s) {
@@ -80,11 +94,6 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
             }
         }
     }
-    anyhow::ensure!(
-        cases.len() <= 100_000,
-        "{} cases: at most 100000",
-        cases.len()
-    );
     let t0 = std::time::Instant::now();
     let rows = run_cases(&cases, args.threads)
         .into_iter()

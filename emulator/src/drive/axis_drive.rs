@@ -219,6 +219,9 @@ impl AxisDrive {
     /// value outside what the axis can take (a worn or faulty machine's physical range, what
     /// the physics step integrates) is refused with the accepted range and changes nothing.
     pub fn set_param(&mut self, param: AxisParam, value: f64) -> Result<(), ParamError> {
+        use crate::presets::{
+            MAX_ENCODER_NOISE_COUNTS, MAX_KV_PER_S, MAX_OFFSET_GAPS, MAX_SPEED_KP, MIN_SPEED_TI_S,
+        };
         let rotary = self.info.rotary;
         // Ranges: what a worn or faulty machine can physically show, in SI at the load, and
         // what the physics step can integrate.
@@ -275,16 +278,27 @@ impl AxisDrive {
                     .set_motor_friction(f.with_coulomb(check(value, 0.0, max)?));
             }
             AxisParam::ExternalLoad => s.axis.set_external_load(check(value, -f_peak, f_peak)?),
-            AxisParam::Kv => s.set_kv(check(value, 0.0, 1000.0)?),
+            // The gains within what the discrete loops stay stable with (as the preset
+            // files check them: presets::AxisConfig::build).
+            AxisParam::Kv => {
+                let max = MAX_KV_PER_S.min(1.0 / s.cascade.params.position_cycle);
+                s.set_kv(check(value, 0.0, max)?)
+            }
             AxisParam::SpeedKp => {
                 let ti = s.cascade.params.speed_ti;
-                s.set_speed_gains(check(value, 0.0, 1e4)?, ti)
+                let jm = s.axis.motor.params.inertia;
+                let max = MAX_SPEED_KP.min(2.0 * jm / s.cascade.params.speed_cycle);
+                s.set_speed_gains(check(value, 0.0, max)?, ti)
             }
             AxisParam::SpeedTi => {
                 let kp = s.cascade.params.speed_kp;
-                s.set_speed_gains(kp, check(value, 1e-4, 10.0)?)
+                s.set_speed_gains(kp, check(value, MIN_SPEED_TI_S, 10.0)?)
             }
-            AxisParam::MotorEncoderNoise => s.axis.motor_encoder.set_noise(check(value, 0.0, 1e6)?),
+            AxisParam::MotorEncoderNoise => {
+                s.axis
+                    .motor_encoder
+                    .set_noise(check(value, 0.0, MAX_ENCODER_NOISE_COUNTS)?)
+            }
             AxisParam::DirectEncoderNoise => {
                 let cpu = s.axis.direct_encoder.params.counts_per_unit;
                 s.axis
@@ -292,9 +306,8 @@ impl AxisDrive {
                     .set_noise(check(value, 0.0, max_gap)? * cpu)
             }
             AxisParam::DirectEncoderOffset => {
-                s.axis
-                    .direct_encoder
-                    .set_offset(check(value, -max_gap * 100.0, max_gap * 100.0)?)
+                let max = max_gap * MAX_OFFSET_GAPS;
+                s.axis.direct_encoder.set_offset(check(value, -max, max)?)
             }
             AxisParam::PositionFromDirect => {
                 s.set_position_from_direct(check(value, 0.0, 1.0)? >= 0.5)

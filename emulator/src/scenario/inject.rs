@@ -208,3 +208,77 @@ fn rule(fault: CanFault, master_id: u8) -> FaultRule {
         CanFault::HeartbeatLoss => FaultRule::heartbeat_loss(master_id),
     }
 }
+
+/// Every value a scenario's events give the drive (a `set`, both ends of a `ramp`, a
+/// `profile`'s extremes) checked against what the drive of `cfg` accepts ([`param_bounds`]),
+/// before the run starts: a value it would refuse when the event fires (offline: the run
+/// stops there; live: the drive would keep its value) is an error at the event's line now.
+pub fn check_ranges(
+    s: &super::Scenario,
+    cfg: &crate::presets::AxisConfig,
+) -> Result<(), super::ScenarioError> {
+    use super::timeline::Action;
+    let mut drive = None;
+    for ev in &s.events {
+        let (key, values): (&ParamKey, heapless::Vec<f64, 2>) = match &ev.action {
+            Action::Set { key, value } => (key, heapless::Vec::from_slice(&[*value]).unwrap()),
+            Action::Ramp { key, from, to, .. } => {
+                let mut v = heapless::Vec::new();
+                let _ = v.push(*to);
+                if let Some(f) = from {
+                    let _ = v.push(*f);
+                }
+                (key, v)
+            }
+            Action::Profile {
+                key,
+                shape,
+                mean,
+                amplitude,
+                ..
+            } => {
+                // mean + amplitude * shape, shape within -1..1 (sine) or 0..1 (teeth).
+                let low = match shape {
+                    super::file::ProfileShape::Sine => -1.0,
+                    super::file::ProfileShape::Teeth => 0.0,
+                };
+                let (a, b) = (mean + amplitude * low, mean + amplitude);
+                (key, heapless::Vec::from_slice(&[a, b]).unwrap())
+            }
+            Action::Sensor { .. } | Action::Can { .. } | Action::CanRestore => continue,
+        };
+        if drive.is_none() {
+            drive = Some(
+                AxisDrive::from_config(cfg).map_err(|e| super::ScenarioError {
+                    file: s.path.clone(),
+                    line: 0,
+                    column: 0,
+                    key: String::new(),
+                    reason: format!("{}: {e}", cfg.name),
+                })?,
+            );
+        }
+        let d = drive.as_mut().expect("built above");
+        let err = |reason: String| super::ScenarioError {
+            file: s.path.clone(),
+            line: ev.line,
+            column: 1,
+            key: String::new(),
+            reason,
+        };
+        let Some((lo, hi)) = param_bounds(d, key) else {
+            return Err(err(format!(
+                "{}: the drive of {} has no such parameter",
+                key.key, cfg.name
+            )));
+        };
+        if let Some(v) = values.iter().find(|v| !(**v >= lo && **v <= hi)) {
+            let unit = drive_physics::params::find(key.key).map_or("", |(_, f)| f.unit);
+            return Err(err(format!(
+                "{} = {v} is outside what the drive of {} accepts: {lo} .. {hi} {unit}",
+                key.key, cfg.name
+            )));
+        }
+    }
+    Ok(())
+}

@@ -404,6 +404,8 @@ fn start_run(
     opts: &RunOptions,
 ) -> anyhow::Result<(OfflineRun<AxisDrive, ScenarioBus>, Vec<u64>)> {
     let mcfg = s.run.master.clone();
+    // A value the drive would refuse when its event fires is refused before the first tick.
+    super::inject::check_ranges(s, cfg)?;
     let mut drive =
         AxisDrive::from_config(cfg).map_err(|e| anyhow::anyhow!("{}: {e}", cfg.name))?;
     let node = crate::drive::node(&mut drive, mcfg.node_id)?;
@@ -653,6 +655,10 @@ pub fn run_file(
     plots: bool,
 ) -> Result<(Outcome, PathBuf), RunError> {
     let s = super::load(file).map_err(RunError::File)?;
+    // Every event's value within what each machine's drive accepts, before any run.
+    for cfg in &s.machine.configs {
+        super::inject::check_ranges(&s, cfg).map_err(RunError::File)?;
+    }
     let out = run(&s, opts).map_err(RunError::Run)?;
     let dir = out_dir
         .map(Path::to_path_buf)

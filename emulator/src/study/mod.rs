@@ -251,7 +251,22 @@ pub struct ValueSpec {
     values: Vec<(f64, bool)>,
 }
 
+/// Most cases one sweep takes (`drive-emu sweep` and the Python module's `sweep`, which
+/// reads it from here): its table is held in memory, so a grid beyond this is refused,
+/// counted before any case is built.
+pub const MAX_SWEEP_CASES: usize = 1_000_000;
+
 impl ValueSpec {
+    /// How many values it gives (what [`ValueSpec::resolve`] returns, without building it).
+    pub fn len(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Whether it gives no value (never, once parsed).
+    pub fn is_empty(&self) -> bool {
+        self.values.is_empty()
+    }
+
     pub fn parse(text: &str) -> Result<Self, String> {
         let num = |s: &str| -> Result<(f64, bool), String> {
             let s = s.trim();

@@ -102,6 +102,7 @@ impl AxisConfig {
         mech.twin = self.read_twin_pinion(&motor)?;
         self.check_physics_step(&mech, step)?;
         check_stiffness_holds_peak_force(&units, &mech, &motor)?;
+        self.check_live_ranges(&units, &mech, &motor, &control)?;
         Ok(BuiltConfig {
             axis: AxisParams {
                 mech,
@@ -646,6 +647,111 @@ fn check_stiffness_holds_peak_force(
     }
     Ok(())
 }
+
+impl AxisConfig {
+    /// The parameters the drive also takes while running (its 0x2000.. objects) within the
+    /// range its object accepts (the emulator's `AxisDrive::set_param`; the test
+    /// `param_registry` walks the registry through both): a preset, `--set`, a machine file,
+    /// a sweep case or Python's `sim` never start an axis the drive would refuse.
+    fn check_live_ranges(
+        &self,
+        units: &KindUnits,
+        mech: &MechParams,
+        motor: &MotorParams,
+        control: &CascadeParams,
+    ) -> Result<(), ConfigError> {
+        // What the motor can exert at the load, and the load's top speed.
+        let f_peak = motor.torque_constant * motor.max_current * mech.ratio;
+        let v_max_load = motor.max_speed / mech.ratio;
+        let why = "the drive's parameter object accepts no more: beyond it the motor could \
+                   never hold or move the axis";
+        at_most(
+            units.key("load_coulomb_friction_n", "load_coulomb_friction_nm"),
+            mech.load_friction.coulomb,
+            f_peak,
+            why,
+        )?;
+        at_most(
+            units.key(
+                "load_viscous_friction_n_per_m_per_s",
+                "load_viscous_friction_nm_per_rad_per_s",
+            ),
+            mech.load_friction.viscous,
+            f_peak / v_max_load,
+            why,
+        )?;
+        at_most(
+            "motor_coulomb_friction_nm",
+            mech.motor_friction.coulomb,
+            motor.torque_constant * motor.max_current,
+            why,
+        )?;
+        at_most(
+            "motor_encoder_noise_counts",
+            self.motor_encoder_noise_counts,
+            MAX_ENCODER_NOISE_COUNTS,
+            "the drive's 0x200A accepts no more",
+        )?;
+        let offset = if units.rotary {
+            (
+                "direct_encoder_offset_mdeg",
+                self.direct_encoder_offset_mdeg,
+                1e-3 * units.unit,
+            )
+        } else {
+            (
+                "direct_encoder_offset_um",
+                self.direct_encoder_offset_um,
+                1e-6,
+            )
+        };
+        let max_offset = MAX_OFFSET_GAPS * units.max_gap / offset.2;
+        if offset.1.abs() > max_offset {
+            return Err(ConfigError::new(
+                offset.0,
+                format!(
+                    "must be within -{0} .. {0}, got {1}: the drive's 0x200C accepts no more",
+                    compact(max_offset),
+                    compact(offset.1)
+                ),
+            ));
+        }
+        at_most(
+            "kv_per_s",
+            control.kv,
+            MAX_KV_PER_S,
+            "the drive's 0x2007 accepts no more",
+        )?;
+        at_most(
+            "speed_kp_nms_per_rad",
+            control.speed_kp,
+            MAX_SPEED_KP,
+            "the drive's 0x2008 accepts no more",
+        )?;
+        if control.speed_ti < MIN_SPEED_TI_S {
+            return Err(ConfigError::new(
+                "speed_ti_ms",
+                format!(
+                    "must be >= {}, got {}: the drive's 0x2009 accepts no less",
+                    MIN_SPEED_TI_S * 1e3,
+                    compact(control.speed_ti * 1e3)
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Largest encoder noise the drive takes, counts (0x200A).
+pub const MAX_ENCODER_NOISE_COUNTS: f64 = 1e6;
+/// Largest direct-encoder offset, in largest backlashes (0x200C: a scale's thermal drift).
+pub const MAX_OFFSET_GAPS: f64 = 100.0;
+/// Largest position-loop gain, 1/s (0x2007).
+pub const MAX_KV_PER_S: f64 = 1000.0;
+/// Largest speed-loop gain, N m s/rad (0x2008).
+pub const MAX_SPEED_KP: f64 = 1e4;
+/// Shortest speed-loop integral time, s (0x2009).
+pub const MIN_SPEED_TI_S: f64 = 1e-4;
 
 /// A number as people write it: plain between 1e-4 and 1e6, else in exponent form (1e-12, not
 /// 0.000000000001; 1e300, not 300 digits).

@@ -11,6 +11,9 @@ use crate::axis::AxisParams;
 use crate::control::cascade::CascadeParams;
 
 mod build;
+pub use build::{
+    MAX_ENCODER_NOISE_COUNTS, MAX_KV_PER_S, MAX_OFFSET_GAPS, MAX_SPEED_KP, MIN_SPEED_TI_S,
+};
 
 /// The embedded presets, by name.
 pub const PRESETS: [(&str, &str); 5] = [

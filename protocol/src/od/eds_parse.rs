@@ -148,6 +148,12 @@ pub struct EdsWarning {
     pub reason: String,
 }
 
+/// Longest reason shown, characters (a reason may quote a value of the file).
+pub const MAX_REASON_CHARS: usize = 400;
+
+/// `line N, [section] key: reason`, one line: the section, the key and the reason hold the
+/// file's own text, so each is rendered by [`crate::quote`] (control characters escaped,
+/// length capped).
 fn fmt_location(
     f: &mut fmt::Formatter<'_>,
     line: usize,
@@ -155,11 +161,13 @@ fn fmt_location(
     key: &Option<String>,
     reason: &str,
 ) -> fmt::Result {
+    use crate::quote::{text, text_max};
     write!(f, "line {line}")?;
+    let reason = text_max(reason, MAX_REASON_CHARS);
     match (section, key) {
-        (Some(s), Some(k)) => write!(f, ", [{s}] {k}: {reason}"),
-        (Some(s), None) => write!(f, ", [{s}]: {reason}"),
-        (None, Some(k)) => write!(f, ", {k}: {reason}"),
+        (Some(s), Some(k)) => write!(f, ", [{}] {}: {reason}", text(s), text(k)),
+        (Some(s), None) => write!(f, ", [{}]: {reason}", text(s)),
+        (None, Some(k)) => write!(f, ", {}: {reason}", text(k)),
         (None, None) => write!(f, ": {reason}"),
     }
 }

@@ -130,10 +130,12 @@ impl core::fmt::Display for EdsBuildError {
         if self.line > 0 {
             write!(f, "line {}, ", self.line)?;
         }
+        // The reason may quote the file's text (a name, a value): rendered.
+        let reason = crate::quote::text_max(&self.reason, super::eds_parse::MAX_REASON_CHARS);
         match self.object {
-            Some((i, 0)) => write!(f, "[{i:04X}]: {}", self.reason),
-            Some((i, s)) => write!(f, "[{i:04X}sub{s:X}]: {}", self.reason),
-            None => write!(f, "{}", self.reason),
+            Some((i, 0)) => write!(f, "[{i:04X}]: {reason}"),
+            Some((i, s)) => write!(f, "[{i:04X}sub{s:X}]: {reason}"),
+            None => write!(f, "{reason}"),
         }
     }
 }

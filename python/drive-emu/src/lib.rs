@@ -461,6 +461,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "DEFAULT_SWEEP_DURATION_S",
         drive_emu::study::DEFAULT_DURATION_S,
     )?;
+    m.add("MAX_SWEEP_CASES", drive_emu::study::MAX_SWEEP_CASES)?;
     m.add(
         "DEFAULT_MAX_MEMORY_MB",
         drive_emu::cli::sim::DEFAULT_MAX_MEMORY_MB,

@@ -747,13 +747,72 @@ fn median_u32(v: &mut [i64]) -> Option<u32> {
     u32::try_from(m).ok()
 }
 
+/// A candump log's lines, one at a time: the text held in memory ([`TextLines`]) or a file
+/// streamed (`samples::csv::TraceLines`: the log is never held whole).
+pub trait LogLines {
+    /// The next line without its newline (nor a `\r` before it), and whether a newline ended
+    /// it (the last line of a log whose writer was stopped has none); `None` at the end.
+    fn next_log_line<'b>(&mut self, buf: &'b mut Vec<u8>) -> Result<Option<(&'b str, bool)>>;
+}
+
+/// The lines of a log held as text.
+pub struct TextLines<'a> {
+    rest: &'a str,
+}
+
+impl<'a> TextLines<'a> {
+    pub fn new(text: &'a str) -> Self {
+        TextLines { rest: text }
+    }
+}
+
+impl LogLines for TextLines<'_> {
+    fn next_log_line<'b>(&mut self, buf: &'b mut Vec<u8>) -> Result<Option<(&'b str, bool)>> {
+        if self.rest.is_empty() {
+            return Ok(None);
+        }
+        let (line, newline) = match self.rest.split_once('\n') {
+            Some((l, r)) => {
+                self.rest = r;
+                (l, true)
+            }
+            None => (std::mem::take(&mut self.rest), false),
+        };
+        let line = line.strip_suffix('\r').unwrap_or(line);
+        buf.clear();
+        buf.extend_from_slice(line.as_bytes());
+        Ok(Some((
+            std::str::from_utf8(buf).expect("a str's bytes"),
+            newline,
+        )))
+    }
+}
+
+impl LogLines for crate::samples::csv::TraceLines<'_> {
+    fn next_log_line<'b>(&mut self, buf: &'b mut Vec<u8>) -> Result<Option<(&'b str, bool)>> {
+        let line = self.next_line(buf)?;
+        let newline = self.ended_with_newline();
+        Ok(line.map(|l| (l, newline)))
+    }
+}
+
 /// Decode a candump log (`text`, named `source` in messages) for one node.
 pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> {
+    decode_lines(&mut TextLines::new(text), source, opts)
+}
+
+/// [`decode`] of a log read line by line (`analyze` streams a file so: only the decoded
+/// samples are kept, never the log's text).
+pub fn decode_lines(
+    lines: &mut dyn LogLines,
+    source: &str,
+    opts: &DecodeOptions,
+) -> Result<BusLog> {
     if !(1..=127).contains(&opts.node_id) {
         bail!("node {} outside 1..=127", opts.node_id);
     }
     let mut dec = Decoder::new(opts.node_id, &opts.defaults);
-    let cut_line = follow_lines(&mut dec, text, source)?;
+    let cut_line = follow_lines(&mut dec, lines, source)?;
     require_node_and_sync(&dec, source, opts.node_id)?;
     let mut notes: Vec<String> = cut_line.into_iter().collect();
     let (period_us, period_source, measured) = sync_period(&dec, opts, source, &mut notes)?;
@@ -790,11 +849,17 @@ pub fn decode(text: &str, source: &str, opts: &DecodeOptions) -> Result<BusLog> 
 
 /// Feed every frame of the log to the decoder. Returns the note on a last line cut short
 /// (skipped); an unparsable line is an error.
-fn follow_lines(dec: &mut Decoder, text: &str, source: &str) -> Result<Option<String>> {
+fn follow_lines(
+    dec: &mut Decoder,
+    lines: &mut dyn LogLines,
+    source: &str,
+) -> Result<Option<String>> {
     let mut after_error_frame = false;
-    let n_lines = text.lines().count();
     let mut cut_line = None;
-    for (i, line) in text.lines().enumerate() {
+    let mut buf = Vec::new();
+    let mut i = 0usize;
+    while let Some((line, newline)) = lines.next_log_line(&mut buf)? {
+        i += 1;
         dec.stats.lines += 1;
         // candump -e prints an error frame's explanation on lines starting with a tab.
         if after_error_frame && line.starts_with('\t') {
@@ -803,11 +868,10 @@ fn follow_lines(dec: &mut Decoder, text: &str, source: &str) -> Result<Option<St
         // The last line of a log whose writer was killed mid-line: no newline at its end. It
         // may even parse (a frame with fewer data bytes), so it is never trusted: skipped and
         // reported.
-        if i + 1 == n_lines && !text.ends_with('\n') && !line.trim().is_empty() {
+        if !newline && !line.trim().is_empty() {
             cut_line = Some(format!(
-                "{source}:{}: last line cut short (no newline at the end: the writer was \
+                "{source}:{i}: last line cut short (no newline at the end: the writer was \
                  stopped mid-line): skipped: `{}`",
-                i + 1,
                 crate::quote::text_max(line, 60)
             ));
             continue;
@@ -816,8 +880,7 @@ fn follow_lines(dec: &mut Decoder, text: &str, source: &str) -> Result<Option<St
             Ok(p) => p,
             // The reason repeats the line's text: rendered (control characters escaped).
             Err(e) => bail!(
-                "{source}:{}: {}",
-                i + 1,
+                "{source}:{i}: {}",
                 crate::quote::text_max(&e, crate::quote::MAX_MESSAGE_CHARS)
             ),
         };

@@ -60,7 +60,7 @@ pub mod trace;
 
 pub use candump::{looks_like_candump, parse_line, FrameKind, LogFrame};
 pub use follow::{
-    decode, BusLog, BusSample, DecodeOptions, DecodeStats, Object, PdoConfig, PdoMapping,
-    PeriodSource, SYNC_COB_ID,
+    decode, decode_lines, BusLog, BusSample, DecodeOptions, DecodeStats, LogLines, Object,
+    PdoConfig, PdoMapping, PeriodSource, TextLines, SYNC_COB_ID,
 };
 pub use trace::{choose_time_base, trace_from_candump, MissingObjects, TimeBase};

@@ -353,8 +353,9 @@ _RUN_KEYS = ("preset", "velocity", "duration")
 
 
 #: Most cases one sweep takes: its table is held in memory, and a grid beyond this is refused
-#: before any of it is built (a grid over range(10**9) said MemoryError).
-MAX_SWEEP_CASES = 1_000_000
+#: before any of it is built (a grid over range(10**9) said MemoryError). The same cap as
+#: `drive-emu sweep`'s (one constant, drive_emu::study::MAX_SWEEP_CASES).
+MAX_SWEEP_CASES: int = _native.MAX_SWEEP_CASES
 
 
 def _too_many(n: Any) -> ValueError:
