@@ -165,3 +165,54 @@ fn the_si_unit_position_gives_the_missing_feed_constant() {
         .any(|n| n.contains("0x60A8 SI unit position")));
     assert_eq!(b.r32(0x6092, 1), 2000);
 }
+
+/// The motor's limits as placeholders (each its own class): 0x6080 max motor speed, 0x6073
+/// max current and 0x60C6 max deceleration 0 are taken from the simulated axis (0x6080 in
+/// rev/min, 0x6072 per mille, 0x6084 in the file's acceleration unit), each said, and a PP
+/// move reaches its target.
+#[test]
+fn motor_limit_placeholders_are_taken_from_the_axis_and_the_drive_moves() {
+    let p =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/eds/minimal/placeholders-motor.eds");
+    let f = parse(&decode_text(&std::fs::read(&p).unwrap())).unwrap();
+    let (mut b, report) = bench(&f);
+    for (index, from) in [(0x6080u16, 0x6080u16), (0x6073, 0x6072), (0x60C6, 0x6084)] {
+        let want = axis(from);
+        assert!(want > 0, "0x{from:04X}");
+        let bytes = b.sdo_read(index, 0).unwrap();
+        let mut buf = [0u8; 8];
+        buf[..bytes.len()].copy_from_slice(&bytes);
+        let got = u64::from_le_bytes(buf);
+        assert_eq!(got, want, "0x{index:04X}: {}", why(&report, index));
+        let w = why(&report, index);
+        assert!(
+            w.starts_with("the file's default 0 is a placeholder (it would ")
+                && w.contains(&format!(": {want}"))
+                && w.contains(&format!("the simulated axis's value (0x{from:04X})")),
+            "0x{index:04X}: {w}"
+        );
+    }
+    // (the file has no 0x606C: the move is watched by position and statusword)
+    b.start();
+    b.enable(1);
+    let p0 = b.node.position_actual();
+    b.w32(0x6081, 0, 5000).unwrap();
+    b.w32(0x6083, 0, 50_000).unwrap();
+    b.w32(0x6084, 0, 50_000).unwrap();
+    b.w32(0x607A, 0, (p0 + 500) as u32).unwrap();
+    b.cw(0x1F);
+    b.cw(0x0F);
+    let mut reached = false;
+    for _ in 0..3000 {
+        b.tick();
+        if b.statusword() & (1 << 10) != 0 && b.node.position_actual() >= p0 + 490 {
+            reached = true;
+            break;
+        }
+    }
+    assert!(reached, "moved {} of 500", b.node.position_actual() - p0);
+    assert_eq!(
+        b.node.cia402_state(),
+        drive_protocol::Cia402State::OperationEnabled
+    );
+}
