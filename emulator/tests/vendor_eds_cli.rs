@@ -139,3 +139,62 @@ fn eds_from_says_what_one_user_unit_is() {
         "{note}"
     );
 }
+
+/// Issue 33, item 3: `eds --from` says how a vendor's SI units are taken. 0x60A8 = um with no
+/// feed constant in the file: 1 uu is one um of the simulated axis (the feed constant derived
+/// from it, said); 0x60AA = rev/s per second: accelerations in it; a placeholder maximum
+/// velocity is filled in 0x60A9's unit, and the report says so.
+#[test]
+fn eds_from_says_how_the_si_units_are_applied() {
+    let path = eds_dir("units").join("position-micrometre.eds");
+    let out = drive_emu(&["eds", "--from", path.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let note = stderr
+        .lines()
+        .find(|l| l.contains("note: 1 uu = "))
+        .unwrap_or_else(|| panic!("no user-unit note in:\n{stderr}"));
+    assert!(
+        note.contains("= 0.001 mm of the simulated axis")
+            && note.contains(
+                "0x60A8 SI unit position = 0xFA010000 (1e-6 m): applied, 1 uu is that unit"
+            )
+            && note.contains("0x60A9 SI unit velocity = 0xFD010300 (1e-3 m/s): applied"),
+        "{note}"
+    );
+    assert!(
+        stderr.contains(
+            "0x60A8 SI unit position = 0xFA010000 applied: the file has no feed constant 0x6092"
+        ),
+        "{stderr}"
+    );
+    let line = stderr
+        .lines()
+        .find(|l| l.contains("0x607F sub 0"))
+        .unwrap_or_else(|| panic!("no 0x607F line in:\n{stderr}"));
+    assert!(
+        line.contains("in 0x60A9's unit, the simulated axis's value (0x607F)"),
+        "{line}"
+    );
+
+    let path = eds_dir("units").join("acceleration-rev-s2.eds");
+    let out = drive_emu(&["eds", "--from", path.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let note = stderr
+        .lines()
+        .find(|l| l.contains("note: 1 uu = "))
+        .unwrap();
+    assert!(
+        note.contains(
+            "0x60AA SI unit acceleration = 0x00B40300 (rev/s): applied, accelerations in that \
+             unit per second"
+        ) && note.contains("0x60A8 SI unit position = 0x00B50000 (unit 0xB5): positions stay"),
+        "{note}"
+    );
+    let line = stderr
+        .lines()
+        .find(|l| l.contains("0x60C5 sub 0"))
+        .unwrap_or_else(|| panic!("no 0x60C5 line in:\n{stderr}"));
+    assert!(line.contains("in 0x60AA's unit"), "{line}");
+}

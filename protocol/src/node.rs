@@ -984,6 +984,7 @@ impl Node {
                 let f = Factor::from_info(&c.info).unwrap_or(Factor {
                     inc_per_uu: 1.0,
                     vel_inc_per_uu: 1.0,
+                    acc_inc_per_uu: 1.0,
                 });
                 c.cia = Cia402::new(f, c.quirks.cia402()).with_device(
                     c.od.device.following_error_window_zero_off,
@@ -1699,13 +1700,19 @@ fn csp_period_us(store: &Store, measured_us: u64) -> u64 {
     }
 }
 
-/// The rows of a dictionary's SI unit position 0x60A8 and velocity 0x60A9 (a vendor's file
-/// may have them; the CiA 402 layer applies 0x60A9 where it can), `None` without 0x60A9.
-fn si_unit_rows(od: &ObjectDictionary) -> Option<(Option<usize>, usize)> {
+/// The rows of a dictionary's SI unit objects 0x60A8, 0x60A9 and 0x60AA (a vendor's file may
+/// have them; the CiA 402 layer applies 0x60A9 and 0x60AA where it can), `None` without
+/// 0x60A9 and 0x60AA.
+fn si_unit_rows(od: &ObjectDictionary) -> Option<crate::cia402::SiRows> {
     let row = |index: u16| {
         od.get(index, 0)
             .filter(|(_, e)| e.dtype == crate::od::DataType::U32)
             .map(|(s, _)| s.get())
     };
-    Some((row(0x60A8), row(0x60A9)?))
+    let rows = crate::cia402::SiRows {
+        position: row(0x60A8),
+        velocity: row(0x60A9),
+        acceleration: row(0x60AA),
+    };
+    (rows.velocity.is_some() || rows.acceleration.is_some()).then_some(rows)
 }

@@ -125,9 +125,10 @@ fn placeholder_zeros_are_taken_from_the_axis_and_the_drive_moves() {
         assert!(
             line.why
                 .starts_with("the file's default 0 is a placeholder (it ")
-                && line.why.contains(&format!(
-                    "{axis}, the simulated axis's value (0x{from:04X})"
-                )),
+                && line.why.contains(&format!(": {axis}"))
+                && line
+                    .why
+                    .contains(&format!("the simulated axis's value (0x{from:04X})")),
             "{index:04X}: {}",
             line.why
         );

@@ -120,7 +120,13 @@ impl VendorEds {
         let objects = objects::register(&mut od, base, rotary)
             .map_err(|e| anyhow::anyhow!("{}: the emulator's objects: {e}", self.path.display()))?;
         let mut report = report;
-        report.notes.insert(0, user_unit_note(&od, info));
+        let feed_from_si = report
+            .notes
+            .iter()
+            .any(|n| n.starts_with("0x60A8 SI unit position = ") && n.contains(" applied: "));
+        report
+            .notes
+            .insert(0, user_unit_note(&od, info, feed_from_si));
         Ok((od, objects, report))
     }
 }
@@ -129,9 +135,16 @@ impl VendorEds {
 /// resolution, 0x6091 gear ratio, 0x6092 feed constant; where the file lacks one, the
 /// simulated axis's): increments of the motor encoder and travel of the simulated axis.
 /// Speeds are user units per second, accelerations per second squared, unless the file's SI
-/// unit velocity 0x60A9 names a unit the drive applies (revolutions per time, or 0x60A8's
-/// unit per time): said here.
-pub fn user_unit_note(od: &ObjectDictionary, info: &DriveInfo) -> String {
+/// unit velocity 0x60A9 or acceleration 0x60AA names a unit the drive applies (revolutions
+/// per time, or 0x60A8's unit per time; an acceleration that per second): said here, with
+/// 0x60A8 where it gives the feed constant the file lacks.
+/// `feed_from_si_position`: the file lacks 0x6092 and its 0x60A8 gave it (the build
+/// report's note says so).
+pub fn user_unit_note(
+    od: &ObjectDictionary,
+    info: &DriveInfo,
+    feed_from_si_position: bool,
+) -> String {
     let v = |index: u16, sub: u8, fallback: u32| {
         od.get(index, sub)
             .map(|(_, e)| e.default_raw(1) as u32)
@@ -182,12 +195,28 @@ pub fn user_unit_note(od: &ObjectDictionary, info: &DriveInfo) -> String {
         _ => "1 uu: the factor group has a zero term; positions are in increments".into(),
     };
     let si = |index: u16| od.get(index, 0).map(|(_, e)| e.default_raw(1) as u32);
+    use drive_protocol::cia402::SiUnit;
+    // a unit this drive tells in increments: revolutions of the shaft, or 0x60A8's unit
+    let tellable = |raw: u32| {
+        let u = SiUnit::decode(raw);
+        u.per_seconds().is_some()
+            && (u.unit == drive_protocol::cia402::SI_REVOLUTION
+                || si(0x60A8).is_some_and(|p| {
+                    let p = SiUnit::decode(p);
+                    p.unit == u.unit && p.per == 0
+                }))
+    };
     let mut velocity_applied = false;
     if let Some(p) = si(0x60A8) {
         s.push_str(&format!(
-            "; 0x60A8 SI unit position = 0x{p:08X} ({}): positions stay in the factor \
-             group's user units",
-            si_unit_text(p)
+            "; 0x60A8 SI unit position = 0x{p:08X} ({}): {}",
+            si_unit_text(p),
+            if feed_from_si_position {
+                "applied, 1 uu is that unit (the feed constant 0x6092 the file lacks is \
+                 derived from it)"
+            } else {
+                "positions stay in the factor group's user units"
+            }
         ));
     }
     if let Some(v) = si(0x60A9) {
@@ -195,22 +224,30 @@ pub fn user_unit_note(od: &ObjectDictionary, info: &DriveInfo) -> String {
             "; 0x60A9 SI unit velocity = 0x{v:08X} ({})",
             si_unit_text(v)
         ));
-        let u = drive_protocol::cia402::SiUnit::decode(v);
-        let applies = u.per_seconds().is_some()
-            && (u.unit == drive_protocol::cia402::SI_REVOLUTION
-                || si(0x60A8).is_some_and(|p| {
-                    let p = drive_protocol::cia402::SiUnit::decode(p);
-                    p.unit == u.unit && p.per == 0
-                }));
-        velocity_applied = applies;
-        s.push_str(if applies {
+        velocity_applied = tellable(v);
+        s.push_str(if velocity_applied {
             ": applied, velocities in that unit, accelerations in that unit per second"
         } else {
             ": not applied (a unit this drive cannot tell in increments)"
         });
     }
-    if !velocity_applied {
-        s.push_str("; speeds in uu/s, accelerations in uu/s^2");
+    let mut acceleration_applied = false;
+    if let Some(a) = si(0x60AA) {
+        acceleration_applied = tellable(a);
+        s.push_str(&format!(
+            "; 0x60AA SI unit acceleration = 0x{a:08X} ({}): {}",
+            si_unit_text(a),
+            if acceleration_applied {
+                "applied, accelerations in that unit per second"
+            } else {
+                "not applied (a unit this drive cannot tell in increments)"
+            }
+        ));
+    }
+    match (velocity_applied, acceleration_applied) {
+        (false, false) => s.push_str("; speeds in uu/s, accelerations in uu/s^2"),
+        (false, true) => s.push_str("; speeds in uu/s"),
+        _ => {}
     }
     s
 }

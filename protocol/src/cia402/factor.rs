@@ -10,6 +10,12 @@
 //! 0x00B44700 one revolution of the drive shaft per minute, 0xFFB44700 a tenth of one;
 //! 0xFD010300 one mm/s where 0x60A8 is a metre) and an acceleration user unit that unit per
 //! second. [`Factor::with_si_units`] applies it.
+//!
+//! An SI unit acceleration 0x60AA is read the same way, its denominator being the time of the
+//! velocity: an acceleration user unit is that unit per that time per second (0x00B44700
+//! one rev/min per second, the unit drives that count speeds in rpm give accelerations in;
+//! 0x00B40300 one rev/s per second, rev/s^2). Without 0x60AA an acceleration user unit is
+//! a velocity user unit per second. [`Factor::with_si_acceleration`] applies it.
 
 use crate::drive::DriveInfo;
 
@@ -19,8 +25,12 @@ pub struct Factor {
     /// Motor-encoder increments per user unit.
     pub inc_per_uu: f64,
     /// Increments per second per velocity user unit (and per second squared per
-    /// acceleration user unit): `inc_per_uu` unless an SI velocity unit applies.
+    /// acceleration user unit, unless [`Factor::acc_inc_per_uu`] differs): `inc_per_uu`
+    /// unless an SI velocity unit applies.
     pub vel_inc_per_uu: f64,
+    /// Increments per second squared per acceleration user unit: `vel_inc_per_uu` unless an
+    /// SI acceleration unit 0x60AA applies.
+    pub acc_inc_per_uu: f64,
 }
 
 /// An SI unit object's value (0x60A8 position, 0x60A9 velocity), decoded.
@@ -103,6 +113,7 @@ impl Factor {
         Some(Factor {
             inc_per_uu,
             vel_inc_per_uu: inc_per_uu,
+            acc_inc_per_uu: inc_per_uu,
         })
     }
 
@@ -118,36 +129,76 @@ impl Factor {
         velocity: u32,
         inc_per_shaft_rev: f64,
     ) -> (Factor, bool) {
-        let v = SiUnit::decode(velocity);
-        let Some(t) = v.per_seconds() else {
-            return (self, false);
-        };
+        match self.si_inc_per_uu(position, velocity, inc_per_shaft_rev) {
+            Some(vel) => (
+                Factor {
+                    vel_inc_per_uu: vel,
+                    acc_inc_per_uu: vel,
+                    ..self
+                },
+                true,
+            ),
+            None => (self, false),
+        }
+    }
+
+    /// The factor with the SI unit acceleration 0x60AA applied (after
+    /// [`Factor::with_si_units`], if the device has 0x60A9): an acceleration user unit becomes
+    /// 0x60AA's unit per its time per second where this drive can tell it in increments (the
+    /// same units as 0x60A9). Otherwise unchanged. Returns the factor and whether it applied.
+    pub fn with_si_acceleration(
+        self,
+        position: Option<u32>,
+        acceleration: u32,
+        inc_per_shaft_rev: f64,
+    ) -> (Factor, bool) {
+        match self.si_inc_per_uu(position, acceleration, inc_per_shaft_rev) {
+            Some(acc) => (
+                Factor {
+                    acc_inc_per_uu: acc,
+                    ..self
+                },
+                true,
+            ),
+            None => (self, false),
+        }
+    }
+
+    /// Increments per second per unit of an SI unit value with a time denominator: the unit
+    /// (revolutions of the drive shaft, or 0x60A8's unit with another prefix) with its prefix,
+    /// per its time. `None` where this drive cannot tell it in increments.
+    fn si_inc_per_uu(self, position: Option<u32>, raw: u32, inc_per_shaft_rev: f64) -> Option<f64> {
+        let v = SiUnit::decode(raw);
+        let t = v.per_seconds()?;
         let per_unit = if v.unit == SI_REVOLUTION {
             inc_per_shaft_rev
         } else {
             match position.map(SiUnit::decode) {
                 // the same unit as a position user unit: the prefixes' ratio
                 Some(p) if p.unit == v.unit && p.per == 0 => self.inc_per_uu / p.scale(),
-                _ => return (self, false),
+                _ => return None,
             }
         };
-        let vel = per_unit * v.scale() / t;
-        if !(vel.is_finite() && vel > 0.0) {
-            return (self, false);
-        }
-        (
-            Factor {
-                vel_inc_per_uu: vel,
-                ..self
-            },
-            true,
-        )
+        let x = per_unit * v.scale() / t;
+        (x.is_finite() && x > 0.0).then_some(x)
     }
 
-    /// Velocity (or acceleration) user units to increments per second (squared).
+    /// Velocity user units to increments per second.
     #[inline]
     pub fn vel_to_inc(self, uu: f64) -> f64 {
         uu * self.vel_inc_per_uu
+    }
+
+    /// Acceleration user units to increments per second squared.
+    #[inline]
+    pub fn acc_to_inc(self, uu: f64) -> f64 {
+        uu * self.acc_inc_per_uu
+    }
+
+    /// Increments per second squared to acceleration user units.
+    #[inline]
+    pub fn acc_to_uu(self, inc: f64) -> f64 {
+        inc / self.acc_inc_per_uu
     }
 
     /// Increments per second to velocity user units.
@@ -250,5 +301,28 @@ mod tests {
             assert_eq!(f.with_si_units(None, v, 2000.0), (f, false), "{v:#x}");
         }
         assert!(!g.with_si_units(Some(0x0041_0000), 0xFD01_0300, 1.0).1);
+    }
+
+    #[test]
+    fn si_acceleration_units() {
+        // 2000 inc/rev, 1 uu = 1 inc; velocity in rpm, so acceleration in rpm/s
+        let f = Factor::from_objects(2000, 1, 1, 1, 2000, 1).unwrap();
+        let (v, _) = f.with_si_units(None, 0x00B4_4700, 2000.0);
+        assert_eq!(v.acc_inc_per_uu, v.vel_inc_per_uu);
+        assert!((v.acc_to_inc(60.0) - 2000.0).abs() < 1e-9);
+        // 0x60AA rev/s per second: 2000 inc/s^2 per uu
+        let (a, on) = v.with_si_acceleration(None, 0x00B4_0300, 2000.0);
+        assert!(on && (a.acc_inc_per_uu - 2000.0).abs() < 1e-9);
+        assert_eq!(a.vel_inc_per_uu, v.vel_inc_per_uu);
+        assert!((a.acc_to_uu(a.acc_to_inc(7.0)) - 7.0).abs() < 1e-12);
+        // 0x60AA 0.1 rev/min per second on a drive without 0x60A9
+        let (a, on) = f.with_si_acceleration(None, 0xFFB4_4700, 2000.0);
+        assert!(on && (a.acc_inc_per_uu - 200.0 / 60.0).abs() < 1e-9);
+        assert_eq!(a.vel_inc_per_uu, 1.0);
+        // not known: unchanged
+        assert_eq!(
+            f.with_si_acceleration(None, 0x00B5_0300, 2000.0),
+            (f, false)
+        );
     }
 }

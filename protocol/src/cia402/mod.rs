@@ -140,7 +140,7 @@ impl Ctx<'_> {
         if a == 0 {
             NO_LIMIT_ACC
         } else {
-            self.f.vel_to_inc(a as f64)
+            self.f.acc_to_inc(a as f64)
         }
     }
 }
@@ -213,9 +213,21 @@ pub(crate) struct Cia402 {
     /// A following-error window 0x6065 of 0 is "off" on this device (its vendor's file says
     /// so: `DeviceDescription::following_error_window_zero_off`), as 0xFFFFFFFF is in CiA 402.
     pub fe_window_zero_off: bool,
-    /// The rows of 0x60A8 (if any) and 0x60A9 in the store, where the dictionary has an SI
-    /// unit velocity: applied to the factor each tick ([`Factor::with_si_units`]).
-    pub si_rows: Option<(Option<usize>, usize)>,
+    /// The rows of 0x60A8, 0x60A9 and 0x60AA in the store, where the dictionary has an SI
+    /// unit velocity or acceleration: applied to the factor each tick
+    /// ([`Factor::with_si_units`], [`Factor::with_si_acceleration`]).
+    pub si_rows: Option<SiRows>,
+}
+
+/// The store rows of a dictionary's SI unit objects (UNSIGNED32 ones only).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SiRows {
+    /// 0x60A8 SI unit position.
+    pub position: Option<usize>,
+    /// 0x60A9 SI unit velocity.
+    pub velocity: Option<usize>,
+    /// 0x60AA SI unit acceleration.
+    pub acceleration: Option<usize>,
 }
 
 impl Cia402 {
@@ -255,7 +267,7 @@ impl Cia402 {
     pub(crate) fn with_device(
         mut self,
         fe_window_zero_off: bool,
-        si_rows: Option<(Option<usize>, usize)>,
+        si_rows: Option<SiRows>,
     ) -> Cia402 {
         self.fe_window_zero_off = fe_window_zero_off;
         self.si_rows = si_rows;
@@ -408,14 +420,24 @@ impl Cia402 {
             store.u32(o::FEED_REVS),
         ) {
             self.factor = match self.si_rows {
-                Some((pos, vel)) => {
+                Some(rows) => {
                     let revs = store.u32(o::ENC_REVS).max(1) as f64;
                     let shaft = store.u32(o::GEAR_SHAFT).max(1) as f64;
                     let inc_per_shaft_rev = store.u32(o::ENC_INC) as f64 / revs
                         * store.u32(o::GEAR_MOTOR) as f64
                         / shaft;
-                    f.with_si_units(pos.map(|r| store.u32(r)), store.u32(vel), inc_per_shaft_rev)
-                        .0
+                    let pos = rows.position.map(|r| store.u32(r));
+                    let f = match rows.velocity {
+                        Some(v) => f.with_si_units(pos, store.u32(v), inc_per_shaft_rev).0,
+                        None => f,
+                    };
+                    match rows.acceleration {
+                        Some(a) => {
+                            f.with_si_acceleration(pos, store.u32(a), inc_per_shaft_rev)
+                                .0
+                        }
+                        None => f,
+                    }
                 }
                 None => f,
             };

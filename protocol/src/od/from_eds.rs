@@ -259,6 +259,19 @@ impl ObjectDictionary {
             ..BuildReport::default()
         };
         check_device_type(file)?;
+        // the file's user units (its factor group and SI units) against the axis's: a
+        // placeholder is filled in the file's units; 0x60A8 gives the feed constant the
+        // file lacks
+        let feed_from_si = feed_from_si_position(file, info);
+        if let Some((feed, revs, why)) = &feed_from_si {
+            for (sub, v) in [(1u8, *feed), (2, *revs)] {
+                if let Some(slot) = standard::slot_of(0x6092, sub) {
+                    od.slots[slot].entry.default = DefaultValue::Value(u64::from(v));
+                }
+            }
+            report.notes.push(why.clone());
+        }
+        let units = FileUnits::of(file, info, feed_from_si.map(|(f, r, _)| (f, r)));
         // the file's 0x6065 is 0 (default or ParameterValue): its vendor's 0 means off
         let mut fe_window_zero = false;
         for obj in &file.objects {
@@ -346,7 +359,7 @@ impl ObjectDictionary {
                 {
                     fe_window_zero = true;
                 }
-                if let Some(w) = placeholder(&mut e, obj.index, s.sub, &axis_od) {
+                if let Some(w) = placeholder(&mut e, obj.index, s.sub, &axis_od, &units) {
                     why = w;
                 }
                 // a DCF's ParameterValue 0 there is what a master writes (load_configuration,
@@ -476,10 +489,205 @@ pub const PLACEHOLDERS: [(u16, &str, u16); 7] = [
     ),
 ];
 
-/// A placeholder default (see [`PLACEHOLDERS`]) replaced by the simulated axis's value, and
-/// why; a window of 0xFFFFFFFF (CiA 402: the function off) said so. `axis`: the standard
-/// dictionary of the simulated axis.
-fn placeholder(e: &mut Entry, index: u16, sub: u8, axis: &ObjectDictionary) -> Option<String> {
+/// The file's user units: its factor group (0x608F, 0x6091, 0x6092 defaults, a DCF's
+/// ParameterValue where it has no default, the simulated axis's where the file has none) with
+/// its SI units (0x60A8, 0x60A9, 0x60AA) applied as the drive applies them, and the simulated
+/// axis's own. A placeholder taken from the axis is converted through revolutions of the
+/// motor (each side's encoder increments per motor revolution) into the file's units.
+#[derive(Clone, Copy, Debug)]
+struct FileUnits {
+    file: Option<crate::cia402::factor::Factor>,
+    axis: Option<crate::cia402::factor::Factor>,
+    /// Encoder increments per motor revolution: the file's 0x608F, the axis's.
+    file_inc_per_rev: f64,
+    axis_inc_per_rev: f64,
+    /// 0x60A9 applies: velocities are in its unit.
+    si_velocity: bool,
+    /// 0x60AA applies: accelerations are in its unit.
+    si_acceleration: bool,
+}
+
+/// What a placeholder's value measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Quantity {
+    Position,
+    Velocity,
+    Acceleration,
+    /// A value in its own units (rpm, per mille): taken as the axis has it.
+    Other,
+}
+
+/// The value a file gives (index, sub): its default, or a DCF's ParameterValue, as a number.
+fn file_u32(file: &EdsFile, index: u16, sub: u8) -> Option<u32> {
+    let s = file.sub(index, sub)?;
+    let v = s.default.as_ref().or(s.parameter_value.as_ref())?;
+    let b = v.resolve(s.data_type, Some(1)).ok()?;
+    s.data_type
+        .integer()
+        .then(|| decode(s.data_type, &b))
+        .and_then(|x| u32::try_from(x).ok())
+}
+
+impl FileUnits {
+    fn of(file: &EdsFile, info: &DriveInfo, feed: Option<(u32, u32)>) -> FileUnits {
+        use crate::cia402::factor::Factor;
+        let v = |index: u16, sub: u8, fallback: u32| {
+            file_u32(file, index, sub)
+                .filter(|&x| x != 0)
+                .unwrap_or(fallback)
+        };
+        let (feed_uu, feed_revs) = feed.unwrap_or((
+            v(0x6092, 1, info.feed_user_units),
+            v(0x6092, 2, info.feed_shaft_revs),
+        ));
+        let enc = v(0x608F, 1, info.encoder_increments_per_rev);
+        let enc_revs = v(0x608F, 2, 1);
+        let gm = v(0x6091, 1, info.gear_motor_revs);
+        let gs = v(0x6091, 2, info.gear_shaft_revs);
+        let mut si_velocity = false;
+        let mut si_acceleration = false;
+        let f = Factor::from_objects(enc, enc_revs, gm, gs, feed_uu, feed_revs).map(|f| {
+            let inc_per_shaft_rev =
+                f64::from(enc) / f64::from(enc_revs) * f64::from(gm) / f64::from(gs);
+            let pos = file_u32(file, 0x60A8, 0);
+            let f = match file_u32(file, 0x60A9, 0) {
+                Some(vel) => {
+                    let (f, on) = f.with_si_units(pos, vel, inc_per_shaft_rev);
+                    si_velocity = on;
+                    f
+                }
+                None => f,
+            };
+            match file_u32(file, 0x60AA, 0) {
+                Some(acc) => {
+                    let (f, on) = f.with_si_acceleration(pos, acc, inc_per_shaft_rev);
+                    si_acceleration = on;
+                    f
+                }
+                None => f,
+            }
+        });
+        FileUnits {
+            file: f,
+            axis: Factor::from_info(info),
+            file_inc_per_rev: f64::from(enc) / f64::from(enc_revs),
+            axis_inc_per_rev: f64::from(info.encoder_increments_per_rev),
+            si_velocity,
+            si_acceleration,
+        }
+    }
+
+    /// The axis's value of a quantity in the file's units, and the unit's name; `None` where
+    /// a factor has a zero term.
+    fn convert(&self, axis_value: u64, q: Quantity) -> Option<(f64, &'static str)> {
+        let x = axis_value as f64;
+        let (file, axis) = (self.file?, self.axis?);
+        // the axis's increments to the file's: the same motor revolutions
+        let inc = self.file_inc_per_rev / self.axis_inc_per_rev;
+        if !(inc.is_finite() && inc > 0.0) {
+            return None;
+        }
+        Some(match q {
+            Quantity::Position => (file.to_uu(axis.to_inc(x) * inc), "uu"),
+            Quantity::Velocity => (
+                file.vel_to_uu(axis.vel_to_inc(x) * inc),
+                if self.si_velocity {
+                    "in 0x60A9's unit"
+                } else {
+                    "uu/s"
+                },
+            ),
+            Quantity::Acceleration => (
+                file.acc_to_uu(axis.acc_to_inc(x) * inc),
+                if self.si_acceleration {
+                    "in 0x60AA's unit"
+                } else if self.si_velocity {
+                    "in 0x60A9's unit per s"
+                } else {
+                    "uu/s^2"
+                },
+            ),
+            Quantity::Other => (x, ""),
+        })
+    }
+}
+
+/// The feed constant 0x6092 (user units per shaft revolution, sub 1 and 2) a file's SI unit
+/// position 0x60A8 makes on the simulated axis, where the file has no 0x6092 of its own: a
+/// length (metre with a prefix) on a linear axis, or an angle of the drive shaft (revolution
+/// or degree with a prefix) on either. With why; `None` where the file has 0x6092, no
+/// 0x60A8, or one this drive cannot map (a radian, another unit, a length on a rotary axis,
+/// a ratio beyond UNSIGNED32).
+fn feed_from_si_position(file: &EdsFile, info: &DriveInfo) -> Option<(u32, u32, String)> {
+    use crate::cia402::{SiUnit, SI_DEGREE, SI_METRE, SI_REVOLUTION};
+    if file.object(0x6092).is_some() {
+        return None;
+    }
+    let raw = file_u32(file, 0x60A8, 0)?;
+    let u = SiUnit::decode(raw);
+    if u.per != 0 {
+        return None;
+    }
+    // the unit per shaft revolution as numerator / denominator * 10^-prefix
+    let (num, den, what): (u64, u64, String) = match u.unit {
+        SI_METRE if !info.rotary => (
+            // the simulated axis's user unit is 1 um: feed_user_units um per feed_shaft_revs
+            u64::from(info.feed_user_units),
+            u64::from(info.feed_shaft_revs) * 1_000_000,
+            format!(
+                "{} mm of the simulated axis per shaft revolution",
+                f64::from(info.feed_user_units) / f64::from(info.feed_shaft_revs.max(1)) / 1e3
+            ),
+        ),
+        SI_REVOLUTION => (1, 1, "1 revolution of the drive shaft".into()),
+        SI_DEGREE => (360, 1, "360 deg of the drive shaft".into()),
+        _ => return None,
+    };
+    // feed = num / den / 10^prefix
+    let (mut num, mut den) = (num, den);
+    let p = i32::from(u.prefix);
+    let pow = 10u64.checked_pow(p.unsigned_abs())?;
+    if p < 0 {
+        num = num.checked_mul(pow)?;
+    } else {
+        den = den.checked_mul(pow)?;
+    }
+    let g = gcd(num, den);
+    let (num, den) = (num / g, den / g);
+    let (n, d) = (u32::try_from(num).ok()?, u32::try_from(den).ok()?);
+    if n == 0 || d == 0 {
+        return None;
+    }
+    Some((
+        n,
+        d,
+        format!(
+            "0x60A8 SI unit position = 0x{raw:08X} applied: the file has no feed constant \
+             0x6092, so the drive serves 0x6092 = {n}/{d} user units per shaft revolution \
+             ({what}), 1 uu being 0x60A8's unit"
+        ),
+    ))
+}
+
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 {
+        a.max(1)
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+/// A placeholder default (see [`PLACEHOLDERS`]) replaced by the simulated axis's value in the
+/// file's units (`units`: a velocity in 0x60A9's unit where it applies, a position window in
+/// the file's user units), and why; a window of 0xFFFFFFFF (CiA 402: the function off) said
+/// so. `axis`: the standard dictionary of the simulated axis.
+fn placeholder(
+    e: &mut Entry,
+    index: u16,
+    sub: u8,
+    axis: &ObjectDictionary,
+    units: &FileUnits,
+) -> Option<String> {
     if sub != 0 || !e.dtype.integer() {
         return None;
     }
@@ -496,20 +704,41 @@ fn placeholder(e: &mut Entry, index: u16, sub: u8, axis: &ObjectDictionary) -> O
         return None;
     }
     let slot = standard::slot_of(from, 0)?;
-    let axis = axis.slots[slot].entry.default_raw(1);
-    // the axis's value, within the file's type and limits
+    let axis_value = axis.slots[slot].entry.default_raw(1);
+    let quantity = match index {
+        0x607F => Quantity::Velocity,
+        0x60C5 | 0x60C6 => Quantity::Acceleration,
+        0x6065 => Quantity::Position,
+        _ => Quantity::Other,
+    };
+    let (x, unit) = units.convert(axis_value, quantity)?;
+    // the axis's value in the file's units, within the file's type and limits (at least 1)
     let max = e.dtype.range().map_or(0, |(_, hi)| hi.max(0) as u64);
-    let mut v = axis.min(max);
+    let mut v = if x.is_finite() && x >= 1.0 {
+        (x.round() as u64).min(max)
+    } else {
+        1
+    };
     if let Some(hi) = e.high {
         v = v.min(hi);
     }
-    if v == 0 {
+    if v == 0 || axis_value == 0 {
         return None;
     }
     e.default = DefaultValue::Value(v);
+    let unit = if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {unit}")
+    };
+    let conv = if quantity == Quantity::Other || (x - axis_value as f64).abs() < 0.5 {
+        String::new()
+    } else {
+        format!(" ({axis_value} in the axis's own units, converted to the file's)")
+    };
     Some(format!(
-        "the file's default 0 is a placeholder (it {what}): {v}, the simulated axis's value \
-         (0x{from:04X}), is served instead"
+        "the file's default 0 is a placeholder (it {what}): {v}{unit}, the simulated axis's \
+         value (0x{from:04X}){conv}, is served instead"
     ))
 }
 
