@@ -175,6 +175,9 @@ fn dc_sync0_frames_cycle_and_pulse_times_allocate_nothing() {
     assert_eq!(allocs, 0, "allocations with DC SYNC0 active");
     assert!(m.seg.slaves[0].dc_synchronised());
     assert_eq!(pulses, 500);
+}
+
+#[test]
 fn a_drop_out_of_op_allocates_nothing() {
     let (mut m, o, i) = op(1);
     m.sdo_write(0, 0x6060, 0, false, &[8]).unwrap();
