@@ -1652,6 +1652,16 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     let mut faults =
         crate::bus::ethercat::EcatFaults::new(scenario.as_ref().map_or(1, |s| s.run.seed));
     let mut seg = drive_ethercat::Segment::new(slaves);
+    // The loop runs on this thread: real-time scheduling, CPU and locked memory as on CAN.
+    let report = realtime::apply(&RealtimeRequest {
+        fifo_priority: (args.rt_priority > 0).then_some(args.rt_priority),
+        cpu: args.cpu,
+        lock_memory: !args.no_mlock,
+    });
+    for w in &report.warnings {
+        eprintln!("drive-emu: warning: {w}");
+    }
+    eprintln!("drive-emu: loop thread: {report}");
     let stats = crate::runtime::ethercat::serve(
         &mut sock,
         &mut seg,
