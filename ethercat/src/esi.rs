@@ -547,7 +547,7 @@ mod tests {
         assert!(c.tx_pdos.is_empty());
         assert_eq!(d.optional.1[0].index, 0x1A01);
         assert_eq!(d.optional.1[0].entries[0].sub, 0);
-        assert_eq!(d.entries_at[0].line, 12);
+        assert_eq!(d.entries_at[0].line, 13);
     }
 
     #[test]
@@ -557,7 +557,7 @@ mod tests {
             "<BitLen>x</BitLen></Entry>\n      </RxPdo>",
         ))
         .unwrap_err();
-        assert_eq!(e.line, 12, "{e}");
+        assert_eq!(e.line, 13, "{e}");
         assert!(e.why.contains("BitLen \"x\" is not a number"), "{e}");
         let e = parse(&DEVICE.replace("#x1A01", "#x1601")).unwrap_err();
         assert_eq!(e.line, 15, "{e}");
