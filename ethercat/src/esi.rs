@@ -5,7 +5,7 @@
 
 use core::fmt::Write;
 
-use crate::sii::{SiiConfig, COE_DETAILS};
+use crate::sii::{Pdo, PdoEntry, SiiConfig, SmEntry, COE_DETAILS};
 
 /// The ETG.2000 name of a CoE data type code (0 for an unknown code: its bit length decides).
 pub fn data_type_name(code: u8, bits: u8) -> &'static str {
@@ -138,4 +138,436 @@ pub fn xml(cfg: &SiiConfig, entry_name: impl Fn(u16, u8) -> String) -> String {
         "      </Device>\n    </Devices>\n  </Descriptions>\n</EtherCATInfo>"
     );
     x
+}
+
+/// Where a PDO entry of a read ESI stands in its file (for errors that come later, when the
+/// drive's dictionary is checked against it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EntryAt {
+    /// The PDO (mapping index) the entry is in.
+    pub pdo: u16,
+    /// The mapped object.
+    pub index: u16,
+    /// Its sub-index.
+    pub sub: u8,
+    /// The line of the `<Entry>` element (1-based).
+    pub line: u32,
+}
+
+/// The first device of a vendor's ESI file, as the slave serves it.
+#[derive(Clone, Debug, Default)]
+pub struct EsiDevice {
+    /// Identity (no serial: an ESI has none), names, sync managers, the PDOs assigned by
+    /// default (those with an `Sm` attribute) with their entries.
+    pub config: SiiConfig,
+    /// PDOs without an `Sm` attribute: mapped, not assigned by default (RxPDOs, TxPDOs).
+    pub optional: (Vec<Pdo>, Vec<Pdo>),
+    /// Where each PDO entry is.
+    pub entries_at: Vec<EntryAt>,
+    /// Line of each PDO element, by mapping index.
+    pub pdos_at: Vec<(u16, u32)>,
+}
+
+/// An ESI that cannot be served: the line (1-based; 0 for the file as a whole) and why.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EsiError {
+    /// Line.
+    pub line: u32,
+    /// Why.
+    pub why: String,
+}
+
+impl core::fmt::Display for EsiError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if self.line == 0 {
+            write!(f, "{}", self.why)
+        } else {
+            write!(f, "line {}: {}", self.line, self.why)
+        }
+    }
+}
+
+impl std::error::Error for EsiError {}
+
+/// Most PDOs a direction may have (0x1600..0x17FF, 0x1A00..0x1BFF; the slave serves 8).
+const MAX_PDOS: usize = 64;
+/// Most entries a PDO may have (sub-indices 1..=254 of a mapping object).
+const MAX_ENTRIES: usize = 254;
+
+fn line_of(doc: &roxmltree::Document<'_>, node: roxmltree::Node<'_, '_>) -> u32 {
+    doc.text_pos_at(node.range().start).row
+}
+
+fn err(doc: &roxmltree::Document<'_>, node: roxmltree::Node<'_, '_>, why: String) -> EsiError {
+    EsiError {
+        line: line_of(doc, node),
+        why,
+    }
+}
+
+fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
+    node.children()
+        .find(|c| c.is_element() && c.tag_name().name() == name)
+}
+
+fn children<'a, 'i: 'a>(
+    node: roxmltree::Node<'a, 'i>,
+    name: &'a str,
+) -> impl Iterator<Item = roxmltree::Node<'a, 'i>> + 'a {
+    node.children()
+        .filter(move |c| c.is_element() && c.tag_name().name() == name)
+}
+
+/// An ETG.2000 number: `#x` then hex digits, or decimal.
+pub fn number(text: &str) -> Option<u64> {
+    let t = text.trim();
+    match t.strip_prefix("#x").or_else(|| t.strip_prefix("#X")) {
+        Some(h) if !h.is_empty() => u64::from_str_radix(h, 16).ok(),
+        Some(_) => None,
+        None if !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit()) => t.parse().ok(),
+        None => None,
+    }
+}
+
+fn quoted(s: &str) -> String {
+    let short: String = s.chars().take(40).collect();
+    format!(
+        "{short:?}{}",
+        if s.chars().count() > 40 { "..." } else { "" }
+    )
+}
+
+struct Reader<'d, 'i> {
+    doc: &'d roxmltree::Document<'i>,
+}
+
+impl<'d, 'i> Reader<'d, 'i> {
+    fn required(
+        &self,
+        parent: roxmltree::Node<'d, 'i>,
+        name: &str,
+    ) -> Result<roxmltree::Node<'d, 'i>, EsiError> {
+        child(parent, name).ok_or_else(|| {
+            err(
+                self.doc,
+                parent,
+                format!("<{}> has no <{name}>", parent.tag_name().name()),
+            )
+        })
+    }
+
+    /// The number in an element's text, at most `max`.
+    fn text_number(&self, node: roxmltree::Node<'d, 'i>, max: u64) -> Result<u64, EsiError> {
+        let t = node.text().unwrap_or("");
+        self.checked(node, node.tag_name().name(), t, max)
+    }
+
+    fn attr_number(
+        &self,
+        node: roxmltree::Node<'d, 'i>,
+        attr: &str,
+        max: u64,
+    ) -> Result<Option<u64>, EsiError> {
+        match node.attribute(attr) {
+            None => Ok(None),
+            Some(t) => self.checked(node, attr, t, max).map(Some),
+        }
+    }
+
+    fn checked(
+        &self,
+        node: roxmltree::Node<'d, 'i>,
+        what: &str,
+        t: &str,
+        max: u64,
+    ) -> Result<u64, EsiError> {
+        let v = number(t).ok_or_else(|| {
+            err(
+                self.doc,
+                node,
+                format!(
+                    "{what} {} is not a number (ETG.2000: #x then hex digits, or decimal)",
+                    quoted(t)
+                ),
+            )
+        })?;
+        if v > max {
+            return Err(err(
+                self.doc,
+                node,
+                format!("{what} {} is out of range (at most {max:#X})", quoted(t)),
+            ));
+        }
+        Ok(v)
+    }
+
+    fn pdo(&self, node: roxmltree::Node<'d, 'i>, out: &mut EsiDevice) -> Result<Pdo, EsiError> {
+        let tag = node.tag_name().name();
+        let (lo, hi) = if tag == "RxPdo" {
+            (0x1600, 0x17FF)
+        } else {
+            (0x1A00, 0x1BFF)
+        };
+        let index_node = self.required(node, "Index")?;
+        let index = self.text_number(index_node, 0xFFFF)? as u16;
+        if !(lo..=hi).contains(&index) {
+            return Err(err(
+                self.doc,
+                index_node,
+                format!(
+                    "{tag} index #x{index:04X} is not a mapping object (#x{lo:04X}..#x{hi:04X})"
+                ),
+            ));
+        }
+        let sm = self.attr_number(node, "Sm", 7)?.map_or(0, |v| v as u8);
+        let mut entries = Vec::new();
+        for e in children(node, "Entry") {
+            if entries.len() == MAX_ENTRIES {
+                return Err(err(
+                    self.doc,
+                    e,
+                    format!("{tag} #x{index:04X} has more than {MAX_ENTRIES} entries"),
+                ));
+            }
+            let ei = self.text_number(self.required(e, "Index")?, 0xFFFF)? as u16;
+            let sub = match child(e, "SubIndex") {
+                Some(s) => self.text_number(s, 0xFF)? as u8,
+                None => 0,
+            };
+            let bits = self.text_number(self.required(e, "BitLen")?, 64)? as u8;
+            if bits == 0 {
+                return Err(err(self.doc, e, "BitLen 0".into()));
+            }
+            if ei == 0 {
+                return Err(err(
+                    self.doc,
+                    e,
+                    format!("{tag} #x{index:04X}: a padding entry (Index #x0) is not served"),
+                ));
+            }
+            out.entries_at.push(EntryAt {
+                pdo: index,
+                index: ei,
+                sub,
+                line: line_of(self.doc, e),
+            });
+            entries.push(PdoEntry {
+                index: ei,
+                sub,
+                data_type: 0,
+                bits,
+            });
+        }
+        out.pdos_at.push((index, line_of(self.doc, node)));
+        Ok(Pdo { index, sm, entries })
+    }
+}
+
+/// Read the first device of `Descriptions/Devices` of an ESI file (ETG.2000): vendor, type
+/// (product code, revision, order), name, group, the sync managers, the RxPDOs and TxPDOs
+/// with their entries, and that it speaks CoE. Numbers as `#x1234` or decimal.
+pub fn parse(text: &str) -> Result<EsiDevice, EsiError> {
+    let doc = roxmltree::Document::parse(text).map_err(|e| EsiError {
+        line: e.pos().row,
+        why: format!("not well-formed XML: {e}"),
+    })?;
+    let r = Reader { doc: &doc };
+    let root = doc.root_element();
+    if root.tag_name().name() != "EtherCATInfo" {
+        return Err(err(
+            &doc,
+            root,
+            format!(
+                "the root element is <{}>, not <EtherCATInfo> (not an ESI file)",
+                root.tag_name().name()
+            ),
+        ));
+    }
+    let vendor = r.text_number(r.required(r.required(root, "Vendor")?, "Id")?, 0xFFFF_FFFF)?;
+    let devices = r.required(r.required(root, "Descriptions")?, "Devices")?;
+    let dev = r.required(devices, "Device")?;
+    let ty = r.required(dev, "Type")?;
+    let product = r
+        .attr_number(ty, "ProductCode", 0xFFFF_FFFF)?
+        .ok_or_else(|| err(&doc, ty, "<Type> has no ProductCode".into()))?;
+    let revision = r
+        .attr_number(ty, "RevisionNo", 0xFFFF_FFFF)?
+        .ok_or_else(|| err(&doc, ty, "<Type> has no RevisionNo".into()))?;
+    let name = r
+        .required(dev, "Name")?
+        .text()
+        .unwrap_or("")
+        .trim()
+        .to_string();
+    let order = ty.text().unwrap_or("").trim().to_string();
+    let group = child(dev, "GroupType")
+        .and_then(|g| g.text())
+        .unwrap_or("")
+        .trim()
+        .to_string();
+    let mailbox = r.required(dev, "Mailbox")?;
+    r.required(mailbox, "CoE")?;
+    let mut out = EsiDevice::default();
+    let mut sms = Vec::new();
+    for sm in children(dev, "Sm") {
+        if sms.len() == 8 {
+            return Err(err(&doc, sm, "more than 8 sync managers".into()));
+        }
+        let kind_text = sm.text().unwrap_or("").trim();
+        let kind = match kind_text {
+            "MBoxOut" => 1,
+            "MBoxIn" => 2,
+            "Outputs" => 3,
+            "Inputs" => 4,
+            other => {
+                return Err(err(
+                    &doc,
+                    sm,
+                    format!(
+                        "sync manager type {} (MBoxOut, MBoxIn, Outputs or Inputs)",
+                        quoted(other)
+                    ),
+                ))
+            }
+        };
+        let start = r
+            .attr_number(sm, "StartAddress", 0xFFFF)?
+            .ok_or_else(|| err(&doc, sm, "<Sm> has no StartAddress".into()))?;
+        let control = r
+            .attr_number(sm, "ControlByte", 0xFF)?
+            .ok_or_else(|| err(&doc, sm, "<Sm> has no ControlByte".into()))?;
+        let len = match r.attr_number(sm, "DefaultSize", 0xFFFF)? {
+            Some(v) => v,
+            None => r.attr_number(sm, "MaxSize", 0xFFFF)?.unwrap_or(0),
+        };
+        let enable = r.attr_number(sm, "Enable", 0xFF)?.unwrap_or(1);
+        sms.push(SmEntry {
+            start: start as u16,
+            len: len as u16,
+            control: control as u8,
+            enable: enable as u8,
+            kind,
+        });
+    }
+    let mut rx: Vec<(bool, Pdo)> = Vec::new();
+    let mut tx: Vec<(bool, Pdo)> = Vec::new();
+    for (tag, list) in [("RxPdo", &mut rx), ("TxPdo", &mut tx)] {
+        for p in children(dev, tag) {
+            if list.len() == MAX_PDOS {
+                return Err(err(&doc, p, format!("more than {MAX_PDOS} {tag}s")));
+            }
+            let pdo = r.pdo(p, &mut out)?;
+            if list.iter().any(|(_, q)| q.index == pdo.index) {
+                return Err(err(
+                    &doc,
+                    p,
+                    format!("{tag} #x{:04X} is described twice", pdo.index),
+                ));
+            }
+            list.push((p.attribute("Sm").is_some(), pdo));
+        }
+    }
+    let split = |list: Vec<(bool, Pdo)>| -> (Vec<Pdo>, Vec<Pdo>) {
+        let (a, o): (Vec<_>, Vec<_>) = list.into_iter().partition(|(s, _)| *s);
+        (
+            a.into_iter().map(|(_, p)| p).collect(),
+            o.into_iter().map(|(_, p)| p).collect(),
+        )
+    };
+    let (rx_pdos, rx_opt) = split(rx);
+    let (tx_pdos, tx_opt) = split(tx);
+    out.optional = (rx_opt, tx_opt);
+    out.config = SiiConfig {
+        identity: crate::sii::Identity {
+            vendor: vendor as u32,
+            product: product as u32,
+            revision: revision as u32,
+            serial: 0,
+        },
+        name,
+        group,
+        order,
+        sms,
+        rx_pdos,
+        tx_pdos,
+    };
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DEVICE: &str = r##"<?xml version="1.0"?>
+<EtherCATInfo>
+  <Vendor><Id>2652</Id></Vendor>
+  <Descriptions><Devices>
+    <Device>
+      <Type ProductCode="#xC0FFEE" RevisionNo="#x10">T</Type>
+      <Name>N</Name>
+      <Sm StartAddress="#x1000" ControlByte="#x26" DefaultSize="128">MBoxOut</Sm>
+      <Sm StartAddress="#x1080" ControlByte="#x22" DefaultSize="128">MBoxIn</Sm>
+      <Sm StartAddress="#x1100" ControlByte="#x64">Outputs</Sm>
+      <Sm StartAddress="#x1180" ControlByte="#x20" Enable="1">Inputs</Sm>
+      <RxPdo Sm="2"><Index>#x1600</Index>
+        <Entry><Index>#x6040</Index><SubIndex>0</SubIndex><BitLen>16</BitLen></Entry>
+      </RxPdo>
+      <TxPdo><Index>#x1A01</Index>
+        <Entry><Index>#x6041</Index><BitLen>16</BitLen></Entry>
+      </TxPdo>
+      <Mailbox><CoE/></Mailbox>
+    </Device>
+  </Devices></Descriptions>
+</EtherCATInfo>"##;
+
+    #[test]
+    fn numbers_hex_and_decimal() {
+        assert_eq!(number("#x1A00"), Some(0x1A00));
+        assert_eq!(number(" 131075 "), Some(131_075));
+        for bad in ["0x10", "#x", "", "-1", "1e3", "#xG"] {
+            assert_eq!(number(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn reads_the_first_device() {
+        let d = parse(DEVICE).unwrap();
+        let c = &d.config;
+        assert_eq!(c.identity.vendor, 2652);
+        assert_eq!(c.identity.product, 0xC0FFEE);
+        assert_eq!(c.identity.revision, 0x10);
+        assert_eq!((c.name.as_str(), c.order.as_str()), ("N", "T"));
+        assert_eq!(c.sms.len(), 4);
+        assert_eq!(
+            (c.sms[2].start, c.sms[2].control, c.sms[2].kind),
+            (0x1100, 0x64, 3)
+        );
+        assert_eq!(c.rx_pdos.len(), 1);
+        assert_eq!(c.rx_pdos[0].entries[0].index, 0x6040);
+        assert!(c.tx_pdos.is_empty());
+        assert_eq!(d.optional.1[0].index, 0x1A01);
+        assert_eq!(d.optional.1[0].entries[0].sub, 0);
+        assert_eq!(d.entries_at[0].line, 13);
+    }
+
+    #[test]
+    fn errors_say_the_line() {
+        let e = parse(&DEVICE.replace(
+            "<BitLen>16</BitLen></Entry>\n      </RxPdo>",
+            "<BitLen>x</BitLen></Entry>\n      </RxPdo>",
+        ))
+        .unwrap_err();
+        assert_eq!(e.line, 13, "{e}");
+        assert!(e.why.contains("BitLen \"x\" is not a number"), "{e}");
+        let e = parse(&DEVICE.replace("#x1A01", "#x1601")).unwrap_err();
+        assert_eq!(e.line, 15, "{e}");
+        assert!(e.why.contains("not a mapping object"), "{e}");
+        let e = parse(&DEVICE.replace("<Mailbox><CoE/></Mailbox>", "")).unwrap_err();
+        assert!(e.why.contains("no <Mailbox>"), "{e}");
+        let e = parse("<a>").unwrap_err();
+        assert_eq!(e.line, 1, "{e}");
+        assert!(parse("").is_err());
+        let e = parse("<Other/>").unwrap_err();
+        assert!(e.why.contains("not <EtherCATInfo>"), "{e}");
+    }
 }

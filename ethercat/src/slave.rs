@@ -42,6 +42,8 @@ pub enum SlaveError {
     Dictionary(String),
     /// The default PDO assignment does not resolve (abort code).
     Pdo(u32),
+    /// A vendor's ESI the drive cannot serve (line, why).
+    Esi(crate::esi::EsiError),
 }
 
 impl core::fmt::Display for SlaveError {
@@ -50,6 +52,7 @@ impl core::fmt::Display for SlaveError {
             SlaveError::Node(e) => write!(f, "node: {e}"),
             SlaveError::Dictionary(e) => write!(f, "object dictionary: {e}"),
             SlaveError::Pdo(c) => write!(f, "default PDO assignment: abort 0x{c:08X}"),
+            SlaveError::Esi(e) => write!(f, "{e}"),
         }
     }
 }
@@ -207,6 +210,173 @@ pub fn add_coe_objects(od: &mut ObjectDictionary) -> Result<(), String> {
     Ok(())
 }
 
+fn esi_err(line: u32, why: String) -> crate::esi::EsiError {
+    crate::esi::EsiError { line, why }
+}
+
+/// The ESI's identity and PDO mappings as the dictionary's defaults (before the CoE objects
+/// are added); everything checked against the drive's objects.
+fn apply_esi(
+    od: &mut ObjectDictionary,
+    esi: &crate::esi::EsiDevice,
+) -> Result<(), crate::esi::EsiError> {
+    let c = &esi.config;
+    // the sync managers: where this slave has them
+    let want = [
+        (1u8, MBX_OUT_START, Some(mailbox::SIZE as u16), "MBoxOut"),
+        (2, MBX_IN_START, Some(mailbox::SIZE as u16), "MBoxIn"),
+        (3, OUTPUTS_START, None, "Outputs"),
+        (4, INPUTS_START, None, "Inputs"),
+    ];
+    if c.sms.len() != want.len() {
+        return Err(esi_err(
+            0,
+            format!(
+                "the device has {} sync managers; this slave serves 4 (MBoxOut, MBoxIn,                  Outputs, Inputs)",
+                c.sms.len()
+            ),
+        ));
+    }
+    for (k, (sm, (kind, start, len, name))) in c.sms.iter().zip(want).enumerate() {
+        let len_ok = len.is_none_or(|l| sm.len == l);
+        if sm.kind != kind || sm.start != start || !len_ok {
+            return Err(esi_err(
+                0,
+                format!(
+                    "sync manager {k} is type {} at #x{:04X} ({} bytes); this slave serves SM{k}                      as {name} at #x{start:04X}{}",
+                    sm.kind,
+                    sm.start,
+                    sm.len,
+                    len.map_or(String::new(), |l| format!(", {l} bytes"))
+                ),
+            ));
+        }
+    }
+    let id = [
+        (1u8, c.identity.vendor, "vendor"),
+        (2, c.identity.product, "product code"),
+        (3, c.identity.revision, "revision"),
+    ];
+    for (sub, v, what) in id {
+        od.set_default(0x1018, sub, DefaultValue::Value(u64::from(v)))
+            .map_err(|e| esi_err(0, format!("the {what} as 0x1018:{sub}: {e}")))?;
+    }
+    let line = |index: u16| {
+        esi.pdos_at
+            .iter()
+            .find(|(i, _)| *i == index)
+            .map_or(0, |(_, l)| *l)
+    };
+    let all = c
+        .rx_pdos
+        .iter()
+        .chain(&esi.optional.0)
+        .chain(&c.tx_pdos)
+        .chain(&esi.optional.1);
+    for p in all {
+        let at = line(p.index);
+        let subs = (1..=u8::MAX)
+            .take_while(|&s| od.get(p.index, s).is_some())
+            .count();
+        if od.get(p.index, 0).is_none() {
+            return Err(esi_err(
+                at,
+                format!(
+                    "PDO #x{:04X}: the drive has no mapping object 0x{:04X}",
+                    p.index, p.index
+                ),
+            ));
+        }
+        if p.entries.len() > subs {
+            return Err(esi_err(
+                at,
+                format!(
+                    "PDO #x{:04X} has {} entries; the drive's mapping object holds {subs}",
+                    p.index,
+                    p.entries.len()
+                ),
+            ));
+        }
+        for (k, e) in p.entries.iter().enumerate() {
+            let at = esi
+                .entries_at
+                .iter()
+                .find(|a| a.pdo == p.index && a.index == e.index && a.sub == e.sub)
+                .map_or(at, |a| a.line);
+            let Some((_, obj)) = od.get(e.index, e.sub) else {
+                return Err(esi_err(
+                    at,
+                    format!(
+                        "PDO #x{:04X} maps 0x{:04X}:{}, an object the drive does not have",
+                        p.index, e.index, e.sub
+                    ),
+                ));
+            };
+            if !obj.pdo {
+                return Err(esi_err(
+                    at,
+                    format!(
+                        "PDO #x{:04X} maps 0x{:04X}:{} ({}), which the drive does not map                          into PDOs",
+                        p.index, e.index, e.sub, obj.name
+                    ),
+                ));
+            }
+            let bits = obj.dtype.size() * 8;
+            if bits != usize::from(e.bits) {
+                return Err(esi_err(
+                    at,
+                    format!(
+                        "PDO #x{:04X} maps 0x{:04X}:{} ({}) with BitLen {}; the object has {bits} bits",
+                        p.index, e.index, e.sub, obj.name, e.bits
+                    ),
+                ));
+            }
+            let v = (u32::from(e.index) << 16) | (u32::from(e.sub) << 8) | u32::from(e.bits);
+            od.set_default(p.index, k as u8 + 1, DefaultValue::Value(u64::from(v)))
+                .map_err(|err| esi_err(at, format!("PDO #x{:04X}: {err}", p.index)))?;
+        }
+        od.set_default(p.index, 0, DefaultValue::Value(p.entries.len() as u64))
+            .map_err(|err| esi_err(at, format!("PDO #x{:04X}: {err}", p.index)))?;
+    }
+    Ok(())
+}
+
+/// The ESI's PDOs with an `Sm` attribute as the default assignment 0x1C12 / 0x1C13.
+fn assign_esi(od: &mut ObjectDictionary, c: &SiiConfig) -> Result<(), crate::esi::EsiError> {
+    for (index, pdos, sm) in [(0x1C12u16, &c.rx_pdos, 2u8), (0x1C13, &c.tx_pdos, 3)] {
+        if let Some(p) = pdos.iter().find(|p| p.sm != sm) {
+            return Err(esi_err(
+                0,
+                format!(
+                    "PDO #x{:04X} is assigned to SM{}; this slave has its {} on SM{sm}",
+                    p.index,
+                    p.sm,
+                    if sm == 2 { "outputs" } else { "inputs" }
+                ),
+            ));
+        }
+        let room = (1..=u8::MAX)
+            .take_while(|&s| od.get(index, s).is_some())
+            .count();
+        if pdos.len() > room {
+            return Err(esi_err(
+                0,
+                format!(
+                    "{} PDOs assigned to SM{sm}; the drive's 0x{index:04X} holds {room}",
+                    pdos.len()
+                ),
+            ));
+        }
+        for (k, p) in pdos.iter().enumerate() {
+            od.set_default(index, k as u8 + 1, DefaultValue::Value(u64::from(p.index)))
+                .map_err(|e| esi_err(0, format!("0x{index:04X}: {e}")))?;
+        }
+        od.set_default(index, 0, DefaultValue::Value(pdos.len() as u64))
+            .map_err(|e| esi_err(0, format!("0x{index:04X}: {e}")))?;
+    }
+    Ok(())
+}
+
 /// One slave.
 #[derive(Clone, Debug)]
 pub struct Slave {
@@ -234,6 +404,9 @@ pub struct Slave {
     sync0: Sync0,
     /// DC SYNC0 chosen (0x1C32:1 = 2) and checked at SAFE-OP: the drive follows SYNC0.
     dc_synchronised: bool,
+    /// A vendor's ESI served instead of the drive's own description: its names and sync
+    /// manager control bytes go into the SII.
+    esi: Option<SiiConfig>,
 }
 
 struct Transition<'a> {
@@ -313,8 +486,35 @@ impl Checks for Transition<'_> {
 impl Slave {
     /// Build the slave around the node of `cfg` (the CoE objects added to its dictionary),
     /// boot the node and generate the SII from its identity and default PDO assignment.
-    pub fn new(mut cfg: NodeConfig, drive: &mut impl Drive) -> Result<Slave, SlaveError> {
+    pub fn new(cfg: NodeConfig, drive: &mut impl Drive) -> Result<Slave, SlaveError> {
+        Slave::build(cfg, drive, None)
+    }
+
+    /// [`Slave::new`] serving a vendor's ESI ([`crate::esi::parse`]): its identity in 0x1018
+    /// (the drive's serial kept), its PDOs as the default mappings 0x1600.. / 0x1A00.. and
+    /// assignment 0x1C12 / 0x1C13 (the drive's objects behind each entry), its names and sync
+    /// manager control bytes in the SII. Refused (with the ESI's line) where the drive lacks a
+    /// mapped object or a mapping object, a bit length differs from the object's, or the
+    /// sync managers are not where this slave has them (0x1000 / 0x1080 mailboxes of 128
+    /// bytes, outputs at 0x1100, inputs at 0x1180).
+    pub fn with_esi(
+        mut cfg: NodeConfig,
+        drive: &mut impl Drive,
+        esi: &crate::esi::EsiDevice,
+    ) -> Result<Slave, SlaveError> {
+        apply_esi(&mut cfg.od, esi).map_err(SlaveError::Esi)?;
+        Slave::build(cfg, drive, Some(esi.config.clone()))
+    }
+
+    fn build(
+        mut cfg: NodeConfig,
+        drive: &mut impl Drive,
+        esi: Option<SiiConfig>,
+    ) -> Result<Slave, SlaveError> {
         add_coe_objects(&mut cfg.od).map_err(SlaveError::Dictionary)?;
+        if let Some(e) = &esi {
+            assign_esi(&mut cfg.od, e).map_err(SlaveError::Esi)?;
+        }
         let mut node = Node::new(cfg).map_err(SlaveError::Node)?;
         // a PDO is not one CAN frame here: a mapping may fill a sync manager's buffer
         node.set_pdo_max_len(pdo::MAX_IMAGE);
@@ -359,6 +559,7 @@ impl Slave {
             watchdog_expiries: 0,
             sync0: Sync0::default(),
             dc_synchronised: false,
+            esi,
             node,
         };
         s.sii = sii::image(&s.sii_config()?);
@@ -401,7 +602,7 @@ impl Slave {
                 })
                 .collect()
         };
-        Ok(SiiConfig {
+        let mut sii = SiiConfig {
             identity: sii::Identity {
                 vendor: id(1),
                 product: id(2),
@@ -443,7 +644,17 @@ impl Slave {
             ],
             rx_pdos: pdos(&outputs, 2),
             tx_pdos: pdos(&inputs, 3),
-        })
+        };
+        if let Some(esi) = &self.esi {
+            sii.name.clone_from(&esi.name);
+            sii.group.clone_from(&esi.group);
+            sii.order.clone_from(&esi.order);
+            for (mine, theirs) in sii.sms.iter_mut().zip(&esi.sms) {
+                mine.control = theirs.control;
+                mine.enable = theirs.enable;
+            }
+        }
+        Ok(sii)
     }
 
     /// The drive core.

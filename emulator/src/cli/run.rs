@@ -146,6 +146,12 @@ pub struct RunArgs {
     /// CAN. Not yet with --scenario or --panel.
     #[arg(long, value_name = "IFACE")]
     pub ethercat: Option<String>,
+    /// With --ethercat: serve this vendor's ESI XML (ETG.2000) as the slave's own, as --eds
+    /// serves an EDS on CAN: the identity of its first device in the SII and 0x1018, its
+    /// RxPdo / TxPdo as the default mappings 0x1600.. / 0x1A00.. and assignment 0x1C12 /
+    /// 0x1C13 (each entry an object of the drive), its names in the SII (docs/ethercat.md).
+    #[arg(long, value_name = "FILE")]
+    pub esi: Option<PathBuf>,
     #[command(flatten)]
     pub panel: crate::panel::PanelArgs,
     /// Watch the axis: run the backlash detector on the drive's own samples while it runs (a
@@ -710,6 +716,13 @@ pub fn positive_seconds(s: &str) -> Result<f64, String> {
 }
 
 pub fn run(args: &RunArgs) -> Result<()> {
+    if let (Some(p), None) = (&args.esi, &args.ethercat) {
+        return Err(super::exit::usage_msg(format!(
+            "--esi {}: an ESI describes an EtherCAT slave; it needs --ethercat IFACE (on CAN, \
+             serve a vendor's EDS with --eds FILE)",
+            crate::quote::text(&p.display().to_string())
+        )));
+    }
     if let Some(iface) = &args.ethercat {
         return run_ethercat(args, iface);
     }
@@ -1559,6 +1572,10 @@ fn ethercat_slaves_for(
     };
     machine::validate(&machine)?;
     let lss = LssOptions::default();
+    let esi = match &args.esi {
+        Some(path) => Some(load_esi(path)?),
+        None => None,
+    };
     let mut slaves = Vec::new();
     let mut drives = Vec::new();
     for e in machine.axes.iter_mut() {
@@ -1568,12 +1585,37 @@ fn ethercat_slaves_for(
         };
         // no boot delay: an EtherCAT slave's mailbox is there from PRE-OP on
         let (config, mut drive) = axis_setup(cfg, e, 0, &lss)?;
-        let slave = drive_ethercat::Slave::new(config, &mut drive)
-            .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?;
+        let slave = match &esi {
+            Some((path, dev)) => {
+                drive_ethercat::Slave::with_esi(config, &mut drive, dev).map_err(|err| {
+                    super::exit::usage_msg(format!(
+                        "--esi {}: axis node {}: {err}",
+                        crate::quote::text(&path.display().to_string()),
+                        e.node_id
+                    ))
+                })?
+            }
+            None => drive_ethercat::Slave::new(config, &mut drive)
+                .map_err(|err| anyhow::anyhow!("axis node {}: {err}", e.node_id))?,
+        };
         slaves.push(slave);
         drives.push(drive);
     }
     Ok((machine, slaves, drives))
+}
+
+/// Read a vendor's ESI (`--esi FILE`): bounded, UTF-8, its first device; an error says the
+/// file, the line and why (exit 2; 4 when the file cannot be read).
+fn load_esi(path: &std::path::Path) -> Result<(PathBuf, drive_ethercat::esi::EsiDevice)> {
+    let text = crate::infile::read_text(path, "ESI file", crate::infile::MAX_CONFIG_BYTES)
+        .map_err(super::exit::unreadable)?;
+    let dev = drive_ethercat::esi::parse(&text).map_err(|e| {
+        super::exit::usage_msg(format!(
+            "--esi {}: {e}",
+            crate::quote::text(&path.display().to_string())
+        ))
+    })?;
+    Ok((path.to_path_buf(), dev))
 }
 
 /// `run --ethercat IFACE`: the machine's axes as EtherCAT slaves on a raw Ethernet port; with
