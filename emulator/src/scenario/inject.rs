@@ -245,7 +245,11 @@ pub fn check_ranges(
                 let (a, b) = (mean + amplitude * low, mean + amplitude);
                 (key, heapless::Vec::from_slice(&[a, b]).unwrap())
             }
-            Action::Sensor { .. } | Action::Can { .. } | Action::CanRestore => continue,
+            Action::Sensor { .. }
+            | Action::Can { .. }
+            | Action::CanRestore
+            | Action::Ethercat { .. }
+            | Action::EthercatRestore => continue,
         };
         if drive.is_none() {
             drive = Some(
