@@ -138,7 +138,8 @@ def run(m):
         other_run = other_run + 1 if wkc not in (-1, 0, expected) else 0
         if other_run >= 5 or len(seen) % 200 == 0:
             m.read_state()
-            if s.state != pysoem.OP_STATE:
+            # 0: the read went unanswered (a lost frame, the link down): not a state
+            if s.state not in (0, pysoem.OP_STATE):
                 left_op = True
                 break
     check(left_op, f"the slave never left OP: {summary(seen)}")
