@@ -73,6 +73,9 @@ fn run(n: usize, tag: char, storage: &'static PduStorage<MAX_FRAMES, MAX_PDU_DAT
             mailbox_response: Duration::from_millis(2000),
             state_transition: Duration::from_secs(10),
             pdu: Duration::from_millis(500),
+            // the default (10 ms) is a wire's: a loaded host answers later
+            eeprom: Duration::from_millis(1000),
+            mailbox_echo: Duration::from_millis(1000),
             ..Timeouts::default()
         },
         MainDeviceConfig {
