@@ -76,7 +76,6 @@ fn run(n: usize, tag: char, storage: &'static PduStorage<MAX_FRAMES, MAX_PDU_DAT
             // the default (10 ms) is a wire's: a loaded host answers later
             eeprom: Duration::from_millis(1000),
             mailbox_echo: Duration::from_millis(1000),
-            ..Timeouts::default()
         },
         MainDeviceConfig {
             dc_static_sync_iterations: 100,
