@@ -101,8 +101,9 @@ if [[ $emu_ok == 1 ]] && cargo nextest archive -p e2e --archive-file "$archive";
     # The debug build (host tests, the archive's source) is not needed from here on: in CI its
     # room goes to the fuzz build.
     if [[ ${TEST_ALL_FREE_DISK:-0} == 1 ]]; then
-        rm -rf "$(cargo metadata --no-deps --format-version 1 |
-            python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')/debug"
+        debug_dir=$(cargo metadata --no-deps --format-version 1 |
+            python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])') &&
+            [[ -n $debug_dir && -d $debug_dir/debug ]] && rm -rf "${debug_dir:?}/debug"
     fi
     echo "test-all.sh: the vcan run goes on in the background (pid $vcan_pid); its output follows when it ends"
 else
