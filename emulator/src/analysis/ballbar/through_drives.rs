@@ -17,6 +17,8 @@ use crate::bus::inproc::{InProcBus, InProcEndpoint};
 use crate::bus::{CanBus, CanFrame};
 use crate::drive::axis_drive::AxisDrive;
 use crate::runtime::{AxisSlot, Runtime};
+use drive_protocol::wire::cob;
+use drive_protocol::wire::sdo::{Initiate, Mux, SdoRequest};
 
 /// Node-IDs of the X and Y drives on the in-process bus.
 pub const NODES: [u8; 2] = [1, 2];
@@ -37,13 +39,13 @@ pub struct DrivePair {
     syncs: u64,
 }
 
+/// An expedited SDO download request, as a master sends it.
 fn sdo_write(node: u8, index: u16, sub: u8, value: &[u8]) -> CanFrame {
-    let mut d = [0u8; 8];
-    d[0] = 0x23 | ((4 - value.len() as u8) << 2);
-    d[1..3].copy_from_slice(&index.to_le_bytes());
-    d[3] = sub;
-    d[4..4 + value.len()].copy_from_slice(value);
-    CanFrame::new(0x600 + u32::from(node), &d)
+    let req = SdoRequest::InitiateDownload {
+        mux: Mux::new(index, sub),
+        data: Initiate::expedited(value),
+    };
+    CanFrame::new(cob::SDO_RX + u32::from(node), &req.emit())
 }
 
 impl DrivePair {
@@ -141,22 +143,17 @@ impl DrivePair {
 
     /// The axes' direct encoders, m, relative to the circle's centre.
     pub fn direct_m(&self) -> [f64; 2] {
-        let mut p = [0.0; 2];
-        for (k, ax) in self.rt.axes.iter().enumerate() {
-            p[k] =
-                ax.drive.servo.direct_encoder_position() - self.origin_uu[k] * self.user_unit_m[k];
-        }
-        p
+        self.relative(|d| d.servo.direct_encoder_position())
     }
 
     /// The axes' motor encoders at the load, m, relative to the circle's centre.
     pub fn motor_m(&self) -> [f64; 2] {
-        let mut p = [0.0; 2];
-        for (k, ax) in self.rt.axes.iter().enumerate() {
-            p[k] =
-                ax.drive.servo.motor_encoder_position() - self.origin_uu[k] * self.user_unit_m[k];
-        }
-        p
+        self.relative(|d| d.servo.motor_encoder_position())
+    }
+
+    /// A position of each axis (m, drive coordinates) relative to the circle's centre.
+    fn relative(&self, position_m: impl Fn(&AxisDrive) -> f64) -> [f64; 2] {
+        [0, 1].map(|k| position_m(&self.rt.axes[k].drive) - self.origin_uu[k] * self.user_unit_m[k])
     }
 
     /// The drives' statuswords (fault bit 3).
