@@ -98,6 +98,11 @@ if [[ $emu_ok == 1 ]] && cargo nextest archive -p e2e --archive-file "$archive";
         exit $rc' vcan-tests "$archive" "$ROOT" "$tmp/extract"
     ) >"$tmp/vcan.log" 2>&1 &
     vcan_pid=$!; vcan_t=$(now)
+    # What runs beside it from here (fuzz, the Python phases) at a lower priority: the e2e
+    # tests inside user-mode Linux share its one CPU among a drive, a master and sometimes a
+    # browser, and a master once waited 10 s for an SDO answer while the fuzz build held both
+    # host cores. The vcan run keeps its priority (forked above); the rest fills the idle core.
+    renice -n 10 -p $$ >/dev/null 2>&1 || true
     # The debug build (host tests, the archive's source) is not needed from here on: in CI its
     # room goes to the fuzz build.
     if [[ ${TEST_ALL_FREE_DISK:-0} == 1 ]]; then
