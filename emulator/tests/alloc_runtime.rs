@@ -435,6 +435,7 @@ fn the_tick_with_the_panel_open_and_five_clients_does_not_allocate() {
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let addr = listener.local_addr().unwrap();
     let setup = PanelSetup {
+        bus: drive_emu::panel::PanelBus::Can,
         axes: vec![PanelAxis {
             node_id: 5,
             preset: "cnc1".into(),

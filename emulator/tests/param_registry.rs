@@ -89,6 +89,7 @@ fn the_panel_offers_every_live_parameter_under_its_registry_name_and_unit() {
         let cfg = AxisConfig::from_preset(name).unwrap();
         let rotary = cfg.kind == AxisKind::Rotary;
         let setup = PanelSetup {
+            bus: drive_emu::panel::PanelBus::Can,
             axes: vec![PanelAxis {
                 node_id: 5,
                 preset: name.to_string(),
@@ -189,6 +190,7 @@ fn a_value_just_outside_a_live_parameters_range_is_refused_at_every_entry() {
         let cfg = AxisConfig::from_preset(name).unwrap();
         let rotary = cfg.kind == AxisKind::Rotary;
         let setup = PanelSetup {
+            bus: drive_emu::panel::PanelBus::Can,
             axes: vec![PanelAxis {
                 node_id: 5,
                 preset: name.to_string(),

@@ -92,6 +92,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         ..Default::default()
     };
     let setup = PanelSetup {
+        bus: crate::panel::PanelBus::Can,
         axes: vec![PanelAxis {
             node_id: args.node,
             preset: args.preset.clone(),

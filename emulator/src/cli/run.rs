@@ -142,8 +142,8 @@ pub struct RunArgs {
     /// Serve the run's drives as EtherCAT CoE slaves on this Ethernet interface (AF_PACKET,
     /// EtherType 0x88A4; a veth end, a TAP or a NIC; needs CAP_NET_RAW) instead of CAN: one
     /// slave per axis in machine-file order, as on a line. With --lockstep the drives' time
-    /// advances one tick per process-data frame (LRD/LWR/LRW); --trace and --detect as on
-    /// CAN. Not yet with --scenario or --panel.
+    /// advances one tick per process-data frame (LRD/LWR/LRW); --trace, --detect,
+    /// --scenario and --panel as on CAN (with EtherCAT's faults).
     #[arg(long, value_name = "IFACE")]
     pub ethercat: Option<String>,
     /// With --ethercat: serve this vendor's ESI XML (ETG.2000) as the slave's own, as --eds
@@ -966,6 +966,7 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
     // The live panel (--panel): bound before the loop starts; it takes the scenario's
     // injections into its own injector.
     let context = crate::panel::RunContext {
+        bus: crate::panel::PanelBus::Can,
         iface: socketcand.is_none().then_some(args.iface.as_str()),
         node: args.node,
         lockstep: args.lockstep,
@@ -1623,12 +1624,7 @@ fn load_esi(path: &std::path::Path) -> Result<(PathBuf, drive_ethercat::esi::Esi
 /// faults) injected as on CAN.
 fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     validate_args(args)?;
-    if args.panel.panel.is_some() {
-        return Err(super::exit::usage_msg(
-            "--ethercat: not yet with --panel (the panel drives a CAN run; inject EtherCAT \
-             faults with --scenario FILE)",
-        ));
-    }
+    crate::panel::check_args(&args.panel)?;
     let scenario = match &args.scenario {
         Some(path) => Some(crate::scenario::load(path).map_err(super::exit::scenario_file)?),
         None => None,
@@ -1687,6 +1683,19 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     let mut injector = scenario
         .as_ref()
         .map(|s| LoopInjector::new(s.run.master.master_id));
+    // --panel: the same panel as on CAN, its bus faults EtherCAT's; it takes the scenario's
+    // injections into its own injector
+    let context = crate::panel::RunContext {
+        bus: crate::panel::PanelBus::Ethercat,
+        iface: None,
+        node: args.node,
+        lockstep: args.lockstep,
+        json: args.json,
+        machine: &machine,
+        scenario: scenario.as_ref(),
+    };
+    let (panel, mut panel_loop) =
+        crate::panel::start_for_run(&args.panel, context, &link, &mut injector)?.unzip();
     let scenario_thread = match &scenario {
         Some(s) => Some(spawn_scenario(args, s, &link, &stop)?),
         None => None,
@@ -1712,7 +1721,10 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         &stop,
         &mut faults,
         |seg, drives, faults, t_us| {
-            if let (Some(inj), Some(slave), Some(drive)) = (
+            if let Some(p) = panel_loop.as_mut() {
+                // publishes every slave and applies the panel's and the scenario's injections
+                p.on_ethercat_cycle(seg, drives, faults, t_us);
+            } else if let (Some(inj), Some(slave), Some(drive)) = (
                 injector.as_mut(),
                 seg.slaves.first_mut(),
                 drives.first_mut(),
@@ -1731,6 +1743,9 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     );
     // the loop has stopped: a scenario still running ends now
     stop.store(true, Ordering::Relaxed);
+    if let Some(p) = panel {
+        p.stop();
+    }
     if let (Some(rec), Some(tap)) = (recorder, &tap) {
         finish_trace(rec, tap)?;
     }

@@ -230,26 +230,33 @@ impl Observer {
     /// axis. No allocation, lock, log or wait.
     pub fn publish<B: CanBus>(&mut self, rt: &mut Runtime<B, AxisDrive>) {
         let now = rt.sim_time_us;
-        for ((ax, w), evs) in rt
-            .axes
-            .iter_mut()
-            .zip(&mut self.writers)
-            .zip(&mut self.events)
-        {
+        self.publish_axes(now, rt.axes.iter_mut().map(|a| (&mut a.node, &a.drive)));
+    }
+
+    /// [`Observer::publish`] for any front end: the axes as (node, drive) pairs in axis order
+    /// (CAN: the runtime's; EtherCAT: each slave's node beside its drive) at simulated time
+    /// `now`. Every node's events are drained here, and nowhere else while the fan-out runs.
+    pub fn publish_axes<'a>(
+        &mut self,
+        now: u64,
+        axes: impl Iterator<Item = (&'a mut drive_protocol::Node, &'a AxisDrive)>,
+    ) {
+        let mut first: Option<(&'a mut drive_protocol::Node, &'a AxisDrive)> = None;
+        for (((node, drive), w), evs) in axes.zip(&mut self.writers).zip(&mut self.events) {
             evs.clear();
-            while let Some(e) = ax.node.poll_event() {
+            while let Some(e) = node.poll_event() {
                 // A full buffer cannot happen (it is the node's own queue size); if it did,
                 // the newest events would be dropped, as the node's queue does.
                 let _ = evs.push(e);
             }
             let mut snap = AxisSnapshot {
-                sample: node_sample(&ax.node, now),
+                sample: node_sample(node, now),
                 t_us: now,
-                controlword: ax.node.object_raw(0x6040, 0).unwrap_or(0) as u16,
-                nmt: ax.node.nmt_state() as u8,
-                motor_speed_rpm: ax.drive.servo.axis.motor_speed() * 60.0 / std::f64::consts::TAU,
-                load_speed_uu_per_s: ax.drive.servo.axis.load_velocity() / ax.drive.user_unit,
-                current_a: ax.drive.servo.axis.motor.current(),
+                controlword: node.object_raw(0x6040, 0).unwrap_or(0) as u16,
+                nmt: node.nmt_state() as u8,
+                motor_speed_rpm: drive.servo.axis.motor_speed() * 60.0 / std::f64::consts::TAU,
+                load_speed_uu_per_s: drive.servo.axis.load_velocity() / drive.user_unit,
+                current_a: drive.servo.axis.motor.current(),
                 events: [None; EVENTS_PER_TICK],
                 events_over: 0,
             };
@@ -271,19 +278,22 @@ impl Observer {
                 }
             }
             w.push(&snap.to_words());
+            if first.is_none() {
+                first = Some((node, drive));
+            }
         }
         let board = &self.shared.board;
         if self.published.is_multiple_of(256) {
-            if let Some(ax) = rt.axes.first() {
+            if let Some((node, drive)) = first {
                 // The statistics object where the drive put it (base + 0x100; 0x2100 unless
                 // moved by --objects-base or a vendor's EDS).
-                if let Some(slots) = ax.drive.stats_slots() {
+                if let Some(slots) = drive.stats_slots() {
                     for (s, slot) in board.stats_2100.iter().zip(slots) {
-                        let v = ax.node.value(*slot).unwrap_or(0) as u32;
+                        let v = node.value(*slot).unwrap_or(0) as u32;
                         s.store(v, Ordering::Relaxed);
                     }
                 }
-                let hb = ax.node.object_raw(0x1016, 1).unwrap_or(0);
+                let hb = node.object_raw(0x1016, 1).unwrap_or(0);
                 board.heartbeat_consumer_1016.store(hb, Ordering::Relaxed);
             }
         }

@@ -21,7 +21,7 @@ use serde_json::{json, Value};
 use std::path::Path;
 
 /// Keys a panel write may carry (the actions of `[[event]]`).
-const ACTION_KEYS: &[&str] = &["set", "sensor", "can"];
+const ACTION_KEYS: &[&str] = &["set", "sensor", "can", "ethercat"];
 /// Keys the panel sets itself or does not take live.
 const REFUSED_KEYS: &[(&str, &str)] = &[
     (
@@ -70,6 +70,8 @@ pub struct Controls {
     pub params: Vec<ParamControl>,
     rotary: bool,
     preset: String,
+    /// The run's fieldbus: its faults are the only bus faults offered.
+    bus: super::PanelBus,
 }
 
 /// The unit of a parameter key, for people (the parameter registry's).
@@ -111,12 +113,14 @@ impl Controls {
             params,
             rotary,
             preset: ax.preset.clone(),
+            bus: setup.bus,
         })
     }
 
-    /// The controls as the stream's `hello` lists them.
+    /// The controls as the stream's `hello` lists them: the bus faults of the run's bus only
+    /// (`can` on CAN, `ethercat` on EtherCAT).
     pub fn to_json(&self) -> Value {
-        json!({
+        let mut v = json!({
             "axis": 0,
             "set": self.params.iter().map(|p| json!({
                 "key": p.key, "unit": p.unit, "min": finite_or_null(p.min),
@@ -124,7 +128,9 @@ impl Controls {
             })).collect::<Vec<_>>(),
             "sensor": ["motor_encoder_loss", "direct_encoder_loss", "motor_encoder_glitch",
                        "direct_encoder_glitch", "restore"],
-            "can": {
+        });
+        v[self.bus.key()] = match self.bus {
+            super::PanelBus::Can => json!({
                 "drop": {"share": [0.0, 1.0], "cob_id": "optional, 0x000..0x7FF",
                          "over": "optional time, e.g. \"5 s\""},
                 "delay": {"share": [0.0, 1.0], "ticks": "whole ticks, >= 0",
@@ -132,8 +138,19 @@ impl Controls {
                 "sync_loss": {"over": "optional time"},
                 "heartbeat_loss": {"over": "optional time"},
                 "restore": {},
-            },
-        })
+            }),
+            super::PanelBus::Ethercat => json!({
+                "lost": {"frames": "the next N frames", "share": [0.0, 1.0],
+                         "over": "with share: optional time"},
+                "late": {"hold": "time each frame is held, e.g. \"20 ms\"",
+                         "over": "optional time"},
+                "link_down": {"over": "optional time"},
+                "bad_wkc": {"share": [0.0, 1.0], "over": "optional time"},
+                "out_of_op": {"al_code": "optional, e.g. \"0x001A\""},
+                "restore": {},
+            }),
+        };
+        v
     }
 }
 
@@ -217,8 +234,30 @@ impl Controls {
         if !ACTION_KEYS.iter().any(|k| obj.contains_key(*k)) {
             return Err(Refused::new(
                 None,
-                "a write needs one of: set (with value), sensor, can",
+                format!(
+                    "a write needs one of: set (with value), sensor, {}",
+                    self.bus.key()
+                ),
             ));
+        }
+        // The other bus's faults: this run has no such wire.
+        for (other, bus) in [
+            ("can", super::PanelBus::Can),
+            ("ethercat", super::PanelBus::Ethercat),
+        ] {
+            if bus != self.bus && obj.contains_key(other) {
+                return Err(Refused::new(
+                    Some(other),
+                    format!(
+                        "this run is on {}: its bus faults are `{}`",
+                        match self.bus {
+                            super::PanelBus::Can => "CAN",
+                            super::PanelBus::Ethercat => "EtherCAT",
+                        },
+                        self.bus.key()
+                    ),
+                ));
+            }
         }
         let mut table = toml::Table::new();
         for (k, v) in obj {
@@ -345,10 +384,12 @@ impl Session {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bus::ethercat::EcatFault;
     use crate::presets::AxisConfig;
 
     fn setup(preset: &str) -> PanelSetup {
         PanelSetup {
+            bus: crate::panel::PanelBus::Can,
             axes: vec![PanelAxis {
                 node_id: 5,
                 preset: preset.into(),
@@ -488,6 +529,71 @@ mod tests {
         ] {
             c.check(&body).unwrap_or_else(|e| panic!("{body}: {e:?}"));
         }
+    }
+
+    #[test]
+    fn each_bus_offers_and_takes_only_its_own_faults() {
+        let can = Controls::new(&setup("cnc1")).unwrap();
+        let mut st = setup("cnc1");
+        st.bus = crate::panel::PanelBus::Ethercat;
+        let ecat = Controls::new(&st).unwrap();
+        assert!(can.to_json()["can"]["sync_loss"].is_object());
+        assert!(can.to_json().get("ethercat").is_none());
+        assert!(ecat.to_json()["ethercat"]["out_of_op"].is_object());
+        assert!(ecat.to_json().get("can").is_none());
+        // The other bus's fault: refused with the key and the run's bus.
+        let e = can
+            .check(&json!({"ethercat": "lost", "frames": 5}))
+            .unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("ethercat"), "{e:?}");
+        assert!(e.reason.contains("on CAN"), "{e:?}");
+        let e = ecat.check(&json!({"can": "sync_loss"})).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("can"), "{e:?}");
+        assert!(e.reason.contains("on EtherCAT"), "{e:?}");
+        // Each EtherCAT fault the page sends, checked by the scenario parser.
+        for (body, want) in [
+            (
+                json!({"ethercat": "lost", "frames": 20}),
+                EcatFault::Lost {
+                    frames: 20,
+                    share: 0.0,
+                },
+            ),
+            (
+                json!({"ethercat": "late", "hold": "20 ms", "over": "2 s"}),
+                EcatFault::Late { hold_us: 20_000 },
+            ),
+            (
+                json!({"ethercat": "link_down", "over": "2 s"}),
+                EcatFault::LinkDown,
+            ),
+            (
+                json!({"ethercat": "bad_wkc", "over": "2 s"}),
+                EcatFault::BadWkc { share: 1.0 },
+            ),
+            (
+                json!({"ethercat": "out_of_op", "al_code": "0x001A"}),
+                EcatFault::OutOfOp { al_code: 0x001A },
+            ),
+        ] {
+            let k = ecat
+                .check(&body)
+                .unwrap_or_else(|e| panic!("{body}: {e:?}"));
+            assert!(
+                matches!(&k.action, Action::Ethercat { fault, .. } if *fault == want),
+                "{body}: {:?}",
+                k.action
+            );
+        }
+        assert!(matches!(
+            ecat.check(&json!({"ethercat": "restore"})).unwrap().action,
+            Action::EthercatRestore
+        ));
+        // A bad EtherCAT write names its key, as a scenario file's would.
+        let e = ecat
+            .check(&json!({"ethercat": "late", "hold": "0 ms"}))
+            .unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("hold"), "{e:?}");
     }
 
     #[test]

@@ -127,10 +127,31 @@ pub struct PanelAxis {
     pub overrides: Vec<(String, String)>,
 }
 
+/// The fieldbus of the run: which bus faults the panel offers (a CAN run's `can`, an
+/// EtherCAT run's `ethercat`, as in a scenario file).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PanelBus {
+    #[default]
+    Can,
+    Ethercat,
+}
+
+impl PanelBus {
+    /// The scenario file's key for this bus's faults.
+    pub fn key(self) -> &'static str {
+        match self {
+            PanelBus::Can => "can",
+            PanelBus::Ethercat => "ethercat",
+        }
+    }
+}
+
 /// What the panel needs to know of the run.
 #[derive(Debug, Clone)]
 pub struct PanelSetup {
     pub axes: Vec<PanelAxis>,
+    /// The run's fieldbus.
+    pub bus: PanelBus,
     /// The CAN interface (the capture of a recording reads it); `None`: no capture (an
     /// in-process bus).
     pub iface: Option<String>,
@@ -195,8 +216,48 @@ impl PanelLoop {
     }
 }
 
+impl PanelLoop {
+    /// After every drive cycle of `run --ethercat` at simulated time `now_us`: publish every
+    /// slave's snapshot (its node beside its drive), then apply the scenario's and the panel's
+    /// injections to the first slave, its drive and the port's faults. Real-time safe, as
+    /// [`PanelLoop::on_tick`].
+    pub fn on_ethercat_cycle(
+        &mut self,
+        seg: &mut drive_ethercat::Segment,
+        drives: &mut [AxisDrive],
+        faults: &mut crate::bus::ethercat::EcatFaults,
+        now_us: u64,
+    ) {
+        self.observer.publish_axes(
+            now_us,
+            seg.slaves
+                .iter_mut()
+                .map(|s| s.node_mut())
+                .zip(drives.iter()),
+        );
+        self.ticks += 1;
+        let (Some(slave), Some(drive)) = (seg.slaves.first_mut(), drives.first_mut()) else {
+            return;
+        };
+        if let Some(link) = &self.scenario {
+            self.injector.on_ethercat_cycle_with(
+                link,
+                now_us,
+                slave,
+                drive,
+                faults,
+                self.observer.events(0),
+            );
+        }
+        self.link.now_us.store(now_us, Ordering::Relaxed);
+        self.injector
+            .apply_queued_ethercat(&self.link, now_us, slave, drive, faults);
+    }
+}
+
 /// What the panel needs of a live run's options.
 pub struct RunContext<'a> {
+    pub bus: PanelBus,
     /// The CAN interface; `None`: the bus is not one (socketcand).
     pub iface: Option<&'a str>,
     /// The node ID a scenario's axis gets (`--node`).
@@ -221,6 +282,7 @@ pub fn start_for_run(
         return Ok(None);
     }
     let RunContext {
+        bus,
         iface,
         node,
         lockstep,
@@ -260,6 +322,7 @@ pub fn start_for_run(
     };
     let setup = PanelSetup {
         axes,
+        bus,
         iface: iface.map(str::to_string),
         tick_hz: machine.tick_hz,
         lockstep,

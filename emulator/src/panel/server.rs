@@ -159,6 +159,7 @@ impl Shared {
             "version": 1,
             "t_s": self.now_us() as f64 * 1e-6,
             "iface": s.iface,
+            "bus": s.bus.key(),
             "tick_hz": s.tick_hz,
             "lockstep": s.lockstep,
             "stream_period_ms": super::stream::PERIOD_MS,

@@ -136,8 +136,9 @@ impl LoopInjector {
         self.injector.expire(now, &mut rt.bus);
     }
 
-    /// After every drive cycle of `run --ethercat` at simulated time `now_us`: apply the queued injections to the first slave, its drive and the port's
-    /// faults, and publish its actual values and the EMCYs its node raised (drained here).
+    /// After every drive cycle of `run --ethercat` at simulated time `now_us`: apply the
+    /// queued injections to the first slave, its drive and the port's faults, and publish its
+    /// actual values and the EMCYs its node raised (drained here).
     pub fn on_ethercat_cycle(
         &mut self,
         link: &LiveLink,
@@ -146,21 +147,53 @@ impl LoopInjector {
         drive: &mut AxisDrive,
         faults: &mut crate::bus::ethercat::EcatFaults,
     ) {
+        let mut events = heapless::Vec::<NodeEvent, { drive_protocol::EVENT_QUEUE }>::new();
+        while let Some(e) = slave.node_mut().poll_event() {
+            let _ = events.push(e);
+        }
+        self.on_ethercat_cycle_with(link, now_us, slave, drive, faults, &events);
+    }
+
+    /// [`LoopInjector::on_ethercat_cycle`] when someone else drains the node's events (the
+    /// panel's observation fan-out): `events` are the first slave's of this cycle.
+    pub fn on_ethercat_cycle_with(
+        &mut self,
+        link: &LiveLink,
+        now_us: u64,
+        slave: &mut drive_ethercat::slave::Slave,
+        drive: &mut AxisDrive,
+        faults: &mut crate::bus::ethercat::EcatFaults,
+        events: &[NodeEvent],
+    ) {
         link.now_us.store(now_us, Ordering::Relaxed);
+        self.apply_queued_ethercat(link, now_us, slave, drive, faults);
+        let sample = node_sample(slave.node(), now_us);
+        if link.samples.push(sample).is_err() {
+            link.samples_lost.fetch_add(1, Ordering::Relaxed);
+        }
+        for e in events {
+            if let NodeEvent::EmcyRaised { code } = *e {
+                let _ = link.emcys.push((now_us, code));
+            }
+        }
+    }
+
+    /// [`LoopInjector::apply_queued`] on EtherCAT: the injections queued in `link` applied to
+    /// the first slave, its drive and the port's faults (each `Mark` answered with `now_us`).
+    /// A CAN fault is refused there and changes nothing (files and the panel refuse it first).
+    pub fn apply_queued_ethercat(
+        &mut self,
+        link: &LiveLink,
+        now_us: u64,
+        slave: &mut drive_ethercat::slave::Slave,
+        drive: &mut AxisDrive,
+        faults: &mut crate::bus::ethercat::EcatFaults,
+    ) {
         while let Some(inj) = link.injections.pop() {
             if let Injection::Mark { event } = inj {
                 let _ = link.applied.push((event, now_us));
             }
             let _ = self.injector.apply_ethercat(inj, drive, slave, faults);
-        }
-        let sample = node_sample(slave.node(), now_us);
-        if link.samples.push(sample).is_err() {
-            link.samples_lost.fetch_add(1, Ordering::Relaxed);
-        }
-        while let Some(e) = slave.node_mut().poll_event() {
-            if let NodeEvent::EmcyRaised { code } = e {
-                let _ = link.emcys.push((now_us, code));
-            }
         }
     }
 

@@ -128,6 +128,7 @@ impl Rig {
         let mut rt = Runtime::new(drive_bus, vec![AxisSlot { node, drive }], 1000);
         rt.boot();
         let setup = PanelSetup {
+            bus: drive_emu::panel::PanelBus::Can,
             axes: vec![PanelAxis {
                 node_id: NODE,
                 preset: o.preset.to_string(),

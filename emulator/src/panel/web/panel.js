@@ -146,9 +146,12 @@ function onHello(h) {
   $("axes").innerHTML = "";
   state.axes = h.axes.map(buildAxis);
   $("runinfo").textContent =
-    `${h.iface || "in-process bus"} · ${h.tick_hz} Hz${h.lockstep ? " lock-step" : ""} · ` +
+    `${h.bus === "ethercat" ? "EtherCAT" : h.iface || "in-process bus"} · ${h.tick_hz} Hz${h.lockstep ? " lock-step" : ""} · ` +
     `${h.samples_per_s} samples/s per axis`;
   $("inject-node").textContent = `(node ${h.axes[0].node_id})`;
+  // the bus faults of this run's bus only
+  $("can-faults").hidden = h.bus === "ethercat";
+  $("ecat-faults").hidden = h.bus !== "ethercat";
   const sel = $("param-key");
   sel.innerHTML = "";
   for (const p of h.controls.set) {
@@ -363,6 +366,17 @@ function wire() {
       if (kind === "drop" || kind === "delay") body.share = Number($("can-share").value);
       if (kind === "delay") body.ticks = Math.round(Number($("can-ticks").value));
       return inject(canOver(body));
+    });
+  for (const b of document.querySelectorAll("[data-ecat]"))
+    b.addEventListener("click", () => {
+      const kind = b.dataset.ecat;
+      const body = { ethercat: kind };
+      const over = $("ecat-over").value.trim();
+      if (kind === "lost") body.frames = Math.round(Number($("ecat-frames").value));
+      if (kind === "late") body.hold = $("ecat-hold").value.trim();
+      if (kind === "out_of_op") body.al_code = $("ecat-al").value.trim();
+      if (over && ["link_down", "bad_wkc", "late"].includes(kind)) body.over = over;
+      return inject(body);
     });
   $("rec-start").addEventListener("click", () => post("/api/record", { action: "start" }).catch((e) => alert(e.message)));
   $("rec-stop").addEventListener("click", () => post("/api/record", { action: "stop" }).catch((e) => alert(e.message)));
