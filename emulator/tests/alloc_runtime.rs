@@ -528,3 +528,136 @@ fn the_tick_with_the_panel_open_and_five_clients_does_not_allocate() {
         "{allocs} allocations in 5000 ticks with the panel open and 5 clients"
     );
 }
+
+/// `run --ethercat --panel`: the panel's loop half after each EtherCAT drive cycle (every
+/// slave published from its node beside its drive, the panel's injections applied to the first
+/// slave and the port's faults) allocates nothing, with a stream client reading. A parameter
+/// and an EtherCAT fault posted over HTTP during the counted cycles reach the drive and the
+/// port there.
+#[test]
+fn the_ethercat_cycle_with_the_panel_open_does_not_allocate() {
+    use drive_emu::bus::ethercat::EcatFaults;
+    use drive_emu::panel::{self, PanelAxis, PanelBus, PanelSetup};
+    use drive_protocol::Clocks;
+    let cfg = AxisConfig::from_preset("cnc1").unwrap();
+    let mut drive = AxisDrive::from_config(&cfg).unwrap();
+    let node_cfg =
+        drive_emu::drive::node_config(&mut drive, &drive_emu::drive::NodeOptions::new(1)).unwrap();
+    let slave = drive_ethercat::Slave::new(node_cfg, &mut drive).unwrap();
+    let mut seg = drive_ethercat::Segment::new(vec![slave]);
+    let mut drives = vec![drive];
+    let mut faults = EcatFaults::new(1);
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let setup = PanelSetup {
+        bus: PanelBus::Ethercat,
+        axes: vec![PanelAxis {
+            node_id: 1,
+            preset: "cnc1".into(),
+            config: cfg.clone(),
+            overrides: vec![],
+        }],
+        iface: None,
+        tick_hz: 1000,
+        lockstep: false,
+        master_id: 0x7F,
+        json_stdout: false,
+    };
+    let dir = std::env::temp_dir().join(format!("drive-emu-alloc-ecat-{}", std::process::id()));
+    let (panel, mut panel_loop) = panel::start_on(listener, None, dir, setup).unwrap();
+    let mut t_us = 0u64;
+    let mut cycle = |seg: &mut drive_ethercat::Segment,
+                     drives: &mut Vec<AxisDrive>,
+                     faults: &mut EcatFaults,
+                     panel_loop: &mut panel::PanelLoop| {
+        seg.cycle(
+            Clocks {
+                app_us: t_us,
+                comm_us: t_us,
+            },
+            drives,
+        );
+        for d in drives.iter_mut() {
+            d.advance(1000);
+        }
+        panel_loop.on_ethercat_cycle(seg, drives, faults, t_us);
+        t_us += 1000;
+    };
+    for _ in 0..500 {
+        cycle(&mut seg, &mut drives, &mut faults, &mut panel_loop);
+    }
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let client = {
+        let stop = std::sync::Arc::clone(&stop);
+        let mut c = std::net::TcpStream::connect(addr).unwrap();
+        write!(c, "GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").unwrap();
+        c.set_read_timeout(Some(std::time::Duration::from_millis(200)))
+            .unwrap();
+        std::thread::spawn(move || {
+            let (mut text, mut buf) = (Vec::new(), [0u8; 8192]);
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                if let Ok(n) = c.read(&mut buf) {
+                    text.extend_from_slice(&buf[..n]);
+                }
+            }
+            String::from_utf8_lossy(&text)
+                .matches("event: samples")
+                .count()
+        })
+    };
+    let post = move |body: &'static str| {
+        std::thread::spawn(move || {
+            let mut c = std::net::TcpStream::connect(addr).unwrap();
+            write!(
+                c,
+                "POST /api/inject HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+                body.len()
+            )
+            .unwrap();
+            let mut answer = String::new();
+            let _ = c.read_to_string(&mut answer);
+            answer
+        })
+    };
+    let mut posters = Vec::new();
+    ALLOCS.with(|a| a.set(0));
+    for k in 0..3000u32 {
+        if k == 500 {
+            posters.push(post(r#"{"set": "backlash_mm", "value": 0.07}"#));
+            posters.push(post(r#"{"ethercat": "lost", "frames": 7}"#));
+        }
+        counted(|| cycle(&mut seg, &mut drives, &mut faults, &mut panel_loop));
+        std::thread::sleep(std::time::Duration::from_micros(300));
+    }
+    let allocs = ALLOCS.with(Cell::get);
+    let answers: Vec<String> = posters.into_iter().map(|p| p.join().unwrap()).collect();
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let seen = client.join().unwrap();
+    panel.stop();
+    for a in &answers {
+        assert!(a.starts_with("HTTP/1.1 200"), "{a}");
+    }
+    let backlash = drives[0].param(AxisParam::Backlash);
+    assert!(
+        (backlash - 0.07e-3).abs() < 1e-9,
+        "the panel's injection reached the axis: {backlash}"
+    );
+    // The port's lost-frames fault: the next 7 frames are not admitted, the 8th is.
+    let template =
+        drive_ethercat::frame::build([2, 0, 0, 0, 0, 0], &[(4, 0x81, 0x1001_0130, &[0u8; 2])]);
+    let admitted: Vec<bool> = (0..8)
+        .map(|_| faults.admit(&mut template.clone(), t_us))
+        .collect();
+    assert_eq!(
+        admitted,
+        [false, false, false, false, false, false, false, true]
+    );
+    assert!(
+        seen > 5,
+        "the client received samples while the loop ran: {seen}"
+    );
+    assert_eq!(
+        allocs, 0,
+        "{allocs} allocations in 3000 EtherCAT cycles with the panel open"
+    );
+}
