@@ -645,9 +645,7 @@ fn the_ethercat_cycle_with_the_panel_open_does_not_allocate() {
     // The port's lost-frames fault: the next 7 frames are not admitted, the 8th is.
     let template =
         drive_ethercat::frame::build([2, 0, 0, 0, 0, 0], &[(4, 0x81, 0x1001_0130, &[0u8; 2])]);
-    let admitted: Vec<bool> = (0..8)
-        .map(|_| faults.admit(&mut template.clone(), t_us))
-        .collect();
+    let admitted: Vec<bool> = (0..8).map(|_| faults.admit(&template, t_us)).collect();
     assert_eq!(
         admitted,
         [false, false, false, false, false, false, false, true]
