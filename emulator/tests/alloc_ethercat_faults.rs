@@ -1,6 +1,7 @@
 //! Proof that the EtherCAT fault injector allocates nothing on the frame path: a counting
 //! global allocator watches `EcatFaults` start, admit, answer (working counters restored,
-//! frames held), release held frames and end every wire fault over thousands of frames.
+//! frames held, frames corrupted), release held frames and end every wire fault over
+//! thousands of frames.
 //! (The slave's drop out of OP is counted in ethercat/tests/alloc.rs.)
 
 use drive_emu::bus::ethercat::{Answer, EcatFault, EcatFaults, HELD_FRAMES};
@@ -78,6 +79,14 @@ fn every_wire_fault_on_the_frame_path_allocates_nothing() {
             (EcatFault::BadWkc { share: 1.0 }),
             (EcatFault::Late { hold_us: 20_000 }),
             (EcatFault::LinkDown),
+            (EcatFault::Corrupt {
+                frames: 20,
+                share: 0.0,
+            }),
+            (EcatFault::Corrupt {
+                frames: 0,
+                share: 0.3,
+            }),
         ];
         let mut now_us = 0u64;
         for fault in schedule {
@@ -107,6 +116,11 @@ fn every_wire_fault_on_the_frame_path_allocates_nothing() {
     let st = faults.stats();
     assert!(st.lost >= 20 + 500, "{st:?}");
     assert!(st.bad_wkc >= 400, "{st:?}");
+    // 20, then about 0.3 of the 500 frames of 50 ms
+    assert!(
+        st.corrupted >= 20 + 100 && st.corrupted <= 20 + 250,
+        "{st:?}"
+    );
     assert!(st.held >= HELD_FRAMES as u64 && st.held <= 500, "{st:?}");
     assert_eq!(counts[3], st.held, "every held frame went out");
     assert_eq!(counts[2], st.held + st.hold_full);

@@ -27,6 +27,37 @@ fn lost_frames_are_counted_down_then_pass() {
 }
 
 #[test]
+fn corrupted_frames_are_refused_and_said_to_be_corrupted_not_lost() {
+    let mut f = EcatFaults::new(1);
+    f.start(
+        EcatFault::Corrupt {
+            frames: 2,
+            share: 0.0,
+        },
+        None,
+        0,
+    );
+    let fr = frame();
+    let seen: Vec<(bool, bool)> = (0..4).map(|t| (f.admit(&fr, t), f.corrupted())).collect();
+    assert_eq!(
+        seen,
+        [(false, true), (false, true), (true, false), (true, false)]
+    );
+    assert_eq!((f.stats().corrupted, f.stats().lost), (2, 0));
+    // a lost frame is not a corrupted one
+    f.start(
+        EcatFault::Lost {
+            frames: 1,
+            share: 0.0,
+        },
+        None,
+        4,
+    );
+    assert!(!f.admit(&fr, 5));
+    assert!(!f.corrupted());
+}
+
+#[test]
 fn a_share_of_lost_frames_is_near_the_share_and_ends_on_time() {
     let mut f = EcatFaults::new(7);
     f.start(

@@ -3,8 +3,10 @@
 //! real HTTP. The panel says the run is on EtherCAT and offers EtherCAT's faults, not CAN's;
 //! its stream shows the slave's drive (published from the EtherCAT loop through the same
 //! observation fan-out as on CAN); a CAN fault is refused with the reason; a parameter set on
-//! the panel reads back over CoE in the master; an EtherCAT fault from the panel (the slave out
-//! of OP with an AL status code) is what the master sees; the saved session replays it.
+//! the panel reads back over CoE in the master; frames corrupted from the panel show in the
+//! slave's RX error counter (0x0300) the master reads and clears; an EtherCAT fault from the
+//! panel (the slave out of OP with an AL status code) is what the master sees; the saved
+//! session replays them.
 //!
 //! Root (or CI, where a veth pair that cannot be made fails the test): see ethercat_rig.
 
@@ -168,6 +170,21 @@ fn the_panel_shows_and_injects_into_an_ethercat_slave_pysoem_holds_in_op() {
         "0x2000 read over CoE by SOEM"
     );
 
+    // Frames corrupted on the wire: no answer, and the slave's RX error counter says how many.
+    let (code, v) = inject(&base, json!({"ethercat": "corrupt", "frames": 5}));
+    assert_eq!(code, 200, "{v}");
+    let errors = line_with(&rx, "rx_errors", Duration::from_secs(60));
+    assert_eq!(errors["rx_errors"], 5, "0x0300 read by SOEM: {errors}");
+    assert_eq!(
+        errors["forwarded"], 0,
+        "one slave: nothing forwarded: {errors}"
+    );
+    let cleared = line_with(&rx, "rx_errors_after_clear", Duration::from_secs(60));
+    assert_eq!(
+        cleared["rx_errors_after_clear"], 0,
+        "a write to 0x0300 clears: {cleared}"
+    );
+
     // An EtherCAT fault from the panel: the slave drops out of OP with its AL status code.
     let (code, v) = inject(&base, json!({"ethercat": "out_of_op", "al_code": "0x001A"}));
     assert_eq!(code, 200, "{v}");
@@ -199,7 +216,7 @@ fn the_panel_shows_and_injects_into_an_ethercat_slave_pysoem_holds_in_op() {
     // A file `run --ethercat --scenario` takes: parsed as one, its events in order.
     let replay = drive_emu::scenario::load(&file)
         .unwrap_or_else(|e| panic!("the saved session is not a scenario: {e}\n{session}"));
-    assert_eq!(replay.events.len(), 2, "{session}");
+    assert_eq!(replay.events.len(), 3, "{session}");
     assert!(
         matches!(replay.events[0].action, Action::Set { value, .. } if value == 0.042),
         "{session}"
@@ -207,6 +224,16 @@ fn the_panel_shows_and_injects_into_an_ethercat_slave_pysoem_holds_in_op() {
     assert!(
         matches!(
             replay.events[1].action,
+            Action::Ethercat {
+                fault: EcatFault::Corrupt { frames: 5, .. },
+                ..
+            }
+        ),
+        "{session}"
+    );
+    assert!(
+        matches!(
+            replay.events[2].action,
             Action::Ethercat {
                 fault: EcatFault::OutOfOp { al_code: 0x001A },
                 ..
@@ -218,5 +245,6 @@ fn the_panel_shows_and_injects_into_an_ethercat_slave_pysoem_holds_in_op() {
 
     let (stats, _) = emu.stop();
     assert!(stats["cycles"].as_u64().unwrap() > 0, "{stats}");
+    assert_eq!(stats["faults"]["corrupted"], 5, "{stats}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -386,6 +386,17 @@ fn ethercat_faults_parse_and_bad_ones_are_refused() {
         ),
         ("ethercat = \"lost\"\nframes = 0", "frames", "0 frames"),
         (
+            "ethercat = \"corrupt\"",
+            "ethercat",
+            "corrupted EtherCAT frames take either",
+        ),
+        ("ethercat = \"corrupt\"\nframes = 0", "frames", "0 frames"),
+        (
+            "ethercat = \"corrupt\"\nhold = \"1 s\"",
+            "hold",
+            "corrupted EtherCAT frames",
+        ),
+        (
             "ethercat = \"lost\"\nframes = 2\nover = \"1 s\"",
             "over",
             "`over` goes with `share`",

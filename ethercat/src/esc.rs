@@ -47,8 +47,14 @@ pub mod reg {
     pub const AL_STATUS_CODE: u16 = 0x0134;
     /// PDI control.
     pub const PDI_CONTROL: u16 = 0x0140;
-    /// RX error counters.
+    /// RX error counters: per port an invalid-frame (CRC) counter and an RX error counter
+    /// (0x0300 + 2 port, + 1), then the forwarded RX error counters (0x0308 + port), the
+    /// processing unit and PDI error counters (0x030C, 0x030D). A write to any of
+    /// 0x0300..=0x030B clears all twelve.
     pub const RX_ERROR: u16 = 0x0300;
+    /// Forwarded RX error counter of port 0 (a frame that came in already marked as
+    /// corrupted by a slave before).
+    pub const FWD_RX_ERROR: u16 = 0x0308;
     /// Watchdog divider.
     pub const WD_DIVIDER: u16 = 0x0400;
     /// Sync manager watchdog time.
@@ -198,6 +204,7 @@ fn read_only(addr: u16) -> bool {
         | 0x0110..=0x011F
         | 0x0130..=0x013F
         | 0x0140..=0x015F
+        | 0x0300..=0x030D
         | 0x0440..=0x0441
         | 0x0501
         | 0x0918..=0x091F
@@ -338,6 +345,18 @@ impl Esc {
         true
     }
 
+    /// A frame with a bad frame check sequence came in on port 0: its invalid-frame counter
+    /// (0x0300) counts it, or with `forwarded` (a slave before had marked it) the forwarded RX
+    /// error counter (0x0308). Counters stop at 0xFF, as the ESC's do.
+    pub fn count_rx_error(&mut self, forwarded: bool) {
+        let a = if forwarded {
+            reg::FWD_RX_ERROR
+        } else {
+            reg::RX_ERROR
+        } as usize;
+        self.mem[a] = self.mem[a].saturating_add(1);
+    }
+
     /// A master read of `out.len()` bytes at `addr`. False: refused (an empty mailbox, say).
     pub fn read(&mut self, addr: u16, out: &mut [u8]) -> bool {
         if !self.gate(addr, out.len(), false) {
@@ -382,6 +401,10 @@ impl Esc {
                 self.set_mailbox_full(n, false);
             }
         }
+        if touches(reg::RX_ERROR, 12) {
+            // ETG.1000.4: a write to one of the RX error counters clears them all
+            self.mem[reg::RX_ERROR as usize..reg::RX_ERROR as usize + 12].fill(0);
+        }
         if touches(reg::AL_CONTROL, 2) {
             self.events.al_control = true;
         }
@@ -401,5 +424,35 @@ impl Esc {
 impl Default for Esc {
     fn default() -> Self {
         Esc::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rx_error_counters_count_saturate_and_clear_on_a_write() {
+        let mut esc = Esc::new();
+        for _ in 0..3 {
+            esc.count_rx_error(false);
+        }
+        esc.count_rx_error(true);
+        let mut out = [0u8; 12];
+        assert!(esc.read(reg::RX_ERROR, &mut out));
+        assert_eq!(out[0], 3, "invalid frames, port 0");
+        assert_eq!(out[8], 1, "forwarded RX errors, port 0");
+        for _ in 0..300 {
+            esc.count_rx_error(false);
+        }
+        assert_eq!(esc.u8(reg::RX_ERROR), 0xFF, "the counter stops at 0xFF");
+        // a write of any value to any of them clears all twelve, and is not stored
+        assert!(esc.write(reg::RX_ERROR + 8, &[0x55]));
+        esc.get(reg::RX_ERROR, &mut out);
+        assert_eq!(out, [0u8; 12]);
+        // the processing unit and PDI error counters are not cleared by that write
+        esc.mem[reg::RX_ERROR as usize + 12] = 7;
+        assert!(esc.write(reg::RX_ERROR, &[0]));
+        assert_eq!(esc.u8(reg::RX_ERROR + 12), 7);
     }
 }

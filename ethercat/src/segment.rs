@@ -34,6 +34,15 @@ impl Segment {
         }
     }
 
+    /// A frame corrupted on the wire before the first slave (a flipped bit: a bad frame check
+    /// sequence): the first slave counts an invalid frame (0x0300), each slave after it a
+    /// forwarded RX error (0x0308); the master's port drops it. Nothing else happens to it.
+    pub fn frame_corrupted(&mut self) {
+        for (k, s) in self.slaves.iter_mut().enumerate() {
+            s.count_rx_error(k > 0);
+        }
+    }
+
     /// Pass `frame` (a whole Ethernet frame, processed in place) along the line at `now_ns`;
     /// `drives[k]` is the drive behind slave `k`. Ok: send the frame back. A malformed or
     /// non-EtherCAT frame is an error and is not returned (a real ESC drops a frame it

@@ -666,6 +666,11 @@ impl Slave {
         &mut self.node
     }
     /// The ESC memory.
+    /// A frame with a bad frame check sequence came in (see [`Esc::count_rx_error`]).
+    pub fn count_rx_error(&mut self, forwarded: bool) {
+        self.esc.count_rx_error(forwarded);
+    }
+
     pub fn esc(&self) -> &Esc {
         &self.esc
     }

@@ -421,3 +421,25 @@ fn dc_registers_answer_as_a_master_configures_them() {
     assert_eq!(m.fprd(st, 0x09A0, 4).0, 1_000_000u32.to_le_bytes());
     assert_eq!(m.fprd(st, 0x0981, 1).0, [3]);
 }
+
+#[test]
+fn a_corrupted_frame_counts_in_each_slaves_rx_error_counters_and_a_write_clears_them() {
+    let mut m = Master::new(3);
+    assert_eq!(m.config_init(), 3);
+    for _ in 0..4 {
+        m.seg.frame_corrupted();
+    }
+    // the first slave saw a bad frame check sequence; the others got it marked as such
+    let counters: Vec<(u8, u8)> = (0..3)
+        .map(|k| {
+            let (d, wkc) = m.fprd(Master::station(k), 0x0300, 12);
+            assert_eq!(wkc, 1);
+            (d[0], d[8])
+        })
+        .collect();
+    assert_eq!(counters, [(4, 0), (0, 4), (0, 4)]);
+    // a master clears them with a write (BWR to every slave, as diagnostics tools do)
+    assert_eq!(m.bwr(0x0300, &[0]), 3);
+    let (d, _) = m.fprd(Master::station(1), 0x0300, 12);
+    assert_eq!(d, [0u8; 12]);
+}

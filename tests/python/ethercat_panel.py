@@ -7,6 +7,10 @@ One slave in OP, CSP, enabled and holding its position (the set-up of ethercat_f
 Prints one JSON line per event, flushed, while the test injects from the panel:
 - `{"op": true, "statusword": W}` once enabled in OP;
 - `{"backlash_mm": V}` whenever 0x2000 (REAL32, mm), read over CoE every 250 cycles, changes;
+- `{"rx_errors": N, "forwarded": M}` once the slave's RX error counters (0x0300 invalid frames,
+  0x0308 forwarded errors, read with FPRD every 250 cycles) are no longer zero; it then clears
+  them (a write to 0x0300, as a master's diagnostics does) and prints
+  `{"rx_errors_after_clear": N}`;
 - `{"al_status": S, "al_status_code": C, "wkc_bad": N}` when the slave has left OP, then exits 0.
 Exits non-zero with the reason when OP is not reached, or the slave has not left OP in 120 s.
 """
@@ -33,6 +37,7 @@ def main():
         say(op=True, statusword=statusword())
         hold = position()
         last, n, other_run, wkc_bad = None, 0, 0, 0
+        cleared = None  # None: counters not seen yet; False: cleared, not read back yet
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline:
             wkc = cycle(0x0F, hold)
@@ -48,6 +53,14 @@ def main():
                 if v != last:
                     say(backlash_mm=v)
                     last = v
+                errors = s._fprd(0x0300, 12)
+                if len(errors) == 12 and cleared is None and (errors[0] or errors[8]):
+                    say(rx_errors=errors[0], forwarded=errors[8])
+                    s._fpwr(0x0300, b"\x00")
+                    cleared = False
+                elif len(errors) == 12 and cleared is False:
+                    say(rx_errors_after_clear=errors[0] + errors[8])
+                    cleared = True
             if other_run >= 5 or n % 200 == 0:
                 m.read_state()
                 # 0: the read went unanswered: not a state

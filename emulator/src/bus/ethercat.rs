@@ -156,6 +156,12 @@ pub enum EcatFault {
     /// The first slave drops out of OP to SAFE-OP with the error flag and this AL status code
     /// (ETG.1000.6), as a real slave does on a local error; applied to the slave, not the wire.
     OutOfOp { al_code: u16 },
+    /// Frames corrupted on the wire before the first slave (a flipped bit: a bad frame check
+    /// sequence): the next `frames` frames if non-zero, else `share` of them while the fault
+    /// lasts. The slaves count them in their RX error counters (0x0300 invalid frames on the
+    /// first, 0x0308 forwarded errors on the others) and process nothing; the master's port
+    /// drops them, so it sees no answer.
+    Corrupt { frames: u32, share: f64 },
 }
 
 impl EcatFault {
@@ -180,6 +186,13 @@ impl EcatFault {
             EcatFault::OutOfOp { al_code } => {
                 format!("EtherCAT: slave drops out of OP (AL status code 0x{al_code:04X})")
             }
+            EcatFault::Corrupt { frames, .. } if frames > 0 => {
+                format!("EtherCAT: the next {frames} frames corrupted (RX errors, no answer)")
+            }
+            EcatFault::Corrupt { share, .. } => format!(
+                "EtherCAT: {:.0} % of the frames corrupted (RX errors, no answer)",
+                share * 100.0
+            ),
         }
     }
 }
@@ -203,6 +216,8 @@ pub struct EcatFaultStats {
     pub hold_full: u64,
     /// Frames returned with their working counters not incremented.
     pub bad_wkc: u64,
+    /// Frames corrupted on the wire (counted as RX errors by the slaves, not answered).
+    pub corrupted: u64,
 }
 
 /// What to do with a frame the segment has answered.
@@ -225,6 +240,11 @@ pub struct EcatFaults {
     late: Option<(u64, Option<u64>)>,
     link_down: Option<Option<u64>>,
     bad_wkc: Option<(f64, Option<u64>)>,
+    /// Frames still to corrupt, and (share, until) of a corrupt-share fault.
+    corrupt_count: u32,
+    corrupt_share: Option<(f64, Option<u64>)>,
+    /// The frame [`EcatFaults::admit`] refused last was corrupted (not lost).
+    corrupted_now: bool,
     /// Held frames: (due us, length), their bytes in `held_buf`, in order of arrival.
     held: heapless::Deque<(u64, u16), HELD_FRAMES>,
     held_buf: Box<[[u8; HELD_FRAME_LEN]; HELD_FRAMES]>,
@@ -245,6 +265,9 @@ impl EcatFaults {
             late: None,
             link_down: None,
             bad_wkc: None,
+            corrupt_count: 0,
+            corrupt_share: None,
+            corrupted_now: false,
             held: heapless::Deque::new(),
             held_buf: Box::new([[0; HELD_FRAME_LEN]; HELD_FRAMES]),
             held_head: 0,
@@ -271,6 +294,8 @@ impl EcatFaults {
             || self.late.is_some()
             || self.link_down.is_some()
             || self.bad_wkc.is_some()
+            || self.corrupt_count > 0
+            || self.corrupt_share.is_some()
             || !self.held.is_empty()
     }
 
@@ -284,6 +309,8 @@ impl EcatFaults {
             EcatFault::Late { hold_us } => self.late = Some((hold_us.min(MAX_HOLD_US), until)),
             EcatFault::LinkDown => self.link_down = Some(until),
             EcatFault::BadWkc { share } => self.bad_wkc = Some((share, until)),
+            EcatFault::Corrupt { frames, .. } if frames > 0 => self.corrupt_count = frames,
+            EcatFault::Corrupt { share, .. } => self.corrupt_share = Some((share, until)),
             EcatFault::OutOfOp { .. } => {}
         }
     }
@@ -295,6 +322,8 @@ impl EcatFaults {
         self.late = None;
         self.link_down = None;
         self.bad_wkc = None;
+        self.corrupt_count = 0;
+        self.corrupt_share = None;
     }
 
     /// End the faults whose time is over at `now_us`.
@@ -311,6 +340,9 @@ impl EcatFaults {
         }
         if self.bad_wkc.is_some_and(|(_, u)| over(u)) {
             self.bad_wkc = None;
+        }
+        if self.corrupt_share.is_some_and(|(_, u)| over(u)) {
+            self.corrupt_share = None;
         }
     }
 
@@ -330,6 +362,7 @@ impl EcatFaults {
     pub fn admit(&mut self, frame: &[u8], now_us: u64) -> bool {
         self.wkc_in.clear();
         self.clock_us = now_us;
+        self.corrupted_now = false;
         if !self.active() {
             return true;
         }
@@ -349,6 +382,18 @@ impl EcatFaults {
                 return false;
             }
         }
+        let corrupt = if self.corrupt_count > 0 {
+            self.corrupt_count -= 1;
+            true
+        } else {
+            self.corrupt_share
+                .is_some_and(|(share, _)| self.uniform() < share)
+        };
+        if corrupt {
+            self.stats.corrupted += 1;
+            self.corrupted_now = true;
+            return false;
+        }
         if let Some((share, _)) = self.bad_wkc {
             if self.uniform() < share {
                 if let Ok(d) = drive_ethercat::frame::Datagrams::<
@@ -363,6 +408,12 @@ impl EcatFaults {
             }
         }
         true
+    }
+
+    /// Whether the frame [`EcatFaults::admit`] refused last was corrupted on the wire (the
+    /// slaves count it as an RX error: `drive_ethercat::Segment::frame_corrupted`), not lost.
+    pub fn corrupted(&self) -> bool {
+        self.corrupted_now
     }
 
     /// The slaves answered `frame` (admitted at `now_us`): restore the working counters of a

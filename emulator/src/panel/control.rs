@@ -147,6 +147,8 @@ impl Controls {
                 "link_down": {"over": "optional time"},
                 "bad_wkc": {"share": [0.0, 1.0], "over": "optional time"},
                 "out_of_op": {"al_code": "optional, e.g. \"0x001A\""},
+                "corrupt": {"frames": "the next N frames", "share": [0.0, 1.0],
+                            "over": "with share: optional time"},
                 "restore": {},
             }),
         };
@@ -574,6 +576,13 @@ mod tests {
             (
                 json!({"ethercat": "out_of_op", "al_code": "0x001A"}),
                 EcatFault::OutOfOp { al_code: 0x001A },
+            ),
+            (
+                json!({"ethercat": "corrupt", "frames": 5}),
+                EcatFault::Corrupt {
+                    frames: 5,
+                    share: 0.0,
+                },
             ),
         ] {
             let k = ecat

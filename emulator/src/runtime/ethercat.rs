@@ -263,6 +263,10 @@ pub fn serve<D: SimulatedDrive>(
                     let now_ns = now_us.saturating_mul(1000);
                     let frame = &mut buf[..n];
                     if !faults.admit(frame, now_us) {
+                        if faults.corrupted() {
+                            // the slaves see a bad frame check sequence: RX error counters
+                            seg.frame_corrupted();
+                        }
                         continue;
                     }
                     let pd_before = seg.process_data_frames;

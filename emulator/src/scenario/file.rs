@@ -245,6 +245,7 @@ pub enum EcatKind {
     LinkDown,
     BadWkc,
     OutOfOp,
+    Corrupt,
     Restore,
 }
 

@@ -618,19 +618,20 @@ fn ethercat_action(
     let over_us = e.over.as_ref().map(|o| o.get_ref().us());
     let share = e.share.as_ref().map(|s| s.get_ref().0);
     let fault = match kind {
-        EcatKind::Lost => {
-            ctx.only(
-                present,
-                &["frames", "share", "over"],
-                "lost EtherCAT frames",
-            )?;
-            match (&e.frames, share) {
+        EcatKind::Lost | EcatKind::Corrupt => {
+            let what = if kind == EcatKind::Lost {
+                "lost EtherCAT frames"
+            } else {
+                "corrupted EtherCAT frames"
+            };
+            ctx.only(present, &["frames", "share", "over"], what)?;
+            let (frames, share) = match (&e.frames, share) {
                 (Some(f), None) => {
                     if let Some(o) = &e.over {
                         return Err(ctx.err(
                             o.span(),
                             Some("over"),
-                            "`frames` counts the frames lost; `over` goes with `share`",
+                            "`frames` counts the frames; `over` goes with `share`",
                         ));
                     }
                     if *f.get_ref() == 0 {
@@ -640,19 +641,21 @@ fn ethercat_action(
                             "0 frames: give at least 1 (or `share` with `over`)",
                         ));
                     }
-                    EcatFault::Lost {
-                        frames: *f.get_ref(),
-                        share: 0.0,
-                    }
+                    (*f.get_ref(), 0.0)
                 }
-                (None, Some(share)) => EcatFault::Lost { frames: 0, share },
+                (None, Some(share)) => (0, share),
                 _ => {
                     return Err(ctx.err(
                         e.ethercat.as_ref().unwrap().span(),
                         Some("ethercat"),
-                        "lost EtherCAT frames take either `frames` (the next N frames) or `share` (0..1 of the frames, with `over`), not both nor neither",
+                        format!("{what} take either `frames` (the next N frames) or `share` (0..1 of the frames, with `over`), not both nor neither"),
                     ))
                 }
+            };
+            if kind == EcatKind::Lost {
+                EcatFault::Lost { frames, share }
+            } else {
+                EcatFault::Corrupt { frames, share }
             }
         }
         EcatKind::Late => {

@@ -372,7 +372,7 @@ function wire() {
       const kind = b.dataset.ecat;
       const body = { ethercat: kind };
       const over = $("ecat-over").value.trim();
-      if (kind === "lost") body.frames = Math.round(Number($("ecat-frames").value));
+      if (kind === "lost" || kind === "corrupt") body.frames = Math.round(Number($("ecat-frames").value));
       if (kind === "late") body.hold = $("ecat-hold").value.trim();
       if (kind === "out_of_op") body.al_code = $("ecat-al").value.trim();
       if (over && ["link_down", "bad_wkc", "late"].includes(kind)) body.over = over;
