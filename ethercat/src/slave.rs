@@ -665,12 +665,11 @@ impl Slave {
     pub fn node_mut(&mut self) -> &mut Node {
         &mut self.node
     }
-    /// The ESC memory.
     /// A frame with a bad frame check sequence came in (see [`Esc::count_rx_error`]).
     pub fn count_rx_error(&mut self, forwarded: bool) {
         self.esc.count_rx_error(forwarded);
     }
-
+    /// The ESC memory.
     pub fn esc(&self) -> &Esc {
         &self.esc
     }
