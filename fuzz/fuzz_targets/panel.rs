@@ -17,7 +17,7 @@ use drive_emu::panel::auth::{offered, Auth};
 use drive_emu::panel::control::Controls;
 use drive_emu::panel::record::is_served_name;
 use drive_emu::panel::server::{cross_site_refusal, parse_json_body, record_action, RecordAction};
-use drive_emu::panel::{PanelAxis, PanelSetup};
+use drive_emu::panel::{PanelAxis, PanelBus, PanelSetup};
 use drive_emu::presets::AxisConfig;
 use drive_emu::scenario::timeline::Action;
 use drive_protocol_fuzz::assert_clean_message;
@@ -26,10 +26,16 @@ use std::sync::OnceLock;
 
 const TOKEN: &str = "tok-Fuzz_123";
 
-fn controls() -> &'static (Controls, serde_json::Value) {
-    static C: OnceLock<(Controls, serde_json::Value)> = OnceLock::new();
-    C.get_or_init(|| {
+/// The controls of a CAN run (`ethercat == false`) or of `run --ethercat`, and what they offer.
+fn controls(ethercat: bool) -> &'static (Controls, serde_json::Value) {
+    static C: [OnceLock<(Controls, serde_json::Value)>; 2] = [OnceLock::new(), OnceLock::new()];
+    C[usize::from(ethercat)].get_or_init(|| {
         let setup = PanelSetup {
+            bus: if ethercat {
+                PanelBus::Ethercat
+            } else {
+                PanelBus::Can
+            },
             axes: vec![PanelAxis {
                 node_id: 5,
                 preset: "cnc1".into(),
@@ -108,7 +114,8 @@ fuzz_target!(|data: &[u8]| {
             return;
         }
     };
-    let (controls, offered_json) = controls();
+    let ethercat = m & 2 != 0;
+    let (controls, offered_json) = controls(ethercat);
     match controls.check(&v) {
         Err(r) => {
             assert_clean_message("injection refusal", &r.reason);
@@ -118,6 +125,13 @@ fuzz_target!(|data: &[u8]| {
         }
         Ok(c) => {
             assert_clean_message("injection", &c.describe);
+            // only the run's own bus's faults get through
+            let bus = if ethercat { "ethercat" } else { "can" };
+            assert!(
+                c.action.bus().is_none_or(|b| b == bus),
+                "a {bus} run took {:?}",
+                c.action
+            );
             c.toml_lines
                 .parse::<toml::Table>()
                 .unwrap_or_else(|e| panic!("event text {:?}: {e}", c.toml_lines));
