@@ -124,6 +124,30 @@ fn a_bad_profile_file_is_refused_with_file_line_key_and_reason() {
         !err.contains("cannot open CAN interface"),
         "before the bus:\n{err}"
     );
+    // an unknown key (a misspelt parameter, a misspelt switch): file, line, key, nearest name
+    let p = temp(
+        "typo.toml",
+        "schema = 1\nname = \"typo\"\ndescription = \"d\"\nextends = \"strict\"\n\n\
+         [quirks.sdo_response_delay]\ndelay = 5\n",
+    );
+    refused(
+        &["profiles", &p],
+        &[&format!(
+            "{p}:7: quirks.sdo_response_delay.delay: unknown parameter of sdo_response_delay \
+             `delay` (did you mean `delay_ms`?"
+        )],
+    );
+    let p = temp(
+        "typo2.toml",
+        "schema = 1\nname = \"typo2\"\ndescription = \"d\"\n\n[quirks.enable_require_mode]\n",
+    );
+    refused(
+        &["profiles", &p],
+        &[&format!(
+            "{p}:5: quirks.enable_require_mode: unknown switch `enable_require_mode` (did you \
+             mean `enable_requires_mode`?"
+        )],
+    );
     let p = temp(
         "other.toml",
         "schema = 1\nname = \"mine\"\ndescription = \"d\"\n",

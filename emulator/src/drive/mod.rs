@@ -1,7 +1,7 @@
 //! The simulated drive: the [`drive_protocol::Drive`] adapter on the servo axis (units, physics
 //! limits, supervision), the emulator's own objects in its dictionary, the building of its
-//! node, the vendor quirk profiles (`quirk_profile.rs`), and the machine file that says which axes one process
-//! serves.
+//! node, the quirk profiles (vendor behaviour, `quirk_profile.rs`), and the machine file that
+//! says which axes one process serves.
 
 pub mod axis_drive;
 pub mod machine;
