@@ -78,7 +78,7 @@ fn the_runtime_tick_of_a_twin_pinion_does_not_allocate() {
 /// allocate nothing either.
 #[test]
 fn the_runtime_tick_with_vendor_switches_on_does_not_allocate() {
-    use drive_emu::drive::profile::{Behaviour, Overlay};
+    use drive_emu::drive::quirk_profile::{Overlay, QuirkProfile};
     let switches: Vec<String> = [
         "enable_requires_mode",
         "sdo_response_delay.delay_ms=1",
@@ -97,7 +97,7 @@ fn the_runtime_tick_with_vendor_switches_on_does_not_allocate() {
     .map(|s| s.to_string())
     .collect();
     let overlay = Overlay::from_args(&switches, &[]).unwrap();
-    let b = Behaviour::resolve(Some("technosoft-ipos"), None, &[&overlay]).unwrap();
+    let b = QuirkProfile::resolve(Some("technosoft-ipos"), None, &[&overlay]).unwrap();
     assert_eq!(b.quirks.on().count(), 8);
     runtime_tick_allocations(Some(b), "cnc1", 0.0);
 }
@@ -105,7 +105,7 @@ fn the_runtime_tick_with_vendor_switches_on_does_not_allocate() {
 /// `preload_pct`: 0 on a single-contact preset, else the twin pinion's preload at the start
 /// (written again over SDO while the axis runs).
 fn runtime_tick_allocations(
-    behaviour: Option<drive_emu::drive::profile::Behaviour>,
+    quirk_profile: Option<drive_emu::drive::quirk_profile::QuirkProfile>,
     preset: &str,
     preload_pct: f64,
 ) {
@@ -117,7 +117,7 @@ fn runtime_tick_allocations(
         .unwrap();
     let mut drive = AxisDrive::from_config(&cfg).unwrap();
     let opts = drive_emu::drive::NodeOptions {
-        behaviour: behaviour.map(std::sync::Arc::new),
+        quirk_profile: quirk_profile.map(std::sync::Arc::new),
         ..drive_emu::drive::NodeOptions::new(5)
     };
     let node = drive_emu::drive::build_node(&mut drive, &opts).unwrap();

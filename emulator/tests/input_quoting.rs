@@ -6,7 +6,7 @@
 
 use drive_emu::cli::lss_store;
 use drive_emu::drive::machine;
-use drive_emu::drive::profile::ProfileFile;
+use drive_emu::drive::quirk_profile::ProfileFile;
 use drive_emu::scenario;
 use std::path::Path;
 

@@ -1,4 +1,4 @@
-//! Vendor behaviour profiles on the command line (docs/quirks.md section 4): `drive-emu
+//! Quirk profiles (vendor behaviour) on the command line (docs/quirks.md section 4): `drive-emu
 //! profiles` lists and checks them; `run --profile / --quirk / --no-quirk` refuse a bad one
 //! before touching the bus, with file, line, key and reason, and say what is on; with `--eds`
 //! the EDS is authoritative for the identity; `eds --profile` writes the defaults the switches
@@ -77,8 +77,22 @@ fn profiles_lists_every_profile_and_switch_and_shows_one() {
     ] {
         assert!(text.contains(p), "{p} missing:\n{text}");
     }
+    // every switch and parameter, with its doc, from the one description
     for s in drive_protocol::Quirks::SWITCHES {
-        assert!(text.contains(s), "{s} missing:\n{text}");
+        assert!(text.contains(s.name), "{} missing:\n{text}", s.name);
+        assert!(
+            text.contains(s.doc.trim()),
+            "{}'s doc missing:\n{text}",
+            s.name
+        );
+        for p in s.params {
+            assert!(
+                text.contains(p.doc.trim()),
+                "{}.{}'s doc missing",
+                s.name,
+                p.name
+            );
+        }
     }
     let out = drive_emu(&["profiles", "technosoft-ipos"]);
     let text = String::from_utf8_lossy(&out.stdout);
@@ -109,6 +123,30 @@ fn a_bad_profile_file_is_refused_with_file_line_key_and_reason() {
     assert!(
         !err.contains("cannot open CAN interface"),
         "before the bus:\n{err}"
+    );
+    // an unknown key (a misspelt parameter, a misspelt switch): file, line, key, nearest name
+    let p = temp(
+        "typo.toml",
+        "schema = 1\nname = \"typo\"\ndescription = \"d\"\nextends = \"strict\"\n\n\
+         [quirks.sdo_response_delay]\ndelay = 5\n",
+    );
+    refused(
+        &["profiles", &p],
+        &[&format!(
+            "{p}:7: quirks.sdo_response_delay.delay: unknown parameter of sdo_response_delay \
+             `delay` (did you mean `delay_ms`?"
+        )],
+    );
+    let p = temp(
+        "typo2.toml",
+        "schema = 1\nname = \"typo2\"\ndescription = \"d\"\n\n[quirks.enable_require_mode]\n",
+    );
+    refused(
+        &["profiles", &p],
+        &[&format!(
+            "{p}:5: quirks.enable_require_mode: unknown switch `enable_require_mode` (did you \
+             mean `enable_requires_mode`?"
+        )],
     );
     let p = temp(
         "other.toml",

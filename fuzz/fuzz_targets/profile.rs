@@ -5,7 +5,7 @@
 //! `profiles/*.toml`.
 #![no_main]
 
-use drive_emu::drive::profile::ProfileFile;
+use drive_emu::drive::quirk_profile::ProfileFile;
 use drive_protocol_fuzz::{assert_clean_message, lines};
 use libfuzzer_sys::fuzz_target;
 

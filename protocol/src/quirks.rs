@@ -10,6 +10,10 @@
 
 use heapless::{Deque, Vec as HVec};
 
+pub mod schema;
+
+use schema::{params, Kind, Param, Params, Range, Switch, SwitchField, Word, Written};
+
 use crate::frame::CanFrame;
 use crate::od::ObjectDictionary;
 use crate::wire::sdo::SdoRequest;
@@ -175,64 +179,8 @@ pub enum HomingMethodZero {
 impl HomingMethodZero {
     /// The profile's word for it.
     pub fn name(self) -> &'static str {
-        match self {
-            HomingMethodZero::Store => "store",
-            HomingMethodZero::Ignore => "ignore",
-            HomingMethodZero::Refuse => "refuse",
-        }
+        <Self as Word>::WORDS[self as usize]
     }
-}
-
-/// `bootup_then_heartbeat` (3.5).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct BootupThenHeartbeat {
-    /// Time from the boot-up to a first heartbeat, us.
-    pub first_heartbeat_after_bootup_us: u32,
-    /// 0x1017's default (the heartbeat producer runs from the boot), ms.
-    pub heartbeat_ms_default: u16,
-}
-
-/// `not_ready_after_bootup` (3.6).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct NotReadyAfterBootup {
-    /// Time from the boot-up until the node is ready (heartbeat 0x7F, SDO answered), ms.
-    pub ready_after_ms: u32,
-    /// Heartbeat 0x00 period meanwhile, ms (0: none).
-    pub initialising_heartbeat_ms: u16,
-}
-
-/// `sdo_response_delay` (3.7).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct SdoResponseDelay {
-    /// Delay of every answer, ms.
-    pub delay_ms: u32,
-    /// Delay of every `late_every`-th service's answers, ms.
-    pub late_delay_ms: u32,
-    /// Every n-th SDO service (counted from the boot) is late (0: never).
-    pub late_every: u32,
-}
-
-/// `sdo_first_upload_dropped` (3.8).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct SdoFirstUploadDropped {
-    /// The objects whose first uploads get no answer.
-    pub objects: ObjectList,
-    /// How many uploads of each, after every boot.
-    pub count: u8,
-}
-
-/// `tpdo_rtr_unsupported` (3.10).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct TpdoRtrUnsupported {
-    /// Abort code of a TPDO COB-ID write with bit 30 clear.
-    pub abort_code: u32,
-}
-
-/// `controlword_min_hold` (3.11).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ControlwordMinHold {
-    /// A controlword value replaced within this time is never acted on, us.
-    pub hold_us: u32,
 }
 
 /// Where `sync_watchdog` takes its period from.
@@ -248,124 +196,323 @@ pub enum WatchdogPeriod {
 impl WatchdogPeriod {
     /// The profile's word for it.
     pub fn name(self) -> &'static str {
-        match self {
-            WatchdogPeriod::Interpolation => "0x60C2",
-            WatchdogPeriod::CommunicationCycle => "0x1006",
-        }
+        <Self as Word>::WORDS[self as usize]
     }
 }
 
-/// `sync_watchdog` (3.13).
-#[derive(Clone, Debug, PartialEq)]
-pub struct SyncWatchdog {
-    /// Periods without SYNC before the alarm.
-    pub missed_periods: f32,
-    /// The period's object.
-    pub period_from: WatchdogPeriod,
-    /// The modes of operation (0x6061) in which SYNC is watched.
-    pub modes: HVec<i8, MAX_WATCHED_MODES>,
-    /// EMCY and 0x603F code of the alarm.
-    pub emcy_code: u16,
+const U16: i64 = u16::MAX as i64;
+const U32: i64 = u32::MAX as i64;
+
+// The parameters of the switches: each declared once, with its doc, default and range
+// (`params!`, schema.rs); the profile reads them, `drive-emu profiles` and docs/quirks.md's
+// table show them.
+
+params! {
+    /// `bootup_then_heartbeat` (3.5).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct BootupThenHeartbeat {
+        /// Time from the boot-up to a first heartbeat, us.
+        first_heartbeat_after_bootup_us: u32 = 100; schema::int(0, 1_000_000, "us"),
+        /// 0x1017's default (the heartbeat producer runs from the boot), ms.
+        heartbeat_ms_default: u16 = 100; schema::int(0, U16, "ms"),
+    }
 }
 
-/// `late_sync_statusword_bit15` (3.14).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct LateSyncBit15 {
-    /// A SYNC later than last SYNC + 0x1006 + this sets statusword bit 15, us.
-    pub late_tolerance_us: u32,
+params! {
+    /// `not_ready_after_bootup` (3.6).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct NotReadyAfterBootup {
+        /// Time from the boot-up until the node is ready (heartbeat 0x7F, SDO answered), ms.
+        ready_after_ms: u32 = 3000; schema::int(1, 600_000, "ms"),
+        /// Heartbeat 0x00 period meanwhile, ms (0: none).
+        initialising_heartbeat_ms: u16 = 100; schema::int(0, U16, "ms"),
+    }
 }
 
-/// The vendor behaviour switches of one node (docs/quirks.md, schema 1). All off
-/// ([`Quirks::default`]) is the strict drive.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Quirks {
-    /// 3.1: no transition 4 (OPERATION ENABLED) while 0x6060 is 0.
-    pub enable_requires_mode: bool,
-    /// 3.2: 0x6061 does not follow 0x6060 while controlword bit 8 (halt) is set.
-    pub mode_change_blocked_by_halt: bool,
-    /// 3.3: statusword bits homing never sets.
-    pub homing_status_bits_missing: Option<HomingBitsMissing>,
-    /// 3.4: a write of 0 to 0x6098.
-    pub homing_method_zero: HomingMethodZero,
-    /// 3.5: a heartbeat right after the boot-up.
-    pub bootup_then_heartbeat: Option<BootupThenHeartbeat>,
-    /// 3.6: initialising for a while after the boot-up.
-    pub not_ready_after_bootup: Option<NotReadyAfterBootup>,
-    /// 3.7: SDO answers late.
-    pub sdo_response_delay: Option<SdoResponseDelay>,
-    /// 3.8: the first uploads of some objects get no answer.
-    pub sdo_first_upload_dropped: Option<SdoFirstUploadDropped>,
-    /// 3.9: mapping entries accepted while sub 0 is not 0 (PDO invalid).
-    pub pdo_remap_lenient: bool,
-    /// 3.10: TPDO COB-IDs keep bit 30 (no RTR).
-    pub tpdo_rtr_unsupported: Option<TpdoRtrUnsupported>,
-    /// 3.11: a controlword held for less than `hold_us` is not seen.
-    pub controlword_min_hold: Option<ControlwordMinHold>,
-    /// 3.12: a quick stop at standstill never shows QUICK STOP ACTIVE.
-    pub quick_stop_skips_active_state: bool,
-    /// 3.13: a fault when SYNC is missing for some periods in some modes.
-    pub sync_watchdog: Option<SyncWatchdog>,
-    /// 3.14: statusword bit 15 after a late SYNC.
-    pub late_sync_statusword_bit15: Option<LateSyncBit15>,
-    /// 3.15: objects the drive refuses to map.
-    pub unmappable_objects: Option<ObjectList>,
-    /// 3.16: objects whose SDO requests get no answer at all.
-    pub sdo_silent_objects: Option<ObjectList>,
+params! {
+    /// `sdo_response_delay` (3.7).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct SdoResponseDelay {
+        /// Delay of every answer, ms.
+        delay_ms: u32 = 10; schema::int(0, 5000, "ms"),
+        /// Delay of every `late_every`-th service's answers, ms.
+        late_delay_ms: u32 = 0; schema::int(0, 5000, "ms"),
+        /// Every n-th SDO service (counted from the boot) is late (0: never).
+        late_every: u32 = 0; schema::int(0, U32, ""),
+    }
+}
+
+params! {
+    /// `sdo_first_upload_dropped` (3.8).
+    #[derive(Clone, Debug, PartialEq, Eq)]
+    pub struct SdoFirstUploadDropped {
+        /// The objects whose first uploads get no answer.
+        objects: ObjectList = ObjectList::parse(&["0x6061:0"]).unwrap_or_default(); Range::Objects,
+        /// How many uploads of each, after every boot.
+        count: u8 = 1; schema::int(1, 255, ""),
+    }
+}
+
+params! {
+    /// `tpdo_rtr_unsupported` (3.10).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct TpdoRtrUnsupported {
+        /// Abort code of a TPDO COB-ID write with bit 30 clear.
+        abort_code: u32 = 0x0609_0030; schema::code(U32, 8),
+    }
+}
+
+params! {
+    /// `controlword_min_hold` (3.11).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct ControlwordMinHold {
+        /// A controlword value replaced within this time is never acted on, us.
+        hold_us: u32 = 1000; schema::int(1, 100_000, "us"),
+    }
+}
+
+params! {
+    /// `sync_watchdog` (3.13).
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct SyncWatchdog {
+        /// Periods without SYNC before the alarm.
+        missed_periods: f32 = 2.0; Range::Float { min: 1.0, max: 100.0 },
+        /// The period's object: the interpolation time period 0x60C2 (else 0x1006), or 0x1006.
+        period_from: WatchdogPeriod = WatchdogPeriod::Interpolation; Range::OneOf(<WatchdogPeriod as Word>::WORDS),
+        /// The modes of operation (0x6061) in which SYNC is watched.
+        modes: HVec<i8, MAX_WATCHED_MODES> = [7, 8].into_iter().collect(); Range::Modes,
+        /// EMCY and 0x603F code of the alarm.
+        emcy_code: u16 = 0x8100; schema::code(U16, 4),
+    }
+}
+
+params! {
+    /// `late_sync_statusword_bit15` (3.14).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct LateSyncBit15 {
+        /// A SYNC later than last SYNC + 0x1006 + this sets statusword bit 15, us.
+        late_tolerance_us: u32 = 200; schema::int(0, U32, "us"),
+    }
+}
+
+params! {
+    /// `homing_method_zero`'s table: the rule's one parameter.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct HomingMethodZeroRule {
+        /// What a write of 0 to 0x6098 does: stored (strict), ignored (confirmed, not stored) or refused (abort 0x06090030).
+        zero: HomingMethodZero = HomingMethodZero::Store; Range::OneOf(<HomingMethodZero as Word>::WORDS),
+    }
+}
+
+/// A rule: always a value; off is its strict value, `store`.
+impl SwitchField for HomingMethodZero {
+    const PARAMS: &'static [Param] = HomingMethodZeroRule::PARAMS;
+    fn from_written(w: Written<'_>) -> Result<Self, String> {
+        Ok(w.map(HomingMethodZeroRule::from_written)
+            .transpose()?
+            .map_or(HomingMethodZero::Store, |r| r.zero))
+    }
+    fn on_values(&self) -> Option<Vec<(&'static str, String)>> {
+        (*self != HomingMethodZero::Store).then(|| HomingMethodZeroRule { zero: *self }.values())
+    }
+}
+
+params! {
+    /// `homing_status_bits_missing`'s table.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct HomingBitsRule {
+        /// The statusword bits homing never sets.
+        bits: HomingBitsMissing = HomingBitsMissing { target_reached: false, attained: true }; Range::ListOf(&schema::HOMING_BITS),
+    }
+}
+
+params! {
+    /// The table of a switch that lists objects (`unmappable_objects`, `sdo_silent_objects`).
+    #[derive(Clone, Debug, PartialEq, Eq)]
+    pub struct ObjectsRule {
+        /// The objects.
+        objects: ObjectList; Range::Objects,
+    }
+}
+
+/// `homing_status_bits_missing`: `None` is off.
+impl SwitchField for Option<HomingBitsMissing> {
+    const PARAMS: &'static [Param] = HomingBitsRule::PARAMS;
+    fn from_written(w: Written<'_>) -> Result<Self, String> {
+        Ok(w.map(HomingBitsRule::from_written)
+            .transpose()?
+            .map(|r| r.bits))
+    }
+    fn on_values(&self) -> Option<Vec<(&'static str, String)>> {
+        self.map(|bits| HomingBitsRule { bits }.values())
+    }
+}
+
+/// `unmappable_objects`, `sdo_silent_objects`: `None` is off.
+impl SwitchField for Option<ObjectList> {
+    const PARAMS: &'static [Param] = ObjectsRule::PARAMS;
+    fn from_written(w: Written<'_>) -> Result<Self, String> {
+        Ok(w.map(ObjectsRule::from_written)
+            .transpose()?
+            .map(|r| r.objects))
+    }
+    fn on_values(&self) -> Option<Vec<(&'static str, String)>> {
+        self.as_ref()
+            .map(|l| ObjectsRule { objects: l.clone() }.values())
+    }
+}
+
+/// Declares the switches once: each a field of [`Quirks`] with its doc, section and kind;
+/// generates [`Quirks`], [`QuirksPatch`] (what one profile writes), [`Quirks::SWITCHES`]
+/// (the description every listing reads) and the serde side.
+macro_rules! quirks {
+    ($(
+        $(#[doc = $doc:literal])+
+        ($section:literal, $kind:ident) $f:ident : $T:ty,
+    )*) => {
+        /// The vendor behaviour switches of one node (docs/quirks.md, schema 1). All off
+        /// ([`Quirks::default`]) is the strict drive. Read from a profile's `quirks` table
+        /// with serde (an unknown switch or parameter is an error naming the nearest one).
+        #[derive(Clone, Debug, Default, PartialEq)]
+        pub struct Quirks {
+            $( $(#[doc = $doc])+ pub $f: $T, )*
+        }
+
+        /// The switches one profile (or overlay) writes: `Some` for each `[quirks.NAME]`
+        /// table, its whole setting; applied in order onto [`Quirks`]
+        /// ([`QuirksPatch::apply_to`]).
+        #[derive(Clone, Debug, Default, PartialEq)]
+        pub struct QuirksPatch {
+            $( $(#[doc = $doc])+ pub $f: Option<$T>, )*
+        }
+
+        impl Quirks {
+            /// Every switch of schema 1, in the order of docs/quirks.md: the one description.
+            pub const SWITCHES: &'static [Switch] = &[$(
+                Switch {
+                    name: stringify!($f),
+                    section: $section,
+                    kind: Kind::$kind,
+                    doc: concat!($($doc),+),
+                    params: <$T as SwitchField>::PARAMS,
+                },
+            )*];
+
+            /// A switch (a name of [`Quirks::SWITCHES`]) that is on: its parameters as a
+            /// profile writes them; `None` when it is off (its strict value) or unknown.
+            pub fn on_values(&self, switch: &str) -> Option<Vec<(&'static str, String)>> {
+                match switch {
+                    $( stringify!($f) => self.$f.on_values(), )*
+                    _ => None,
+                }
+            }
+        }
+
+        impl QuirksPatch {
+            fn set(&mut self, i: usize, w: Written<'_>) -> Result<(), String> {
+                let name = Quirks::SWITCHES[i].name;
+                $(
+                    if name == stringify!($f) {
+                        self.$f = Some(<$T as SwitchField>::from_written(w)?);
+                    }
+                )*
+                Ok(())
+            }
+
+            /// Set every switch it writes in `q` (its whole setting).
+            pub fn apply_to(&self, q: &mut Quirks) {
+                $( if let Some(v) = &self.$f { q.$f = v.clone(); } )*
+            }
+
+            /// The switches it writes, in [`Quirks::SWITCHES`] order.
+            pub fn written(&self) -> Vec<&'static str> {
+                let mut v = Vec::new();
+                $( if self.$f.is_some() { v.push(stringify!($f)); } )*
+                v
+            }
+        }
+    };
+}
+
+quirks! {
+    /// No transition 4 (OPERATION ENABLED) while 0x6060 is 0: enable stays in SWITCHED ON.
+    ("3.1", Quirk) enable_requires_mode: bool,
+    /// 0x6061 does not follow 0x6060 while controlword bit 8 (halt) is set.
+    ("3.2", Quirk) mode_change_blocked_by_halt: bool,
+    /// Homing never sets these statusword bits.
+    ("3.3", Quirk) homing_status_bits_missing: Option<HomingBitsMissing>,
+    /// What a write of 0 to 0x6098 does.
+    ("3.4", Rule) homing_method_zero: HomingMethodZero,
+    /// A heartbeat right after the boot-up hides it from a master watching the last state.
+    ("3.5", Quirk) bootup_then_heartbeat: Option<BootupThenHeartbeat>,
+    /// After the boot-up, heartbeat 0x00 and no SDO or NMT answer until ready.
+    ("3.6", Quirk) not_ready_after_bootup: Option<NotReadyAfterBootup>,
+    /// SDO answers leave late (every `late_every`-th service later still).
+    ("3.7", Quirk) sdo_response_delay: Option<SdoResponseDelay>,
+    /// The first uploads of these objects after each boot get no answer.
+    ("3.8", Quirk) sdo_first_upload_dropped: Option<SdoFirstUploadDropped>,
+    /// Mapping entries accepted while sub 0 != 0 (strict, Copley: abort 0x06010000).
+    ("3.9", Rule) pdo_remap_lenient: bool,
+    /// TPDO COB-IDs keep bit 30 (no RTR); a write clearing it is aborted.
+    ("3.10", Quirk) tpdo_rtr_unsupported: Option<TpdoRtrUnsupported>,
+    /// A controlword value replaced within `hold_us` is never acted on.
+    ("3.11", Quirk) controlword_min_hold: Option<ControlwordMinHold>,
+    /// A quick stop at standstill goes to SWITCH ON DISABLED without showing QUICK STOP ACTIVE.
+    ("3.12", Quirk) quick_stop_skips_active_state: bool,
+    /// A fault when SYNC is missing for `missed_periods` in OPERATION ENABLED in `modes`.
+    ("3.13", Quirk) sync_watchdog: Option<SyncWatchdog>,
+    /// Statusword bit 15 after a SYNC later than 0x1006 + `late_tolerance_us`.
+    ("3.14", Quirk) late_sync_statusword_bit15: Option<LateSyncBit15>,
+    /// Mapping entries naming these objects are aborted 0x06040041.
+    ("3.15", Quirk) unmappable_objects: Option<ObjectList>,
+    /// SDO requests for these objects get no answer at all.
+    ("3.16", Quirk) sdo_silent_objects: Option<ObjectList>,
+}
+
+impl<'de> serde::Deserialize<'de> for QuirksPatch {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_map(schema::QuirksVisitor {
+            switches: Quirks::SWITCHES,
+            out: QuirksPatch::default(),
+            set: |p: &mut QuirksPatch, i: usize, w: Written<'_>| p.set(i, w),
+        })
+    }
+}
+
+/// The switches of a `quirks` table onto the strict drive.
+impl<'de> serde::Deserialize<'de> for Quirks {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let p = <QuirksPatch as serde::Deserialize>::deserialize(d)?;
+        let mut q = Quirks::default();
+        p.apply_to(&mut q);
+        Ok(q)
+    }
 }
 
 impl Quirks {
-    /// Every switch of schema 1, in the order of docs/quirks.md.
-    pub const SWITCHES: [&'static str; 16] = [
-        "enable_requires_mode",
-        "mode_change_blocked_by_halt",
-        "homing_status_bits_missing",
-        "homing_method_zero",
-        "bootup_then_heartbeat",
-        "not_ready_after_bootup",
-        "sdo_response_delay",
-        "sdo_first_upload_dropped",
-        "pdo_remap_lenient",
-        "tpdo_rtr_unsupported",
-        "controlword_min_hold",
-        "quick_stop_skips_active_state",
-        "sync_watchdog",
-        "late_sync_statusword_bit15",
-        "unmappable_objects",
-        "sdo_silent_objects",
-    ];
-
     /// Whether a switch (a name of [`Quirks::SWITCHES`]) is on; a rule is on when it is not
     /// its strict value.
     pub fn is_on(&self, switch: &str) -> bool {
-        match switch {
-            "enable_requires_mode" => self.enable_requires_mode,
-            "mode_change_blocked_by_halt" => self.mode_change_blocked_by_halt,
-            "homing_status_bits_missing" => self.homing_status_bits_missing.is_some(),
-            "homing_method_zero" => self.homing_method_zero != HomingMethodZero::Store,
-            "bootup_then_heartbeat" => self.bootup_then_heartbeat.is_some(),
-            "not_ready_after_bootup" => self.not_ready_after_bootup.is_some(),
-            "sdo_response_delay" => self.sdo_response_delay.is_some(),
-            "sdo_first_upload_dropped" => self.sdo_first_upload_dropped.is_some(),
-            "pdo_remap_lenient" => self.pdo_remap_lenient,
-            "tpdo_rtr_unsupported" => self.tpdo_rtr_unsupported.is_some(),
-            "controlword_min_hold" => self.controlword_min_hold.is_some(),
-            "quick_stop_skips_active_state" => self.quick_stop_skips_active_state,
-            "sync_watchdog" => self.sync_watchdog.is_some(),
-            "late_sync_statusword_bit15" => self.late_sync_statusword_bit15.is_some(),
-            "unmappable_objects" => self.unmappable_objects.is_some(),
-            "sdo_silent_objects" => self.sdo_silent_objects.is_some(),
-            _ => false,
-        }
+        self.on_values(switch).is_some()
     }
 
     /// The switches that are on, in [`Quirks::SWITCHES`] order.
     pub fn on(&self) -> impl Iterator<Item = &'static str> + '_ {
-        Quirks::SWITCHES.into_iter().filter(|s| self.is_on(s))
+        Quirks::SWITCHES
+            .iter()
+            .map(|s| s.name)
+            .filter(|s| self.is_on(s))
     }
 
     /// No switch on: the strict drive.
     pub fn is_strict(&self) -> bool {
         self.on().next().is_none()
+    }
+
+    /// A switch for people: its name, and its parameters when it is on
+    /// (`sdo_response_delay (delay_ms = 30, late_delay_ms = 0, late_every = 0)`).
+    pub fn describe(&self, switch: &str) -> String {
+        schema::describe(switch, &self.on_values(switch).unwrap_or_default())
     }
 
     /// The CiA 402 layer's part.
@@ -785,6 +932,88 @@ mod tests {
         assert!(ObjectList::parse(&many)
             .unwrap_err()
             .contains("more than 16"));
+    }
+
+    /// docs/quirks.md's table of switches is the one description's text (it cannot drift).
+    #[test]
+    fn docs_quirks_md_has_the_generated_table_of_switches() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/quirks.md");
+        let doc = std::fs::read_to_string(path).unwrap();
+        let begin =
+            "<!-- switches: generated by `drive-emu profiles --markdown`, do not edit -->\n";
+        let end = "<!-- end of the generated switches -->";
+        let a = doc.find(begin).expect("begin marker") + begin.len();
+        let b = doc[a..].find(end).expect("end marker") + a;
+        assert_eq!(
+            &doc[a..b],
+            schema::markdown(Quirks::SWITCHES),
+            "docs/quirks.md's table of switches is out of date: put the output of `drive-emu \
+             profiles --markdown` between its markers"
+        );
+    }
+
+    /// Every switch and parameter has a doc, a section and a default that passes its own
+    /// check; the rules' off values are their defaults.
+    #[test]
+    fn the_description_is_complete_and_its_defaults_are_in_range() {
+        assert_eq!(Quirks::SWITCHES.len(), 16);
+        for sw in Quirks::SWITCHES {
+            assert!(
+                !sw.doc.trim().is_empty() && sw.section.starts_with("3."),
+                "{}",
+                sw.name
+            );
+            for p in sw.params {
+                assert!(!p.doc.trim().is_empty(), "{}.{}", sw.name, p.name);
+                if let Some(d) = p.default {
+                    // the default as written, read back as a profile would
+                    let v = match p.range {
+                        Range::Int { .. } => {
+                            let t = d();
+                            let n = match t.strip_prefix("0x") {
+                                Some(h) => i64::from_str_radix(h, 16).unwrap(),
+                                None => t.parse().unwrap(),
+                            };
+                            schema::Value::Int(n)
+                        }
+                        Range::Float { .. } => schema::Value::Float(d().parse().unwrap()),
+                        Range::OneOf(_) => schema::Value::Str(d().trim_matches('"').into()),
+                        _ => continue,
+                    };
+                    (p.check)(&v).unwrap_or_else(|e| panic!("{}.{}: {e}", sw.name, p.name));
+                }
+            }
+        }
+        // an out-of-range value is refused by the same check
+        let delay = Quirks::SWITCHES
+            .iter()
+            .find(|s| s.name == "sdo_response_delay")
+            .unwrap()
+            .params[0];
+        assert_eq!(
+            (delay.check)(&schema::Value::Int(70_000)).unwrap_err(),
+            "70000 out of range 0..=5000 (ms)"
+        );
+        assert!(Quirks::default().is_strict());
+        let q = Quirks {
+            homing_method_zero: HomingMethodZero::Refuse,
+            tpdo_rtr_unsupported: Some(TpdoRtrUnsupported {
+                abort_code: 0x0609_0030,
+            }),
+            ..Quirks::default()
+        };
+        assert_eq!(
+            q.on().collect::<Vec<_>>(),
+            ["homing_method_zero", "tpdo_rtr_unsupported"]
+        );
+        assert_eq!(
+            q.describe("tpdo_rtr_unsupported"),
+            "tpdo_rtr_unsupported (abort_code = 0x06090030)"
+        );
+        assert_eq!(
+            q.describe("homing_method_zero"),
+            "homing_method_zero (zero = \"refuse\")"
+        );
     }
 
     #[test]

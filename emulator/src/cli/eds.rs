@@ -95,7 +95,7 @@ pub fn eds_and_report(args: &EdsArgs) -> Result<(String, Option<String>)> {
         None => cfg,
     };
     let mut drive = AxisDrive::from_config(&cfg)?;
-    let behaviour = crate::drive::profile::Behaviour::from_args(
+    let quirk_profile = crate::drive::quirk_profile::QuirkProfile::from_args(
         args.profile.as_deref(),
         &args.quirk,
         &args.no_quirk,
@@ -103,7 +103,7 @@ pub fn eds_and_report(args: &EdsArgs) -> Result<(String, Option<String>)> {
     let opts = NodeOptions {
         objects_base: args.objects_base,
         eds: vendor.clone(),
-        behaviour: behaviour.map(std::sync::Arc::new),
+        quirk_profile: quirk_profile.map(std::sync::Arc::new),
         ..NodeOptions::new(args.node.unwrap_or(1))
     };
     let setup = node_setup(&mut drive, &opts)?;

@@ -1,9 +1,11 @@
-//! `drive-emu profiles`: the vendor behaviour profiles shipped in the binary and the switches
-//! of schema 1 (docs/quirks.md); with a profile (name or path), what it resolves to.
+//! `drive-emu profiles`: the quirk profiles shipped in the binary and the switches of schema 1
+//! (docs/quirks.md), as `drive_protocol::Quirks::SWITCHES` describes them; with a profile
+//! (name or path), what it resolves to; `--markdown`: docs/quirks.md's table of switches.
 
-use crate::drive::profile::{describe_switch, list_text, Behaviour, SWITCHES};
+use crate::drive::quirk_profile::{list_text, QuirkProfile};
 use anyhow::Result;
 use clap::Args;
+use drive_protocol::Quirks;
 
 #[derive(Args, Debug, Clone)]
 pub struct ProfilesArgs {
@@ -11,29 +13,36 @@ pub struct ProfilesArgs {
     /// and check it; without it, list the profiles and the switches.
     #[arg(value_name = "NAME|PATH")]
     pub profile: Option<String>,
+    /// Print the table of switches of docs/quirks.md section 4 (markdown), generated from the
+    /// switches' one description.
+    #[arg(long, conflicts_with = "profile")]
+    pub markdown: bool,
 }
 
 pub fn run(args: &ProfilesArgs) -> Result<()> {
+    if args.markdown {
+        print!(
+            "{}",
+            drive_protocol::quirks::schema::markdown(Quirks::SWITCHES)
+        );
+        return Ok(());
+    }
     let Some(p) = &args.profile else {
         print!("{}", list_text()?);
         return Ok(());
     };
-    let b = Behaviour::resolve(Some(p), None, &[])?;
+    let b = QuirkProfile::resolve(Some(p), None, &[])?;
     println!(
         "profile {} (extends: {})",
         b.profile.as_deref().unwrap_or(p),
         b.chain.join(" -> ")
     );
-    for s in SWITCHES {
+    for s in Quirks::SWITCHES {
         let on = b.quirks.is_on(s.name);
         println!(
             "  {} {}",
             if on { "on " } else { "off" },
-            if on {
-                describe_switch(&b.quirks, s.name)
-            } else {
-                s.name.to_string()
-            }
+            b.quirks.describe(s.name)
         );
     }
     let id = &b.identity;

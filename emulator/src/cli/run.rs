@@ -339,10 +339,10 @@ fn axis_setup(
         ..NodeOptions::new(e.node_id).with_boot_delay_us(boot_delay_us)
     };
     let opts = NodeOptions {
-        behaviour: e.behaviour.clone(),
+        quirk_profile: e.quirk_profile.clone(),
         ..opts
     };
-    if let Some(b) = &e.behaviour {
+    if let Some(b) = &e.quirk_profile {
         eprintln!("{}", b.announce(e.node_id, boot_delay_us / 1000));
     }
     let setup = node_setup(&mut drive, &opts).map_err(ctx)?;
@@ -411,13 +411,13 @@ pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
 }
 
 fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
-    let behaviour = crate::drive::profile::Behaviour::from_args(
+    let quirk_profile = crate::drive::quirk_profile::QuirkProfile::from_args(
         args.profile.as_deref(),
         &args.quirk,
         &args.no_quirk,
     )?;
     if let Some(path) = &args.config {
-        if behaviour.is_some() {
+        if quirk_profile.is_some() {
             bail!(
                 "--profile / --quirk / --no-quirk with --config {}: set `profile =` and `quirks \
                  = {{...}}` per [[axis]] in the machine file",
@@ -461,7 +461,7 @@ fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
             objects_base: args.objects_base,
             profile: args.profile.clone(),
             quirks: None,
-            behaviour: behaviour.map(Arc::new),
+            quirk_profile: quirk_profile.map(Arc::new),
         }],
         ballbar: None,
     };
@@ -1112,7 +1112,7 @@ fn scenario_machine(args: &RunArgs, s: &Scenario) -> Result<MachineFile> {
             objects_base: args.objects_base,
             profile: args.profile.clone(),
             quirks: None,
-            behaviour: crate::drive::profile::Behaviour::from_args(
+            quirk_profile: crate::drive::quirk_profile::QuirkProfile::from_args(
                 args.profile.as_deref(),
                 &args.quirk,
                 &args.no_quirk,
@@ -1365,8 +1365,8 @@ fn watch(
                     "worn": st.wear(),
                     "eds": a.eds.as_ref().map(|p| p.display().to_string()),
                     "objects_base": a.objects_base.map(|b| format!("0x{b:04X}")),
-                    "profile": a.behaviour.as_ref().and_then(|b| b.profile.clone()),
-                    "quirks": a.behaviour.as_ref().map_or(vec![], |b| b.quirks.on().collect()),
+                    "profile": a.quirk_profile.as_ref().and_then(|b| b.profile.clone()),
+                    "quirks": a.quirk_profile.as_ref().map_or(vec![], |b| b.quirks.on().collect()),
                 })).collect::<Vec<_>>(),
                 "tick_hz": machine.tick_hz,
                 "lockstep": args.lockstep,

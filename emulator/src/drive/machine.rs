@@ -24,7 +24,7 @@
 //! preset's own, the paper's, backlash) or a gap of its own in `set` (`backlash_mm` /
 //! `backlash_deg`). The study tools (`ballbar --config`) keep the presets' values.
 
-use super::profile::{Behaviour, Overlay};
+use super::quirk_profile::{Overlay, QuirkProfile};
 use crate::presets::AxisConfig;
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
@@ -88,7 +88,7 @@ pub struct AxisEntry {
     /// `profile` and `quirks` resolved when the file is read (or the command line's
     /// `--profile` / `--quirk` / `--no-quirk`); `None`: the strict drive.
     #[serde(skip)]
-    pub behaviour: Option<Arc<Behaviour>>,
+    pub quirk_profile: Option<Arc<QuirkProfile>>,
 }
 
 fn default_tick_hz() -> u32 {
@@ -268,9 +268,9 @@ fn parse_in(text: &str, origin: &str, dir: Option<&Path>) -> Result<MachineFile>
             None => Overlay::default(),
         };
         if a.profile.is_some() || !overlay.is_empty() {
-            let b = Behaviour::resolve(a.profile.as_deref(), dir, &[&overlay])
+            let b = QuirkProfile::resolve(a.profile.as_deref(), dir, &[&overlay])
                 .with_context(|| format!("{origin}: axis {} (node {})", i + 1, a.node_id))?;
-            a.behaviour = Some(Arc::new(b));
+            a.quirk_profile = Some(Arc::new(b));
         }
     }
     Ok(m)
@@ -416,14 +416,14 @@ mod tests {
             "m.toml",
         )
         .unwrap();
-        let b = m.axes[0].behaviour.as_ref().unwrap();
+        let b = m.axes[0].quirk_profile.as_ref().unwrap();
         assert_eq!(b.profile.as_deref(), Some("maxon-epos4"));
         assert_eq!(
             b.quirks.on().collect::<Vec<_>>(),
             ["homing_method_zero", "sdo_response_delay"]
         );
         assert_eq!(b.quirks.sdo_response_delay.unwrap().delay_ms, 30);
-        assert!(m.axes[1].behaviour.is_none(), "no profile: strict");
+        assert!(m.axes[1].quirk_profile.is_none(), "no profile: strict");
         let e = format!(
             "{:#}",
             parse(

@@ -1,11 +1,11 @@
 //! The one place a simulated drive gets its CANopen node: the object dictionary (the
 //! standard CiA 301 / CiA 402 objects, or a vendor's EDS, `vendor.rs`; plus the emulator's
 //! own, `objects.rs`), the vendor behaviour (a profile's switches, identity and boot delays,
-//! `profile.rs`), the node's configuration, and the link from the drive to its objects.
+//! `quirk_profile.rs`), the node's configuration, and the link from the drive to its objects.
 
 use super::axis_drive::AxisDrive;
 use super::objects;
-use super::profile::Behaviour;
+use super::quirk_profile::QuirkProfile;
 use super::vendor::VendorEds;
 use drive_protocol::od::{BuildReport, DefaultValue, ObjectDictionary};
 use drive_protocol::{Drive, LssConfig, Node, NodeConfig};
@@ -32,7 +32,7 @@ pub struct NodeOptions {
     pub serial_number: Option<u32>,
     /// The vendor behaviour (profile, switches, identity, boot delays; `None`: the strict
     /// drive with the emulator's identity).
-    pub behaviour: Option<Arc<Behaviour>>,
+    pub quirk_profile: Option<Arc<QuirkProfile>>,
     /// An LSS slave even where the vendor's EDS says LSS_Supported=0 or omits it
     /// (`run --force-lss`).
     pub force_lss: bool,
@@ -49,7 +49,7 @@ impl NodeOptions {
             eds: None,
             lss: LssConfig::default(),
             serial_number: None,
-            behaviour: None,
+            quirk_profile: None,
             force_lss: false,
         }
     }
@@ -96,7 +96,7 @@ pub fn node_setup(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<N
         od.set_default(0x1018, 4, DefaultValue::Value(u64::from(serial)))
             .map_err(|e| anyhow::anyhow!("serial number: {e}"))?;
     }
-    if let Some(b) = &opts.behaviour {
+    if let Some(b) = &opts.quirk_profile {
         apply_identity(&mut od, b, opts.eds.as_deref())?;
     }
     let objects_base = objects.base;
@@ -127,7 +127,7 @@ pub fn node_setup(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<N
         .with_od(od)
         .with_boot_delay_us(opts.boot_delay_us);
     config.lss = lss;
-    if let Some(b) = &opts.behaviour {
+    if let Some(b) = &opts.quirk_profile {
         let id = &b.identity;
         let us = |ms: u32| u64::from(ms) * 1000;
         if let Some(ms) = id.boot_delay_ms {
@@ -149,7 +149,7 @@ pub fn node_setup(drive: &mut AxisDrive, opts: &NodeOptions) -> anyhow::Result<N
 /// that disagrees with it is an error naming both values.
 fn apply_identity(
     od: &mut ObjectDictionary,
-    b: &Behaviour,
+    b: &QuirkProfile,
     eds: Option<&VendorEds>,
 ) -> anyhow::Result<()> {
     let profile = b.profile.as_deref().unwrap_or("the command line");

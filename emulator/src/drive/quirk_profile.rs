@@ -4,16 +4,16 @@
 //! loads another. On top of a profile: a machine file's `quirks = {...}` per axis and the
 //! command line's `--quirk NAME[.PARAM=VALUE]` / `--no-quirk NAME`, each as one more child.
 //!
-//! Every switch and parameter is described once, in [`SWITCHES`]: validation, defaults and
-//! `drive-emu profiles` read the same table. Errors name the file, line, key and reason
-//! (`profiles/x.toml:7: quirks.sdo_response_delay.delay_ms: 70000 out of range 0..=5000 (ms)`)
-//! and nothing is started with a profile that did not validate.
+//! Every switch and parameter is described once, in `drive_protocol::quirks` (the `Quirks`
+//! struct and its `params!` structs: field, doc, default, range): a profile's `quirks` table
+//! is read into a [`QuirksPatch`] with serde, and `drive-emu profiles`, the start-up message
+//! and docs/quirks.md's table print [`Quirks::SWITCHES`]. Errors name the file, line, key and
+//! reason (`profiles/x.toml:7: quirks.sdo_response_delay.delay_ms: 70000 out of range
+//! 0..=5000 (ms)`; an unknown name with the nearest known one) and nothing is started with a
+//! profile that did not validate.
 
-use drive_protocol::quirks::{
-    BootupThenHeartbeat, ControlwordMinHold, HomingBitsMissing, HomingMethodZero, LateSyncBit15,
-    NotReadyAfterBootup, ObjectList, SdoFirstUploadDropped, SdoResponseDelay, SyncWatchdog,
-    TpdoRtrUnsupported, WatchdogPeriod,
-};
+use drive_protocol::quirks::schema::{listing, unknown};
+use drive_protocol::quirks::QuirksPatch;
 use drive_protocol::Quirks;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -65,270 +65,6 @@ pub const EMBEDDED: [(&str, &str); 11] = [
     ),
 ];
 
-// ------------------------------------------------------------------ the schema, as data
-
-/// A parameter's type and range.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ParamType {
-    /// An integer in `min..=max`, with its unit (for messages).
-    Int {
-        /// Lowest value.
-        min: i64,
-        /// Highest value.
-        max: i64,
-        /// Unit word, e.g. `ms` (empty: none).
-        unit: &'static str,
-        /// Written in hex in listings (codes).
-        hex: bool,
-    },
-    /// A number in `min..=max`.
-    Float {
-        /// Lowest value.
-        min: f64,
-        /// Highest value.
-        max: f64,
-    },
-    /// One of these strings.
-    OneOf(&'static [&'static str]),
-    /// A non-empty list of these strings.
-    ListOf(&'static [&'static str]),
-    /// A non-empty list of objects (`"0xIIII:S"`, ranges).
-    Objects,
-    /// A non-empty list of mode of operation values (i8).
-    Modes,
-}
-
-/// A parameter of a switch.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ParamSpec {
-    /// Its key.
-    pub name: &'static str,
-    /// Its type.
-    pub ty: ParamType,
-    /// Its default as TOML text (`None`: required).
-    pub default: Option<&'static str>,
-}
-
-/// A switch of schema 1.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SwitchSpec {
-    /// Its name.
-    pub name: &'static str,
-    /// Section of docs/quirks.md.
-    pub section: &'static str,
-    /// `quirk` (off by default) or `rule` (a choice the standard leaves open, `strict` its
-    /// default value).
-    pub kind: &'static str,
-    /// What the drive does with it, one line.
-    pub summary: &'static str,
-    /// Its parameters.
-    pub params: &'static [ParamSpec],
-}
-
-const fn int(
-    name: &'static str,
-    min: i64,
-    max: i64,
-    unit: &'static str,
-    d: &'static str,
-) -> ParamSpec {
-    ParamSpec {
-        name,
-        ty: ParamType::Int {
-            min,
-            max,
-            unit,
-            hex: false,
-        },
-        default: Some(d),
-    }
-}
-
-const fn code(name: &'static str, max: i64, d: &'static str) -> ParamSpec {
-    ParamSpec {
-        name,
-        ty: ParamType::Int {
-            min: 0,
-            max,
-            unit: "",
-            hex: true,
-        },
-        default: Some(d),
-    }
-}
-
-const U16: i64 = u16::MAX as i64;
-const U32: i64 = u32::MAX as i64;
-
-/// Every switch of schema 1, in the order of docs/quirks.md.
-pub const SWITCHES: [SwitchSpec; 16] = [
-    SwitchSpec {
-        name: "enable_requires_mode",
-        section: "3.1",
-        kind: "quirk",
-        summary: "no OPERATION ENABLED while 0x6060 is 0: enable stays in SWITCHED ON",
-        params: &[],
-    },
-    SwitchSpec {
-        name: "mode_change_blocked_by_halt",
-        section: "3.2",
-        kind: "quirk",
-        summary: "0x6061 does not follow 0x6060 while controlword bit 8 (halt) is set",
-        params: &[],
-    },
-    SwitchSpec {
-        name: "homing_status_bits_missing",
-        section: "3.3",
-        kind: "quirk",
-        summary: "homing never sets these statusword bits",
-        params: &[ParamSpec {
-            name: "bits",
-            ty: ParamType::ListOf(&["target_reached", "attained"]),
-            default: Some("[\"attained\"]"),
-        }],
-    },
-    SwitchSpec {
-        name: "homing_method_zero",
-        section: "3.4",
-        kind: "rule",
-        summary: "what a write of 0 to 0x6098 does",
-        params: &[ParamSpec {
-            name: "zero",
-            ty: ParamType::OneOf(&["store", "ignore", "refuse"]),
-            default: Some("\"store\""),
-        }],
-    },
-    SwitchSpec {
-        name: "bootup_then_heartbeat",
-        section: "3.5",
-        kind: "quirk",
-        summary: "a heartbeat right after the boot-up hides it from a master watching the last state",
-        params: &[
-            int("first_heartbeat_after_bootup_us", 0, 1_000_000, "us", "100"),
-            int("heartbeat_ms_default", 0, U16, "ms", "100"),
-        ],
-    },
-    SwitchSpec {
-        name: "not_ready_after_bootup",
-        section: "3.6",
-        kind: "quirk",
-        summary: "after the boot-up, heartbeat 0x00 and no SDO or NMT answer until ready",
-        params: &[
-            int("ready_after_ms", 1, 600_000, "ms", "3000"),
-            int("initialising_heartbeat_ms", 0, U16, "ms", "100"),
-        ],
-    },
-    SwitchSpec {
-        name: "sdo_response_delay",
-        section: "3.7",
-        kind: "quirk",
-        summary: "SDO answers leave late (every late_every-th service later still)",
-        params: &[
-            int("delay_ms", 0, 5000, "ms", "10"),
-            int("late_delay_ms", 0, 5000, "ms", "0"),
-            int("late_every", 0, U32, "", "0"),
-        ],
-    },
-    SwitchSpec {
-        name: "sdo_first_upload_dropped",
-        section: "3.8",
-        kind: "quirk",
-        summary: "the first uploads of these objects after each boot get no answer",
-        params: &[
-            ParamSpec {
-                name: "objects",
-                ty: ParamType::Objects,
-                default: Some("[\"0x6061:0\"]"),
-            },
-            int("count", 1, 255, "", "1"),
-        ],
-    },
-    SwitchSpec {
-        name: "pdo_remap_lenient",
-        section: "3.9",
-        kind: "rule",
-        summary: "mapping entries accepted while sub 0 != 0 (strict, Copley: abort 0x06010000)",
-        params: &[],
-    },
-    SwitchSpec {
-        name: "tpdo_rtr_unsupported",
-        section: "3.10",
-        kind: "quirk",
-        summary: "TPDO COB-IDs keep bit 30 (no RTR); a write clearing it is aborted",
-        params: &[code("abort_code", U32, "0x06090030")],
-    },
-    SwitchSpec {
-        name: "controlword_min_hold",
-        section: "3.11",
-        kind: "quirk",
-        summary: "a controlword value replaced within hold_us is never acted on",
-        params: &[int("hold_us", 1, 100_000, "us", "1000")],
-    },
-    SwitchSpec {
-        name: "quick_stop_skips_active_state",
-        section: "3.12",
-        kind: "quirk",
-        summary: "a quick stop at standstill goes to SWITCH ON DISABLED without showing QUICK STOP ACTIVE",
-        params: &[],
-    },
-    SwitchSpec {
-        name: "sync_watchdog",
-        section: "3.13",
-        kind: "quirk",
-        summary: "a fault when SYNC is missing for missed_periods in OPERATION ENABLED in modes",
-        params: &[
-            ParamSpec {
-                name: "missed_periods",
-                ty: ParamType::Float {
-                    min: 1.0,
-                    max: 100.0,
-                },
-                default: Some("2.0"),
-            },
-            ParamSpec {
-                name: "period_from",
-                ty: ParamType::OneOf(&["0x60C2", "0x1006"]),
-                default: Some("\"0x60C2\""),
-            },
-            ParamSpec {
-                name: "modes",
-                ty: ParamType::Modes,
-                default: Some("[7, 8]"),
-            },
-            code("emcy_code", U16, "0x8100"),
-        ],
-    },
-    SwitchSpec {
-        name: "late_sync_statusword_bit15",
-        section: "3.14",
-        kind: "quirk",
-        summary: "statusword bit 15 after a SYNC later than 0x1006 + late_tolerance_us",
-        params: &[int("late_tolerance_us", 0, U32, "us", "200")],
-    },
-    SwitchSpec {
-        name: "unmappable_objects",
-        section: "3.15",
-        kind: "quirk",
-        summary: "mapping entries naming these objects are aborted 0x06040041",
-        params: &[ParamSpec {
-            name: "objects",
-            ty: ParamType::Objects,
-            default: None,
-        }],
-    },
-    SwitchSpec {
-        name: "sdo_silent_objects",
-        section: "3.16",
-        kind: "quirk",
-        summary: "SDO requests for these objects get no answer at all",
-        params: &[ParamSpec {
-            name: "objects",
-            ty: ParamType::Objects,
-            default: None,
-        }],
-    },
-];
-
 /// The `[identity]` keys: (key, what it sets).
 pub const IDENTITY_KEYS: [(&str, &str); 8] = [
     ("boot_delay_ms", "power-on to boot-up, ms (0..=600000)"),
@@ -355,6 +91,8 @@ const TOP_KEYS: [&str; 6] = [
     "identity",
     "quirks",
 ];
+
+const U32: i64 = u32::MAX as i64;
 
 /// Most bytes of `device_name`.
 const DEVICE_NAME_MAX: usize = 64;
@@ -414,322 +152,6 @@ impl Loc {
 
 fn line_of(src: &str, offset: usize) -> usize {
     src[..offset.min(src.len())].matches('\n').count() + 1
-}
-
-/// The known name nearest to `name` (edit distance at most 3), for "did you mean".
-fn nearest<'a>(name: &str, known: impl Iterator<Item = &'a str>) -> Option<&'a str> {
-    fn distance(a: &str, b: &str) -> usize {
-        let b: Vec<char> = b.chars().collect();
-        let mut prev: Vec<usize> = (0..=b.len()).collect();
-        for (i, ca) in a.chars().enumerate() {
-            let mut cur = vec![i + 1];
-            for (j, cb) in b.iter().enumerate() {
-                let sub = prev[j] + usize::from(ca != *cb);
-                cur.push(sub.min(prev[j + 1] + 1).min(cur[j] + 1));
-            }
-            prev = cur;
-        }
-        prev[b.len()]
-    }
-    known
-        .map(|k| (distance(name, k), k))
-        .filter(|(d, _)| *d <= 3)
-        .min()
-        .map(|(_, k)| k)
-}
-
-fn unknown(what: &str, name: &str, known: &[&str]) -> String {
-    let hint = nearest(name, known.iter().copied())
-        .map(|n| format!("did you mean `{n}`? "))
-        .unwrap_or_default();
-    format!(
-        "unknown {what} `{}` ({hint}known: {})",
-        crate::quote::text(name),
-        known.join(", ")
-    )
-}
-
-// ------------------------------------------------------------- a switch table, validated
-
-/// One switch's table as written: its keys with their values and where each was written.
-type RawTable = BTreeMap<String, (toml::Value, Loc)>;
-
-/// A validated parameter value.
-#[derive(Clone, Debug, PartialEq)]
-enum Val {
-    Int(i64),
-    Float(f64),
-    Str(&'static str),
-    Strs(Vec<&'static str>),
-    Objects(ObjectList),
-    Modes(Vec<i8>),
-}
-
-fn spec_of(name: &str) -> Option<&'static SwitchSpec> {
-    SWITCHES.iter().find(|s| s.name == name)
-}
-
-fn check_value(spec: &ParamSpec, v: &toml::Value) -> Result<Val, String> {
-    let type_err = |want: &str| format!("{v} is not {want}");
-    match spec.ty {
-        ParamType::Int {
-            min,
-            max,
-            unit,
-            hex,
-        } => {
-            let n = v.as_integer().ok_or_else(|| type_err("an integer"))?;
-            if !(min..=max).contains(&n) {
-                let range = if hex {
-                    format!("{min:#x}..={max:#x}")
-                } else {
-                    format!("{min}..={max}")
-                };
-                let unit = if unit.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({unit})")
-                };
-                return Err(format!("{n} out of range {range}{unit}"));
-            }
-            Ok(Val::Int(n))
-        }
-        ParamType::Float { min, max } => {
-            let x = v
-                .as_float()
-                .or_else(|| v.as_integer().map(|i| i as f64))
-                .ok_or_else(|| type_err("a number"))?;
-            if !(min..=max).contains(&x) {
-                return Err(format!("{x} out of range {min:?}..={max:?}"));
-            }
-            Ok(Val::Float(x))
-        }
-        ParamType::OneOf(words) => {
-            let s = v.as_str().ok_or_else(|| type_err("a string"))?;
-            let quoted: Vec<String> = words.iter().map(|w| format!("\"{w}\"")).collect();
-            words
-                .iter()
-                .find(|w| **w == s)
-                .map(|w| Val::Str(w))
-                .ok_or_else(|| format!("\"{s}\" is not one of {}", quoted.join(", ")))
-        }
-        ParamType::ListOf(words) => {
-            let items = v.as_array().ok_or_else(|| type_err("a list"))?;
-            if items.is_empty() {
-                return Err("an empty list (turn the switch off with enabled = false)".into());
-            }
-            let quoted: Vec<String> = words.iter().map(|w| format!("\"{w}\"")).collect();
-            let mut out = Vec::new();
-            for it in items {
-                let s = it.as_str().ok_or_else(|| format!("{it} is not a string"))?;
-                let w = words
-                    .iter()
-                    .find(|w| **w == s)
-                    .ok_or_else(|| format!("\"{s}\" is not one of {}", quoted.join(", ")))?;
-                out.push(*w);
-            }
-            Ok(Val::Strs(out))
-        }
-        ParamType::Objects => {
-            let items = v.as_array().ok_or_else(|| type_err("a list of objects"))?;
-            if items.is_empty() {
-                return Err("an empty list of objects".into());
-            }
-            let mut texts = Vec::new();
-            for it in items {
-                texts.push(
-                    it.as_str()
-                        .ok_or_else(|| format!("{it} is not a string like \"0x6061:0\""))?
-                        .to_string(),
-                );
-            }
-            ObjectList::parse(&texts).map(Val::Objects)
-        }
-        ParamType::Modes => {
-            let items = v.as_array().ok_or_else(|| type_err("a list of modes"))?;
-            if items.is_empty() {
-                return Err("an empty list of modes".into());
-            }
-            let mut out = Vec::new();
-            for it in items {
-                let n = it
-                    .as_integer()
-                    .filter(|n| (-128..=127).contains(n))
-                    .ok_or_else(|| format!("{it} is not a mode of operation (-128..=127)"))?;
-                out.push(n as i8);
-            }
-            if out.len() > drive_protocol::quirks::MAX_WATCHED_MODES {
-                return Err(format!(
-                    "more than {} modes",
-                    drive_protocol::quirks::MAX_WATCHED_MODES
-                ));
-            }
-            Ok(Val::Modes(out))
-        }
-    }
-}
-
-/// A switch's setting: off, or on with every parameter (defaults filled in).
-#[derive(Clone, Debug, PartialEq)]
-struct Setting {
-    switch: &'static SwitchSpec,
-    /// `None`: `enabled = false`.
-    params: Option<BTreeMap<&'static str, Val>>,
-    /// Where the table was written.
-    loc: Loc,
-}
-
-/// Validate one `[quirks.NAME]` table.
-fn setting(name: &str, table: &RawTable, loc: &Loc) -> Result<Setting, ProfileError> {
-    let names: Vec<&str> = SWITCHES.iter().map(|s| s.name).collect();
-    let spec = spec_of(name)
-        .ok_or_else(|| loc.err(format!("quirks.{name}"), unknown("switch", name, &names)))?;
-    let key = |p: &str| format!("quirks.{name}.{p}");
-    let mut enabled = true;
-    let mut params = BTreeMap::new();
-    for (k, (v, at)) in table {
-        if k == "enabled" {
-            enabled = v
-                .as_bool()
-                .ok_or_else(|| at.err(key(k), format!("{v} is not true or false")))?;
-            continue;
-        }
-        let Some(p) = spec.params.iter().find(|p| p.name == k) else {
-            let mut known: Vec<&str> = spec.params.iter().map(|p| p.name).collect();
-            known.push("enabled");
-            return Err(at.err(key(k), unknown(&format!("parameter of {name}"), k, &known)));
-        };
-        let val = check_value(p, v).map_err(|r| at.err(key(k), r))?;
-        params.insert(p.name, val);
-    }
-    if !enabled {
-        return Ok(Setting {
-            switch: spec,
-            params: None,
-            loc: loc.clone(),
-        });
-    }
-    for p in spec.params {
-        if params.contains_key(p.name) {
-            continue;
-        }
-        let Some(d) = p.default else {
-            return Err(loc.err(
-                format!("quirks.{name}"),
-                format!("parameter `{}` is required", p.name),
-            ));
-        };
-        let v: toml::Value = toml::from_str::<toml::Table>(&format!("v = {d}"))
-            .ok()
-            .and_then(|mut t| t.remove("v"))
-            .unwrap_or(toml::Value::Boolean(false));
-        let val = check_value(p, &v).map_err(|r| loc.err(key(p.name), format!("default: {r}")))?;
-        params.insert(p.name, val);
-    }
-    Ok(Setting {
-        switch: spec,
-        params: Some(params),
-        loc: loc.clone(),
-    })
-}
-
-impl Setting {
-    /// Set this switch in `q` (its whole setting: on with these parameters, or off).
-    fn apply(&self, q: &mut Quirks) {
-        let int = |k: &str| match self.params.as_ref().and_then(|p| p.get(k)) {
-            Some(Val::Int(n)) => *n,
-            _ => 0,
-        };
-        let p = self.params.as_ref();
-        let on = p.is_some();
-        let get = |k: &str| p.and_then(|p| p.get(k));
-        let objects = |k: &str| match get(k) {
-            Some(Val::Objects(l)) => l.clone(),
-            _ => ObjectList::default(),
-        };
-        match self.switch.name {
-            "enable_requires_mode" => q.enable_requires_mode = on,
-            "mode_change_blocked_by_halt" => q.mode_change_blocked_by_halt = on,
-            "homing_status_bits_missing" => {
-                q.homing_status_bits_missing = match get("bits") {
-                    Some(Val::Strs(b)) => Some(HomingBitsMissing {
-                        target_reached: b.contains(&"target_reached"),
-                        attained: b.contains(&"attained"),
-                    }),
-                    _ => None,
-                }
-            }
-            "homing_method_zero" => {
-                q.homing_method_zero = match get("zero") {
-                    Some(Val::Str("ignore")) => HomingMethodZero::Ignore,
-                    Some(Val::Str("refuse")) => HomingMethodZero::Refuse,
-                    _ => HomingMethodZero::Store,
-                }
-            }
-            "bootup_then_heartbeat" => {
-                q.bootup_then_heartbeat = on.then(|| BootupThenHeartbeat {
-                    first_heartbeat_after_bootup_us: int("first_heartbeat_after_bootup_us") as u32,
-                    heartbeat_ms_default: int("heartbeat_ms_default") as u16,
-                })
-            }
-            "not_ready_after_bootup" => {
-                q.not_ready_after_bootup = on.then(|| NotReadyAfterBootup {
-                    ready_after_ms: int("ready_after_ms") as u32,
-                    initialising_heartbeat_ms: int("initialising_heartbeat_ms") as u16,
-                })
-            }
-            "sdo_response_delay" => {
-                q.sdo_response_delay = on.then(|| SdoResponseDelay {
-                    delay_ms: int("delay_ms") as u32,
-                    late_delay_ms: int("late_delay_ms") as u32,
-                    late_every: int("late_every") as u32,
-                })
-            }
-            "sdo_first_upload_dropped" => {
-                q.sdo_first_upload_dropped = on.then(|| SdoFirstUploadDropped {
-                    objects: objects("objects"),
-                    count: int("count") as u8,
-                })
-            }
-            "pdo_remap_lenient" => q.pdo_remap_lenient = on,
-            "tpdo_rtr_unsupported" => {
-                q.tpdo_rtr_unsupported = on.then(|| TpdoRtrUnsupported {
-                    abort_code: int("abort_code") as u32,
-                })
-            }
-            "controlword_min_hold" => {
-                q.controlword_min_hold = on.then(|| ControlwordMinHold {
-                    hold_us: int("hold_us") as u32,
-                })
-            }
-            "quick_stop_skips_active_state" => q.quick_stop_skips_active_state = on,
-            "sync_watchdog" => {
-                q.sync_watchdog = on.then(|| SyncWatchdog {
-                    missed_periods: match get("missed_periods") {
-                        Some(Val::Float(x)) => *x as f32,
-                        _ => 2.0,
-                    },
-                    period_from: match get("period_from") {
-                        Some(Val::Str("0x1006")) => WatchdogPeriod::CommunicationCycle,
-                        _ => WatchdogPeriod::Interpolation,
-                    },
-                    modes: match get("modes") {
-                        Some(Val::Modes(m)) => m.iter().copied().collect(),
-                        _ => Default::default(),
-                    },
-                    emcy_code: int("emcy_code") as u16,
-                })
-            }
-            "late_sync_statusword_bit15" => {
-                q.late_sync_statusword_bit15 = on.then(|| LateSyncBit15 {
-                    late_tolerance_us: int("late_tolerance_us") as u32,
-                })
-            }
-            "unmappable_objects" => q.unmappable_objects = on.then(|| objects("objects")),
-            "sdo_silent_objects" => q.sdo_silent_objects = on.then(|| objects("objects")),
-            _ => {}
-        }
-    }
 }
 
 // ------------------------------------------------------------------------- a profile file
@@ -840,8 +262,9 @@ struct RawProfile {
     description: Option<Spanned<toml::Value>>,
     extends: Option<Spanned<toml::Value>>,
     identity: Option<Spanned<SpannedTable>>,
-    /// Not spanned itself: `[quirks.X]` headers make it an implicit table, which has no span.
-    quirks: Option<BTreeMap<String, Spanned<SpannedTable>>>,
+    /// Read by the protocol's description of the switches: an unknown switch or parameter,
+    /// a value out of range, is an error toml gives the line of.
+    quirks: Option<QuirksPatch>,
 }
 
 /// A profile file, parsed and validated on its own (not yet merged with what it extends).
@@ -855,18 +278,33 @@ pub struct ProfileFile {
     extends: Option<(String, Loc)>,
     /// Its `[identity]`.
     pub identity: Identity,
-    /// Its switch tables, in file order of names.
-    settings: Vec<Setting>,
+    /// Its switch tables.
+    pub quirks: QuirksPatch,
     /// Where it came from (`profiles/NAME.toml` for an embedded one, else the path).
     pub origin: String,
     /// The directory a relative `extends` path is taken from (none for embedded ones).
     dir: Option<PathBuf>,
 }
 
+/// A message of the switches' description (`quirks.NAME[.PARAM]: reason`) as key and reason.
+fn quirk_message(msg: &str) -> Option<(String, String)> {
+    let (key, reason) = msg.trim().split_once(": ")?;
+    key.starts_with("quirks.")
+        .then(|| (key.to_string(), reason.to_string()))
+}
+
 /// A toml error as the profile's error: line, key and reason.
 fn toml_error(e: &toml::de::Error, src: &str, origin: &str) -> ProfileError {
     let line = e.span().map(|s| line_of(src, s.start));
     let msg = e.message().trim();
+    if let Some((key, reason)) = quirk_message(msg) {
+        return ProfileError {
+            origin: origin.to_string(),
+            line,
+            key,
+            reason,
+        };
+    }
     // serde's "unknown field `x`, expected one of ..." in the schema's words
     if let Some(rest) = msg.strip_prefix("unknown field `") {
         let name = rest.split('`').next().unwrap_or("");
@@ -956,23 +394,12 @@ impl ProfileFile {
                 identity.set(k, v.get_ref(), &at(v.span()))?;
             }
         }
-        let mut settings = Vec::new();
-        if let Some(q) = &raw.quirks {
-            for (k, table) in q {
-                let raw_table: RawTable = table
-                    .get_ref()
-                    .iter()
-                    .map(|(pk, pv)| (pk.clone(), (pv.get_ref().clone(), at(pv.span()))))
-                    .collect();
-                settings.push(setting(k, &raw_table, &at(table.span()))?);
-            }
-        }
         Ok(ProfileFile {
             name,
             description,
             extends,
             identity,
-            settings,
+            quirks: raw.quirks.unwrap_or_default(),
             origin: origin.to_string(),
             dir,
         })
@@ -1032,11 +459,9 @@ impl ProfileFile {
 
     /// The switches this file turns on (as written, not merged).
     pub fn switches_on(&self) -> Vec<&'static str> {
-        self.settings
-            .iter()
-            .filter(|s| s.params.is_some())
-            .map(|s| s.switch.name)
-            .collect()
+        let mut q = Quirks::default();
+        self.quirks.apply_to(&mut q);
+        q.on().collect()
     }
 }
 
@@ -1046,29 +471,45 @@ impl ProfileFile {
 /// line's `--quirk` / `--no-quirk`, validated.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Overlay {
-    settings: Vec<Setting>,
+    quirks: QuirksPatch,
+}
+
+/// A `quirks` table read by the switches' description; `origin_of(key)` says where the key
+/// at fault was written.
+fn read_quirks(
+    table: toml::Table,
+    origin_of: impl Fn(&str) -> Loc,
+) -> Result<QuirksPatch, ProfileError> {
+    use serde::Deserialize as _;
+    QuirksPatch::deserialize(toml::Value::Table(table)).map_err(|e| {
+        let msg = e.message().trim().to_string();
+        match quirk_message(&msg) {
+            Some((key, reason)) => origin_of(&key).err(key, reason),
+            None => origin_of("").err("quirks", crate::quote::text_max(&msg, 400)),
+        }
+    })
 }
 
 impl Overlay {
     /// `--quirk NAME[.PARAM=VALUE]` (repeatable; several for one switch make one table) and
     /// `--no-quirk NAME`.
     pub fn from_args(quirk: &[String], no_quirk: &[String]) -> Result<Overlay, ProfileError> {
-        let mut tables: BTreeMap<String, (RawTable, Loc)> = BTreeMap::new();
+        let mut tables = toml::Table::new();
+        // (key written, the option that wrote it), for the error's origin
+        let mut written: Vec<(String, String)> = Vec::new();
         for arg in quirk {
-            let loc = Loc {
-                origin: format!("--quirk {arg}"),
-                line: None,
-            };
+            let origin = format!("--quirk {arg}");
             let (name, param) = match arg.split_once('.') {
                 Some((n, p)) => (n.trim(), Some(p)),
                 None => (arg.trim(), None),
             };
+            written.push((format!("quirks.{name}"), origin.clone()));
             let entry = tables
                 .entry(name.to_string())
-                .or_insert_with(|| (RawTable::new(), loc.clone()));
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
             if let Some(p) = param {
                 let Some((k, v)) = p.split_once('=') else {
-                    return Err(loc.err(
+                    return Err(Loc { origin, line: None }.err(
                         format!("quirks.{name}.{p}"),
                         "write NAME.PARAM=VALUE (or NAME alone to turn it on)",
                     ));
@@ -1077,29 +518,34 @@ impl Overlay {
                     .ok()
                     .and_then(|mut t| t.remove("v"))
                     .unwrap_or_else(|| toml::Value::String(v.to_string()));
-                entry.0.insert(k.trim().to_string(), (value, loc));
+                written.insert(0, (format!("quirks.{name}.{}", k.trim()), origin));
+                if let toml::Value::Table(t) = entry {
+                    t.insert(k.trim().to_string(), value);
+                }
             }
         }
         for name in no_quirk {
-            let loc = Loc {
-                origin: format!("--no-quirk {name}"),
-                line: None,
-            };
-            if tables.contains_key(name.trim()) {
-                return Err(loc.err(
-                    format!("quirks.{}", name.trim()),
+            let origin = format!("--no-quirk {name}");
+            let name = name.trim();
+            if tables.contains_key(name) {
+                return Err(Loc { origin, line: None }.err(
+                    format!("quirks.{name}"),
                     "also given with --quirk: on or off?",
                 ));
             }
-            let mut t = RawTable::new();
-            t.insert("enabled".into(), (toml::Value::Boolean(false), loc.clone()));
-            tables.insert(name.trim().to_string(), (t, loc));
+            let mut t = toml::Table::new();
+            t.insert("enabled".into(), toml::Value::Boolean(false));
+            tables.insert(name.to_string(), toml::Value::Table(t));
+            written.push((format!("quirks.{name}"), origin));
         }
-        let mut settings = Vec::new();
-        for (name, (t, loc)) in &tables {
-            settings.push(setting(name, t, loc)?);
-        }
-        Ok(Overlay { settings })
+        let quirks = read_quirks(tables, |key| Loc {
+            origin: written
+                .iter()
+                .find(|(k, _)| k == key || key.starts_with(&format!("{k}.")))
+                .map_or_else(|| "--quirk".to_string(), |(_, o)| o.clone()),
+            line: None,
+        })?;
+        Ok(Overlay { quirks })
     }
 
     /// A machine file's `quirks = { NAME = { PARAM = VALUE } }` of one axis; `origin` and
@@ -1109,30 +555,16 @@ impl Overlay {
         origin: &str,
         line: Option<usize>,
     ) -> Result<Overlay, ProfileError> {
-        let loc = Loc {
+        let quirks = read_quirks(table.clone(), |_| Loc {
             origin: origin.to_string(),
             line,
-        };
-        let mut settings = Vec::new();
-        for (name, v) in table {
-            let toml::Value::Table(t) = v else {
-                return Err(loc.err(
-                    format!("quirks.{name}"),
-                    format!("{v} is not a table (write {name} = {{}} to turn it on)"),
-                ));
-            };
-            let raw: RawTable = t
-                .iter()
-                .map(|(k, v)| (k.clone(), (v.clone(), loc.clone())))
-                .collect();
-            settings.push(setting(name, &raw, &loc)?);
-        }
-        Ok(Overlay { settings })
+        })?;
+        Ok(Overlay { quirks })
     }
 
     /// Nothing in it.
     pub fn is_empty(&self) -> bool {
-        self.settings.is_empty()
+        self.quirks.written().is_empty()
     }
 }
 
@@ -1140,7 +572,7 @@ impl Overlay {
 
 /// What a drive behaves as: the profile (after `extends`) and the overlays on top.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Behaviour {
+pub struct QuirkProfile {
     /// The profile's name (`None`: no profile, the strict drive unless overlays say more).
     pub profile: Option<String>,
     /// The profiles read, parent first.
@@ -1151,15 +583,15 @@ pub struct Behaviour {
     pub identity: Identity,
 }
 
-impl Behaviour {
+impl QuirkProfile {
     /// Resolve `profile` (a name or path, `None`: none) with `overlays` on top, in order;
     /// `dir` is where a relative profile path is read from.
     pub fn resolve(
         profile: Option<&str>,
         dir: Option<&Path>,
         overlays: &[&Overlay],
-    ) -> Result<Behaviour, ProfileError> {
-        let mut b = Behaviour::default();
+    ) -> Result<QuirkProfile, ProfileError> {
+        let mut b = QuirkProfile::default();
         let mut files = Vec::new();
         if let Some(p) = profile {
             let mut f = ProfileFile::load(p, dir)?;
@@ -1191,14 +623,10 @@ impl Behaviour {
         for f in files.iter().rev() {
             b.chain.push(f.name.clone());
             b.identity.merge(&f.identity);
-            for s in &f.settings {
-                s.apply(&mut b.quirks);
-            }
+            f.quirks.apply_to(&mut b.quirks);
         }
         for o in overlays {
-            for s in &o.settings {
-                s.apply(&mut b.quirks);
-            }
+            o.quirks.apply_to(&mut b.quirks);
         }
         Ok(b)
     }
@@ -1209,22 +637,18 @@ impl Behaviour {
         profile: Option<&str>,
         quirk: &[String],
         no_quirk: &[String],
-    ) -> Result<Option<Behaviour>, ProfileError> {
+    ) -> Result<Option<QuirkProfile>, ProfileError> {
         if profile.is_none() && quirk.is_empty() && no_quirk.is_empty() {
             return Ok(None);
         }
         let o = Overlay::from_args(quirk, no_quirk)?;
-        Behaviour::resolve(profile, None, &[&o]).map(Some)
+        QuirkProfile::resolve(profile, None, &[&o]).map(Some)
     }
 
     /// The switches on, with their parameters, for people (`enable_requires_mode,
     /// sdo_response_delay (delay_ms = 30)`); `strict` when none.
     pub fn switches_text(&self) -> String {
-        let on: Vec<String> = self
-            .quirks
-            .on()
-            .map(|s| describe_switch(&self.quirks, s))
-            .collect();
+        let on: Vec<String> = self.quirks.on().map(|s| self.quirks.describe(s)).collect();
         if on.is_empty() {
             "no switch on (strict)".into()
         } else {
@@ -1264,84 +688,13 @@ impl Behaviour {
     }
 }
 
-/// A switch that is on, with its parameters (`sdo_response_delay (delay_ms = 30, ...)`).
-pub fn describe_switch(q: &Quirks, name: &str) -> String {
-    let params = match name {
-        "homing_status_bits_missing" => q.homing_status_bits_missing.map(|b| {
-            let mut v = Vec::new();
-            if b.target_reached {
-                v.push("\"target_reached\"");
-            }
-            if b.attained {
-                v.push("\"attained\"");
-            }
-            format!("bits = [{}]", v.join(", "))
-        }),
-        "homing_method_zero" => Some(format!("zero = \"{}\"", q.homing_method_zero.name())),
-        "bootup_then_heartbeat" => q.bootup_then_heartbeat.map(|b| {
-            format!(
-                "first_heartbeat_after_bootup_us = {}, heartbeat_ms_default = {}",
-                b.first_heartbeat_after_bootup_us, b.heartbeat_ms_default
-            )
-        }),
-        "not_ready_after_bootup" => q.not_ready_after_bootup.map(|n| {
-            format!(
-                "ready_after_ms = {}, initialising_heartbeat_ms = {}",
-                n.ready_after_ms, n.initialising_heartbeat_ms
-            )
-        }),
-        "sdo_response_delay" => q.sdo_response_delay.map(|d| {
-            format!(
-                "delay_ms = {}, late_delay_ms = {}, late_every = {}",
-                d.delay_ms, d.late_delay_ms, d.late_every
-            )
-        }),
-        "sdo_first_upload_dropped" => q
-            .sdo_first_upload_dropped
-            .as_ref()
-            .map(|d| format!("objects = [{}], count = {}", d.objects, d.count)),
-        "tpdo_rtr_unsupported" => q
-            .tpdo_rtr_unsupported
-            .map(|t| format!("abort_code = 0x{:08X}", t.abort_code)),
-        "controlword_min_hold" => q
-            .controlword_min_hold
-            .map(|c| format!("hold_us = {}", c.hold_us)),
-        "sync_watchdog" => q.sync_watchdog.as_ref().map(|w| {
-            let modes: Vec<String> = w.modes.iter().map(|m| m.to_string()).collect();
-            format!(
-                "missed_periods = {}, period_from = \"{}\", modes = [{}], emcy_code = 0x{:04X}",
-                w.missed_periods,
-                w.period_from.name(),
-                modes.join(", "),
-                w.emcy_code
-            )
-        }),
-        "late_sync_statusword_bit15" => q
-            .late_sync_statusword_bit15
-            .map(|l| format!("late_tolerance_us = {}", l.late_tolerance_us)),
-        "unmappable_objects" => q
-            .unmappable_objects
-            .as_ref()
-            .map(|l| format!("objects = [{l}]")),
-        "sdo_silent_objects" => q
-            .sdo_silent_objects
-            .as_ref()
-            .map(|l| format!("objects = [{l}]")),
-        _ => None,
-    };
-    match params {
-        Some(p) => format!("{name} ({p})"),
-        None => name.to_string(),
-    }
-}
-
 /// `drive-emu profiles`: the profiles shipped (name, what they turn on, description) and the
 /// switches of schema 1 with their parameters.
 pub fn list_text() -> Result<String, ProfileError> {
     let mut s = String::from("Profiles (--profile NAME, or a path to a .toml file):\n");
     for (name, _) in EMBEDDED {
         let f = ProfileFile::embedded(name).expect("embedded")?;
-        let b = Behaviour::resolve(Some(name), None, &[])?;
+        let b = QuirkProfile::resolve(Some(name), None, &[])?;
         let on: Vec<&str> = b.quirks.on().collect();
         s += &format!(
             "  {name:<18} {}\n  {:<18}   on: {}\n",
@@ -1355,57 +708,7 @@ pub fn list_text() -> Result<String, ProfileError> {
         );
     }
     s += "\nSwitches (--quirk NAME[.PARAM=VALUE], --no-quirk NAME; docs/quirks.md):\n";
-    for sw in SWITCHES {
-        s += &format!(
-            "  {:<31} {} {}: {}\n",
-            sw.name, sw.section, sw.kind, sw.summary
-        );
-        for p in sw.params {
-            let ty = match p.ty {
-                ParamType::Int {
-                    min,
-                    max,
-                    unit,
-                    hex,
-                } => {
-                    let r = if hex {
-                        format!("{min:#x}..={max:#x}")
-                    } else {
-                        format!("{min}..={max}")
-                    };
-                    if unit.is_empty() {
-                        r
-                    } else {
-                        format!("{r} {unit}")
-                    }
-                }
-                ParamType::Float { min, max } => format!("{min:?}..={max:?}"),
-                ParamType::OneOf(w) => w
-                    .iter()
-                    .map(|w| format!("\"{w}\""))
-                    .collect::<Vec<_>>()
-                    .join(" | "),
-                ParamType::ListOf(w) => format!(
-                    "list of {}",
-                    w.iter()
-                        .map(|w| format!("\"{w}\""))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-                ParamType::Objects => {
-                    "list of \"0xIIII:S\", \"0xIIII-0xJJJJ:S\", \"0xIIII:S-T\"".into()
-                }
-                ParamType::Modes => "list of 0x6060 values".into(),
-            };
-            s += &format!(
-                "  {:<31}   {} = {} [{}]\n",
-                "",
-                p.name,
-                ty,
-                p.default.unwrap_or("required")
-            );
-        }
-    }
+    s += &listing(Quirks::SWITCHES);
     s += "\n[identity] keys of a profile:\n";
     for (k, what) in IDENTITY_KEYS {
         s += &format!("  {k:<34} {what}\n");
@@ -1416,6 +719,9 @@ pub fn list_text() -> Result<String, ProfileError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use drive_protocol::quirks::{
+        BootupThenHeartbeat, HomingBitsMissing, HomingMethodZero, SdoResponseDelay,
+    };
 
     fn parse(src: &str) -> Result<ProfileFile, ProfileError> {
         ProfileFile::parse(src, "profiles/x.toml", "x", None)
@@ -1441,7 +747,7 @@ mod tests {
         embedded.sort();
         assert_eq!(on_disk, embedded, "every file of profiles/ is embedded");
         for (name, _) in EMBEDDED {
-            let b = Behaviour::resolve(Some(name), None, &[]).unwrap();
+            let b = QuirkProfile::resolve(Some(name), None, &[]).unwrap();
             assert_eq!(b.profile.as_deref(), Some(name));
             if name != "strict" {
                 assert_eq!(b.chain[0], "strict", "{name} extends strict");
@@ -1450,23 +756,17 @@ mod tests {
         }
         // strict lists every switch, off
         let f = ProfileFile::embedded("strict").unwrap().unwrap();
-        let mut listed: Vec<&str> = f.settings.iter().map(|s| s.switch.name).collect();
-        listed.sort();
-        let mut all: Vec<&str> = Quirks::SWITCHES.to_vec();
-        all.sort();
-        assert_eq!(listed, all);
-        assert!(Behaviour::resolve(Some("strict"), None, &[])
+        let all: Vec<&str> = Quirks::SWITCHES.iter().map(|s| s.name).collect();
+        assert_eq!(f.quirks.written(), all);
+        assert!(QuirkProfile::resolve(Some("strict"), None, &[])
             .unwrap()
             .quirks
             .is_strict());
-        // the table of switches is the protocol's list
-        let names: Vec<&str> = SWITCHES.iter().map(|s| s.name).collect();
-        assert_eq!(names, Quirks::SWITCHES);
     }
 
     #[test]
     fn the_profiles_turn_on_what_docs_quirks_md_says() {
-        let q = |n: &str| Behaviour::resolve(Some(n), None, &[]).unwrap();
+        let q = |n: &str| QuirkProfile::resolve(Some(n), None, &[]).unwrap();
         let b = q("nanotec-pd4c");
         assert!(b.quirks.enable_requires_mode);
         assert_eq!(
@@ -1642,7 +942,7 @@ mod tests {
              [quirks.sdo_response_delay]\ndelay_ms = 5\n[quirks.sync_watchdog]\nenabled = false\n",
         );
         let path = dir.join("child.toml").display().to_string();
-        let b = Behaviour::resolve(Some(&path), None, &[]).unwrap();
+        let b = QuirkProfile::resolve(Some(&path), None, &[]).unwrap();
         assert_eq!(b.chain, ["strict", "delta-asda-a2", "base", "child"]);
         assert_eq!(b.identity.vendor_id, Some(9));
         assert_eq!(b.identity.boot_delay_ms, Some(500), "kept from the parent");
@@ -1677,7 +977,7 @@ mod tests {
             &[],
         )
         .unwrap();
-        let b = Behaviour::resolve(Some(&path), None, &[&o]).unwrap();
+        let b = QuirkProfile::resolve(Some(&path), None, &[&o]).unwrap();
         assert_eq!(
             b.quirks.sdo_response_delay,
             Some(SdoResponseDelay {
@@ -1688,7 +988,7 @@ mod tests {
         );
         assert!(b.quirks.enable_requires_mode);
         let off = Overlay::from_args(&[], &["sdo_response_delay".into()]).unwrap();
-        let b = Behaviour::resolve(Some(&path), None, &[&off]).unwrap();
+        let b = QuirkProfile::resolve(Some(&path), None, &[&off]).unwrap();
         assert_eq!(b.quirks.sdo_response_delay, None);
         let e = Overlay::from_args(&["sdo_response_delay.delay_ms=9000".into()], &[])
             .unwrap_err()
@@ -1701,7 +1001,7 @@ mod tests {
         // a cycle, an unknown parent
         write("a", "extends = \"b.toml\"\n");
         write("b", "extends = \"a.toml\"\n");
-        let e = Behaviour::resolve(Some(&dir.join("a.toml").display().to_string()), None, &[])
+        let e = QuirkProfile::resolve(Some(&dir.join("a.toml").display().to_string()), None, &[])
             .unwrap_err()
             .to_string();
         assert!(
@@ -1709,7 +1009,7 @@ mod tests {
             "{e}"
         );
         write("c", "extends = \"nanotec-pd4\"\n");
-        let e = Behaviour::resolve(Some(&dir.join("c.toml").display().to_string()), None, &[])
+        let e = QuirkProfile::resolve(Some(&dir.join("c.toml").display().to_string()), None, &[])
             .unwrap_err()
             .to_string();
         assert!(
@@ -1719,7 +1019,7 @@ mod tests {
             ),
             "{e}"
         );
-        let e = Behaviour::resolve(Some("nanotec"), None, &[])
+        let e = QuirkProfile::resolve(Some("nanotec"), None, &[])
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("--profile: nanotec: unknown profile"), "{e}");
@@ -1732,7 +1032,7 @@ mod tests {
         for (n, _) in EMBEDDED {
             assert!(t.contains(n), "{n}");
         }
-        for s in SWITCHES {
+        for s in Quirks::SWITCHES {
             assert!(t.contains(s.name), "{}", s.name);
             for p in s.params {
                 assert!(t.contains(&format!("{} = ", p.name)), "{}", p.name);
