@@ -1,5 +1,6 @@
 //! Cost of the hot paths: a SYNC that applies an RPDO and emits 4 TPDOs (plus the tick that
-//! follows it), and an expedited SDO round trip.
+//! follows it), and an expedited SDO round trip; and of building a node (`Node::new` on the
+//! standard dictionary, which `drive-emu analyze` and every drive pay once).
 //!
 //! cargo bench -p drive-protocol --bench node -- --warm-up-time 1 --measurement-time 3
 
@@ -82,6 +83,9 @@ fn operational(drive: &mut Ideal) -> (Node, u64) {
 
 fn bench(c: &mut Criterion) {
     let id = ID as u32;
+    c.bench_function("Node::new (standard dictionary)", |b| {
+        b.iter(|| black_box(Node::new(NodeConfig::new(ID, info())).unwrap()))
+    });
     let mut drive = Ideal::default();
     let (mut node, mut now) = operational(&mut drive);
     let mut k = 0i32;

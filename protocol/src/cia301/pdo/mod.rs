@@ -199,13 +199,12 @@ impl PdoEngine {
     /// The PDOs of `od` (a PDO exists where its COB-ID and mapping count do).
     pub fn new(od: &ObjectDictionary) -> PdoEngine {
         let list = |dir| {
-            (0..layout::MAX_PDOS)
-                .filter_map(|n| {
-                    PdoSlots::resolve(od, dir, n).map(|slots| Pdo {
-                        number: n,
-                        slots,
-                        ..Pdo::default()
-                    })
+            PdoSlots::all(od, dir)
+                .into_iter()
+                .map(|(number, slots)| Pdo {
+                    number,
+                    slots,
+                    ..Pdo::default()
                 })
                 .collect()
         };
