@@ -181,16 +181,10 @@ fn set_profile(b: &mut Bench, index: u16, want: u32) {
     b.w32(index, 0, v).unwrap();
 }
 
-/// Vendor files whose drive does not move yet (issue 33, not done; tests/eds/vendors/
-/// SOURCES.md): the Elmo Gold files give 0x608F:1 = 1 increment per revolution and 0x6092 = 1
-/// (a placeholder factor group: 1 uu = 1 motor revolution), and the PP move of 500 uu goes
-/// 24 uu in 0.3 s; the scanned Elmo SimplIQ DCF (0x608F:1 = 1 too, 0x6081 = 4066) enables in
-/// PP and moves 0 uu. Every other check reads them.
-pub const MOVE_PENDING: [&str; 3] = [
-    "elmo-gold-cob.dcf",
-    "elmo-whistle-gold.dcf",
-    "elmo-simpliq-scanned.dcf",
-];
+/// Vendor files whose drive does not move yet (issue 33; tests/eds/vendors/SOURCES.md). None
+/// now: the Elmo files' 0x608F = 1 increment per revolution is a placeholder the drive fills
+/// with its encoder's count (protocol/src/od/placeholders.rs), and they move.
+pub const MOVE_PENDING: [&str; 0] = [];
 
 /// The drive behind a vendor dictionary enables and moves in a mode the file lists.
 #[test]

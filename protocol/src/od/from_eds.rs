@@ -24,6 +24,7 @@
 //!   default's length.
 
 use super::eds_parse::{EdsFile, EdsSub, ObjectCode, ValueExpr};
+use super::placeholders;
 use super::{decode, standard, DataType, DefaultValue, Entry, ObjType, ObjectDictionary, OdError};
 use crate::cia402::mode::{MODES, SIMULATED_MODES_MASK};
 use crate::drive::DriveInfo;
@@ -274,6 +275,7 @@ impl ObjectDictionary {
         let units = FileUnits::of(file, info, feed_from_si.map(|(f, r, _)| (f, r)));
         // the file's 0x6065 is 0 (default or ParameterValue): its vendor's 0 means off
         let mut fe_window_zero = false;
+        let mut fixed_pdo_can_ids = Vec::new();
         for obj in &file.objects {
             if obj.defines_type()
                 || matches!(
@@ -301,6 +303,9 @@ impl ObjectDictionary {
                 let mut e = entry_of(s, obj.index, otype, &obj.name)?;
                 let std_slot = standard::slot_of(obj.index, s.sub);
                 let mut why = String::new();
+                if let Some((d, w)) = placeholders::empty_pdo_mapping(file, obj.index, s) {
+                    (e, why) = (e.with_default(d), w);
+                }
                 if let Some(slot) = std_slot {
                     let std_type = od.slots[slot].entry.dtype;
                     if kind(std_type) != kind(e.dtype) {
@@ -315,7 +320,8 @@ impl ObjectDictionary {
                         od.slots[slot].entry.otype = otype;
                         continue;
                     }
-                    let no_value = s.default.is_none() && s.parameter_value.is_none();
+                    let no_value =
+                        s.default.is_none() && s.parameter_value.is_none() && why.is_empty();
                     if no_value && std_type == e.dtype {
                         // the file leaves the value to the device: the drive's own, not 0
                         // (a profile velocity of 0 would never move); the device name is the
@@ -361,6 +367,13 @@ impl ObjectDictionary {
                 }
                 if let Some(w) = placeholder(&mut e, obj.index, s.sub, &axis_od, &units) {
                     why = w;
+                }
+                if let Some((v, w)) = placeholders::factor_group(file, info, obj.index, s.sub) {
+                    (e.default, why) = (DefaultValue::Value(u64::from(v)), w);
+                }
+                if let Some((a, w)) = placeholders::read_only_pdo_cob_id(obj.index, s) {
+                    (e.access, why) = (a, w);
+                    fixed_pdo_can_ids.push(obj.index);
                 }
                 // a DCF's ParameterValue 0 there is what a master writes (load_configuration,
                 // a concise DCF): the drive then takes 0 as CiA 402 says; say so
@@ -459,6 +472,7 @@ impl ObjectDictionary {
             shipped_read_only_rpdo_entries: Vec::new(),
             shipped_short_entries: Vec::new(),
             following_error_window_zero_off: fe_window_zero,
+            fixed_pdo_can_ids,
         };
         od.device.shipped_short_entries = shipped_short_entries(file, &od, &mut report);
         od.device.shipped_read_only_rpdo_entries = shipped_read_only_rpdo_entries(&od, &mut report);
@@ -536,11 +550,16 @@ impl FileUnits {
                 .filter(|&x| x != 0)
                 .unwrap_or(fallback)
         };
+        // the factor group as served (a placeholder's value the drive's own)
+        let served = |index, sub, fallback| {
+            placeholders::factor_group(file, info, index, sub)
+                .map_or_else(|| v(index, sub, fallback), |x| x.0)
+        };
         let (feed_uu, feed_revs) = feed.unwrap_or((
-            v(0x6092, 1, info.feed_user_units),
+            served(0x6092, 1, info.feed_user_units),
             v(0x6092, 2, info.feed_shaft_revs),
         ));
-        let enc = v(0x608F, 1, info.encoder_increments_per_rev);
+        let enc = served(0x608F, 1, info.encoder_increments_per_rev);
         let enc_revs = v(0x608F, 2, 1);
         let gm = v(0x6091, 1, info.gear_motor_revs);
         let gs = v(0x6091, 2, info.gear_shaft_revs);

@@ -23,6 +23,7 @@
 pub mod eds;
 pub mod eds_parse;
 mod from_eds;
+pub(crate) mod placeholders;
 mod standard;
 mod store;
 mod types;
@@ -364,6 +365,9 @@ pub struct DeviceDescription {
     /// ParameterValue): its vendor documents 0 as "off", so a 0 in 0x6065 switches the
     /// following-error check off on this device, as 0xFFFFFFFF does in CiA 402.
     pub following_error_window_zero_off: bool,
+    /// PDO communication records (0x1400.., 0x1800..) whose COB-ID the file marks read-only:
+    /// served writable for bit 31 (valid) only (`placeholders::read_only_pdo_cob_id`).
+    pub fixed_pdo_can_ids: Vec<u16>,
 }
 
 impl Default for DeviceDescription {
@@ -379,6 +383,7 @@ impl Default for DeviceDescription {
             shipped_read_only_rpdo_entries: Vec::new(),
             shipped_short_entries: Vec::new(),
             following_error_window_zero_off: false,
+            fixed_pdo_can_ids: Vec::new(),
         }
     }
 }

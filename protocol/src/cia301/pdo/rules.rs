@@ -30,7 +30,7 @@ pub fn check_write(
     if param.mapping {
         check_mapping_write(od, store, pdo, param, sub, raw, rules, max_len)
     } else {
-        check_comm_write(store, pdo, param, sub, raw, rules)
+        check_comm_write(od, store, pdo, param, sub, raw, rules)
     }
 }
 
@@ -110,8 +110,10 @@ fn mapped_length_with(
     Ok(len)
 }
 
-/// Communication record.
+/// Communication record. A COB-ID its file marks read-only keeps its CAN-ID
+/// (`DeviceDescription::fixed_pdo_can_ids`): only bit 31 may change, else 0x06010002.
 fn check_comm_write(
+    od: &ObjectDictionary,
     store: &Store,
     pdo: &Pdo,
     param: Param,
@@ -127,6 +129,14 @@ fn check_comm_write(
             && rules.no_rtr_abort.is_some() =>
         {
             Err(rules.no_rtr_abort.unwrap_or(abort::VALUE_RANGE))
+        }
+        1 if od.device.fixed_pdo_can_ids.contains(&comm_index(param))
+            && !crate::od::placeholders::keeps_fixed_can_id(
+                pdo.comm_value(store, layout::COB_ID),
+                raw as u32,
+            ) =>
+        {
+            Err(abort::READ_ONLY)
         }
         1 => check_cob_id(store, pdo, valid, raw),
         2 => {
@@ -144,6 +154,15 @@ fn check_comm_write(
         }
         _ => Ok(()),
     }
+}
+
+/// The index of the communication record of `param`'s PDO.
+fn comm_index(param: Param) -> u16 {
+    let base = match param.dir {
+        Direction::Rx => 0x1400,
+        Direction::Tx => 0x1800,
+    };
+    base + param.number
 }
 
 /// COB-ID: 11-bit only; while the PDO is valid, the identifier may not change.

@@ -1,0 +1,213 @@
+//! A vendor's file taken as its own device takes it (issue 33, items 2 and 3), the classes
+//! the Elmo files brought (protocol/src/od/placeholders.rs), each with a minimal file of its
+//! own in tests/eds/minimal: PDO maps whose entries and counts have no value, an encoder
+//! resolution of 1 increment per revolution in an all-ones factor group, read-only PDO
+//! COB-IDs.
+mod common;
+use common::*;
+use drive_protocol::od::eds_parse::{decode_text, parse, EdsFile};
+use drive_protocol::od::{BuildReport, ObjectDictionary};
+use drive_protocol::NodeConfig;
+use std::path::Path;
+
+fn text(name: &str) -> String {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/eds/minimal")
+        .join(name);
+    decode_text(&std::fs::read(&p).unwrap())
+}
+
+fn bench(f: &EdsFile) -> (Bench, BuildReport) {
+    let (od, report) = ObjectDictionary::from_eds(f, &info()).unwrap();
+    (
+        Bench::with_config(NodeConfig::new(ID, info()).with_od(od)),
+        report,
+    )
+}
+
+fn why(report: &BuildReport, index: u16, sub: u8) -> String {
+    report
+        .lines
+        .iter()
+        .find(|l| l.index == index && l.sub == sub)
+        .map(|l| l.why.clone())
+        .unwrap_or_default()
+}
+
+/// The Elmo Gold DCFs leave mapping entries 2..8 (and some counts) without any value: the
+/// device ships those entries unused and counts the entries given. So the drive serves 0 and
+/// the count of the given entries (a ParameterValue count stands), python canopen's
+/// `load_configuration()` (invalidate, count 0, the entries, the count) is taken, and the
+/// 64-bit TPDO carries its one object; before, the standard map's entries filled the gaps
+/// and the count write was refused with 0x06040042 (PDO length exceeded).
+#[test]
+fn mapping_entries_without_a_value_are_unused_and_the_count_counts_the_given_ones() {
+    let f = parse(&text("pdo-map-gaps.dcf")).unwrap();
+    let (mut b, report) = bench(&f);
+    for (index, count) in [(0x1600u16, 1u8), (0x1A00, 1), (0x1A01, 2)] {
+        assert_eq!(
+            b.sdo_read(index, 0).unwrap(),
+            vec![count],
+            "0x{index:04X}:0"
+        );
+        for sub in count + 1..=8 {
+            assert_eq!(b.r32(index, sub), 0, "0x{index:04X}:{sub}");
+            assert!(
+                why(&report, index, sub).contains("an unused mapping entry (0)"),
+                "0x{index:04X}:{sub}: {:?}",
+                why(&report, index, sub)
+            );
+        }
+    }
+    assert!(
+        why(&report, 0x1A00, 0).contains("the count of the mapping entries it gives (1)"),
+        "{:?}",
+        why(&report, 0x1A00, 0)
+    );
+    assert!(
+        !report.notes.iter().any(|n| n.contains("cannot be mapped")),
+        "{:?}",
+        report.notes
+    );
+    // load_configuration() of TPDO1 as python canopen does it, counts from the drive
+    let cob = 0x180 + u32::from(ID);
+    b.w32(0x1800, 1, cob | 0x8000_0000).unwrap();
+    b.w8(0x1A00, 0, 0).unwrap();
+    b.w32(0x1A00, 1, 0x2013_0040).unwrap();
+    b.w8(0x1A00, 0, 1).unwrap();
+    b.w32(0x1800, 1, cob).unwrap();
+    // one more 64-bit entry is still too long
+    b.w32(0x1800, 1, cob | 0x8000_0000).unwrap();
+    b.w8(0x1A00, 0, 0).unwrap();
+    b.w32(0x1A00, 2, 0x6041_0010).unwrap();
+    assert_eq!(b.w8(0x1A00, 0, 2), Err(0x0604_0042));
+    b.w8(0x1A00, 0, 1).unwrap();
+    b.w32(0x1800, 1, cob).unwrap();
+    b.start();
+    b.take();
+    b.sync();
+    let t = b.sent(cob);
+    assert_eq!(t.len(), 1, "{t:?}");
+    assert_eq!(t[0].len, 8, "{t:?}");
+}
+
+/// The Elmo files give 0x608F = 1 increment per motor revolution with gear 1:1 and feed 1 per
+/// revolution: no servo encoder is that coarse, and their windows and limits (0x6067 = 100,
+/// 0x607D = +-9e8) are encoder increments. The drive serves its encoder's increments per
+/// revolution in 0x608F:1 and as many user units per shaft revolution in 0x6092:1: 1 uu = 1
+/// increment, and a PP move of 5000 uu moves the motor 5000 increments and ends with bit 10
+/// within the file's window. A feed constant other than 1 is the file's and stands.
+#[test]
+fn an_encoder_resolution_of_one_is_the_drives_own_and_a_factor_group_of_ones_counts_increments() {
+    let src = text("encoder-one-per-rev.eds");
+    let f = parse(&src).unwrap();
+    let (mut b, report) = bench(&f);
+    let enc = info().encoder_increments_per_rev;
+    assert_eq!(b.r32(0x608F, 1), enc);
+    assert_eq!(b.r32(0x608F, 2), 1);
+    assert_eq!(b.r32(0x6092, 1), enc);
+    assert_eq!(b.r32(0x6092, 2), 1);
+    assert!(
+        why(&report, 0x608F, 1).contains("placeholder"),
+        "{report:?}"
+    );
+    assert!(
+        why(&report, 0x6092, 1).contains("1 uu = 1 increment"),
+        "{report:?}"
+    );
+    assert_eq!(b.r32(0x6067, 0), 100, "the file's window stands");
+    b.start();
+    b.enable(1);
+    let p0 = b.node.position_actual();
+    b.w32(0x6081, 0, 20_000).unwrap();
+    b.w32(0x6083, 0, 200_000).unwrap();
+    b.w32(0x6084, 0, 200_000).unwrap();
+    b.w32(0x607A, 0, (p0 + 5000) as u32).unwrap();
+    b.cw(0x1F);
+    b.cw(0x0F);
+    let mut reached = false;
+    for _ in 0..3000 {
+        b.tick();
+        let p = b.node.position_actual();
+        if b.statusword() & (1 << 10) != 0 && (p - (p0 + 5000)).abs() <= 100 {
+            reached = true;
+            break;
+        }
+    }
+    assert!(
+        reached,
+        "moved {} of 5000 uu",
+        b.node.position_actual() - p0
+    );
+    assert!(
+        (b.drive.pos - (p0 as f64 + 5000.0)).abs() <= 100.0,
+        "motor at {} inc, target {}",
+        b.drive.pos,
+        p0 + 5000
+    );
+    // a feed constant of 1000 per revolution is the file's: kept, the encoder still the drive's
+    let other = src.replacen(
+        "[6092sub1]\nParameterName=Feed\nDataType=0x0007\nAccessType=rw\nDefaultValue=1",
+        "[6092sub1]\nParameterName=Feed\nDataType=0x0007\nAccessType=rw\nDefaultValue=1000",
+        1,
+    );
+    assert_ne!(other, src);
+    let (mut b, _) = bench(&parse(&other).unwrap());
+    assert_eq!(b.r32(0x608F, 1), enc);
+    assert_eq!(b.r32(0x6092, 1), 1000);
+    // a real resolution is the file's
+    let real = src.replacen(
+        "[608Fsub1]\nParameterName=Encoder increments\nDataType=0x0007\nAccessType=rw\nDefaultValue=1",
+        "[608Fsub1]\nParameterName=Encoder increments\nDataType=0x0007\nAccessType=rw\nDefaultValue=4096",
+        1,
+    );
+    assert_ne!(real, src);
+    let (mut b, _) = bench(&parse(&real).unwrap());
+    assert_eq!(b.r32(0x608F, 1), 4096);
+    assert_eq!(b.r32(0x6092, 1), 1);
+}
+
+/// The scanned Elmo SimplIQ DCF marks every PDO COB-ID read-only; python canopen's
+/// `load_configuration()` writes each COB-ID with bit 31 set, then clear, and was refused
+/// with 0x06010002. The drive takes the switch of bit 31 (the PDO off while it is set: no
+/// TPDO on SYNC) and refuses any other change of the COB-ID with 0x06010002, as `ro` says.
+#[test]
+fn a_read_only_pdo_cob_id_switches_bit_31_only() {
+    let f = parse(&text("ro-pdo-cob-id.dcf")).unwrap();
+    let (mut b, report) = bench(&f);
+    assert!(
+        why(&report, 0x1800, 1).contains("CAN-ID is fixed"),
+        "{report:?}"
+    );
+    let tx = 0x4000_0180 + u32::from(ID);
+    let rx = 0x200 + u32::from(ID);
+    b.start();
+    b.w32(0x1800, 1, tx | 0x8000_0000).unwrap();
+    b.w32(0x1400, 1, rx | 0x8000_0000).unwrap();
+    assert_eq!(b.r32(0x1800, 1), tx | 0x8000_0000);
+    b.take();
+    b.sync();
+    assert!(b.sent(tx & 0x7FF).is_empty(), "TPDO1 is off");
+    for (index, bad) in [
+        (0x1800u16, tx + 1),
+        (0x1800, (tx + 1) | 0x8000_0000),
+        (0x1800, tx & 0x7FF),
+        (0x1400, rx + 0x100),
+    ] {
+        assert_eq!(b.w32(index, 1, bad), Err(0x0601_0002), "0x{bad:08X}");
+    }
+    b.w32(0x1800, 1, tx).unwrap();
+    b.w32(0x1400, 1, rx).unwrap();
+    b.take();
+    b.sync();
+    assert_eq!(b.sent(tx & 0x7FF).len(), 1, "TPDO1 is on again");
+    // a file's rw COB-ID still changes its CAN-ID while the PDO is off
+    let rw = text("ro-pdo-cob-id.dcf").replacen(
+        "[1800sub1]\nParameterName=COB-ID\nDataType=0x0007\nAccessType=ro",
+        "[1800sub1]\nParameterName=COB-ID\nDataType=0x0007\nAccessType=rw",
+        1,
+    );
+    let (mut b, _) = bench(&parse(&rw).unwrap());
+    b.w32(0x1800, 1, tx | 0x8000_0000).unwrap();
+    b.w32(0x1800, 1, (tx + 1) | 0x8000_0000).unwrap();
+}
