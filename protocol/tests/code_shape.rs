@@ -49,7 +49,6 @@ const PENDING: &[(&str, &str)] = &[
     ("emulator/src/report/ballbar.rs", "polar_plot"),
     ("ethercat/src/slave.rs", "add_coe_objects"),
     ("emulator/src/study/figures.rs", "fig_outer_loop"),
-    ("protocol/src/node.rs", "handle_frame"),
     ("ethercat/src/esi.rs", "parse"),
     ("ethercat/src/slave.rs", "apply_esi"),
     ("fmu/src/model.rs", "variables"),
