@@ -51,13 +51,12 @@ const PENDING: &[(&str, &str)] = &[
     ("emulator/src/study/figures.rs", "fig_outer_loop"),
     ("ethercat/src/esi.rs", "parse"),
     ("ethercat/src/slave.rs", "apply_esi"),
-    ("fmu/src/model.rs", "variables"),
     ("emulator/src/report/mod.rs", "plot_spectrum"),
+    ("fmu/src/model.rs", "variables"),
 ];
 
 /// File circles not broken yet, as the test prints them. A ratchet like [`PENDING`].
 const PENDING_CIRCLES: &[&str] = &[
-    "protocol/src: {cia402/state_machine, cia402/statusword}",
     "emulator/src: {analysis/detector, analysis/gap}",
     "emulator/src: {cli/analyze, cli/analyze_ballbar, cli/exit}",
     "emulator/src: {cli/demo, cli/demo_panel}",
