@@ -26,7 +26,8 @@ use crate::od::{idx, Backing, DefaultValue, Entry, Lookup, ObjectDictionary, Slo
 use crate::quirks::{
     ControlwordLatch, HomingMethodZero, QuirkState, Quirks, SdoAnswer, SdoGate, WatchdogPeriod,
 };
-use crate::wire::lss::{LSS_REQUEST, UNCONFIGURED_NODE_ID};
+use crate::wire::cob::{Rx, RxTable};
+use crate::wire::lss::UNCONFIGURED_NODE_ID;
 use crate::wire::{cob, Heartbeat};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
@@ -1065,6 +1066,9 @@ impl Node {
         ev
     }
 
+    /// A frame, dispatched on what it is for this node ([`RxTable::classify`] on the COB-IDs
+    /// configured now) to one function per service, once the NMT and quirk states that hear
+    /// little have had their say.
     fn handle_frame(
         &mut self,
         frame: &CanFrame,
@@ -1077,101 +1081,133 @@ impl Node {
         // everything a frame times here is communication: resets (boot delay), heartbeats,
         // SDO, RTR answers; a SYNC is the exception (on_sync takes both)
         let now_us = clocks.comm_us;
-        if frame.extended || frame.id > 0x7FF {
-            return FrameEvent::Ignored;
+        let rx = self.rx_table().classify(frame);
+        match rx {
+            Rx::Other => return FrameEvent::Ignored,
+            Rx::Lss => return self.lss_frame(frame, now_us, drive),
+            _ => {}
         }
-        if frame.id == LSS_REQUEST && self.core.boot_due_us.is_none() && self.core.lss.is_some() {
-            return self.lss_frame(frame, now_us, drive);
+        if let Some(ev) = self.hard_of_hearing(frame, now_us, drive) {
+            return ev;
         }
+        let nmt = self.core.nmt;
+        match rx {
+            Rx::Nmt => self.nmt_frame(frame, now_us, drive),
+            Rx::Sync => self.core.on_sync(frame, clocks, late_us),
+            Rx::Heartbeat(node) => {
+                self.heartbeat_in(node, now_us);
+                FrameEvent::Handled
+            }
+            _ if nmt == NmtState::Stopped => FrameEvent::Ignored,
+            Rx::Sdo => self.sdo_frame(frame, now_us, drive),
+            _ if nmt != NmtState::Operational => FrameEvent::Ignored,
+            Rx::Rpdo => self.rpdo_frame(frame),
+            Rx::Rtr => self.rtr_frame(frame, now_us),
+            Rx::Other | Rx::Lss => FrameEvent::Ignored,
+        }
+    }
+
+    /// The COB-IDs this node receives on, as configured now.
+    fn rx_table(&self) -> RxTable {
+        RxTable {
+            sync: self.sync_cob(),
+            sdo_rx: cob::SDO_RX + self.core.node_id as u32,
+            lss: self.core.boot_due_us.is_none() && self.core.lss.is_some(),
+        }
+    }
+
+    /// The SYNC COB-ID (0x1005, 11 bits).
+    fn sync_cob(&self) -> u32 {
+        self.core.store.u32(R_1005) & 0x7FF
+    }
+
+    /// The states that hear little (LSS aside): non-configured, booting, not ready after
+    /// boot-up. `Some`: the frame's fate there; `None`: the node hears it.
+    fn hard_of_hearing(
+        &mut self,
+        frame: &CanFrame,
+        now_us: u64,
+        drive: &mut impl Drive,
+    ) -> Option<FrameEvent> {
         if self.lss_unconfigured() {
             // Non-configured: silent but for LSS; a broadcast NMT reset still resets it.
-            return match nmt::decode(frame, 0) {
+            return Some(match nmt::decode(frame, 0) {
                 Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication)) => {
                     self.nmt_command(cmd, now_us, drive);
                     FrameEvent::Handled
                 }
                 _ => FrameEvent::Ignored,
-            };
+            });
         }
+        let is_sync = frame.id == self.sync_cob() && !frame.rtr;
         if self.core.nmt == NmtState::Initialising {
             // Deaf while booting, but a SYNC still tells a lock-step runtime time goes on.
-            let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
-            if self.core.boot_due_us.is_some() && frame.id == sync_cob && !frame.rtr {
-                return FrameEvent::Sync { counter: None };
+            if self.core.boot_due_us.is_some() && is_sync {
+                return Some(FrameEvent::Sync { counter: None });
             }
-            return FrameEvent::Ignored;
+            return Some(FrameEvent::Ignored);
         }
-        let id = frame.id;
         if self.core.qs.not_ready() {
             // not_ready_after_bootup (docs/quirks.md 3.6): only a reset is heard; a SYNC still
             // tells a lock-step runtime that time goes on
-            let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
-            return match nmt::decode(frame, self.core.node_id) {
-                Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication)) if id == 0 => {
+            return Some(match nmt::decode(frame, self.core.node_id) {
+                Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication))
+                    if frame.id == 0 =>
+                {
                     self.nmt_command(cmd, now_us, drive);
                     FrameEvent::Handled
                 }
-                _ if id == sync_cob && !frame.rtr => FrameEvent::Sync { counter: None },
+                _ if is_sync => FrameEvent::Sync { counter: None },
                 _ => FrameEvent::Ignored,
-            };
-        }
-        if id == 0 {
-            return match nmt::decode(frame, self.core.node_id) {
-                Some(cmd) => {
-                    self.nmt_command(cmd, now_us, drive);
-                    FrameEvent::Handled
-                }
-                None => FrameEvent::Ignored,
-            };
-        }
-        let nmt = self.core.nmt;
-        let sync_cob = self.core.store.u32(R_1005) & 0x7FF;
-        if id == sync_cob && !frame.rtr {
-            return self.core.on_sync(frame, clocks, late_us);
-        }
-        if nmt == NmtState::Stopped {
-            if (0x701..=0x77F).contains(&id) && !frame.rtr && frame.len >= 1 {
-                self.heartbeat_in(id as u8, now_us);
-                return FrameEvent::Handled;
-            }
-            return FrameEvent::Ignored;
-        }
-        if id == cob::SDO_RX + self.core.node_id as u32 {
-            if frame.rtr || frame.len != 8 {
-                return FrameEvent::Ignored;
-            }
-            let in_block = self.sdo.expects_block_segment();
-            let c = &mut self.core;
-            if c.qs.sdo_request(&c.quirks, &frame.data, in_block) == SdoGate::Drop {
-                return FrameEvent::Handled;
-            }
-            let mut outv: heapless::Vec<[u8; 8], 16> = heapless::Vec::new();
-            let mut acc = Access {
-                core: &mut self.core,
-                drive,
-            };
-            self.sdo.handle(&frame.data, now_us, &mut acc, &mut |f| {
-                let _ = outv.push(f);
             });
-            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
-            for f in outv {
-                self.core.sdo_answer(CanFrame::new(tx_cob, &f), now_us);
+        }
+        None
+    }
+
+    /// NMT module control (COB-ID 0) addressed to this node or to all.
+    fn nmt_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
+        match nmt::decode(frame, self.core.node_id) {
+            Some(cmd) => {
+                self.nmt_command(cmd, now_us, drive);
+                FrameEvent::Handled
             }
-            return FrameEvent::Handled;
+            None => FrameEvent::Ignored,
         }
-        if (0x701..=0x77F).contains(&id) && !frame.rtr && frame.len >= 1 {
-            self.heartbeat_in(id as u8, now_us);
-            return FrameEvent::Handled;
-        }
-        if nmt != NmtState::Operational {
+    }
+
+    /// An SDO request to this node's server (pre-operational and operational).
+    fn sdo_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
+        if frame.rtr || frame.len != 8 {
             return FrameEvent::Ignored;
         }
+        let in_block = self.sdo.expects_block_segment();
+        let c = &mut self.core;
+        if c.qs.sdo_request(&c.quirks, &frame.data, in_block) == SdoGate::Drop {
+            return FrameEvent::Handled;
+        }
+        let mut outv: heapless::Vec<[u8; 8], 16> = heapless::Vec::new();
+        let mut acc = Access {
+            core: &mut self.core,
+            drive,
+        };
+        self.sdo.handle(&frame.data, now_us, &mut acc, &mut |f| {
+            let _ = outv.push(f);
+        });
+        let tx_cob = cob::SDO_TX + self.core.node_id as u32;
+        for f in outv {
+            self.core.sdo_answer(CanFrame::new(tx_cob, &f), now_us);
+        }
+        FrameEvent::Handled
+    }
+
+    /// A data frame in operational: an RPDO if one is configured on its COB-ID.
+    fn rpdo_frame(&mut self, frame: &CanFrame) -> FrameEvent {
         let c = &mut self.core;
         let (od, quirks) = (&c.od, &c.quirks);
         let accept = |st: &Store, slot, raw| rpdo_accepts(od, quirks, st, slot, raw);
         let (cw, homing) = (c.store.u32(o402::CONTROLWORD) as u16, c.store.raw(R_6098));
         match c.pdo.receive(&mut c.store, frame, accept) {
-            RxOutcome::NotRpdo => {}
+            RxOutcome::NotRpdo => FrameEvent::Ignored,
             RxOutcome::Received {
                 k,
                 len,
@@ -1183,9 +1219,14 @@ impl Node {
                 if let Some(ok) = values_ok {
                     c.rpdo_value_condition(k, ok);
                 }
-                return FrameEvent::Handled;
+                FrameEvent::Handled
             }
         }
+    }
+
+    /// A remote frame in operational: the TPDO configured on its COB-ID, if it may answer.
+    fn rtr_frame(&mut self, frame: &CanFrame, now_us: u64) -> FrameEvent {
+        let c = &mut self.core;
         if c.quirks.tpdo_rtr_unsupported.is_some() {
             // no remote frames answered (docs/quirks.md 3.10)
             return FrameEvent::Ignored;

@@ -2,7 +2,7 @@
 //! request) supplied before it goes into an error message, so that an escape sequence, a
 //! lone carriage return or a megabyte-long line cannot reach the terminal or hide the
 //! message's position (`line N`). The EDS reader's errors and warnings
-//! ([`crate::od::eds_parse`]) are rendered through it, and so is every message of the
+//! ([`crate::od::eds`]) are rendered through it, and so is every message of the
 //! emulator about its input files (its `quote` module re-uses these functions).
 //!
 //! - [`text`]: control characters (C0, DEL, C1) and the Unicode bidirectional controls escaped

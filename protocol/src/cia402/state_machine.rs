@@ -73,11 +73,6 @@ impl State {
         }
     }
 
-    /// The state a statusword shows (CiA 402 masks), `None` for a pattern that is none.
-    pub fn from_statusword(sw: u16) -> Option<State> {
-        super::statusword::decode_state(sw)
-    }
-
     /// The power stage produces torque in these states.
     pub fn enabled(self) -> bool {
         matches!(

@@ -48,6 +48,13 @@ pub fn decode_state(sw: u16) -> Option<State> {
     })
 }
 
+impl State {
+    /// The state a statusword shows (CiA 402 masks), `None` for a pattern that is none.
+    pub fn from_statusword(sw: u16) -> Option<State> {
+        decode_state(sw)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -23,7 +23,7 @@
 //!   [`WRITABLE_STRING_CAPACITY`] / [`WRITABLE_DOMAIN_CAPACITY`] bytes, read-only ones their
 //!   default's length.
 
-use super::eds_parse::{EdsFile, EdsSub, ObjectCode, ValueExpr};
+use super::eds_parse::{EdsFile, EdsObject, EdsSub, ObjectCode, ValueExpr};
 use super::placeholders;
 use super::{decode, standard, DataType, DefaultValue, Entry, ObjType, ObjectDictionary, OdError};
 use crate::cia402::mode::{MODES, SIMULATED_MODES_MASK};
@@ -253,8 +253,6 @@ impl ObjectDictionary {
         info: &DriveInfo,
     ) -> Result<(ObjectDictionary, BuildReport), EdsBuildError> {
         let mut od = ObjectDictionary::standard_hidden(info);
-        // the simulated axis's own values (placeholders), untouched by the file
-        let axis_od = ObjectDictionary::standard_hidden(info);
         let mut report = BuildReport {
             warnings: file.warnings.iter().map(|w| w.to_string()).collect(),
             ..BuildReport::default()
@@ -272,213 +270,310 @@ impl ObjectDictionary {
             }
             report.notes.push(why.clone());
         }
-        let units = FileUnits::of(file, info, feed_from_si.map(|(f, r, _)| (f, r)));
-        // the file's 0x6065 is 0 (default or ParameterValue): its vendor's 0 means off
-        let mut fe_window_zero = false;
-        let mut fixed_pdo_can_ids = Vec::new();
+        let mut b = Builder {
+            // the simulated axis's own values (placeholders), untouched by the file
+            axis_od: ObjectDictionary::standard_hidden(info),
+            units: FileUnits::of(file, info, feed_from_si.map(|(f, r, _)| (f, r))),
+            od,
+            report,
+            fe_window_zero: false,
+            fixed_pdo_can_ids: Vec::new(),
+            info: *info,
+        };
         for obj in &file.objects {
-            if obj.defines_type()
-                || matches!(
-                    obj.code,
-                    ObjectCode::Null | ObjectCode::DefType | ObjectCode::DefStruct
-                )
-            {
-                for s in &obj.subs {
-                    report.line(
-                        obj.index,
-                        s.sub,
-                        &s.name,
-                        Fate::Dropped,
-                        "a data type definition, not an object",
-                    );
-                }
-                continue;
-            }
-            let otype = match obj.code {
-                ObjectCode::Array => ObjType::Array,
-                ObjectCode::Record => ObjType::Record,
-                _ => ObjType::Var,
-            };
-            for s in &obj.subs {
-                let mut e = entry_of(s, obj.index, otype, &obj.name)?;
-                let std_slot = standard::slot_of(obj.index, s.sub);
-                let mut why = String::new();
-                if let Some((d, w)) = placeholders::empty_pdo_mapping(file, obj.index, s) {
-                    (e, why) = (e.with_default(d), w);
-                }
-                if let Some(slot) = std_slot {
-                    let std_type = od.slots[slot].entry.dtype;
-                    if kind(std_type) != kind(e.dtype) {
-                        report.line(obj.index, s.sub, &s.name, Fate::Dropped, format!(
-                            "the file makes it {}, the drive simulates it as {}: the standard entry is served",
-                            e.dtype.name(),
-                            std_type.name()
-                        ));
-                        od.slots[slot].visible = true;
-                        // One object, one object code: the served entry takes the file's
-                        // (an ARRAY stays an ARRAY on export and read-back).
-                        od.slots[slot].entry.otype = otype;
-                        continue;
-                    }
-                    let no_value =
-                        s.default.is_none() && s.parameter_value.is_none() && why.is_empty();
-                    if no_value && std_type == e.dtype {
-                        // the file leaves the value to the device: the drive's own, not 0
-                        // (a profile velocity of 0 would never move); the device name is the
-                        // file's product name
-                        // the device name and the identity from [DeviceInfo] (what python
-                        // canopen and Lely take for them too)
-                        let info = &file.device_info;
-                        let ident = |v: Option<u32>| v.map(|x| DefaultValue::Value(u64::from(x)));
-                        let from_info = match (obj.index, s.sub) {
-                            // the device name and versions as the file gives them: an
-                            // empty default stays empty (python canopen reads "")
-                            (0x1008..=0x100A, 0) if e.dtype.variable() => {
-                                Some(DefaultValue::Bytes(Vec::new()))
-                            }
-                            (0x1018, 1) => ident(info.vendor_number),
-                            (0x1018, 2) => ident(info.product_number),
-                            (0x1018, 3) => ident(info.revision_number),
-                            _ => None,
-                        };
-                        why = if from_info.is_some() && (0x1008..=0x100A).contains(&obj.index) {
-                            "no DefaultValue in the file: empty, as the file says".into()
-                        } else {
-                            "no DefaultValue in the file: the drive's standard value".into()
-                        };
-                        let d = from_info.unwrap_or_else(|| od.slots[slot].entry.default.clone());
-                        e = e.with_default(d);
-                    }
-                    if (obj.index, s.sub) == (0x6502, 0) {
-                        e = supported_modes(e, &mut report);
-                    }
-                }
-                let file_zero = |v: &Option<_>| {
-                    v.as_ref()
-                        .is_some_and(|v: &crate::od::eds_parse::ValueExpr| {
-                            v.resolve(s.data_type, Some(1))
-                                .is_ok_and(|b| b.iter().all(|&x| x == 0))
-                        })
-                };
-                if (obj.index, s.sub) == (0x6065, 0)
-                    && (file_zero(&s.default) || file_zero(&s.parameter_value))
-                {
-                    fe_window_zero = true;
-                }
-                if let Some(w) = placeholder(&mut e, obj.index, s.sub, &axis_od, &units) {
-                    why = w;
-                }
-                if let Some((v, w)) = placeholders::factor_group(file, info, obj.index, s.sub) {
-                    (e.default, why) = (DefaultValue::Value(u64::from(v)), w);
-                }
-                if let Some((a, w)) = placeholders::read_only_pdo_cob_id(obj.index, s) {
-                    (e.access, why) = (a, w);
-                    fixed_pdo_can_ids.push(obj.index);
-                }
-                // a DCF's ParameterValue 0 there is what a master writes (load_configuration,
-                // a concise DCF): the drive then takes 0 as CiA 402 says; say so
-                let zero_pv = s.parameter_value.as_ref().is_some_and(|v| {
-                    v.resolve(s.data_type, Some(1))
-                        .is_ok_and(|b| b.iter().all(|&x| x == 0))
-                });
-                if (obj.index, s.sub) == (0x6065, 0) && zero_pv {
-                    report.notes.push(format!(
-                        "0x6065 ({}): the DCF's ParameterValue is 0: a master that loads it \
-                         (load_configuration, a concise DCF) sets 0, which this drive takes as \
-                         its vendor documents it: the following-error check off, as \
-                         0xFFFFFFFF is in CiA 402",
-                        s.name
-                    ));
-                } else if s.sub == 0 && zero_pv && PLACEHOLDERS.iter().any(|p| p.0 == obj.index) {
-                    report.notes.push(format!(
-                        "0x{:04X} ({}): the DCF's ParameterValue is 0: a master that loads it \
-                         (load_configuration, a concise DCF) sets 0, which the drive takes as \
-                         CiA 402 says, not as a placeholder",
-                        obj.index, s.name
-                    ));
-                }
-                let fate = if std_slot.is_some() {
-                    Fate::Simulated
-                } else {
-                    Fate::Stored
-                };
-                if let DefaultValue::Value(v) = e.default {
-                    if let Err(high) = e.check_limits(v) {
-                        // the file contradicts itself; a master that writes the default back
-                        // (load_configuration, a concise DCF) must not be refused
-                        why = format!(
-                            "the file's default is {} its {}: limits not applied",
-                            if high { "above" } else { "below" },
-                            if high { "HighLimit" } else { "LowLimit" }
-                        );
-                        e.low = None;
-                        e.high = None;
-                    }
-                }
-                match od.insert_unsorted(e) {
-                    Ok(_) => report.line(obj.index, s.sub, &s.name, fate, why),
-                    Err(OdError::Invalid { reason, .. }) => return Err(err(s, obj.index, reason)),
-                    Err(OdError::Duplicate { .. }) => return Err(err(s, obj.index, "given twice")),
-                }
-            }
+            b.add_object(file, obj)?;
         }
-        for (index, sub) in [
-            (0x1000, 0),
-            (0x1001, 0),
-            (0x1018, 0),
-            (0x1018, 1),
-            (0x1018, 2),
-            (0x1018, 3),
-            (0x1018, 4),
-        ] {
-            let slot = standard::slot_of(index, sub).expect("standard object");
-            if !od.slots[slot].visible {
-                od.slots[slot].visible = true;
-                // An added sub takes the object type the file gave its object (0x1018 as an
-                // ARRAY with sub 1 only): an export writes one ObjectType for the object, and
-                // what it reads back must be the same dictionary.
-                let file_otype = od
-                    .slots
-                    .iter()
-                    .find(|s| s.visible && s.entry.index == index && s.entry.sub != sub)
-                    .map(|s| s.entry.otype);
-                if let Some(t) = file_otype {
-                    od.slots[slot].entry.otype = t;
-                }
-                let name = od.slots[slot].entry.name.to_string();
-                report.line(
-                    index,
-                    sub,
-                    &name,
-                    Fate::Added,
-                    "every CiA 301 node has it (LSS needs the whole identity)",
-                );
-            }
-        }
+        let Builder {
+            mut od,
+            mut report,
+            fe_window_zero,
+            fixed_pdo_can_ids,
+            ..
+        } = b;
+        add_identity(&mut od, &mut report);
         for s in &od.slots {
             if !s.visible {
                 report.line(s.entry.index, s.entry.sub, &s.entry.name, Fate::Hidden, "not in the file: simulated with the standard default, out of reach of SDO and PDO");
             }
         }
         od.resort();
-        od.device = super::DeviceDescription {
-            vendor_name: file.device_info.vendor_name.clone().unwrap_or_default(),
-            product_name: file.device_info.product_name.clone().unwrap_or_default(),
-            order_code: file.device_info.order_code.clone().unwrap_or_default(),
-            baud_rates_kbit: file.device_info.baud_rates_kbit.clone(),
-            granularity: file.device_info.granularity.unwrap_or(8),
-            lss_supported: file.device_info.lss_supported.unwrap_or(false),
-            dummy_usage: file.dummy_usage,
-            shipped_read_only_rpdo_entries: Vec::new(),
-            shipped_short_entries: Vec::new(),
-            following_error_window_zero_off: fe_window_zero,
-            fixed_pdo_can_ids,
-        };
+        od.device = device_description(file, fe_window_zero, fixed_pdo_can_ids);
         od.device.shipped_short_entries = shipped_short_entries(file, &od, &mut report);
         od.device.shipped_read_only_rpdo_entries = shipped_read_only_rpdo_entries(&od, &mut report);
         report.lines.sort_by_key(|l| (l.index, l.sub));
         check_default_mappings(&od, &mut report);
         Ok((od, report))
+    }
+}
+
+/// [`ObjectDictionary::from_eds`] while it reads the file's objects.
+struct Builder {
+    od: ObjectDictionary,
+    report: BuildReport,
+    /// The simulated axis's own values (placeholders), untouched by the file.
+    axis_od: ObjectDictionary,
+    units: FileUnits,
+    /// The file's 0x6065 is 0 (default or ParameterValue): its vendor's 0 means off.
+    fe_window_zero: bool,
+    /// The PDOs whose COB-ID the file marks read-only (a fixed CAN-ID: bit 31 only).
+    fixed_pdo_can_ids: Vec<u16>,
+    /// The drive's static facts (its own encoder, gear and feed for placeholders).
+    info: DriveInfo,
+}
+
+impl Builder {
+    /// One object of the file: each of its sub-indices, or none for a data type definition.
+    fn add_object(&mut self, file: &EdsFile, obj: &EdsObject) -> Result<(), EdsBuildError> {
+        if obj.defines_type()
+            || matches!(
+                obj.code,
+                ObjectCode::Null | ObjectCode::DefType | ObjectCode::DefStruct
+            )
+        {
+            for s in &obj.subs {
+                self.report.line(
+                    obj.index,
+                    s.sub,
+                    &s.name,
+                    Fate::Dropped,
+                    "a data type definition, not an object",
+                );
+            }
+            return Ok(());
+        }
+        let otype = match obj.code {
+            ObjectCode::Array => ObjType::Array,
+            ObjectCode::Record => ObjType::Record,
+            _ => ObjType::Var,
+        };
+        for s in &obj.subs {
+            self.add_sub(file, obj, s, otype)?;
+        }
+        Ok(())
+    }
+
+    /// One sub-index of the file's object `obj`.
+    fn add_sub(
+        &mut self,
+        file: &EdsFile,
+        obj: &EdsObject,
+        s: &EdsSub,
+        otype: ObjType,
+    ) -> Result<(), EdsBuildError> {
+        let mut e = entry_of(s, obj.index, otype, &obj.name)?;
+        let std_slot = standard::slot_of(obj.index, s.sub);
+        let mut why = String::new();
+        if let Some((d, w)) = placeholders::empty_pdo_mapping(file, obj.index, s) {
+            (e, why) = (e.with_default(d), w);
+        }
+        if let Some(slot) = std_slot {
+            match self.standard_entry(file, obj, s, otype, slot, e, &mut why) {
+                Some(served) => e = served,
+                None => return Ok(()),
+            }
+        }
+        let Builder {
+            od,
+            report,
+            axis_od,
+            units,
+            fe_window_zero,
+            fixed_pdo_can_ids,
+            info,
+        } = self;
+        let (od, report, axis_od, units) = (od, report, &*axis_od, &*units);
+        let file_zero = |v: &Option<_>| {
+            v.as_ref()
+                .is_some_and(|v: &crate::od::eds_parse::ValueExpr| {
+                    v.resolve(s.data_type, Some(1))
+                        .is_ok_and(|b| b.iter().all(|&x| x == 0))
+                })
+        };
+        if (obj.index, s.sub) == (0x6065, 0)
+            && (file_zero(&s.default) || file_zero(&s.parameter_value))
+        {
+            *fe_window_zero = true;
+        }
+        if let Some(w) = placeholder(&mut e, obj.index, s.sub, axis_od, units) {
+            why = w;
+        }
+        if let Some((v, w)) = placeholders::factor_group(file, info, obj.index, s.sub) {
+            (e.default, why) = (DefaultValue::Value(u64::from(v)), w);
+        }
+        if let Some((a, w)) = placeholders::read_only_pdo_cob_id(obj.index, s) {
+            (e.access, why) = (a, w);
+            fixed_pdo_can_ids.push(obj.index);
+        }
+        // a DCF's ParameterValue 0 there is what a master writes (load_configuration,
+        // a concise DCF): the drive then takes 0 as CiA 402 says; say so
+        let zero_pv = s.parameter_value.as_ref().is_some_and(|v| {
+            v.resolve(s.data_type, Some(1))
+                .is_ok_and(|b| b.iter().all(|&x| x == 0))
+        });
+        if (obj.index, s.sub) == (0x6065, 0) && zero_pv {
+            report.notes.push(format!(
+                "0x6065 ({}): the DCF's ParameterValue is 0: a master that loads it \
+             (load_configuration, a concise DCF) sets 0, which this drive takes as \
+             its vendor documents it: the following-error check off, as \
+             0xFFFFFFFF is in CiA 402",
+                s.name
+            ));
+        } else if s.sub == 0 && zero_pv && PLACEHOLDERS.iter().any(|p| p.0 == obj.index) {
+            report.notes.push(format!(
+                "0x{:04X} ({}): the DCF's ParameterValue is 0: a master that loads it \
+             (load_configuration, a concise DCF) sets 0, which the drive takes as \
+             CiA 402 says, not as a placeholder",
+                obj.index, s.name
+            ));
+        }
+        let fate = if std_slot.is_some() {
+            Fate::Simulated
+        } else {
+            Fate::Stored
+        };
+        if let DefaultValue::Value(v) = e.default {
+            if let Err(high) = e.check_limits(v) {
+                // the file contradicts itself; a master that writes the default back
+                // (load_configuration, a concise DCF) must not be refused
+                why = format!(
+                    "the file's default is {} its {}: limits not applied",
+                    if high { "above" } else { "below" },
+                    if high { "HighLimit" } else { "LowLimit" }
+                );
+                e.low = None;
+                e.high = None;
+            }
+        }
+        match od.insert_unsorted(e) {
+            Ok(_) => report.line(obj.index, s.sub, &s.name, fate, why),
+            Err(OdError::Invalid { reason, .. }) => return Err(err(s, obj.index, reason)),
+            Err(OdError::Duplicate { .. }) => return Err(err(s, obj.index, "given twice")),
+        }
+        Ok(())
+    }
+
+    /// The file's entry `e` of a standard object the drive simulates (its slot `slot`): the
+    /// standard entry is served instead when the file gives another kind of type (false:
+    /// nothing more to add); a value the file leaves to the device is the drive's own.
+    #[allow(clippy::too_many_arguments)]
+    fn standard_entry(
+        &mut self,
+        file: &EdsFile,
+        obj: &EdsObject,
+        s: &EdsSub,
+        otype: ObjType,
+        slot: usize,
+        mut e: Entry,
+        why: &mut String,
+    ) -> Option<Entry> {
+        let (od, report) = (&mut self.od, &mut self.report);
+        let std_type = od.slots[slot].entry.dtype;
+        if kind(std_type) != kind(e.dtype) {
+            report.line(
+                obj.index,
+                s.sub,
+                &s.name,
+                Fate::Dropped,
+                format!(
+            "the file makes it {}, the drive simulates it as {}: the standard entry is served",
+            e.dtype.name(),
+            std_type.name()
+        ),
+            );
+            od.slots[slot].visible = true;
+            // One object, one object code: the served entry takes the file's
+            // (an ARRAY stays an ARRAY on export and read-back).
+            od.slots[slot].entry.otype = otype;
+            return None;
+        }
+        let no_value = s.default.is_none() && s.parameter_value.is_none() && why.is_empty();
+        if no_value && std_type == e.dtype {
+            // the file leaves the value to the device: the drive's own, not 0
+            // (a profile velocity of 0 would never move); the device name is the
+            // file's product name
+            // the device name and the identity from [DeviceInfo] (what python
+            // canopen and Lely take for them too)
+            let info = &file.device_info;
+            let ident = |v: Option<u32>| v.map(|x| DefaultValue::Value(u64::from(x)));
+            let from_info = match (obj.index, s.sub) {
+                // the device name and versions as the file gives them: an
+                // empty default stays empty (python canopen reads "")
+                (0x1008..=0x100A, 0) if e.dtype.variable() => Some(DefaultValue::Bytes(Vec::new())),
+                (0x1018, 1) => ident(info.vendor_number),
+                (0x1018, 2) => ident(info.product_number),
+                (0x1018, 3) => ident(info.revision_number),
+                _ => None,
+            };
+            *why = if from_info.is_some() && (0x1008..=0x100A).contains(&obj.index) {
+                "no DefaultValue in the file: empty, as the file says".into()
+            } else {
+                "no DefaultValue in the file: the drive's standard value".into()
+            };
+            let d = from_info.unwrap_or_else(|| od.slots[slot].entry.default.clone());
+            e = e.with_default(d);
+        }
+        if (obj.index, s.sub) == (0x6502, 0) {
+            e = supported_modes(e, report);
+        }
+        Some(e)
+    }
+}
+
+/// The identity every CiA 301 node has, added where the file lacks it.
+fn add_identity(od: &mut ObjectDictionary, report: &mut BuildReport) {
+    for (index, sub) in [
+        (0x1000, 0),
+        (0x1001, 0),
+        (0x1018, 0),
+        (0x1018, 1),
+        (0x1018, 2),
+        (0x1018, 3),
+        (0x1018, 4),
+    ] {
+        let slot = standard::slot_of(index, sub).expect("standard object");
+        if !od.slots[slot].visible {
+            od.slots[slot].visible = true;
+            // An added sub takes the object type the file gave its object (0x1018 as an
+            // ARRAY with sub 1 only): an export writes one ObjectType for the object, and
+            // what it reads back must be the same dictionary.
+            let file_otype = od
+                .slots
+                .iter()
+                .find(|s| s.visible && s.entry.index == index && s.entry.sub != sub)
+                .map(|s| s.entry.otype);
+            if let Some(t) = file_otype {
+                od.slots[slot].entry.otype = t;
+            }
+            let name = od.slots[slot].entry.name.to_string();
+            report.line(
+                index,
+                sub,
+                &name,
+                Fate::Added,
+                "every CiA 301 node has it (LSS needs the whole identity)",
+            );
+        }
+    }
+}
+
+/// What the file's `[DeviceInfo]` and `[DummyUsage]` say about the device.
+fn device_description(
+    file: &EdsFile,
+    fe_window_zero: bool,
+    fixed_pdo_can_ids: Vec<u16>,
+) -> super::DeviceDescription {
+    super::DeviceDescription {
+        vendor_name: file.device_info.vendor_name.clone().unwrap_or_default(),
+        product_name: file.device_info.product_name.clone().unwrap_or_default(),
+        order_code: file.device_info.order_code.clone().unwrap_or_default(),
+        baud_rates_kbit: file.device_info.baud_rates_kbit.clone(),
+        granularity: file.device_info.granularity.unwrap_or(8),
+        lss_supported: file.device_info.lss_supported.unwrap_or(false),
+        dummy_usage: file.dummy_usage,
+        shipped_read_only_rpdo_entries: Vec::new(),
+        shipped_short_entries: Vec::new(),
+        following_error_window_zero_off: fe_window_zero,
+        fixed_pdo_can_ids,
     }
 }
 

@@ -21,7 +21,8 @@
 //! (docs/decisions/0009-object-dictionary.md).
 
 pub mod eds;
-pub mod eds_parse;
+/// The EDS reader at its former path (the same items as [`eds`]).
+pub use eds as eds_parse;
 mod from_eds;
 pub(crate) mod placeholders;
 mod standard;

@@ -3,7 +3,7 @@
 
 use core::fmt::Write;
 
-use super::{DataType, DefaultValue, Entry, ObjType, ObjectDictionary};
+use crate::od::{DataType, DefaultValue, Entry, ObjType, ObjectDictionary};
 
 /// How REAL32 DefaultValues are written. EDS readers disagree: Lely's dcf-tools (dcfchk,
 /// dcfgen; what ros2_canopen runs on) read a REAL32 value as the integer of its IEEE 754 bits
@@ -132,7 +132,7 @@ fn write_entry(s: &mut String, e: &Entry, value: Option<u64>, meta: &EdsMeta) {
 
 fn fmt_limit(e: &Entry, raw: u64, real32: Real32Notation) -> String {
     match e.number(raw) {
-        Some(super::Number::Int(v)) => v.to_string(),
+        Some(crate::od::Number::Int(v)) => v.to_string(),
         _ => fmt_raw(e, raw, real32),
     }
 }
