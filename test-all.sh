@@ -49,8 +49,8 @@ cargo nextest run --workspace --exclude e2e --no-fail-fast || host_rc=$?
 host_time=$(secs "$t")
 
 # ---- 1a. the emulator with the SocketCAN feature off (builds and passes without it)
-nosc=(-p drive-emu --no-default-features --lib --bins --test socketcand_bus --test socketcand_run
-    --test cli_validation --test layering)
+nosc=(-p drive-emu --no-default-features --features panel --lib --bins --test socketcand_bus
+    --test socketcand_run --test cli_validation --test layering)
 banner "host tests without SocketCAN: cargo nextest run ${nosc[*]}"
 t=$(now); nosc_rc=0
 cargo nextest run "${nosc[@]}" --no-fail-fast || nosc_rc=$?

@@ -38,8 +38,11 @@ pub mod session;
 
 pub mod scenario;
 
+#[cfg_attr(not(feature = "panel"), path = "panel/off.rs")]
 pub mod panel;
 
 pub mod study;
+
+pub mod api;
 
 pub mod cli;

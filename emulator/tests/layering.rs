@@ -31,6 +31,7 @@ const LAYERS: &[&str] = &[
     "scenario", // scenario files, timelines, expectations, runner
     "panel",    // the live panel of `run --panel`: server, stream, injections, recording
     "study",    // parameter studies and figures
+    "api",      // the typed requests under the command line and the Python module
     "cli",      // the command line
 ];
 

@@ -1,12 +1,10 @@
 //! `drive-emu eds` and `drive-emu presets`: what a master needs to know about the drive.
 
-use crate::drive::axis_drive::AxisDrive;
-use crate::drive::vendor::{self, VendorEds};
-use crate::drive::{node_setup, NodeOptions};
+use crate::api::EdsRequest;
 use crate::presets::{preset_names, AxisConfig};
 use anyhow::Result;
 use clap::Args;
-use drive_protocol::od::eds::{EdsMeta, Real32Notation};
+use drive_protocol::od::eds::Real32Notation;
 
 #[derive(Args, Debug, Clone)]
 pub struct EdsArgs {
@@ -71,6 +69,28 @@ pub enum Real32Arg {
     Decimal,
 }
 
+impl EdsArgs {
+    /// The request these arguments make.
+    pub fn request(&self) -> EdsRequest {
+        EdsRequest {
+            preset: self.preset.clone(),
+            node: self.node,
+            sets: self.set.clone(),
+            worn: self.worn,
+            real32: match self.real32 {
+                Real32Arg::Bits => Real32Notation::Bits,
+                Real32Arg::Decimal => Real32Notation::Decimal,
+            },
+            canopen_monitor: self.canopen_monitor,
+            from: self.from.clone(),
+            objects_base: self.objects_base,
+            profile: self.profile.clone(),
+            quirks: self.quirk.clone(),
+            no_quirks: self.no_quirk.clone(),
+        }
+    }
+}
+
 /// The EDS (CiA 306) of a drive built from a preset, generated from the node's object table:
 /// every default is the value the drive has (manufacturer parameters from the preset and
 /// --set), the FileInfo section complete (time from SOURCE_DATE_EPOCH if set, else now, UTC).
@@ -78,142 +98,18 @@ pub fn eds_text(args: &EdsArgs) -> Result<String> {
     Ok(eds_and_report(args)?.0)
 }
 
-/// The EDS text and, with `--from`, the build report's text.
+/// The EDS text and, with `--from`, the build report's text ([`EdsRequest::build`]), with the
+/// command line's errors (exit status 2; 4: a file that cannot be read).
 pub fn eds_and_report(args: &EdsArgs) -> Result<(String, Option<String>)> {
-    let cfg = AxisConfig::from_preset(&args.preset)?
-        .with_overrides(args.set.iter().map(String::as_str))?;
-    let cfg = crate::drive::machine::served(
-        cfg,
-        args.worn || crate::drive::machine::sets_ask_for_wear(&args.set),
-    );
-    let vendor = match &args.from {
-        Some(p) => Some(std::sync::Arc::new(VendorEds::load(p)?)),
-        None => None,
-    };
-    let cfg = match &vendor {
-        Some(v) => v.adapt(cfg)?,
-        None => cfg,
-    };
-    let mut drive = AxisDrive::from_config(&cfg)?;
-    let quirk_profile = crate::drive::quirk_profile::QuirkProfile::from_args(
-        args.profile.as_deref(),
-        &args.quirk,
-        &args.no_quirk,
-    )?;
-    let opts = NodeOptions {
-        objects_base: args.objects_base,
-        eds: vendor.clone(),
-        quirk_profile: quirk_profile.map(std::sync::Arc::new),
-        ..NodeOptions::new(args.node.unwrap_or(1))
-    };
-    let setup = node_setup(&mut drive, &opts)?;
-    let report = match (&vendor, &setup.report) {
-        (Some(v), Some(r)) => Some(vendor::report_text(r, setup.objects_base, &v.path)),
-        _ => None,
-    };
-    let node = drive_protocol::Node::new(setup.config).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let secs = std::env::var("SOURCE_DATE_EPOCH")
-        .ok()
-        .and_then(|v| v.trim().parse::<u64>().ok())
-        .unwrap_or_else(|| {
-            std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_secs())
-        });
-    let (time, date) = eds_time_date(secs);
-    let stem = match &args.from {
-        Some(p) => p
-            .file_stem()
-            .map_or_else(|| "vendor".into(), |s| s.to_string_lossy().into_owned()),
-        None => args.preset.clone(),
-    };
-    let file_name = match args.node {
-        Some(n) => format!("drive-emu-{stem}-node{n}.eds"),
-        None => format!("drive-emu-{stem}.eds"),
-    };
-    let description = if let Some(p) = &args.from {
-        format!(
-            "drive-emu serving {} (preset {} behind it)",
-            p.file_name()
-                .map_or_else(String::new, |f| f.to_string_lossy().into_owned()),
-            args.preset
-        )
-    } else if args.set.is_empty() {
-        format!("drive-emu CiA 402 servo drive, preset {}", args.preset)
-    } else {
-        format!(
-            "drive-emu CiA 402 servo drive, preset {} with {}",
-            args.preset,
-            // no '=' in a value: INI readers (eds-utils) split the line at every '='
-            args.set.join(", ").replace('=', ": ")
-        )
-    };
-    let by = format!("drive-emu {}", env!("CARGO_PKG_VERSION"));
-    let meta = EdsMeta {
-        file_name: &file_name,
-        description: &description,
-        created_by: &by,
-        time: &time,
-        date: &date,
-        node_id: args.node,
-        real32: match args.real32 {
-            Real32Arg::Bits => Real32Notation::Bits,
-            Real32Arg::Decimal => Real32Notation::Decimal,
-        },
-    };
-    let eds = node.export_eds(&mut drive, &meta);
-    let eds = match args.node.filter(|_| args.canopen_monitor) {
-        Some(n) => with_canopen_monitor_section(&eds, n),
-        None => eds,
-    };
-    Ok((eds, report))
+    let out = args.request().build().map_err(super::api_error)?;
+    Ok((out.eds, out.report))
 }
 
-/// The EDS with canopen-monitor's own commissioning section before the CiA 306 one (no
-/// comment in it: eds-utils' reader fails on a comment line inside a section). Its
-/// parser (`canopen_monitor.parse.eds`) turns section and key names into snake case and reads
-/// `device_commissioning.node_id` (the node the file is attached to) and `.node_name` (shown
-/// for the node); the standard `DeviceComissioning` / `NodeID` become `device_comissioning` /
-/// `node_n_id`, so it attaches a CiA 306 file to no node.
-fn with_canopen_monitor_section(eds: &str, node: u8) -> String {
-    let section =
-        format!("[DeviceCommissioning]\nNodeId={node}\nNodeName=drive-emu node {node}\n\n");
-    match eds.find("[DeviceComissioning]") {
-        Some(at) => format!("{}{section}{}", &eds[..at], &eds[at..]),
-        None => format!("{eds}\n{section}"),
-    }
-}
-
-/// CiA 306 time and date of a Unix time (UTC): `hh:mmAM`, `MM-DD-YYYY`.
-pub fn eds_time_date(unix_s: u64) -> (String, String) {
-    let days = (unix_s / 86_400) as i64;
-    let sod = unix_s % 86_400;
-    let (h, m) = (sod / 3600, (sod % 3600) / 60);
-    // civil from days (H. Hinnant)
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let mo = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(mo <= 2);
-    let (h12, ampm) = match h {
-        0 => (12, "AM"),
-        1..=11 => (h, "AM"),
-        12 => (12, "PM"),
-        _ => (h - 12, "PM"),
-    };
-    (
-        format!("{h12:02}:{m:02}{ampm}"),
-        format!("{mo:02}-{d:02}-{y:04}"),
-    )
-}
+pub use crate::api::eds::eds_time_date;
 
 pub fn run_eds(args: &EdsArgs) -> Result<()> {
     // a bad file or argument: exit status 2 (4: a file that cannot be read)
-    let (eds, report) = eds_and_report(args).map_err(super::exit::usage)?;
+    let (eds, report) = eds_and_report(args)?;
     if let Some(r) = report {
         eprint!("{r}");
     }

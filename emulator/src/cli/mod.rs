@@ -20,6 +20,18 @@ pub mod sweep;
 
 use clap::{Parser, Subcommand};
 
+/// A request's error ([`crate::api::ApiError`]) as the command line reports it: its text and
+/// causes, marked with its exit status ([`crate::api::ApiError::exit_code`]).
+pub fn api_error(e: crate::api::ApiError) -> anyhow::Error {
+    let code = e.exit_code();
+    let e = e.into_anyhow();
+    match code {
+        exit::USAGE => exit::usage(e),
+        exit::UNREADABLE => exit::unreadable(e),
+        _ => e,
+    }
+}
+
 /// Hardware-in-the-loop CiA 402 servo-drive emulator with a backlashed CNC axis behind it.
 #[derive(Parser, Debug)]
 #[command(name = "drive-emu", version, about, after_help = exit::HELP)]
@@ -79,5 +91,19 @@ impl Command {
             | Command::Presets
             | Command::Profiles(_) => true,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_api_exit_statuses_are_the_command_line_s() {
+        use crate::api::error::status;
+        assert_eq!(status::FAILED, super::exit::FAILED);
+        assert_eq!(status::USAGE, super::exit::USAGE);
+        assert_eq!(status::UNREADABLE, super::exit::UNREADABLE);
+        let e = super::api_error(crate::api::ApiError::invalid("--node 0"));
+        assert_eq!(super::exit::code_of(&e), super::exit::USAGE);
+        assert_eq!(e.to_string(), "--node 0");
     }
 }

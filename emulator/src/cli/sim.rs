@@ -7,8 +7,8 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::Context;
 
-use crate::analysis::{constant_velocity_run_until, RunError, RunOptions, RunResult};
-use crate::presets::AxisConfig;
+use crate::analysis::{RunError, RunResult};
+use crate::api::{ApiError, SimRequest};
 
 /// Arguments of `drive-emu sim`.
 #[derive(clap::Args, Debug, Clone)]
@@ -23,7 +23,7 @@ pub struct SimArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub velocity: f64,
     /// Simulated duration, s.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = crate::api::sim::DEFAULT_DURATION_S)]
     pub duration: f64,
     /// Start-ramp acceleration, axis units/s^2 (default: reach the velocity in 0.1 s).
     #[arg(long, default_value_t = 0.0)]
@@ -46,157 +46,40 @@ pub struct SimArgs {
 }
 
 /// Default of `--max-memory-mb`: about an hour of samples at a 1 ms position cycle.
-pub const DEFAULT_MAX_MEMORY_MB: f64 = 512.0;
-/// Bytes kept per sample (nine f64 columns of the trace).
-const BYTES_PER_SAMPLE: f64 = 9.0 * 8.0;
-/// Bytes per CSV row of `--trace`, about.
-const CSV_BYTES_PER_SAMPLE: f64 = 110.0;
-/// Largest |velocity| accepted, axis units/s: a feed axis above 1000 mm/s (60 m/min) or a
-/// table above 1000 deg/s is beyond any of the presets' motors.
-const MAX_VELOCITY: f64 = 1000.0;
+pub use crate::api::sim::DEFAULT_MAX_MEMORY_MB;
 
-/// Check the numeric flags: finite, in range, and a run that fits the memory cap.
-fn validate(args: &SimArgs, cycle_s: f64) -> anyhow::Result<()> {
-    let v = args.velocity;
-    anyhow::ensure!(
-        v.is_finite() && v.abs() <= MAX_VELOCITY,
-        "--velocity {v}: must be a finite number within +-{MAX_VELOCITY} axis units/s (mm/s \
-         or deg/s)"
-    );
-    anyhow::ensure!(
-        args.duration.is_finite() && args.duration > 0.0,
-        "--duration {}: must be a finite number of seconds > 0",
-        args.duration
-    );
-    anyhow::ensure!(
-        args.accel.is_finite() && args.accel >= 0.0,
-        "--accel {}: must be a finite acceleration >= 0 axis units/s^2 (0 = reach the \
-         velocity in 0.1 s)",
-        args.accel
-    );
-    if let Some(k) = args.kick {
-        anyhow::ensure!(
-            k.is_finite() && k.abs() <= MAX_VELOCITY,
-            "--kick {k}: must be a finite velocity change within +-{MAX_VELOCITY} axis units/s"
-        );
+impl SimArgs {
+    /// The request these arguments make (`record`: keep the full trace).
+    pub fn request(&self, record: bool) -> SimRequest {
+        SimRequest {
+            preset: self.preset.clone(),
+            sets: self.set.clone(),
+            velocity_per_s: self.velocity,
+            duration_s: self.duration,
+            accel_per_s2: self.accel,
+            kick_per_s: self.kick,
+            max_memory_mb: self.max_memory_mb,
+            record,
+            trace_csv: self.trace.is_some(),
+        }
     }
-    anyhow::ensure!(
-        args.max_memory_mb.is_finite() && args.max_memory_mb > 0.0,
-        "--max-memory-mb {}: must be > 0",
-        args.max_memory_mb
-    );
-    let samples = (args.duration / cycle_s).ceil();
-    let mb = samples * BYTES_PER_SAMPLE / 1e6;
-    if mb > args.max_memory_mb {
-        let max_s = args.max_memory_mb * 1e6 / BYTES_PER_SAMPLE * cycle_s;
-        anyhow::bail!(
-            "--duration {} s needs {samples:.0} samples ({mb:.0} MB in memory{}): above the cap \
-             of {} MB (--max-memory-mb); at this preset's {} us position cycle the cap allows \
-             {max_s:.0} s. Shorten --duration or raise --max-memory-mb.",
-            args.duration,
-            if args.trace.is_some() {
-                format!(", a {:.0} MB trace", samples * CSV_BYTES_PER_SAMPLE / 1e6)
-            } else {
-                String::new()
-            },
-            args.max_memory_mb,
-            cycle_s * 1e6,
-        );
-    }
-    Ok(())
 }
 
-/// What `sim` runs, without printing or writing anything: the preset with its `--set`
-/// overrides, the flags checked, the constant-velocity run (the full trace when `record`, else
-/// the analysis window's), ended early with [`RunError::Stopped`] in the error's chain once
-/// `stop` is set. The Python module's `drive_emu.sim` calls this.
+/// What `sim` runs, without printing or writing anything ([`SimRequest::run`] of the
+/// arguments), with the command line's errors: exit status 2 for a bad flag or preset, a
+/// stopped run with [`RunError::Stopped`] in the error's chain.
 pub fn simulate(args: &SimArgs, record: bool, stop: &AtomicBool) -> anyhow::Result<RunResult> {
-    let cfg = AxisConfig::from_preset(&args.preset)
-        .and_then(|c| c.with_overrides(args.set.iter().map(String::as_str)))
-        .map_err(|e| crate::cli::exit::usage_msg(format!("invalid configuration: {e}")))?;
-    let built = cfg
-        .build()
-        .map_err(|e| crate::cli::exit::usage_msg(format!("invalid configuration: {e}")))?;
-    validate(args, built.control.position_cycle).map_err(crate::cli::exit::usage)?;
-    let opts = RunOptions {
-        velocity: args.velocity,
-        duration: args.duration,
-        accel: args.accel,
-        record,
-        kick: args.kick,
-    };
-    let res = constant_velocity_run_until(&cfg, &opts, stop).map_err(|e| match e {
-        RunError::Stopped { .. } => anyhow::Error::new(e),
-        RunError::Config(e) => anyhow::anyhow!("{e}"),
-    })?;
-    check_finite(&res, &args.set)?;
-    Ok(res)
-}
-
-/// A run whose signals hold a NaN or an infinity diverged: an error naming the first signal
-/// and time, never a result with "fundamental none".
-pub fn check_finite(res: &RunResult, set: &[String]) -> anyhow::Result<()> {
-    let s = &res.summary;
-    let t = &res.trace;
-    let columns: [(&str, &[f64]); 8] = [
-        ("position set point", &t.position_setpoint),
-        ("direct position", &t.direct_position),
-        ("motor position", &t.motor_position),
-        ("motor speed", &t.motor_velocity_rpm),
-        ("load velocity", &t.load_velocity),
-        ("torque", &t.torque_nm),
-        ("current", &t.current_a),
-        ("following error", &t.following_error),
-    ];
-    let mut bad = columns.iter().find_map(|(name, col)| {
-        col.iter().position(|x| !x.is_finite()).map(|i| {
-            format!(
-                "{name} is {} at t = {:.6} s",
-                crate::quote::number(col[i]),
-                t.time_s[i]
-            )
-        })
-    });
-    if bad.is_none() {
-        bad = [
-            ("motor speed amplitude", s.motor_velocity_amplitude_rpm),
-            (
-                "motor speed half peak-to-peak",
-                s.motor_velocity_half_p2p_rpm,
-            ),
-            ("current amplitude", s.current_amplitude_a),
-            ("load velocity half peak-to-peak", s.load_velocity_half_p2p),
-            (
-                "following error half peak-to-peak",
-                s.following_error_half_p2p,
-            ),
-            ("mean motor speed", s.mean_motor_velocity_rpm),
-        ]
-        .iter()
-        .find(|(_, v)| !v.is_finite())
-        .map(|(name, v)| format!("{name} is {}", crate::quote::number(*v)));
-    }
-    match bad {
-        None => Ok(()),
-        Some(what) => anyhow::bail!(
-            "the simulation diverged: {what}; a parameter is outside what the model resolves{}",
-            if set.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    " (check --set {})",
-                    set.iter()
-                        .map(|x| crate::quote::text(x))
-                        .collect::<Vec<_>>()
-                        .join(" ")
-                )
-            }
-        ),
-    }
+    args.request(record).run(stop).map_err(|e| match e {
+        ApiError::Stopped { at_s } => anyhow::Error::new(RunError::Stopped { at_s }),
+        e => super::api_error(e),
+    })
 }
 
 pub fn run(args: &SimArgs) -> anyhow::Result<()> {
-    let res = simulate(args, args.trace.is_some(), &AtomicBool::new(false))?;
+    let res = args
+        .request(args.trace.is_some())
+        .run(&AtomicBool::new(false))
+        .map_err(super::api_error)?;
     if let Some(path) = &args.trace {
         let u = &res.summary.unit;
         let file = std::fs::File::create(path)

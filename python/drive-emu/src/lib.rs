@@ -1,6 +1,8 @@
 //! `drive_emu._native`: the Python binding of the emulator's library (PyO3). Thin on purpose:
-//! every function calls the code `drive-emu sim`, `analyze`, `sweep`, `eds` and `presets`
-//! run, and hands back JSON text (parsed by `python/drive_emu/__init__.py`) and numpy arrays.
+//! every function builds a request of the typed API (`drive_emu::api`: the code under
+//! `drive-emu sim`, `analyze` and `eds`) or calls the study code `sweep` and `presets` run,
+//! and hands back JSON text (parsed by `python/drive_emu/__init__.py`) and numpy arrays. No
+//! command line is parsed here.
 //!
 //! Every run goes through `interruptible`: the work runs on a thread of its own with the GIL
 //! released, while the calling thread wakes every `POLL` (50 ms) to look at Python's signals
@@ -19,11 +21,10 @@ use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyRuntimeError, PyValueEr
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use clap::{Args as _, FromArgMatches as _};
 use drive_emu::analysis::{RunError, Trace};
-use drive_emu::cli::analyze::{analyze_input, write_report, AnalyzeArgs, AnalyzeInput, UsageError};
-use drive_emu::cli::eds::{eds_text, EdsArgs};
-use drive_emu::cli::sim::{simulate, SimArgs};
+use drive_emu::api::analyze::write_report;
+use drive_emu::api::eds::Real32Notation;
+use drive_emu::api::{AnalyzeInput, AnalyzeRequest, ApiError, EdsRequest, SimRequest};
 use drive_emu::presets::{preset_names, AxisConfig, AxisKind};
 use drive_emu::study::{
     backlash_key, default_velocity, measure_until, own_backlash, run_parallel, CaseRow,
@@ -137,13 +138,10 @@ fn python_names(text: &str) -> String {
 
 /// An error of the library as a Python exception: a file that cannot be read is an
 /// `OSError` (`FileNotFoundError` when missing), anything else the caller gave a `ValueError`.
-fn to_py_err(e: anyhow::Error) -> PyErr {
+fn to_py_err(e: ApiError) -> PyErr {
     let text = python_names(&format!("{e:#}"));
     // The bounded reader's errors (drive_emu::infile) say what the file is, not an io::Error.
-    if let Some(input) = e
-        .chain()
-        .find_map(|c| c.downcast_ref::<drive_emu::infile::InputError>())
-    {
+    if let Some(input) = e.input_error() {
         return match &input.problem {
             drive_emu::infile::Problem::NotFound => PyFileNotFoundError::new_err(text),
             drive_emu::infile::Problem::Io(_) | drive_emu::infile::Problem::NotRegular(_) => {
@@ -152,7 +150,10 @@ fn to_py_err(e: anyhow::Error) -> PyErr {
             _ => PyValueError::new_err(text),
         };
     }
-    match e.chain().find_map(|c| c.downcast_ref::<std::io::Error>()) {
+    let io = e
+        .inner()
+        .and_then(|e| e.chain().find_map(|c| c.downcast_ref::<std::io::Error>()));
+    match io {
         Some(io) if io.kind() == std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(text),
         Some(_) => PyOSError::new_err(text),
         None => PyValueError::new_err(text),
@@ -175,27 +176,26 @@ fn sim<'py>(
     max_memory_mb: f64,
     record: bool,
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
-    let args = SimArgs {
+    let request = SimRequest {
         preset,
-        set: sets,
-        velocity,
-        duration,
-        accel,
-        kick,
-        trace: None,
-        json: true,
+        sets,
+        velocity_per_s: velocity,
+        duration_s: duration,
+        accel_per_s2: accel,
+        kick_per_s: kick,
         max_memory_mb,
+        record,
+        trace_csv: false,
     };
-    let duration = args.duration;
     let res = interruptible(
         py,
         None,
-        |stop, _| simulate(&args, record, stop),
-        |r, _| match r.as_ref().err()?.downcast_ref::<RunError>()? {
-            RunError::Stopped { at_s } => Some(format!(
+        |stop, _| request.run(stop),
+        |r, _| match r.as_ref().err()? {
+            ApiError::Stopped { at_s } => Some(format!(
                 "drive_emu.sim: stopped at {at_s:.3} of {duration} simulated s"
             )),
-            RunError::Config(_) => None,
+            _ => None,
         },
     )?;
     let res = res.map_err(to_py_err)?;
@@ -240,23 +240,21 @@ fn analyze(
                 .collect::<PyResult<_>>()
         })
         .transpose()?;
-    let args = AnalyzeArgs {
+    let request = AnalyzeRequest {
         trace: path.unwrap_or_default(),
-        kv,
+        kv_per_s: kv,
         rotary,
-        suspect,
-        alarm,
-        out: out.clone(),
+        suspect_um: suspect,
+        alarm_um: alarm,
         node,
         preset,
         sync_period_us,
-        json: true,
-        ..AnalyzeArgs::default()
+        ..AnalyzeRequest::default()
     };
     let result = interruptible(
         py,
         None,
-        |_, _| -> anyhow::Result<String> {
+        |_, _| -> Result<String, ApiError> {
             let input = match &columns {
                 Some(columns) => AnalyzeInput::Columns {
                     source: &source,
@@ -264,21 +262,16 @@ fn analyze(
                 },
                 None => AnalyzeInput::File,
             };
-            let mut analysis = analyze_input(&args, input)?;
+            let mut analysis = request.run(input)?;
             if let Some(out) = &out {
-                write_report(&mut analysis, out)?;
+                // the report directory cannot be made: an OSError naming it
+                write_report(&mut analysis, out).map_err(ApiError::Failed)?;
             }
-            Ok(serde_json::to_string(&analysis.output)?)
+            serde_json::to_string(&analysis.output).map_err(|e| ApiError::Failed(e.into()))
         },
         |_, _| None,
     )?;
-    result.map_err(|e| {
-        if e.chain().any(|c| c.downcast_ref::<UsageError>().is_some()) {
-            PyValueError::new_err(python_names(&format!("{e:#}")))
-        } else {
-            to_py_err(e)
-        }
-    })
+    result.map_err(to_py_err)
 }
 
 /// The presets, as `drive-emu presets` lists them, with every key of the preset file: JSON of
@@ -306,8 +299,8 @@ fn presets() -> PyResult<String> {
     serde_json::to_string(&all).map_err(|e| InternalError::new_err(e.to_string()))
 }
 
-/// `drive-emu eds`: the EDS text. The arguments go through the command's own parser, so
-/// every flag the module does not set keeps the CLI's default.
+/// `drive-emu eds`: the EDS text ([`EdsRequest`]; every field the module does not set keeps
+/// the command line's default). `real32`: "bits" or "decimal".
 #[pyfunction]
 #[pyo3(signature = (preset, node, sets, real32, canopen_monitor))]
 fn eds(
@@ -317,38 +310,46 @@ fn eds(
     real32: String,
     canopen_monitor: bool,
 ) -> PyResult<String> {
-    let mut argv = vec!["eds".to_string(), "--preset".into(), preset];
-    if let Some(n) = node {
-        argv.extend(["--node".into(), n.to_string()]);
-    }
-    for s in sets {
-        argv.extend(["--set".into(), s]);
-    }
-    argv.extend(["--real32".into(), real32]);
-    if canopen_monitor {
-        argv.push("--canopen-monitor".into());
-    }
-    let parsed = EdsArgs::augment_args(clap::Command::new("eds").no_binary_name(false))
-        .try_get_matches_from(&argv)
-        .and_then(|m| EdsArgs::from_arg_matches(&m))
-        .map_err(|e| PyValueError::new_err(python_names(&e.render().to_string())))?;
-    eds_text(&parsed).map_err(to_py_err)
+    let real32 = match real32.as_str() {
+        "bits" => Real32Notation::Bits,
+        "decimal" => Real32Notation::Decimal,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "invalid value {} for real32: possible values bits, decimal",
+                drive_emu::quote::text(&format!("'{other}'"))
+            )))
+        }
+    };
+    let request = EdsRequest {
+        preset,
+        node,
+        sets,
+        real32,
+        canopen_monitor,
+        ..EdsRequest::default()
+    };
+    request.build().map(|o| o.eds).map_err(to_py_err)
 }
 
 /// One case of a sweep as Python sends it: preset, `key=value` overrides (`backlash` is the
 /// preset's own backlash key), velocity (None: the preset's default), duration.
 type CaseIn = (String, Vec<String>, Option<f64>, f64);
 
-/// The sweep: every case measured as `drive-emu sweep` measures one, on `threads` threads
-/// (0 = all cores); `progress(done)` is called as cases finish. The JSON of the rows, in the
-/// order of the cases. A bad case is a `ValueError` naming it (and stops the others).
+/// The sweep of one chunk of a grid: every case measured as `drive-emu sweep` measures one,
+/// on `threads` threads (0 = all cores); `progress(done)` is called as cases finish. The JSON
+/// of the rows, in the order of the cases. A bad case is a `ValueError` naming it by its
+/// index in the grid (`first_index` + its index here) and stops the others; a Ctrl-C's note
+/// counts the runs of the whole grid (`first_index` before this chunk, `total` in all, None
+/// where unknown).
 #[pyfunction]
-#[pyo3(signature = (cases, threads, progress))]
+#[pyo3(signature = (cases, threads, progress, first_index = 0, total = None))]
 fn sweep(
     py: Python<'_>,
     cases: Vec<CaseIn>,
     threads: usize,
     progress: Option<Py<PyAny>>,
+    first_index: usize,
+    total: Option<usize>,
 ) -> PyResult<String> {
     // The presets once; each case applies its overrides to a copy.
     let mut bases: Vec<AxisConfig> = Vec::new();
@@ -360,7 +361,7 @@ fn sweep(
             );
         }
     }
-    let total = cases.len();
+    let total = total.map_or_else(|| "?".to_string(), |n| n.to_string());
     let rows = interruptible(
         py,
         progress,
@@ -376,7 +377,8 @@ fn sweep(
         |rows, _| {
             let finished = rows.iter().filter(|r| matches!(r, Some(Ok(_)))).count();
             Some(format!(
-                "drive_emu.sweep: stopped after {finished} of {total} runs"
+                "drive_emu.sweep: stopped after {} of {total} runs",
+                first_index + finished
             ))
         },
     )?;
@@ -388,7 +390,8 @@ fn sweep(
             Some(Err(Some(why))) => {
                 let (preset, sets, ..) = &cases[i];
                 first_error.get_or_insert(format!(
-                    "case {i} (preset {preset}{}{}): {why}",
+                    "case {} (preset {preset}{}{}): {why}",
+                    first_index + i,
                     if sets.is_empty() { "" } else { ", " },
                     sets.join(", ")
                 ));
@@ -464,7 +467,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_SWEEP_CASES", drive_emu::study::MAX_SWEEP_CASES)?;
     m.add(
         "DEFAULT_MAX_MEMORY_MB",
-        drive_emu::cli::sim::DEFAULT_MAX_MEMORY_MB,
+        drive_emu::api::sim::DEFAULT_MAX_MEMORY_MB,
     )?;
     m.add_function(wrap_pyfunction!(sim, m)?)?;
     m.add_function(wrap_pyfunction!(trace_columns, m)?)?;

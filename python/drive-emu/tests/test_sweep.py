@@ -3,6 +3,7 @@ workers gives equal results; rows equal `drive-emu sweep`'s for the same grid; P
 the table; the grid forms."""
 import itertools
 import json
+from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
@@ -118,7 +119,8 @@ def test_progress_bar_counts_every_run(capsys):
 
 def test_a_grid_beyond_the_cap_is_refused_before_it_is_built(monkeypatch):
     # issue 32: a grid over range(10**9) built 10**9 cases first (MemoryError); it is counted
-    # and refused with the cap, as is a product of smaller axes and an endless generator
+    # and refused with the cap, as is a product of smaller axes and an endless generator of a
+    # key's values (kept: each is needed once per combination of the keys before it)
     assert drive_emu.MAX_SWEEP_CASES == 1_000_000
     cap = 1000  # the same rule at a size a test can build
     monkeypatch.setattr(drive_emu, "MAX_SWEEP_CASES", cap)
@@ -126,7 +128,6 @@ def test_a_grid_beyond_the_cap_is_refused_before_it_is_built(monkeypatch):
         ({"kv_per_s": range(10**9)}, "1,000,000,000 cases"),
         ({"kv_per_s": range(20), "backlash": range(100)}, "2,000 cases"),
         ({"kv_per_s": (20.0 + i for i in itertools.count())}, "more than"),
-        ((({"kv_per_s": 20.0}) for _ in itertools.count()), "more than"),
     ]:
         with pytest.raises(ValueError, match="split the grid") as e:
             drive_emu.sweep(grid, progress=False)
@@ -135,3 +136,62 @@ def test_a_grid_beyond_the_cap_is_refused_before_it_is_built(monkeypatch):
     # at the cap itself the grid is built (not run here)
     assert len(drive_emu._grid_cases({"kv_per_s": range(cap)})) == cap
     assert len(drive_emu._grid_cases(({"kv_per_s": k} for k in range(cap)))) == cap
+
+
+def test_range_of_a_billion_is_refused_at_once_without_building_a_case():
+    # issue 32, at the real cap: counted by len(), refused before any case is made
+    with pytest.raises(ValueError, match="1,000,000,000 cases") as e:
+        drive_emu.sweep({"kv_per_s": range(10**9)}, progress=False)
+    assert f"{drive_emu.MAX_SWEEP_CASES:,}" in str(e.value)
+
+    class Billion(Sequence):
+        """A list of 10**9 case dicts that says when a case is made."""
+        made = 0
+
+        def __len__(self):
+            return 10**9
+
+        def __getitem__(self, i):
+            Billion.made += 1
+            return {"kv_per_s": 20.0}
+
+    with pytest.raises(ValueError, match="1,000,000,000 cases"):
+        drive_emu.sweep(Billion(), progress=False)
+    assert Billion.made == 0
+
+
+def endless(made):
+    """Cases without end (2 simulated s each), counting in `made[0]` how many were taken."""
+    for i in itertools.count():
+        made[0] += 1
+        yield {"kv_per_s": 20.0 + (i % 40), "duration": 2.0}
+
+
+def test_a_generator_grid_is_taken_a_chunk_at_a_time_as_the_runs_go(monkeypatch):
+    # issue 32: the cases are made from the grid's iterator as they run, never the grid
+    # first: of an endless generator, the first chunk's rows come back with only that chunk
+    # taken from it
+    monkeypatch.setattr(drive_emu, "_SWEEP_CHUNK", 20)
+    made = [0]
+    chunks = drive_emu._sweep_chunks(*drive_emu._grid_iter(endless(made)), workers=1)
+    cases, rows = next(chunks)
+    assert made[0] == 20 and len(cases) == len(rows) == 20
+    assert [r["kv_per_s"] for r in rows] == [20.0 + i for i in range(20)]
+    cases, rows = next(chunks)
+    assert made[0] == 40 and [r["kv_per_s"] for r in rows] == [40.0 + i for i in range(20)]
+    chunks.close()
+
+
+def test_an_endless_generator_grid_stops_at_the_cap_with_a_clear_error(monkeypatch):
+    cap = 5
+    monkeypatch.setattr(drive_emu, "MAX_SWEEP_CASES", cap)
+    made = [0]
+    with pytest.raises(ValueError, match="split the grid") as e:
+        drive_emu.sweep(endless(made), progress=False)
+    assert "more than 5" in str(e.value)
+    # one case past the cap was taken to know, and no more
+    assert made[0] == cap + 1
+    # a generator of the cap's size runs to its end
+    made = [0]
+    t = drive_emu.sweep(itertools.islice(endless(made), cap), workers=1, progress=False)
+    assert len(t) == cap and made[0] == cap

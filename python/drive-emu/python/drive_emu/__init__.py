@@ -25,7 +25,7 @@ import json
 import math
 import numbers
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Any, Optional
 
 import numpy as np
@@ -352,10 +352,15 @@ def eds(preset: str = "cnc1", *, node: Optional[int] = None, set: Any = None,
 _RUN_KEYS = ("preset", "velocity", "duration")
 
 
-#: Most cases one sweep takes: its table is held in memory, and a grid beyond this is refused
-#: before any of it is built (a grid over range(10**9) said MemoryError). The same cap as
-#: `drive-emu sweep`'s (one constant, drive_emu::study::MAX_SWEEP_CASES).
+#: Most cases one sweep takes: its table is held in memory. A grid whose size is known
+#: (len()) beyond this is refused before any case runs (a grid over range(10**9) said
+#: MemoryError); an iterator without len() is read lazily and refused when it yields one case
+#: more. The same cap as `drive-emu sweep`'s (one constant, drive_emu::study::MAX_SWEEP_CASES).
 MAX_SWEEP_CASES: int = _native.MAX_SWEEP_CASES
+
+#: Cases handed to the native sweep at a time (at least; more with many threads): a grid is
+#: never built whole, only this many of its cases are held before they run.
+_SWEEP_CHUNK: int = 256
 
 
 def _too_many(n: Any) -> ValueError:
@@ -371,15 +376,41 @@ def _bounded(values: Iterable, what: str) -> list:
     return out
 
 
-def _grid_cases(grid: Any) -> list[dict]:
-    """The cases of a grid: a dict of key -> value or list of values (every combination, the
-    first key varying slowest), a list of dicts (one case each) or a DataFrame (one case per
-    row). At most MAX_SWEEP_CASES, counted before they are built."""
-    n = _grid_size(grid)
-    if isinstance(n, int) and n > MAX_SWEEP_CASES:
-        raise _too_many(f"{n:,}")
-    if hasattr(grid, "to_dict") and hasattr(grid, "columns"):
-        return [dict(r) for r in grid.to_dict("records")]
+def _odometer(axes: list) -> Iterator[tuple]:
+    """Every combination of the axes' values, the first axis varying slowest, made one at a
+    time by index (an axis is a sequence: a range is never listed)."""
+    if any(len(a) == 0 for a in axes):
+        return
+    index = [0] * len(axes)
+    while True:
+        yield tuple(a[i] for a, i in zip(axes, index))
+        k = len(axes) - 1
+        while k >= 0:
+            index[k] += 1
+            if index[k] < len(axes[k]):
+                break
+            index[k] = 0
+            k -= 1
+        if k < 0:
+            return
+
+
+def _grid_iter(grid: Any) -> tuple:
+    """The cases of a grid as a lazy iterator, and their count where it is known (else None):
+    a dict of key -> value or list of values (every combination, the first key varying
+    slowest), a list or iterator of dicts (one case each) or a DataFrame (one case per row).
+    A known count above MAX_SWEEP_CASES is refused here, before any case is made; an iterator
+    without len() is refused when it yields case MAX_SWEEP_CASES + 1."""
+    cap = MAX_SWEEP_CASES
+    if hasattr(grid, "to_dict") and hasattr(grid, "columns") and hasattr(grid, "iloc"):
+        n = len(grid)
+        if n > cap:
+            raise _too_many(f"{n:,}")
+
+        def rows(df=grid, n=n):
+            for i in range(0, n, _SWEEP_CHUNK):
+                yield from (dict(r) for r in df.iloc[i:i + _SWEEP_CHUNK].to_dict("records"))
+        return rows(), n
     if isinstance(grid, Mapping):
         keys = list(grid)
         axes = []
@@ -387,27 +418,43 @@ def _grid_cases(grid: Any) -> list[dict]:
             v = grid[k]
             if isinstance(v, (str, bytes, numbers.Number)) or v is None:
                 axes.append([v])
+            elif isinstance(v, Sequence):
+                axes.append(v)  # a list, a tuple, a range: indexed, never copied
+            elif hasattr(v, "tolist") and hasattr(v, "__len__"):
+                axes.append(v.tolist())  # a numpy array or a pandas Series (in memory already)
             elif isinstance(v, Iterable):
-                values = (v.tolist() if isinstance(v, np.ndarray)
-                          else _bounded(v, f"grid[{k!r}]"))
-                if not values:
-                    raise ValueError(f"grid[{k!r}]: no values")
-                axes.append(values)
+                # an iterator: its values are needed once per combination of the keys before
+                # it, so they are kept (at most the cap; beyond it refused)
+                axes.append(_bounded(v, f"grid[{k!r}]"))
             else:
                 raise TypeError(f"grid[{k!r}]: expected a value or a list of values, got "
                                 f"{type(v).__name__}")
+            if len(axes[-1]) == 0:
+                raise ValueError(f"grid[{k!r}]: no values")
         total = math.prod(len(a) for a in axes)
-        if total > MAX_SWEEP_CASES:
+        if total > cap:
             raise _too_many(f"{total:,}")
-        return [dict(zip(keys, combo)) for combo in itertools.product(*axes)]
+        return (dict(zip(keys, combo)) for combo in _odometer(axes)), total
     if isinstance(grid, Iterable) and not isinstance(grid, (str, bytes)):
-        cases = _bounded(grid, "grid")
-        for i, c in enumerate(cases):
-            if not isinstance(c, Mapping):
-                raise TypeError(f"grid[{i}]: a case is a dict, got {type(c).__name__}")
-        return [dict(c) for c in cases]
+        n = len(grid) if hasattr(grid, "__len__") else None
+        if n is not None and n > cap:
+            raise _too_many(f"{n:,}")
+
+        def cases(grid=grid):
+            for i, c in enumerate(grid):
+                if i >= cap:
+                    raise _too_many(f"grid: more than {cap:,}")
+                if not isinstance(c, Mapping):
+                    raise TypeError(f"grid[{i}]: a case is a dict, got {type(c).__name__}")
+                yield dict(c)
+        return cases(), n
     raise TypeError("grid: expected a dict of lists, a list of dicts or a DataFrame, got "
                     f"{type(grid).__name__}")
+
+
+def _grid_cases(grid: Any) -> list[dict]:
+    """Every case of a grid as a list (see `_grid_iter`; at most MAX_SWEEP_CASES)."""
+    return list(_grid_iter(grid)[0])
 
 
 def _grid_size(grid: Any) -> Any:
@@ -463,16 +510,45 @@ def _rows(cases: list[dict], rows: list[dict]) -> list[dict]:
     return out
 
 
-def _run_chunk(native_cases: list) -> list:
+def _run_chunk(native_cases: list, first_index: int = 0) -> list:
     """One chunk of a sweep on a Dask worker (one thread: the worker's own)."""
-    return json.loads(_native.sweep(native_cases, 1, None))
+    return json.loads(_native.sweep(native_cases, 1, None, first_index, None))
 
 
-def _bar(total: int, progress: bool, desc: str):
+def _bar(total: Optional[int], progress: bool, desc: str):
     if not progress:
         return None
     from tqdm.auto import tqdm
     return tqdm(total=total, desc=desc, unit="run", smoothing=0.1)
+
+
+def _chunks(cases: Iterator[dict], size: int) -> Iterator[tuple]:
+    """A grid's cases (`_grid_iter`) in chunks of `size`, made as they are asked for: (index
+    of the first case, the cases as given, the cases as the native sweep takes them)."""
+    first = 0
+    while True:
+        chunk = list(itertools.islice(cases, size))
+        if not chunk:
+            return
+        native = [_native_case(first + i, c) for i, c in enumerate(chunk)]
+        yield first, chunk, native
+        first += len(chunk)
+
+
+def _sweep_chunks(cases: Iterator[dict], total: Optional[int], workers: int,
+                  report=None) -> Iterator[tuple]:
+    """The local sweep, lazily: each chunk of a grid's cases (`_grid_iter(grid)`: the cases
+    and their count, None where unknown) is made, run on `workers` threads and yielded as
+    (cases, rows) before the next is taken from the grid. `report(done)` is called with the
+    count of finished runs."""
+    threads = workers if workers > 0 else (os.cpu_count() or 1)
+    size = max(_SWEEP_CHUNK, 16 * threads)
+    for first, chunk, native in _chunks(cases, size):
+        def progress(n, first=first):
+            report(first + n)
+        rows = json.loads(_native.sweep(native, int(workers), progress if report else None,
+                                        first, total))
+        yield chunk, rows
 
 
 def sweep(grid: Any, *, workers: int = 0, client: Any = None, progress: bool = True,
@@ -482,66 +558,101 @@ def sweep(grid: Any, *, workers: int = 0, client: Any = None, progress: bool = T
     case's inputs, then fundamental_hz, f_over_kv, limit_cycle, in_band, drag_number,
     amplitudes, the window (the columns of `drive-emu sweep`).
 
-    `grid`: {key: value or list of values} (every combination), a list of case dicts or a
-    DataFrame; at most MAX_SWEEP_CASES (10^6) cases, counted before any is built. Keys: `preset` (default cnc1), `velocity` (default 20 mm/s, tables 0.026 r/s),
-    `duration` (default 8 s, 2..600), `backlash` (in the preset's unit: backlash_mm or
-    backlash_deg), and any preset key (kv_per_s, load_coulomb_friction_n,
-    motor_encoder_noise_counts, noise_seed, ...).
+    `grid`: {key: value or list of values} (every combination), a list or an iterator of case
+    dicts, or a DataFrame; at most MAX_SWEEP_CASES (10^6) cases. The grid is never built
+    whole: its cases are made a chunk at a time as the runs go. A grid whose size is known
+    (len()) is refused beyond the cap before any case runs; an iterator without len() is
+    refused with ValueError when it yields one case more than the cap (the cases before it
+    have run; nothing is returned). Keys: `preset` (default cnc1), `velocity` (default 20
+    mm/s, tables 0.026 r/s), `duration` (default 8 s, 2..600), `backlash` (in the preset's
+    unit: backlash_mm or backlash_deg), and any preset key (kv_per_s,
+    load_coulomb_friction_n, motor_encoder_noise_counts, noise_seed, ...).
 
     Runs on `workers` threads of this machine (0 = all cores), or, given a
     `dask.distributed.Client` as `client`, on its cluster in chunks of `chunk_size` cases
-    (default: about 8 chunks per worker). `progress`: a tqdm bar. `out`: also write the table
-    to this Parquet file (pyarrow). Ctrl-C stops the sweep (KeyboardInterrupt)."""
+    (default: about 8 chunks per worker, 256 cases where the grid's size is unknown). `progress`: a tqdm bar. `out`: also write
+    the table to this Parquet file (pyarrow). Ctrl-C stops the sweep (KeyboardInterrupt)."""
     try:
         import pandas as pd
     except ImportError as e:
         raise ImportError(f"sweep() returns a pandas DataFrame: {_PIP_HINT}") from e
     if isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 0:
         raise ValueError(f"workers: {workers!r}: a number of threads >= 0 (0 = all cores)")
+    # the size where it is known; a grid beyond the cap is refused here, before any run
+    grid_cases, total = _grid_iter(grid)
+    cases: list = []
+    rows: list = []
     try:
-        cases = _grid_cases(grid)
-        native = [_native_case(i, c) for i, c in enumerate(cases)]
+        if client is None:
+            bar = _bar(total, progress, "sweep")
+            try:
+                def report(n, bar=bar):
+                    bar.update(n - bar.n)
+                for chunk, chunk_rows in _sweep_chunks(grid_cases, total, int(workers),
+                                                       report if bar else None):
+                    cases.extend(chunk)
+                    rows.extend(chunk_rows)
+            finally:
+                if bar is not None:
+                    bar.close()
+        else:
+            _sweep_dask(client, grid_cases, total, progress, chunk_size, cases, rows)
     except KeyboardInterrupt as e:
-        # Ctrl-C while the cases are built (a large grid on a busy machine): none ran.
-        _add_note(e, f"drive_emu.sweep: stopped after 0 of {_grid_size(grid)} runs")
+        # Ctrl-C between two chunks (the native sweep notes one inside a chunk)
+        if not any(str(n).startswith("drive_emu.sweep:") for n in getattr(e, "__notes__", [])):
+            _add_note(e, f"drive_emu.sweep: stopped after {len(rows)} of "
+                         f"{'?' if total is None else total} runs")
         raise
-    if client is None:
-        bar = _bar(len(native), progress, "sweep")
-        try:
-            def report(n, bar=bar):
-                bar.update(n - bar.n)
-            rows = json.loads(_native.sweep(native, int(workers), report if bar else None))
-        finally:
-            if bar is not None:
-                bar.close()
-    else:
-        rows = _sweep_dask(client, native, progress, chunk_size)
     table = pd.DataFrame.from_records(_rows(cases, rows))
     if out is not None:
         table.to_parquet(os.fspath(out), engine="pyarrow", index=False)
     return table
 
 
-def _sweep_dask(client: Any, native: list, progress: bool, chunk_size: Optional[int]) -> list:
+def _sweep_dask(client: Any, grid_cases: Iterator[dict], total: Optional[int], progress: bool,
+                chunk_size: Optional[int], cases: list, rows: list) -> None:
+    """The sweep on a Dask cluster: chunks made from the grid as the cluster takes them (at
+    most two per worker waiting), the rows appended in the grid's order."""
     from distributed import as_completed
+    n_workers = max(1, len(client.scheduler_info().get("workers", {})))
     if chunk_size is None:
-        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-        chunk_size = max(1, math.ceil(len(native) / (8 * n_workers)))
+        chunk_size = (_SWEEP_CHUNK if total is None
+                      else max(1, math.ceil(total / (8 * n_workers))))
     if isinstance(chunk_size, bool) or not isinstance(chunk_size, numbers.Integral) or chunk_size < 1:
         raise ValueError(f"chunk_size: {chunk_size!r}: a number of cases >= 1")
-    chunks = [native[i:i + chunk_size] for i in range(0, len(native), chunk_size)]
-    futures = client.map(_run_chunk, chunks, pure=False)
-    sizes = {f.key: len(c) for f, c in zip(futures, chunks)}
-    bar = _bar(len(native), progress, "sweep (dask)")
+    chunks = _chunks(grid_cases, int(chunk_size))
+    submitted = []  # (future, cases), in the grid's order
+    pending = as_completed()
+    bar = _bar(total, progress, "sweep (dask)")
+
+    def submit() -> bool:
+        nxt = next(chunks, None)
+        if nxt is None:
+            return False
+        first, chunk, native = nxt
+        f = client.submit(_run_chunk, native, first, pure=False)
+        submitted.append((f, chunk))
+        pending.add(f)
+        return True
+
     try:
-        for f in as_completed(futures):
+        for _ in range(2 * n_workers):
+            if not submit():
+                break
+        sizes = {f.key: len(c) for f, c in submitted}
+        for f in pending:
             if bar is not None:
-                bar.update(sizes[f.key])
-        parts = client.gather(futures)
+                bar.update(sizes.get(f.key, 0))
+            if submit():
+                f2, c2 = submitted[-1]
+                sizes[f2.key] = len(c2)
+        parts = client.gather([f for f, _ in submitted])
     except BaseException:
-        client.cancel(futures)
+        client.cancel([f for f, _ in submitted])
         raise
     finally:
         if bar is not None:
             bar.close()
-    return [row for part in parts for row in part]
+    for (_, chunk), part in zip(submitted, parts):
+        cases.extend(chunk)
+        rows.extend(part)
