@@ -44,7 +44,7 @@ const PENDING: &[(&str, &str)] = &[
     ("emulator/src/master/mod.rs", "run_step"),
     ("emulator/src/analysis/ballbar/capture.rs", "from_capture"),
     ("emulator/src/analysis/detector.rs", "analyze"),
-    ("emulator/src/cli/analyze.rs", "analyze_input"),
+    ("emulator/src/api/analyze.rs", "analyze_request"),
     ("emulator/src/cli/run.rs", "run_live"),
     ("emulator/src/report/ballbar.rs", "polar_plot"),
     ("ethercat/src/slave.rs", "add_coe_objects"),

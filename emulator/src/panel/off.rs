@@ -55,10 +55,19 @@ pub struct PanelAxis {
     pub overrides: Vec<(String, String)>,
 }
 
+/// The run's fieldbus (which bus faults the panel would offer).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PanelBus {
+    #[default]
+    Can,
+    Ethercat,
+}
+
 /// What the panel would need to know of the run.
 #[derive(Debug, Clone)]
 pub struct PanelSetup {
     pub axes: Vec<PanelAxis>,
+    pub bus: PanelBus,
     pub iface: Option<String>,
     pub tick_hz: u32,
     pub lockstep: bool,
@@ -94,10 +103,21 @@ impl PanelLoop {
     pub fn on_tick<B: CanBus>(&mut self, _rt: &mut Runtime<FaultyBus<B>, AxisDrive>) {
         match *self {}
     }
+
+    pub fn on_ethercat_cycle(
+        &mut self,
+        _seg: &mut drive_ethercat::Segment,
+        _drives: &mut [AxisDrive],
+        _faults: &mut crate::bus::ethercat::EcatFaults,
+        _now_us: u64,
+    ) {
+        match *self {}
+    }
 }
 
 /// What the panel would need of a live run's options.
 pub struct RunContext<'a> {
+    pub bus: PanelBus,
     pub iface: Option<&'a str>,
     pub node: u8,
     pub lockstep: bool,
