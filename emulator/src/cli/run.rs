@@ -464,6 +464,7 @@ fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
             behaviour: behaviour.map(Arc::new),
         }],
         ballbar: None,
+        contour: None,
     };
     machine::validate(&m)?;
     Ok(m)
@@ -1119,6 +1120,7 @@ fn scenario_machine(args: &RunArgs, s: &Scenario) -> Result<MachineFile> {
             .map(Arc::new),
         }],
         ballbar: None,
+        contour: None,
     })
 }
 
