@@ -43,7 +43,6 @@ unsafe impl GlobalAlloc for Counting {
 static GLOBAL: Counting = Counting;
 
 #[test]
-#[test]
 fn line_interpolation_and_compensation_do_not_allocate() {
     // a square there and back on three axes, a short segment (a triangle) at the end
     let pts = [

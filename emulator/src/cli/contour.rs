@@ -168,9 +168,13 @@ pub fn parse_path(text: &str, names: &[String]) -> anyhow::Result<Vec<[f64; MAX_
         let mut p = *points.last().expect("the start");
         let mut named = [false; MAX_AXES];
         for word in part.split_whitespace() {
+            // the longest axis name the word starts with (names are letters: `Xten` is X and
+            // a bad number, `A5` no axis)
             let name: String = word.chars().take_while(char::is_ascii_alphabetic).collect();
-            let number = &word[name.len()..];
-            let k = names.iter().position(|n| *n == name).with_context(|| {
+            let k = (0..names.len())
+                .filter(|&k| word.starts_with(names[k].as_str()))
+                .max_by_key(|&k| names[k].len());
+            let k = k.with_context(|| {
                 format!(
                     "--path word {} (point {no}): no axis {} (the axes are {})",
                     shown(word),
@@ -182,6 +186,7 @@ pub fn parse_path(text: &str, names: &[String]) -> anyhow::Result<Vec<[f64; MAX_
                     names.join(", ")
                 )
             })?;
+            let number = &word[names[k].len()..];
             let v: f64 = number
                 .parse()
                 .ok()
