@@ -61,14 +61,11 @@ fn measure(names: &[&str], points: &[[f64; 3]], backlash_mm: f64, comp_mm: f64) 
 fn a_line_along_x_leaves_y_at_its_noise() {
     let cfg = AxisConfig::from_preset("cnc1")
         .and_then(|c| {
-            c.with_overrides(
-                [
-                    "backlash_mm=0.05",
-                    "position_from_direct=false",
-                    "load_coulomb_friction_n=150",
-                ]
-                .into_iter(),
-            )
+            c.with_overrides([
+                "backlash_mm=0.05",
+                "position_from_direct=false",
+                "load_coulomb_friction_n=150",
+            ])
         })
         .unwrap();
     let axis = |n: &str| ContourAxis {

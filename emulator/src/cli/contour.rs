@@ -97,7 +97,10 @@ fn names_in(path: &str) -> Vec<String> {
 
 /// The axes: from `--preset`/`--set` (X, Y, and Z where the path names it), or from the
 /// machine file's `[contour]`; and the machine file's acceleration, if any.
-fn axes(args: &ContourArgs) -> anyhow::Result<(Vec<(String, AxisConfig)>, Option<f64>)> {
+/// The axes by name, and the machine file's acceleration (mm/s^2), if any.
+type Axes = (Vec<(String, AxisConfig)>, Option<f64>);
+
+fn axes(args: &ContourArgs) -> anyhow::Result<Axes> {
     match &args.config {
         None => {
             let cfg = AxisConfig::from_preset(&args.preset)

@@ -133,9 +133,8 @@ impl LineProgram {
         if points.len() < 2 || points.len() > MAX_POINTS {
             return Err(PlanError::SegmentCount(points.len().saturating_sub(1)));
         }
-        if !(feed.is_finite() && feed > 0.0 && accel.is_finite() && accel > 0.0)
-            || !(dwell_s.is_finite() && dwell_s >= 0.0)
-        {
+        let rates_ok = feed.is_finite() && feed > 0.0 && accel.is_finite() && accel > 0.0;
+        if !(rates_ok && dwell_s.is_finite() && dwell_s >= 0.0) {
             return Err(PlanError::Rate);
         }
         let mut p = LineProgram {
