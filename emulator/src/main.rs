@@ -25,6 +25,7 @@ fn main() -> ExitCode {
         Command::Run(args) => ok(cli::run::run(&args)),
         Command::Sim(args) => ok(cli::sim::run(&args)),
         Command::Ballbar(args) => ok(cli::ballbar::run(&args)),
+        Command::Contour(args) => ok(cli::contour::run(&args)),
         Command::Sweep(args) => ok(cli::sweep::run(&args)),
         Command::Figures(args) => ok(cli::figures::run(&args)),
         Command::Scenario(args) => cli::scenario::run(&args),

@@ -12,9 +12,9 @@ use clap::Parser;
 use drive_emu::cli::Cli;
 use std::path::{Path, PathBuf};
 
-const SUBCOMMANDS: [&str; 12] = [
-    "demo", "run", "sim", "ballbar", "sweep", "figures", "scenario", "analyze", "eds", "fmu",
-    "presets", "profiles",
+const SUBCOMMANDS: [&str; 13] = [
+    "demo", "run", "sim", "ballbar", "contour", "sweep", "figures", "scenario", "analyze", "eds",
+    "fmu", "presets", "profiles",
 ];
 
 fn repo() -> PathBuf {

@@ -4,6 +4,7 @@
 pub mod analyze;
 pub mod analyze_ballbar;
 pub mod ballbar;
+pub mod contour;
 pub mod demo;
 pub mod demo_panel;
 pub mod eds;
@@ -52,6 +53,9 @@ pub enum Command {
     /// The virtual ballbar (ISO 230-4): a circle both ways on two linear axes, with the
     /// master's backlash compensation; circular deviation, reversal spikes, backlash estimate.
     Ballbar(ballbar::BallbarArgs),
+    /// Straight lines (G1, exact stop) on two or three linear axes through the drives, with
+    /// the master's backlash compensation; contour error, lost motion at reversals, end points.
+    Contour(Box<contour::ContourArgs>),
     /// Sweep k_v x backlash x preset on all cores; one CSV/JSON row per case.
     Sweep(sweep::SweepArgs),
     /// The paper's Fig. 3, 10 and 11 from simulated runs (PNG + JSON).
@@ -82,6 +86,7 @@ impl Command {
             Command::Run(_) => false,
             Command::Sim(_)
             | Command::Ballbar(_)
+            | Command::Contour(_)
             | Command::Sweep(_)
             | Command::Figures(_)
             | Command::Analyze(_)

@@ -464,6 +464,7 @@ fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
             quirk_profile: quirk_profile.map(Arc::new),
         }],
         ballbar: None,
+        contour: None,
     };
     machine::validate(&m)?;
     Ok(m)
@@ -1120,6 +1121,7 @@ fn scenario_machine(args: &RunArgs, s: &Scenario) -> Result<MachineFile> {
             .map(Arc::new),
         }],
         ballbar: None,
+        contour: None,
     })
 }
 

@@ -17,7 +17,9 @@
 //! ```
 //!
 //! An axis may carry a `name = "X"` (unique in the file), and `[ballbar] axes = ["X", "Y"]`
-//! names the two linear axes `drive-emu ballbar --config` runs its circle on (docs/ballbar.md).
+//! names the two linear axes `drive-emu ballbar --config` runs its circle on (docs/ballbar.md);
+//! `[contour] axes = ["X", "Y", "Z"]` (two or three, optional `accel_mm_s2`) those
+//! `drive-emu contour --config` interpolates lines on (docs/contour.md).
 //!
 //! Wear (docs/decisions/0014-healthy-default.md): `drive-emu run` serves a healthy axis (the
 //! preset with no gap in its drive train) unless the axis asks for wear: `worn = true` (the
@@ -45,6 +47,20 @@ pub struct MachineFile {
     /// The plane of `drive-emu ballbar --config`: which two named axes are its X and Y.
     #[serde(default)]
     pub ballbar: Option<BallbarPlane>,
+    /// The axes of `drive-emu contour --config`: two or three named axes, in program order.
+    #[serde(default)]
+    pub contour: Option<ContourAxes>,
+}
+
+/// `[contour] axes = ["X", "Y", "Z"]`: the axes a line program runs on, by the axes' `name`
+/// (letters only: the program's words are a name and a number, `X10`).
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ContourAxes {
+    pub axes: Vec<String>,
+    /// The path acceleration of each segment's feed ramp, mm/s^2 (`--accel-mm-s2` overrides).
+    #[serde(default)]
+    pub accel_mm_s2: Option<f64>,
 }
 
 /// `[ballbar] axes = ["X", "Y"]`: the circle's X and Y by the axes' `name`.
@@ -246,6 +262,40 @@ pub fn validate(m: &MachineFile) -> Result<()> {
             );
         }
     }
+    if let Some(c) = &m.contour {
+        validate_contour(c, &names)?;
+    }
+    Ok(())
+}
+
+/// `[contour]`: two or three distinct named axes with names of letters, a positive finite
+/// acceleration.
+fn validate_contour(c: &ContourAxes, names: &std::collections::BTreeSet<&str>) -> Result<()> {
+    if !(2..=3).contains(&c.axes.len()) {
+        bail!(
+            "key `contour.axes`: {} axes; a line program runs on two or three (e.g. [\"X\", \"Y\"])",
+            c.axes.len()
+        );
+    }
+    for (i, n) in c.axes.iter().enumerate() {
+        if !names.contains(n.as_str()) {
+            bail!("key `contour.axes`: no axis is named {n:?} (give the axes `name = \"X\"`)");
+        }
+        if !n.chars().all(|ch| ch.is_ascii_alphabetic()) {
+            bail!(
+                "key `contour.axes`: {n:?} is not a name of letters (the program's words are a \
+                 name and a number, X10)"
+            );
+        }
+        if c.axes[..i].contains(n) {
+            bail!("key `contour.axes`: {n:?} is named twice");
+        }
+    }
+    if let Some(a) = c.accel_mm_s2 {
+        if !(a.is_finite() && a > 0.0) {
+            bail!("key `contour.accel_mm_s2`: {a} must be a finite acceleration > 0 mm/s^2");
+        }
+    }
     Ok(())
 }
 
@@ -402,6 +452,42 @@ mod tests {
         ] {
             let e = format!("{:#}", parse(text, "m.toml").unwrap_err());
             assert!(e.contains(want), "{e}");
+        }
+    }
+
+    /// The contour's axes: two or three existing, distinct names of letters; a positive
+    /// acceleration; `[ballbar]` and `[contour]` side by side.
+    #[test]
+    fn the_contour_section() {
+        let axes = "[[axis]]\nnode_id = 5\nname = \"X\"\npreset = \"cnc1\"\n\
+                    [[axis]]\nnode_id = 6\nname = \"Y\"\npreset = \"cnc2\"\n\
+                    [[axis]]\nnode_id = 7\nname = \"Z1\"\npreset = \"cnc4\"\n";
+        let m = parse(
+            &format!(
+                "[ballbar]\naxes = [\"X\", \"Y\"]\n[contour]\naxes = [\"Y\", \"X\"]\naccel_mm_s2 = 50.0\n{axes}"
+            ),
+            "m.toml",
+        )
+        .unwrap();
+        let c = m.contour.unwrap();
+        assert_eq!(c.axes, ["Y".to_string(), "X".to_string()]);
+        assert_eq!(c.accel_mm_s2, Some(50.0));
+        for (section, want) in [
+            ("axes = [\"X\"]", "1 axes"),
+            ("axes = [\"X\", \"Y\", \"X\"]", "\"X\" is named twice"),
+            ("axes = [\"X\", \"W\"]", "no axis is named \"W\""),
+            ("axes = [\"X\", \"Z1\"]", "\"Z1\" is not a name of letters"),
+            (
+                "axes = [\"X\", \"Y\"]\naccel_mm_s2 = 0.0",
+                "key `contour.accel_mm_s2`",
+            ),
+            ("axes = [\"X\", \"Y\"]\nfeed = 1", "unknown field `feed`"),
+        ] {
+            let e = format!(
+                "{:#}",
+                parse(&format!("[contour]\n{section}\n{axes}"), "m.toml").unwrap_err()
+            );
+            assert!(e.contains(want), "{section}: {e}");
         }
     }
 

@@ -13,6 +13,7 @@
 
 pub mod compensation;
 pub mod contour;
+pub mod line;
 pub mod on_bus;
 pub mod outer_loop;
 pub mod sdo_client;

@@ -7,6 +7,7 @@
 //! estimate per axis). docs/ballbar.md.
 
 pub mod capture;
+pub mod line;
 pub mod metrics;
 pub mod through_drives;
 

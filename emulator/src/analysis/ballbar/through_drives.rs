@@ -1,4 +1,5 @@
-//! The ballbar's two axes as a CNC drives them: each axis a drive (the CANopen node and the
+//! The ballbar's two axes (and a line contour's two or three, [`super::line`]) as a CNC drives
+//! them: each axis a drive (the CANopen node and the
 //! simulated axis behind it, as `drive-emu run` serves one) on an in-process bus in lock-step,
 //! the master sending one target position per SYNC in the drive's user units (integers, as
 //! on the wire) in cyclic synchronous position mode. The drive's CSP path is therefore the
@@ -20,24 +21,28 @@ use crate::runtime::{AxisSlot, Runtime};
 use drive_protocol::wire::cob;
 use drive_protocol::wire::sdo::{Initiate, Mux, SdoRequest};
 
-/// Node-IDs of the X and Y drives on the in-process bus.
-pub const NODES: [u8; 2] = [1, 2];
+/// Node-IDs of the drives on the in-process bus, in axis order (X, Y, Z).
+pub const NODES: [u8; 3] = [1, 2, 3];
 /// SYNCs at each step of the enable sequence (shutdown, switch on, enable operation).
 const ENABLE_SYNCS: usize = 50;
 /// SYNCs after the circle's end, the axes at rest.
 pub const TAIL_SYNCS: usize = 20;
 
-/// Two drives on an in-process bus, stepped one SYNC at a time.
-pub struct DrivePair {
+/// `N` drives (1..=3) on an in-process bus, stepped one SYNC at a time.
+pub struct Drives<const N: usize> {
     rt: Runtime<InProcEndpoint, AxisDrive>,
     master: InProcEndpoint,
     period_us: u64,
-    /// Drive coordinates of the circle's centre, user units per axis (from where they stand).
-    origin_uu: [f64; 2],
+    /// Drive coordinates of the program's origin (the circle's centre), user units per axis
+    /// (from where they stand).
+    origin_uu: [f64; N],
     /// Metres per user unit, per axis.
-    user_unit_m: [f64; 2],
+    user_unit_m: [f64; N],
     syncs: u64,
 }
+
+/// The ballbar's two drives.
+pub type DrivePair = Drives<2>;
 
 /// An expedited SDO download request, as a master sends it.
 fn sdo_write(node: u8, index: u16, sub: u8, value: &[u8]) -> CanFrame {
@@ -48,13 +53,19 @@ fn sdo_write(node: u8, index: u16, sub: u8, value: &[u8]) -> CanFrame {
     CanFrame::new(cob::SDO_RX + u32::from(node), &req.emit())
 }
 
-impl DrivePair {
-    /// Build, boot and configure the two drives (CSP, the SYNC period `period_us`); the axes
-    /// stand at `start_m` (X, Y), the circle's start point relative to its centre.
-    pub fn new(drives: [AxisDrive; 2], period_us: u64, start_m: [f64; 2]) -> anyhow::Result<Self> {
+impl<const N: usize> Drives<N> {
+    /// Build, boot and configure the drives (CSP, the SYNC period `period_us`); the axes
+    /// stand at `start_m` (X, Y, ...), the program's start point relative to its origin (the
+    /// circle's start point relative to its centre).
+    pub fn new(drives: [AxisDrive; N], period_us: u64, start_m: [f64; N]) -> anyhow::Result<Self> {
         anyhow::ensure!(period_us > 0, "the SYNC period must be positive");
-        let mut slots = Vec::with_capacity(2);
-        let mut user_unit_m = [0.0; 2];
+        anyhow::ensure!(
+            (1..=NODES.len()).contains(&N),
+            "{N} axes: the in-process bus serves 1 to {} drives",
+            NODES.len()
+        );
+        let mut slots = Vec::with_capacity(N);
+        let mut user_unit_m = [0.0; N];
         for (k, mut drive) in drives.into_iter().enumerate() {
             user_unit_m[k] = drive.user_unit;
             let node = crate::drive::node(&mut drive, NODES[k])?;
@@ -64,11 +75,11 @@ impl DrivePair {
         let master = eps.pop().expect("two endpoints");
         let mut rt = Runtime::new(eps.pop().expect("two endpoints"), slots, period_us);
         rt.boot();
-        let mut pair = DrivePair {
+        let mut pair = Drives::<N> {
             rt,
             master,
             period_us,
-            origin_uu: [-start_m[0] / user_unit_m[0], -start_m[1] / user_unit_m[1]],
+            origin_uu: std::array::from_fn(|k| -start_m[k] / user_unit_m[k]),
             user_unit_m,
             syncs: 0,
         };
@@ -84,7 +95,7 @@ impl DrivePair {
             (period_us as u8, -6i8)
         };
         let mut setup = Vec::new();
-        for node in NODES {
+        for &node in &NODES[..N] {
             setup.push(sdo_write(node, 0x60C2, 1, &[period_value]));
             setup.push(sdo_write(node, 0x60C2, 2, &exponent.to_le_bytes()));
             setup.push(sdo_write(node, 0x6060, 0, &[8]));
@@ -113,11 +124,11 @@ impl DrivePair {
         Ok(())
     }
 
-    /// One SYNC period: both set-points (`xy_m` relative to the circle's centre), the SYNC,
-    /// the drives' tick(s); what the drives sent is dropped.
-    pub fn cycle(&mut self, control: u16, xy_m: [f64; 2]) -> anyhow::Result<()> {
-        let mut frames = [CanFrame::new(0x080, &[]); 3];
-        for k in 0..2 {
+    /// One SYNC period: every axis's set-point (`xy_m` relative to the origin), the SYNC, the
+    /// drives' tick(s); what the drives sent is dropped.
+    pub fn cycle(&mut self, control: u16, xy_m: [f64; N]) -> anyhow::Result<()> {
+        let mut frames = [CanFrame::new(0x080, &[]); 4];
+        for k in 0..N {
             let uu = (self.origin_uu[k] + xy_m[k] / self.user_unit_m[k]).round();
             anyhow::ensure!(
                 uu.abs() < f64::from(i32::MAX),
@@ -128,7 +139,9 @@ impl DrivePair {
             d[2..].copy_from_slice(&(uu as i32).to_le_bytes());
             frames[k] = CanFrame::new(0x300 + u32::from(NODES[k]), &d);
         }
-        self.send_all(&frames)?;
+        // the set-points, then the SYNC
+        frames[N] = CanFrame::new(0x080, &[]);
+        self.send_all(&frames[..=N])?;
         self.syncs += 1;
         let end_us = self.syncs * self.period_us;
         let stop = AtomicBool::new(false);
@@ -141,26 +154,25 @@ impl DrivePair {
         Ok(())
     }
 
-    /// The axes' direct encoders, m, relative to the circle's centre.
-    pub fn direct_m(&self) -> [f64; 2] {
+    /// The axes' direct encoders, m, relative to the origin (the circle's centre).
+    pub fn direct_m(&self) -> [f64; N] {
         self.relative(|d| d.servo.direct_encoder_position())
     }
 
-    /// The axes' motor encoders at the load, m, relative to the circle's centre.
-    pub fn motor_m(&self) -> [f64; 2] {
+    /// The axes' motor encoders at the load, m, relative to the origin (the circle's centre).
+    pub fn motor_m(&self) -> [f64; N] {
         self.relative(|d| d.servo.motor_encoder_position())
     }
 
-    /// A position of each axis (m, drive coordinates) relative to the circle's centre.
-    fn relative(&self, position_m: impl Fn(&AxisDrive) -> f64) -> [f64; 2] {
-        [0, 1].map(|k| position_m(&self.rt.axes[k].drive) - self.origin_uu[k] * self.user_unit_m[k])
+    /// A position of each axis (m, drive coordinates) relative to the origin.
+    fn relative(&self, position_m: impl Fn(&AxisDrive) -> f64) -> [f64; N] {
+        std::array::from_fn(|k| {
+            position_m(&self.rt.axes[k].drive) - self.origin_uu[k] * self.user_unit_m[k]
+        })
     }
 
     /// The drives' statuswords (fault bit 3).
-    pub fn statuswords(&self) -> [u16; 2] {
-        [
-            self.rt.axes[0].node.statusword(),
-            self.rt.axes[1].node.statusword(),
-        ]
+    pub fn statuswords(&self) -> [u16; N] {
+        std::array::from_fn(|k| self.rt.axes[k].node.statusword())
     }
 }
