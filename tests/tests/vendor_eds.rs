@@ -27,13 +27,8 @@ fn vendor_files() -> Vec<std::path::PathBuf> {
 /// their placeholders (protocol/src/od/placeholders.rs); here the two Gold DCFs still stop in
 /// python canopen itself: `load_configuration()`'s `pdo.read(from_od=True)` raises a TypeError
 /// on a mapping count the file leaves without a value (vendor_drive.py does not read it from
-/// the drive first, as the host check does). The SimplIQ DCF was not run in user-mode Linux
-/// since: vendor_drive.py writes its rw defaults back first, 0x608F:1 = 1 included.
-const PENDING: [&str; 3] = [
-    "elmo-gold-cob.dcf",
-    "elmo-whistle-gold.dcf",
-    "elmo-simpliq-scanned.dcf",
-];
+/// the drive first, as the host check does). The SimplIQ DCF passes here too.
+const PENDING: [&str; 2] = ["elmo-gold-cob.dcf", "elmo-whistle-gold.dcf"];
 
 #[test]
 fn python_canopen_masters_the_drive_of_every_vendor_file() {
