@@ -72,6 +72,39 @@ pub struct BallbarOutput {
     pub report: BallbarReport,
 }
 
+/// What the output says of each axis, by name: its preset, the master's backlash compensation,
+/// the simulated gap and the encoder its position loop closes on (the ballbar's and the
+/// contour's alike).
+pub(crate) struct AxesFacts {
+    pub presets: BTreeMap<String, String>,
+    pub backlash_comp_mm: BTreeMap<String, f64>,
+    pub backlash_mm: BTreeMap<String, f64>,
+    pub position_loop_encoder: BTreeMap<String, &'static str>,
+}
+
+pub(crate) fn axes_facts(axes: &[crate::analysis::ballbar::BallbarAxis]) -> AxesFacts {
+    let mut f = AxesFacts {
+        presets: BTreeMap::new(),
+        backlash_comp_mm: BTreeMap::new(),
+        backlash_mm: BTreeMap::new(),
+        position_loop_encoder: BTreeMap::new(),
+    };
+    for a in axes {
+        f.presets.insert(a.name.clone(), a.config.name.clone());
+        f.backlash_comp_mm
+            .insert(a.name.clone(), a.backlash_comp_mm);
+        f.backlash_mm
+            .insert(a.name.clone(), a.config.backlash_mm.unwrap_or(0.0));
+        let encoder = if a.config.position_from_direct {
+            "direct"
+        } else {
+            "motor"
+        };
+        f.position_loop_encoder.insert(a.name.clone(), encoder);
+    }
+    f
+}
+
 fn config_err(e: crate::presets::ConfigError) -> anyhow::Error {
     anyhow::anyhow!("invalid configuration: {e}")
 }
@@ -201,30 +234,21 @@ pub fn run(args: &BallbarArgs) -> anyhow::Result<()> {
     if let Some(p) = &args.png {
         crate::report::ballbar::polar_plot(p, &run.trace, &run.report, setup.radius_mm)?;
     }
-    let mut out = BallbarOutput {
-        presets: BTreeMap::new(),
+    let AxesFacts {
+        presets,
+        backlash_comp_mm,
+        backlash_mm,
+        position_loop_encoder,
+    } = axes_facts(&setup.axes);
+    let out = BallbarOutput {
+        presets,
         radius_mm: setup.radius_mm,
         feed_mm_min: setup.feed_mm_per_min,
-        backlash_comp_mm: BTreeMap::new(),
-        backlash_mm: BTreeMap::new(),
-        position_loop_encoder: BTreeMap::new(),
+        backlash_comp_mm,
+        backlash_mm,
+        position_loop_encoder,
         report: run.report,
     };
-    for a in &setup.axes {
-        out.presets.insert(a.name.clone(), a.config.name.clone());
-        out.backlash_comp_mm
-            .insert(a.name.clone(), a.backlash_comp_mm);
-        out.backlash_mm
-            .insert(a.name.clone(), a.config.backlash_mm.unwrap_or(0.0));
-        out.position_loop_encoder.insert(
-            a.name.clone(),
-            if a.config.position_from_direct {
-                "direct"
-            } else {
-                "motor"
-            },
-        );
-    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {

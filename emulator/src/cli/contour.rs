@@ -302,8 +302,14 @@ pub fn run(args: &ContourArgs) -> anyhow::Result<()> {
         w.flush()?;
     }
     let names: Vec<String> = setup.axes.iter().map(|a| a.name.clone()).collect();
-    let mut out = ContourOutput {
-        presets: BTreeMap::new(),
+    let super::ballbar::AxesFacts {
+        presets,
+        backlash_comp_mm,
+        backlash_mm,
+        position_loop_encoder,
+    } = super::ballbar::axes_facts(&setup.axes);
+    let out = ContourOutput {
+        presets,
         feed_mm_min: setup.feed_mm_per_min,
         accel_mm_s2: setup.accel_mm_s2,
         points_mm: setup
@@ -311,26 +317,11 @@ pub fn run(args: &ContourArgs) -> anyhow::Result<()> {
             .iter()
             .map(|p| names.iter().cloned().zip(p.iter().copied()).collect())
             .collect(),
-        backlash_comp_mm: BTreeMap::new(),
-        backlash_mm: BTreeMap::new(),
-        position_loop_encoder: BTreeMap::new(),
+        backlash_comp_mm,
+        backlash_mm,
+        position_loop_encoder,
         report: run.report,
     };
-    for a in &setup.axes {
-        out.presets.insert(a.name.clone(), a.config.name.clone());
-        out.backlash_comp_mm
-            .insert(a.name.clone(), a.backlash_comp_mm);
-        out.backlash_mm
-            .insert(a.name.clone(), a.config.backlash_mm.unwrap_or(0.0));
-        out.position_loop_encoder.insert(
-            a.name.clone(),
-            if a.config.position_from_direct {
-                "direct"
-            } else {
-                "motor"
-            },
-        );
-    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {

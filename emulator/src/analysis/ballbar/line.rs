@@ -13,7 +13,7 @@ use anyhow::Context;
 use crate::drive::axis_drive::AxisDrive;
 use crate::master::compensation::BacklashCompensation;
 use crate::master::line::{LineProgram, DWELL_S, MAX_AXES, MAX_POINTS};
-use crate::presets::{AxisConfig, AxisKind, MAX_BACKLASH_M};
+use crate::presets::{AxisKind, MAX_BACKLASH_M};
 
 use super::max_axis_speed_mm_per_s;
 use super::through_drives::Drives;
@@ -31,15 +31,9 @@ pub const MAX_DURATION_S: f64 = 600.0;
 /// Position cycles between two looks at the stop flag.
 const STOP_CHECK_CYCLES: usize = 1024;
 
-/// One axis of the program.
-#[derive(Clone, Debug)]
-pub struct ContourAxis {
-    /// Its name in the program and the report (X, Y, Z or the machine file's).
-    pub name: String,
-    pub config: AxisConfig,
-    /// The master's backlash compensation on this axis, mm (0 = none).
-    pub backlash_comp_mm: f64,
-}
+/// One axis of the program: as one of the ballbar's (its name in the program and the report,
+/// its configuration, the master's backlash compensation on it).
+pub type ContourAxis = super::BallbarAxis;
 
 /// What to run.
 #[derive(Clone, Debug)]
