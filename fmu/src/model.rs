@@ -84,6 +84,13 @@ pub fn axis_unit(cfg: &AxisConfig) -> (&'static str, f64) {
 /// The model's variables for an axis configuration: inputs, outputs, then every numeric
 /// preset key of the registry that this kind of axis takes, with its value as start.
 pub fn variables(cfg: &AxisConfig) -> Vec<Variable> {
+    let mut v = io_variables(cfg);
+    push_parameters(cfg, &mut v);
+    v
+}
+
+/// The inputs, the outputs and the `velocity_control` switch, in value-reference order.
+fn io_variables(cfg: &AxisConfig) -> Vec<Variable> {
     let (u, _) = axis_unit(cfg);
     let speed_unit: &'static str = if u == "mm" { "mm/s" } else { "deg/s" };
     let var = |vr, name: String, unit, causality, description: &str| Variable {
@@ -95,7 +102,7 @@ pub fn variables(cfg: &AxisConfig) -> Vec<Variable> {
         start: 0.0,
         description: description.to_string(),
     };
-    let mut v = vec![
+    vec![
         var(
             VR_POSITION_SETPOINT,
             format!("position_setpoint_{u}"),
@@ -180,7 +187,12 @@ pub fn variables(cfg: &AxisConfig) -> Vec<Variable> {
             start: 0.0,
             description: "true: the velocity input is the set-point (speed loop only)".into(),
         },
-    ];
+    ]
+}
+
+/// Every real-valued preset key of the registry that `cfg` has and its kind of axis takes, a
+/// parameter with the configuration's value as start.
+fn push_parameters(cfg: &AxisConfig, v: &mut Vec<Variable>) {
     let table = toml::Table::try_from(cfg).unwrap_or_default();
     let rotary = cfg.kind == AxisKind::Rotary;
     let mut vr = VR_PARAM;
@@ -204,7 +216,6 @@ pub fn variables(cfg: &AxisConfig) -> Vec<Variable> {
         });
         vr += 1;
     }
-    v
 }
 
 /// Where an instance is in the FMI 2.0 co-simulation state machine.

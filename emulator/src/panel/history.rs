@@ -9,10 +9,16 @@
 //! very ones sent live (shared, not copied), so a client reads the past as it would have read
 //! it then.
 
-use super::server::Message;
-use super::stream::PERIOD_MS;
+use super::rate::PERIOD_MS;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
+
+/// One message of the stream: its type (the SSE event name) and its JSON text.
+#[derive(Debug)]
+pub struct Message {
+    pub kind: &'static str,
+    pub json: String,
+}
 
 /// Seconds of `samples` kept for a client that connects (the page's longest span).
 pub const HISTORY_S: u64 = 60;

@@ -22,6 +22,7 @@ pub mod assets;
 pub mod auth;
 pub mod control;
 pub mod history;
+pub mod rate;
 pub mod record;
 pub mod server;
 pub mod stream;
@@ -456,7 +457,7 @@ impl Panel {
         if let Some(t) = self.server.take() {
             let _ = t.join();
         }
-        record::finish_active(&self.shared);
+        self.shared.finish_recording();
         self.shared.record_dir.remove_if_empty();
     }
 

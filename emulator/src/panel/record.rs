@@ -13,7 +13,6 @@
 //! [`RecordLimits::max_recordings`] recordings of at most [`RecordLimits::max_bytes`] each:
 //! one that reaches its cap stops writing and says so.
 
-use super::server::Shared;
 use crate::bus::CanBus;
 use crate::samples::Sample;
 use std::fs::File;
@@ -524,20 +523,6 @@ pub fn open_served(path: &Path) -> std::io::Result<(File, u64)> {
         ));
     }
     Ok((f, m.len()))
-}
-
-/// Finish a recording still running when the panel stops.
-pub fn finish_active(shared: &Shared) {
-    let active = shared.record.lock().ok().and_then(|mut r| r.active.take());
-    if let Some(r) = active {
-        let (names, _) = r.finish();
-        for n in names {
-            eprintln!(
-                "drive-emu: panel: recording written: {}",
-                shared.record_dir.path.join(n).display()
-            );
-        }
-    }
 }
 
 #[cfg(test)]

@@ -17,6 +17,7 @@
 use super::auth::{offered, Auth};
 use super::control::{self, Controls, Session, SessionEvent, MAX_SESSION_EVENTS};
 use super::history::History;
+pub use super::history::Message;
 use super::record::{self, RecordState};
 use super::{assets, PanelSetup};
 use crate::observe::Observation;
@@ -48,13 +49,6 @@ pub const MAX_CLIENTS: usize = 64;
 pub const CLIENT_BACKLOG: usize = 256;
 /// How long an injection request waits for the loop to apply it before answering "queued".
 const APPLY_WAIT: Duration = Duration::from_secs(1);
-
-/// One message of the stream: its type (the SSE event name) and its JSON text.
-#[derive(Debug)]
-pub struct Message {
-    pub kind: &'static str,
-    pub json: String,
-}
 
 /// A stream client, as the client table lists it.
 #[derive(Debug, Clone)]
@@ -123,6 +117,20 @@ impl Shared {
         }
     }
 
+    /// Finish a recording still running when the panel stops.
+    pub fn finish_recording(&self) {
+        let active = self.record.lock().ok().and_then(|mut r| r.active.take());
+        if let Some(r) = active {
+            let (names, _) = r.finish();
+            for n in names {
+                eprintln!(
+                    "drive-emu: panel: recording written: {}",
+                    self.record_dir.path.join(n).display()
+                );
+            }
+        }
+    }
+
     pub fn client_count(&self) -> usize {
         self.clients.lock().map_or(0, |c| c.len())
     }
@@ -162,8 +170,8 @@ impl Shared {
             "bus": s.bus.key(),
             "tick_hz": s.tick_hz,
             "lockstep": s.lockstep,
-            "stream_period_ms": super::stream::PERIOD_MS,
-            "samples_per_s": super::stream::stream_rate_hz(s.tick_hz),
+            "stream_period_ms": super::rate::PERIOD_MS,
+            "samples_per_s": super::rate::stream_rate_hz(s.tick_hz),
             "token_required": self.auth.required(),
             "axes": s.axes.iter().enumerate().map(|(i, a)| {
                 let rotary = a.config.kind == crate::presets::AxisKind::Rotary;

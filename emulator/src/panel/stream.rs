@@ -7,6 +7,7 @@
 //! client; `emcy` at once, `injection` when the loop has applied one, `stats` (0x2100) twice a
 //! second, `spectrum` (with the detector's verdict) once a second per axis.
 
+pub use super::rate::{decimation, stream_rate_hz, MAX_STREAM_HZ, PERIOD_MS};
 use super::server::Shared;
 use crate::analysis::detector::{analyze, AxisTrace, DetectorConfig};
 use crate::analysis::spectrum::SpectrumAnalyzer;
@@ -21,26 +22,12 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// The collector's period, ms: 25 `samples` messages a second.
-pub const PERIOD_MS: u64 = 40;
-/// Most samples per second and axis in the stream (the recording has every tick).
-pub const MAX_STREAM_HZ: u32 = 500;
 /// Seconds of samples the detector looks at.
 pub const DETECTOR_WINDOW_S: f64 = 8.0;
 /// Seconds of speed the spectrum is taken over (rounded down to a power of two of ticks).
 pub const SPECTRUM_WINDOW_S: f64 = 4.0;
 /// Axes whose spectrum and verdict are refreshed per second (round robin beyond).
 const ANALYSES_PER_S: usize = 8;
-
-/// Samples per second and axis the stream carries at `tick_hz`.
-pub fn stream_rate_hz(tick_hz: u32) -> f64 {
-    f64::from(tick_hz) / f64::from(decimation(tick_hz))
-}
-
-/// Every how many ticks the stream takes one.
-pub fn decimation(tick_hz: u32) -> u32 {
-    tick_hz.div_ceil(MAX_STREAM_HZ).max(1)
-}
 
 fn r(x: f64, digits: i32) -> f64 {
     let k = 10f64.powi(digits);
