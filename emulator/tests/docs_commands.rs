@@ -86,6 +86,8 @@ fn words(s: &str) -> Option<Vec<String>> {
 /// The arguments after `drive-emu` in one shell command line, if it runs drive-emu.
 fn command_args(line: &str) -> Option<String> {
     let line = line.trim().trim_start_matches("$ ");
+    // a command sent to the background ends at its `&`
+    let line = line.strip_suffix(" &").unwrap_or(line);
     // the command ends at a pipe, a redirection, a list or a comment
     let end = [
         " | ", " > ", " 2>", " >>", " && ", " ; ", " # ", " & ", " || ",
@@ -145,6 +147,18 @@ fn commands(text: &str) -> Vec<(usize, String, Found)> {
                 }
             }
             Some(_) => {}
+            // an indented code block (four spaces or a tab) whose line starts a command, or
+            // continues one with `\`: checked whole, as a fenced block is
+            None if is_indented_command(raw) || pending.is_some() => {
+                let (start, mut joined) = pending.take().unwrap_or((i + 1, String::new()));
+                joined.push_str(raw.trim_end().trim_end_matches('\\'));
+                joined.push(' ');
+                if raw.trim_end().ends_with('\\') {
+                    pending = Some((start, joined));
+                } else if let Some(args) = command_args(&joined) {
+                    out.push((start, args, Found::Block));
+                }
+            }
             None => {
                 // inline code spans: `drive-emu SUBCOMMAND ...`
                 for (k, span) in raw.split('`').enumerate() {
@@ -158,6 +172,16 @@ fn commands(text: &str) -> Vec<(usize, String, Found)> {
         }
     }
     out
+}
+
+/// A line of an indented code block that starts a drive-emu command (prose in a list item
+/// is indented too, but does not start with the program's name or a prompt).
+fn is_indented_command(raw: &str) -> bool {
+    let t = raw.trim_start();
+    (raw.starts_with("    ") || raw.starts_with('\t'))
+        && ["drive-emu ", "$ ", "./target/", "cargo run "]
+            .iter()
+            .any(|f| t.starts_with(f))
 }
 
 /// A synopsis, not a command: placeholders the program cannot take.
@@ -239,6 +263,11 @@ echo drive-emu-not-this
 ```toml
 preset = \"drive-emu run\"
 ```
+
+    drive-emu ballbar --preset cnc1 \\
+        --radius-mm 50
+- a list item whose next line is indented prose:
+    drive-emu is named here, not run
 ";
     let found = commands(page);
     let args: Vec<&str> = found.iter().map(|(_, a, _)| a.trim()).collect();
@@ -248,7 +277,8 @@ preset = \"drive-emu run\"
             "sim --preset cnc1 --velocity 10",
             "run --iface vcan0      --preset cnc2",
             "eds --node 5",
-            "demo --velocity 5"
+            "demo --velocity 5",
+            "ballbar --preset cnc1          --radius-mm 50"
         ]
     );
     assert_eq!(found[1].0, 4);
