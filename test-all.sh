@@ -176,7 +176,12 @@ t=$(now); low_rc=0
 if [[ $emu_ok == 1 ]]; then
     (
         set -e
-        python3 -m pip wheel -q --disable-pip-version-check --no-deps -w "$tmp/wheel" ./python/drive-emu
+        # the wheel .ci/run built and installed (DRIVE_EMU_WHEEL), else built here
+        if [[ -n ${DRIVE_EMU_WHEEL:-} && -f $DRIVE_EMU_WHEEL ]]; then
+            mkdir -p "$tmp/wheel" && cp "$DRIVE_EMU_WHEEL" "$tmp/wheel/"
+        else
+            python3 -m pip wheel -q --disable-pip-version-check --no-deps -w "$tmp/wheel" ./python/drive-emu
+        fi
         python3 -m venv "$tmp/lowest"
         "$tmp/lowest/bin/pip" install -q --disable-pip-version-check \
             -r python/lowest.txt -r python/drive-emu/lowest.txt ./python
