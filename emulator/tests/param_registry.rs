@@ -345,3 +345,196 @@ fn a_live_parameter_at_either_end_of_its_range_gives_a_finite_short_sim() {
     }
     assert!(runs >= 30, "{runs} runs");
 }
+
+/// `v` as a preset file and `--set` write it: an integer for the integer-typed keys.
+fn preset_text(key: &str, v: f64) -> String {
+    let integer = matches!(
+        key,
+        "motor_encoder_counts_per_rev" | "direct_encoder_counts_per_rev" | "noise_seed"
+    );
+    if integer {
+        format!("{}", v.round() as i128)
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// An integer key's value just outside an integer bound is the next integer.
+fn preset_just_outside(key: &str, bound: f64, above: bool) -> f64 {
+    match (preset_text(key, 1.5).as_str(), above) {
+        ("2", true) => bound + 1.0,
+        ("2", false) => bound - 1.0,
+        _ => just_outside(bound, above),
+    }
+}
+
+/// The presets whose kinds of axis and transmissions between them spell every preset key:
+/// a lead screw (cnc1), a rotary gear-wheel table (cnc3), a rack and pinion (cnc4).
+const KINDS: [&str; 3] = ["cnc1", "cnc3", "cnc4"];
+
+/// Issue 32: every preset-only parameter (a key of the preset and machine files and `--set`
+/// with no running form) has a registry range, and it is checked where the key enters: a value
+/// just outside is refused naming the key by `--set` (`AxisConfig::with_override`: `sim`,
+/// `run`, `sweep`, Python) and by a preset file (`AxisConfig::from_toml`); each end is taken,
+/// or refused by another check that names the key (a cross-check with other keys, e.g. the
+/// physics step against the stiffness), never by the range itself. Returns the configurations
+/// taken at an end.
+fn preset_only_ends_accepted() -> Vec<(String, String)> {
+    let mut fails: Vec<String> = vec![];
+    let mut taken = vec![];
+    let mut keys = BTreeSet::new();
+    for name in KINDS {
+        let cfg = AxisConfig::from_preset(name).unwrap();
+        let rotary = cfg.kind == AxisKind::Rotary;
+        let table = toml::Table::try_from(&cfg).unwrap();
+        for p in PARAMS.iter().filter(|p| p.preset && p.live.is_none()) {
+            let form = p.form(rotary);
+            if !form.applies_to(rotary) || cfg.preset_only_value(form.key).is_none() {
+                continue;
+            }
+            keys.insert(form.key);
+            let (lo, hi) = (form.min, form.max);
+            let what = |v: f64| format!("{name}: {} = {v:e} (range {lo:e} ..= {hi:e})", form.key);
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                fails.push(format!("{name}: {}: no registry range", form.key));
+                continue;
+            }
+            let file = |text: &str| {
+                let mut t = table.clone();
+                let v: toml::Value = toml::from_str::<toml::Table>(&format!("v = {text}"))
+                    .unwrap()
+                    .remove("v")
+                    .unwrap();
+                t.insert(form.key.to_string(), v);
+                AxisConfig::from_toml(&toml::to_string(&t).unwrap())
+            };
+            // u64::MAX as a float is above every u64: no bound a file can cross.
+            let outside = [
+                Some(preset_just_outside(form.key, lo, false)),
+                (hi < u64::MAX as f64).then(|| preset_just_outside(form.key, hi, true)),
+            ];
+            for v in outside.into_iter().flatten() {
+                let text = preset_text(form.key, v);
+                match cfg.with_override(form.key, &text) {
+                    Ok(_) => fails.push(format!("{}: --set took it", what(v))),
+                    Err(e) if e.key != form.key => fails.push(format!("{}: --set: {e}", what(v))),
+                    Err(_) => {}
+                }
+                match file(&text) {
+                    Ok(_) => fails.push(format!("{}: a preset file took it", what(v))),
+                    Err(e) if e.key != form.key => fails.push(format!("{}: file: {e}", what(v))),
+                    Err(_) => {}
+                }
+            }
+            for v in [lo, hi] {
+                let text = preset_text(form.key, v);
+                match cfg.with_override(form.key, &text) {
+                    Ok(_) => taken.push((name.to_string(), format!("{}={text}", form.key))),
+                    Err(e) if e.key == form.key && e.reason.contains("must be within") => {
+                        fails.push(format!("{}: its own range refused the end: {e}", what(v)))
+                    }
+                    // Refused by a cross-check with the preset's other keys.
+                    Err(_) => {}
+                }
+            }
+        }
+    }
+    // Every preset-only key of the registry was walked on some preset.
+    for p in PARAMS.iter().filter(|p| p.preset && p.live.is_none()) {
+        for f in p.forms() {
+            if !keys.contains(f.key) {
+                fails.push(format!("{}: on none of {KINDS:?}", f.key));
+            }
+        }
+    }
+    assert!(fails.is_empty(), "{}:\n{}", fails.len(), fails.join("\n"));
+    taken
+}
+
+/// Issue 32: each preset-only parameter at either end of its registry range, where the preset
+/// takes it, gives a short `sim` run that ends with finite samples (no NaN, no divergence, no
+/// run without end: the physics step is at least 1 µs).
+#[test]
+fn a_preset_only_parameter_is_refused_outside_its_range_and_runs_finite_at_either_end() {
+    use clap::Parser;
+    use drive_emu::cli::sim::{simulate, SimArgs};
+    #[derive(Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        sim: SimArgs,
+    }
+    let taken = preset_only_ends_accepted();
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let mut fails = vec![];
+    for (name, set) in &taken {
+        let args = Wrap::parse_from(["sim", "--velocity", "1", "--preset", name, "--set", set]).sim;
+        let args = SimArgs {
+            duration: 0.05,
+            ..args
+        };
+        match simulate(&args, false, &stop) {
+            Ok(r) => {
+                if !r.trace.motor_velocity_rpm.iter().all(|x| x.is_finite()) {
+                    fails.push(format!("{name}: sim --set {set}: a non-finite sample"));
+                }
+            }
+            Err(e) => fails.push(format!("{name}: sim --set {set}: {e:#}")),
+        }
+    }
+    assert!(fails.is_empty(), "{} of {}:\n{}", fails.len(), taken.len(), fails.join("\n"));
+    assert!(taken.len() >= 40, "{} runs", taken.len());
+}
+
+/// Issue 32: demo's flags that set a registry parameter (`--backlash`) are checked against the
+/// registry's range of the preset's spelling, on a linear and a rotary preset: a value just
+/// outside is a usage error (exit status 2, as `--set` gives) naming the flag, the range and
+/// the key; each end is taken.
+#[test]
+fn demo_flags_are_checked_against_the_registry_ranges() {
+    use clap::Parser;
+    use drive_emu::cli::demo::{validate, DemoArgs, REGISTRY_FLAGS};
+    use drive_emu::cli::exit::{code_of, USAGE};
+    #[derive(Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        demo: DemoArgs,
+    }
+    let mut fails = vec![];
+    let mut checked = 0;
+    for name in ["cnc1", "cnc3"] {
+        let rotary = AxisConfig::from_preset(name).unwrap().kind == AxisKind::Rotary;
+        for &(flag, param, _) in REGISTRY_FLAGS {
+            let form = drive_physics::params::of_live(param).form(rotary);
+            let (lo, hi) = (form.min, form.max);
+            assert!(lo.is_finite() && hi.is_finite(), "{flag}: no registry range");
+            let args = |v: f64| {
+                Wrap::parse_from(["demo", "--preset", name, flag, &v.to_string()]).demo
+            };
+            for v in [just_outside(lo, false), just_outside(hi, true), f64::NAN] {
+                checked += 1;
+                match validate(&args(v)) {
+                    Ok(()) => fails.push(format!("{name}: {flag} {v} taken")),
+                    Err(e) => {
+                        let m = format!("{e:#}");
+                        let range = format!("{lo} ..= {hi} {}", form.unit);
+                        if !(m.starts_with(&format!("{flag} ")) && m.contains(&range))
+                            || !m.contains(form.key)
+                        {
+                            fails.push(format!("{name}: {flag} {v}: `{range}` or key: {m}"));
+                        }
+                        if code_of(&e) != USAGE {
+                            fails.push(format!("{name}: {flag} {v}: exit {}: {m}", code_of(&e)));
+                        }
+                    }
+                }
+            }
+            for v in [lo, hi] {
+                if let Err(e) = validate(&args(v)) {
+                    fails.push(format!("{name}: {flag} {v} (an end) refused: {e:#}"));
+                }
+            }
+        }
+    }
+    assert!(fails.is_empty(), "{}:\n{}", fails.len(), fails.join("\n"));
+    assert!(checked >= 6);
+}

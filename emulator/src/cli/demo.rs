@@ -18,6 +18,7 @@ use crate::session::OfflineRun;
 use crate::time::MonotonicClock;
 use anyhow::{bail, Result};
 use clap::Args;
+use drive_physics::params::AxisParam;
 use drive_protocol::Cia402State;
 use std::sync::atomic::AtomicBool;
 
@@ -60,38 +61,60 @@ const BUS_TIMEOUT_US: u64 = 30_000_000;
 /// Wall-clock bound of one run on a real bus, us.
 const BUS_WALL_LIMIT_US: u64 = 600_000_000;
 
-/// Check the numeric flags before anything runs.
-fn validate(args: &DemoArgs) -> Result<()> {
-    let cfg =
-        AxisConfig::from_preset(&args.preset).map_err(|e| anyhow::anyhow!("--preset: {e}"))?;
+/// The demo's flags that set a registry parameter (`drive_physics::params`), in the
+/// spelling of the preset's kind of axis (`--backlash`: `backlash_mm` or `backlash_deg`):
+/// each is checked against that spelling's registry range, as `--set` and the preset files
+/// are. With each, what its error adds.
+pub const REGISTRY_FLAGS: &[(&str, AxisParam, &str)] = &[(
+    "--backlash",
+    AxisParam::Backlash,
+    "a worn drive train shows 0.01-0.1 mm; the drive's 0x2000 accepts no more",
+)];
+
+/// The value of a [`REGISTRY_FLAGS`] flag.
+fn registry_flag_value(args: &DemoArgs, flag: &str) -> Option<f64> {
+    match flag {
+        "--backlash" => Some(args.backlash),
+        _ => None,
+    }
+}
+
+/// Check the numeric flags before anything runs; a value out of range is a usage error
+/// (exit status 2, as `--set` gives) naming the flag, its range and unit.
+pub fn validate(args: &DemoArgs) -> Result<()> {
+    let usage = super::exit::usage_msg;
+    let cfg = AxisConfig::from_preset(&args.preset).map_err(|e| usage(format!("--preset: {e}")))?;
     let rotary = cfg.kind == crate::presets::AxisKind::Rotary;
-    let (max_gap, unit) = if rotary {
-        (crate::presets::MAX_BACKLASH_RAD.to_degrees(), "deg")
-    } else {
-        (crate::presets::MAX_BACKLASH_M * 1e3, "mm")
-    };
-    anyhow::ensure!(
-        args.backlash.is_finite() && (0.0..=max_gap).contains(&args.backlash),
-        "--backlash {}: must be within 0..={max_gap} {unit} (a worn drive train shows 0.01-0.1 \
-         mm; the drive's 0x2000 accepts no more)",
-        args.backlash
-    );
+    let unit = if rotary { "deg" } else { "mm" };
+    for &(flag, param, why) in REGISTRY_FLAGS {
+        let form = drive_physics::params::of_live(param).form(rotary);
+        let v = registry_flag_value(args, flag)
+            .ok_or_else(|| anyhow::anyhow!("internal: demo flag {flag} has no value"))?;
+        form.check(v).map_err(|reason| {
+            usage(format!(
+                "{flag} {v}: {reason} (the range of `{}`: {why})",
+                form.key
+            ))
+        })?;
+    }
     // The constant-speed segment must stay below the motor's maximum speed.
-    let built = cfg.build().map_err(|e| anyhow::anyhow!("--preset: {e}"))?;
+    let built = cfg.build().map_err(|e| usage(format!("--preset: {e}")))?;
     let per_unit = if rotary { 1f64.to_radians() } else { 1e-3 };
     let v_max = built.axis.motor.max_speed / built.axis.mech.ratio / per_unit;
-    anyhow::ensure!(
-        args.velocity.is_finite() && args.velocity != 0.0 && args.velocity.abs() <= v_max,
-        "--velocity {}: must be non-zero and within -{v_max:.1}..={v_max:.1} {unit}/s (the \
-         motor's maximum speed on this preset)",
-        args.velocity
-    );
-    anyhow::ensure!(
-        args.cruise_s.is_finite() && args.cruise_s >= 1.0 && args.cruise_s <= 600.0,
-        "--cruise-s {}: must be within 1..=600 s (the analysis needs at least 1 s of constant \
-         speed; the master keeps every sample in memory)",
-        args.cruise_s
-    );
+    if !(args.velocity.is_finite() && args.velocity != 0.0 && args.velocity.abs() <= v_max) {
+        return Err(usage(format!(
+            "--velocity {}: must be non-zero and within -{v_max:.1}..={v_max:.1} {unit}/s (the \
+             motor's maximum speed on this preset)",
+            args.velocity
+        )));
+    }
+    if !(args.cruise_s.is_finite() && args.cruise_s >= 1.0 && args.cruise_s <= 600.0) {
+        return Err(usage(format!(
+            "--cruise-s {}: must be within 1..=600 s (the analysis needs at least 1 s of \
+             constant speed; the master keeps every sample in memory)",
+            args.cruise_s
+        )));
+    }
     Ok(())
 }
 

@@ -103,6 +103,7 @@ impl AxisConfig {
         self.check_physics_step(&mech, step)?;
         check_stiffness_holds_peak_force(&units, &mech, &motor)?;
         self.check_live_ranges(&units, &mech, &motor, &control)?;
+        self.check_registry_ranges()?;
         Ok(BuiltConfig {
             axis: AxisParams {
                 mech,
@@ -737,6 +738,24 @@ impl AxisConfig {
                     compact(control.speed_ti * 1e3)
                 ),
             ));
+        }
+        Ok(())
+    }
+}
+
+impl AxisConfig {
+    /// Every preset-only parameter within its registry range (`params::Form::check`), after
+    /// the stages' own checks (which say more about a value that is wrong in kind, a
+    /// negative mass say): the range keeps an accepted value from giving NaN or a run that
+    /// cannot end (emulator/tests/param_registry.rs runs each end).
+    fn check_registry_ranges(&self) -> Result<(), ConfigError> {
+        let preset_only = crate::params::PARAMS
+            .iter()
+            .filter(|p| p.preset && p.live.is_none());
+        for form in preset_only.flat_map(|p| p.forms()) {
+            if let Some(v) = self.preset_only_value(form.key) {
+                form.check(v).map_err(|r| ConfigError::new(form.key, r))?;
+            }
         }
         Ok(())
     }

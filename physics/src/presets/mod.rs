@@ -306,6 +306,48 @@ impl AxisConfig {
     }
 }
 
+impl AxisConfig {
+    /// The value this configuration holds for a preset-only registry key (one with no
+    /// running form: `live` is `None`), integers as numbers; `None` where the key is unset
+    /// (an optional key, or one of the other kind of axis) or is not a preset-only key.
+    /// What [`AxisConfig::build`] checks against the registry's range.
+    pub fn preset_only_value(&self, key: &str) -> Option<f64> {
+        Some(match key {
+            "pitch_mm" => self.pitch_mm?,
+            "pinion_diameter_mm" => self.pinion_diameter_mm?,
+            "gear_ratio" => self.gear_ratio,
+            "carriage_mass_kg" => self.carriage_mass_kg?,
+            "table_inertia_kgm2" => self.table_inertia_kgm2?,
+            "counterbalance_fraction" => self.counterbalance_fraction,
+            "damping_ratio" => self.damping_ratio,
+            "load_static_friction_ratio" => self.load_static_friction_ratio?,
+            "stribeck_velocity_mm_per_s" => self.stribeck_velocity_mm_per_s?,
+            "stribeck_velocity_deg_per_s" => self.stribeck_velocity_deg_per_s?,
+            "motor_inertia_kgm2" => self.motor_inertia_kgm2,
+            "torque_constant_nm_per_a" => self.torque_constant_nm_per_a,
+            "rated_torque_nm" => self.rated_torque_nm,
+            "rated_current_a" => self.rated_current_a,
+            "max_current_a" => self.max_current_a,
+            "max_speed_rpm" => self.max_speed_rpm,
+            "motor_thermal_time_constant_s" => self.motor_thermal_time_constant_s,
+            "current_bandwidth_hz" => self.current_bandwidth_hz,
+            "motor_viscous_friction_nm_per_rad_per_s" => {
+                self.motor_viscous_friction_nm_per_rad_per_s
+            }
+            "motor_encoder_counts_per_rev" => self.motor_encoder_counts_per_rev as f64,
+            "direct_encoder_resolution_nm" => self.direct_encoder_resolution_nm?,
+            "direct_encoder_counts_per_rev" => self.direct_encoder_counts_per_rev? as f64,
+            "direct_encoder_noise_counts" => self.direct_encoder_noise_counts,
+            "noise_seed" => self.noise_seed as f64,
+            "speed_filter_ms" => self.speed_filter_ms,
+            "physics_step_us" => self.physics_step_us,
+            "speed_cycle_us" => self.speed_cycle_us,
+            "position_cycle_us" => self.position_cycle_us,
+            _ => return None,
+        })
+    }
+}
+
 fn finite(key: &str, v: f64) -> Result<f64, ConfigError> {
     if v.is_finite() {
         Ok(v)
