@@ -83,6 +83,10 @@ impl AxisConfig {
 
     /// Validate and convert to SI parameters.
     pub fn build(&self) -> Result<BuiltConfig, ConfigError> {
+        // First: a value outside its registry range is refused under its own key, before a
+        // cross-check with other keys (the physics step against the stiffness, say) could
+        // refuse it under theirs.
+        self.check_registry_ranges()?;
         let units = KindUnits::of(self.kind);
         let ratio = self.read_kinematic_ratio()?;
         let load = self.read_load(&units)?;
@@ -103,7 +107,6 @@ impl AxisConfig {
         self.check_physics_step(&mech, step)?;
         check_stiffness_holds_peak_force(&units, &mech, &motor)?;
         self.check_live_ranges(&units, &mech, &motor, &control)?;
-        self.check_registry_ranges()?;
         Ok(BuiltConfig {
             axis: AxisParams {
                 mech,
@@ -744,10 +747,10 @@ impl AxisConfig {
 }
 
 impl AxisConfig {
-    /// Every preset-only parameter within its registry range (`params::Form::check`), after
-    /// the stages' own checks (which say more about a value that is wrong in kind, a
-    /// negative mass say): the range keeps an accepted value from giving NaN or a run that
-    /// cannot end (emulator/tests/param_registry.rs runs each end).
+    /// Every preset-only parameter within its registry range (`params::Form::check`): the
+    /// range keeps an accepted value from giving NaN or a run that cannot end
+    /// (emulator/tests/param_registry.rs runs each end). Checked before the stages' own
+    /// checks, so a value outside is refused naming its own key and range with its unit.
     fn check_registry_ranges(&self) -> Result<(), ConfigError> {
         let preset_only = crate::params::PARAMS
             .iter()

@@ -244,7 +244,7 @@ fn pick(
 impl AxisConfig {
     /// Parse a preset file's text (unknown keys are rejected) and validate it.
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
-        let cfg: AxisConfig = toml::from_str(text).map_err(parse_error)?;
+        let cfg: AxisConfig = toml::from_str(text).map_err(|e| parse_error_in(text, e))?;
         cfg.build()?;
         Ok(cfg)
     }
@@ -396,6 +396,32 @@ fn did_you_mean_key(key: &str) -> String {
 }
 
 /// Turn a serde/toml error into a key + reason.
+/// [`parse_error`] of a file's `text`: a value of the wrong type or out of its type's range
+/// (`noise_seed = -1`: "invalid value: integer `-1`, expected u64") is named by the key
+/// written before it on its line, not by the value the message quotes first.
+fn parse_error_in(text: &str, e: toml::de::Error) -> ConfigError {
+    let key_at = e.span().and_then(|span| {
+        let start = text.get(..span.start)?.rfind('\n').map_or(0, |i| i + 1);
+        let line = text.get(start..)?.lines().next()?;
+        let (key, _) = line.split_once('=')?;
+        let key = key.trim().trim_matches('"');
+        let plain = !key.is_empty()
+            && key
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+        plain.then(|| key.to_string())
+    });
+    let msg = e.message();
+    let named = msg.starts_with("unknown field") || msg.starts_with("missing field");
+    match key_at {
+        Some(key) if !named => ConfigError {
+            key,
+            ..parse_error(e)
+        },
+        _ => parse_error(e),
+    }
+}
+
 fn parse_error(e: toml::de::Error) -> ConfigError {
     let msg = e.message().to_string();
     // "unknown field `foo`, expected one of ..." / "missing field `bar`"
