@@ -568,8 +568,9 @@ fn demo_flags_are_checked_against_the_registry_ranges() {
                         Ok(()) => fails.push(format!("{name}: {flag} {v} taken")),
                         Err(e) => {
                             let m = format!("{e:#}");
-                            if !(m.starts_with(&format!("{flag} ")) && m.contains(&range))
-                                || !m.contains(form.key)
+                            if !(m.starts_with(&format!("{flag} "))
+                                && m.contains(&range)
+                                && m.contains(form.key))
                             {
                                 fails.push(format!("{name}: {flag} {v}: `{range}` or key: {m}"));
                             }
