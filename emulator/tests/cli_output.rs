@@ -84,7 +84,7 @@ fn the_main_commands_print_no_debug_text() {
         demo_text.contains("--preset cnc1"),
         "hints follow the preset: {demo_text}"
     );
-    let demo3 = run(&["demo", "--preset", "cnc3", "--backlash", "0.05"]);
+    let demo3 = run(&["demo", "--preset", "cnc3", "--backlash-deg", "0.05"]);
     assert_clean("demo cnc3", &demo3);
     let t3 = text(&demo3);
     assert!(
@@ -262,7 +262,7 @@ fn demo_runs_at_a_negative_speed() {
 /// "target not reached".
 #[test]
 fn demo_explains_a_target_a_huge_gap_never_reaches() {
-    let o = run(&["demo", "--backlash", "5"]);
+    let o = run(&["demo", "--backlash-mm", "5"]);
     let t = text(&o);
     assert!(!o.status.success(), "{t}");
     for needle in [
@@ -270,7 +270,7 @@ fn demo_explains_a_target_a_huge_gap_never_reaches() {
         "uu off",
         "position window (0x6067)",
         "5 mm",
-        "--backlash 0.05",
+        "--backlash-mm 0.05",
     ] {
         assert!(t.contains(needle), "`{needle}` missing in:\n{t}");
     }
@@ -285,7 +285,7 @@ fn demo_with_the_panel_serves_the_page_until_ctrl_c() {
     use std::io::{BufRead, BufReader, Read};
     use std::process::Stdio;
     let mut child = bin()
-        .args(["demo", "--panel", "127.0.0.1:0", "--backlash", "0.05"])
+        .args(["demo", "--panel", "127.0.0.1:0", "--backlash-mm", "0.05"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

@@ -103,8 +103,8 @@ fn demo_and_scenario_refuse_nonsense() {
     refused(&["demo", "--velocity", "nan"], &["--velocity NaN"]);
     refused(&["demo", "--cruise-s", "0"], &["--cruise-s 0"]);
     refused(
-        &["demo", "--backlash", "1e9"],
-        &["--backlash", "0.01-0.1 mm"],
+        &["demo", "--backlash-mm", "1e9"],
+        &["--backlash-mm", "0.01-0.1 mm"],
     );
     refused(
         &[

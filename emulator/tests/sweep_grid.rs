@@ -14,8 +14,14 @@ fn a_sweep_grid_above_the_cap_is_refused_before_it_is_built() {
         .arg("-c")
         .arg(r#"ulimit -v 524288 && exec "$0" "$@""#)
         .arg(bin)
-        .args(["sweep", "--preset", "all", "--kv", "1..100:1000"])
-        .args(["--backlash", "0..0.1:1000", "--out"])
+        .args(["sweep", "--preset", "all", "--kv-per-s", "1..100:1000"])
+        .args([
+            "--backlash-mm",
+            "0..0.1:1000",
+            "--backlash-deg",
+            "0..0.1:1000",
+            "--out",
+        ])
         .arg(&out_dir)
         .output()
         .unwrap();

@@ -6,7 +6,9 @@ use drive_emu::cli::demo::{run_once, DemoArgs};
 fn args(preset: &str) -> DemoArgs {
     DemoArgs {
         preset: preset.into(),
-        backlash: 0.0,
+        backlash_mm: None,
+        backlash_deg: None,
+        backlash: None,
         velocity: 10.0,
         cruise_s: 4.0,
         json: false,

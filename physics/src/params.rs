@@ -9,6 +9,8 @@
 
 use std::f64::consts::PI;
 
+use crate::presets::{MAX_BACKLASH_M, MAX_BACKLASH_RAD};
+
 /// Axis parameters the master may read and write while the axis runs, in SI units.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum AxisParam {
@@ -67,6 +69,12 @@ pub struct Form {
     pub si_per_unit: f64,
     /// Which axes take this spelling.
     pub applies: Applies,
+    /// Lowest written value accepted wherever the key enters (a preset or machine file,
+    /// `--set`, a sweep case, Python, a demo flag); `-inf`: no registry bound (a live
+    /// parameter's running range is the drive's, `param_bounds` in the emulator).
+    pub min: f64,
+    /// Highest written value accepted wherever the key enters; `+inf`: no registry bound.
+    pub max: f64,
 }
 
 impl Form {
@@ -78,6 +86,27 @@ impl Form {
     /// The SI value of `written`.
     pub fn to_si(&self, written: f64) -> f64 {
         written * self.si_per_unit
+    }
+
+    /// The spelling with the range `min ..= max` (written units).
+    const fn within(self, min: f64, max: f64) -> Form {
+        Form { min, max, ..self }
+    }
+
+    /// `written` within the registry's range, else why not: "must be within MIN ..= MAX
+    /// UNIT, got V" (also for NaN and infinities).
+    pub fn check(&self, written: f64) -> Result<(), String> {
+        if written.is_finite() && written >= self.min && written <= self.max {
+            return Ok(());
+        }
+        let unit = match self.unit {
+            "-" => String::new(),
+            u => format!(" {u}"),
+        };
+        Err(format!(
+            "must be within {} ..= {}{unit}, got {written}",
+            self.min, self.max
+        ))
     }
 
     /// Whether this spelling applies to a rotary (`true`) or linear axis.
@@ -134,6 +163,8 @@ const fn f(key: &'static str, unit: &'static str, si: f64, applies: Applies) -> 
         unit,
         si_per_unit: si,
         applies,
+        min: NEG_INF,
+        max: f64::INFINITY,
     }
 }
 
@@ -145,11 +176,26 @@ const fn rot(key: &'static str, unit: &'static str, si: f64) -> Option<Form> {
     Some(f(key, unit, si, Applies::Rotary))
 }
 
+/// A rotary spelling with its range.
+const fn rot_within(
+    key: &'static str,
+    unit: &'static str,
+    si: f64,
+    min: f64,
+    max: f64,
+) -> Option<Form> {
+    Some(f(key, unit, si, Applies::Rotary).within(min, max))
+}
+
+/// The largest encoder resolution the drive reports (0x608F is a U32), counts/rev.
+const U32_MAX: f64 = u32::MAX as f64;
+
 const fn any(key: &'static str, unit: &'static str, si: f64) -> Form {
     f(key, unit, si, Applies::Any)
 }
 
-/// A parameter of the preset files only (read once, when the axis is built).
+/// A parameter of the preset files only (read once, when the axis is built): its spellings
+/// carry the range (`Form::within`) every entry checks.
 const fn preset(linear: Form, rotary: Option<Form>, doc: &'static str) -> ParamSpec {
     ParamSpec {
         linear,
@@ -187,53 +233,53 @@ const fn live(
 #[rustfmt::skip]
 pub const PARAMS: &[ParamSpec] = &[
     // ---- kinematics ----
-    preset(lin("pitch_mm", "mm", 1e-3), None, "lead of the screw per revolution (lead screw)"),
-    preset(lin("pinion_diameter_mm", "mm", 1e-3), None, "pitch diameter of the pinion (rack and pinion)"),
-    preset(any("gear_ratio", "-", 1.0), None, "motor revolutions per screw, pinion or table revolution"),
+    preset(lin("pitch_mm", "mm", 1e-3).within(0.1, 1000.0), None, "lead of the screw per revolution (lead screw)"),
+    preset(lin("pinion_diameter_mm", "mm", 1e-3).within(1.0, 5000.0), None, "pitch diameter of the pinion (rack and pinion)"),
+    preset(any("gear_ratio", "-", 1.0).within(0.01, 1e5), None, "motor revolutions per screw, pinion or table revolution"),
     // ---- load ----
-    preset(lin("carriage_mass_kg", "kg", 1.0), rot("table_inertia_kgm2", "kg m^2", 1.0), "moving mass or table inertia at the load"),
-    preset(any("counterbalance_fraction", "-", 1.0), None, "counterbalanced share of a vertical axis' weight"),
+    preset(lin("carriage_mass_kg", "kg", 1.0).within(0.1, 1e6), rot_within("table_inertia_kgm2", "kg m^2", 1.0, 1e-3, 1e7), "moving mass or table inertia at the load"),
+    preset(any("counterbalance_fraction", "-", 1.0).within(0.0, 1.5), None, "counterbalanced share of a vertical axis' weight"),
     // ---- drive train ----
-    live(lin("backlash_mm", "mm", 1e-3), rot("backlash_deg", "deg", DEG), AxisParam::Backlash, 0x00, true, 0.0, "the gap in the drive train, at the load"),
+    live(lin("backlash_mm", "mm", 1e-3).within(0.0, MAX_BACKLASH_M / 1e-3), rot_within("backlash_deg", "deg", DEG, 0.0, MAX_BACKLASH_RAD / DEG), AxisParam::Backlash, 0x00, true, 0.0, "the gap in the drive train, at the load"),
     live(lin("stiffness_n_per_um", "N/µm", 1e6), rot("stiffness_nm_per_arcsec", "N m/arcsec", 1.0 / ARCSEC), AxisParam::Stiffness, 0x01, true, 1e-12, "drive-train stiffness at the load"),
     live(lin("damping_n_s_per_m", "N s/m", 1.0), rot("damping_nm_s_per_rad", "N m s/rad", 1.0), AxisParam::Damping, 0x02, false, 0.0, "drive-train damping at the load (the presets give `damping_ratio`)"),
-    preset(any("damping_ratio", "-", 1.0), None, "damping ratio of the drive train's resonance"),
+    preset(any("damping_ratio", "-", 1.0).within(0.0, 2.0), None, "damping ratio of the drive train's resonance"),
     live(any("preload_pct", "%", 0.01), None, AxisParam::Preload, 0x0E, true, 0.0, "twin pinion's electrical preload: bias torque per motor, % of its rated torque"),
     // ---- load friction ----
     live(lin("load_coulomb_friction_n", "N", 1.0), rot("load_coulomb_friction_nm", "N m", 1.0), AxisParam::LoadCoulombFriction, 0x03, true, 0.0, "Coulomb friction at the load"),
-    preset(any("load_static_friction_ratio", "-", 1.0), None, "static over Coulomb friction at the load (Stribeck)"),
-    preset(lin("stribeck_velocity_mm_per_s", "mm/s", 1e-3), rot("stribeck_velocity_deg_per_s", "deg/s", DEG), "Stribeck velocity of the load friction"),
+    preset(any("load_static_friction_ratio", "-", 1.0).within(1.0, 10.0), None, "static over Coulomb friction at the load (Stribeck)"),
+    preset(lin("stribeck_velocity_mm_per_s", "mm/s", 1e-3).within(1e-3, 1e4), rot_within("stribeck_velocity_deg_per_s", "deg/s", DEG, 1e-3, 1e4), "Stribeck velocity of the load friction"),
     live(lin("load_viscous_friction_n_per_m_per_s", "N/(m/s)", 1.0), rot("load_viscous_friction_nm_per_rad_per_s", "N m/(rad/s)", 1.0), AxisParam::LoadViscousFriction, 0x04, true, 0.0, "viscous friction at the load"),
     // ---- motor ----
-    preset(any("motor_inertia_kgm2", "kg m^2", 1.0), None, "rotor inertia (with coupling, screw or pinion)"),
-    preset(any("torque_constant_nm_per_a", "N m/A", 1.0), None, "motor torque constant"),
-    preset(any("rated_torque_nm", "N m", 1.0), None, "rated motor torque (0x6076)"),
-    preset(any("rated_current_a", "A", 1.0), None, "rated motor current (0x6075)"),
-    preset(any("max_current_a", "A", 1.0), None, "peak current of the drive"),
-    preset(any("max_speed_rpm", "rpm", PI / 30.0), None, "maximum motor speed (0x6080)"),
-    preset(any("motor_thermal_time_constant_s", "s", 1.0), None, "winding's thermal time constant (I2t monitor)"),
-    preset(any("current_bandwidth_hz", "Hz", 1.0), None, "bandwidth of the current loop"),
+    preset(any("motor_inertia_kgm2", "kg m^2", 1.0).within(1e-6, 100.0), None, "rotor inertia (with coupling, screw or pinion)"),
+    preset(any("torque_constant_nm_per_a", "N m/A", 1.0).within(1e-3, 100.0), None, "motor torque constant"),
+    preset(any("rated_torque_nm", "N m", 1.0).within(1e-3, 1e5), None, "rated motor torque (0x6076)"),
+    preset(any("rated_current_a", "A", 1.0).within(1e-3, 1e4), None, "rated motor current (0x6075)"),
+    preset(any("max_current_a", "A", 1.0).within(1e-3, 1e4), None, "peak current of the drive"),
+    preset(any("max_speed_rpm", "rpm", PI / 30.0).within(1.0, 1e5), None, "maximum motor speed (0x6080)"),
+    preset(any("motor_thermal_time_constant_s", "s", 1.0).within(1.0, 36_000.0), None, "winding's thermal time constant (I2t monitor)"),
+    preset(any("current_bandwidth_hz", "Hz", 1.0).within(1.0, 1e5), None, "bandwidth of the current loop"),
     live(any("motor_coulomb_friction_nm", "N m", 1.0), None, AxisParam::MotorCoulombFriction, 0x05, true, 0.0, "Coulomb friction at the motor"),
-    preset(any("motor_viscous_friction_nm_per_rad_per_s", "N m/(rad/s)", 1.0), None, "viscous friction at the motor"),
+    preset(any("motor_viscous_friction_nm_per_rad_per_s", "N m/(rad/s)", 1.0).within(0.0, 1e3), None, "viscous friction at the motor"),
     live(lin("load_force_n", "N", 1.0), rot("load_torque_nm", "N m", 1.0), AxisParam::ExternalLoad, 0x06, false, NEG_INF, "external load (cutting force) at the load"),
     // ---- encoders ----
-    preset(any("motor_encoder_counts_per_rev", "counts/rev", 1.0), None, "motor encoder resolution"),
-    preset(lin("direct_encoder_resolution_nm", "nm", 1e-9), None, "linear scale's resolution"),
-    preset(f("direct_encoder_counts_per_rev", "counts/rev", 1.0, Applies::Rotary), None, "rotary direct encoder's resolution"),
+    preset(any("motor_encoder_counts_per_rev", "counts/rev", 1.0).within(4.0, U32_MAX), None, "motor encoder resolution"),
+    preset(lin("direct_encoder_resolution_nm", "nm", 1e-9).within(0.01, 1e6), None, "linear scale's resolution"),
+    preset(f("direct_encoder_counts_per_rev", "counts/rev", 1.0, Applies::Rotary).within(4.0, U32_MAX), None, "rotary direct encoder's resolution"),
     live(any("motor_encoder_noise_counts", "counts", 1.0), None, AxisParam::MotorEncoderNoise, 0x0A, true, 0.0, "motor encoder noise, standard deviation"),
-    preset(any("direct_encoder_noise_counts", "counts", 1.0), None, "direct encoder noise, standard deviation (in files)"),
+    preset(any("direct_encoder_noise_counts", "counts", 1.0).within(0.0, 1e6), None, "direct encoder noise, standard deviation (in files)"),
     live(lin("direct_encoder_noise_um", "µm", 1e-6), rot("direct_encoder_noise_mdeg", "mdeg", 1e-3 * DEG), AxisParam::DirectEncoderNoise, 0x0B, false, 0.0, "direct encoder noise, standard deviation (while running)"),
     live(lin("direct_encoder_offset_um", "µm", 1e-6), rot("direct_encoder_offset_mdeg", "mdeg", 1e-3 * DEG), AxisParam::DirectEncoderOffset, 0x0C, true, NEG_INF, "direct encoder offset (a scale's thermal drift)"),
-    preset(any("noise_seed", "-", 1.0), None, "seed of the encoders' noise"),
+    preset(any("noise_seed", "-", 1.0).within(0.0, u64::MAX as f64), None, "seed of the encoders' noise"),
     // ---- control ----
     live(any("kv_per_s", "1/s", 1.0), None, AxisParam::Kv, 0x07, true, 1e-9, "position-loop gain k_v"),
     live(any("speed_kp_nms_per_rad", "N m s/rad", 1.0), None, AxisParam::SpeedKp, 0x08, true, 1e-12, "speed-loop proportional gain"),
     live(any("speed_ti_ms", "ms", 1e-3), None, AxisParam::SpeedTi, 0x09, true, 1e-9, "speed-loop integral time"),
-    preset(any("speed_filter_ms", "ms", 1e-3), None, "speed-feedback filter time constant"),
+    preset(any("speed_filter_ms", "ms", 1e-3).within(0.0, 1000.0), None, "speed-feedback filter time constant"),
     live(any("position_from_direct", "0 or 1", 1.0), None, AxisParam::PositionFromDirect, 0x0D, true, 0.0, "the direct encoder closes the position loop (1) or the motor encoder (0)"),
-    preset(any("physics_step_us", "us", 1e-6), None, "physics integration step"),
-    preset(any("speed_cycle_us", "us", 1e-6), None, "speed-loop cycle"),
-    preset(any("position_cycle_us", "us", 1e-6), None, "position-loop cycle"),
+    preset(any("physics_step_us", "us", 1e-6).within(1.0, 10_000.0), None, "physics integration step"),
+    preset(any("speed_cycle_us", "us", 1e-6).within(1.0, 100_000.0), None, "speed-loop cycle"),
+    preset(any("position_cycle_us", "us", 1e-6).within(1.0, 1_000_000.0), None, "position-loop cycle"),
 ];
 
 /// Names that moved, with the one that replaced them: still read for one release, with a

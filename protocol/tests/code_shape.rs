@@ -58,7 +58,6 @@ const PENDING: &[(&str, &str)] = &[
 const PENDING_CIRCLES: &[&str] = &[
     "emulator/src: {analysis/detector, analysis/gap}",
     "emulator/src: {cli/analyze, cli/analyze_ballbar, cli/exit}",
-    "emulator/src: {cli/demo, cli/demo_panel}",
     "emulator/src: {scenario/live, scenario/runner}",
 ];
 

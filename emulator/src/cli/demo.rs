@@ -7,6 +7,7 @@
 //! received in its TPDOs: the backlash limit cycle appears in motor speed and current at a
 //! frequency set by k_v, not by the gap.
 
+use super::param_flags::{flag_of, moved_warning};
 use crate::analysis::spectrum::fundamental;
 use crate::drive::axis_drive::AxisDrive;
 use crate::master::on_bus::{run_on_bus, BusRunStats};
@@ -18,6 +19,7 @@ use crate::session::OfflineRun;
 use crate::time::MonotonicClock;
 use anyhow::{bail, Result};
 use clap::Args;
+use drive_physics::params::AxisParam;
 use drive_protocol::Cia402State;
 use std::sync::atomic::AtomicBool;
 
@@ -26,9 +28,30 @@ pub struct DemoArgs {
     /// Axis preset: cnc1 ... cnc5.
     #[arg(long, default_value = "cnc1")]
     pub preset: String,
-    /// Worn backlash for the second run, mm (linear) or deg (rotary).
-    #[arg(long, default_value_t = 0.05)]
-    pub backlash: f64,
+    /// Worn backlash for the second run on a linear axis, mm (`backlash_mm`) [default: 0.05]
+    #[arg(
+        long = "backlash-mm",
+        alias = "backlash_mm",
+        allow_negative_numbers = true
+    )]
+    pub backlash_mm: Option<f64>,
+    /// Worn backlash for the second run on a rotary axis, deg (`backlash_deg`) [default: 0.05]
+    #[arg(
+        long = "backlash-deg",
+        alias = "backlash_deg",
+        allow_negative_numbers = true,
+        conflicts_with = "backlash_mm"
+    )]
+    pub backlash_deg: Option<f64>,
+    /// Moved to `--backlash-mm` / `--backlash-deg` (taken for one release, with a warning:
+    /// in the preset's unit, as before).
+    #[arg(
+        long,
+        hide = true,
+        allow_negative_numbers = true,
+        conflicts_with_all = ["backlash_mm", "backlash_deg"]
+    )]
+    pub backlash: Option<f64>,
     /// Constant speed of the CSP segment, mm/s (linear) or deg/s (rotary); negative runs
     /// towards negative positions.
     #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
@@ -60,38 +83,104 @@ const BUS_TIMEOUT_US: u64 = 30_000_000;
 /// Wall-clock bound of one run on a real bus, us.
 const BUS_WALL_LIMIT_US: u64 = 600_000_000;
 
-/// Check the numeric flags before anything runs.
-fn validate(args: &DemoArgs) -> Result<()> {
-    let cfg =
-        AxisConfig::from_preset(&args.preset).map_err(|e| anyhow::anyhow!("--preset: {e}"))?;
+/// The worn run's backlash where no flag gives it, mm or deg.
+pub const DEFAULT_BACKLASH: f64 = 0.05;
+
+/// The demo's flags that set a registry parameter (`drive_physics::params`): the parameter
+/// (its flags are its spellings, `param_flags::flag_of`: `--backlash-mm` on a linear axis,
+/// `--backlash-deg` on a rotary one, each checked against its spelling's registry range, as
+/// `--set` and the preset files are), the flag it had before (taken for one release with a
+/// warning) and what its error adds.
+pub const REGISTRY_FLAGS: &[(AxisParam, &str, &str)] = &[(
+    AxisParam::Backlash,
+    "--backlash",
+    "a worn drive train shows 0.01-0.1 mm; the drive's 0x2000 accepts no more",
+)];
+
+impl DemoArgs {
+    /// The value given for a [`REGISTRY_FLAGS`] parameter: the flag the user wrote and its
+    /// value, `None` where none was given.
+    pub fn registry_flag(&self, param: AxisParam) -> Option<(String, f64)> {
+        match param {
+            AxisParam::Backlash => {
+                let forms = drive_physics::params::of_live(param);
+                let (lin, rot) = (forms.form(false).key, forms.form(true).key);
+                (self.backlash_mm.map(|v| (flag_of(lin), v)))
+                    .or(self.backlash_deg.map(|v| (flag_of(rot), v)))
+                    .or(self.backlash.map(|v| ("--backlash".to_string(), v)))
+            }
+            _ => None,
+        }
+    }
+
+    /// The worn run's backlash, in the preset's unit (mm or deg).
+    pub fn worn_backlash(&self) -> f64 {
+        self.registry_flag(AxisParam::Backlash)
+            .map_or(DEFAULT_BACKLASH, |(_, v)| v)
+    }
+
+    /// The flags that moved and were given: the warnings to print.
+    pub fn moved_flags(&self) -> Vec<String> {
+        let mut out = vec![];
+        if self.backlash.is_some() {
+            out.push(moved_warning(
+                "--backlash",
+                "--backlash-mm` (linear axes) or `--backlash-deg` (rotary axes)",
+            ));
+        }
+        out
+    }
+}
+
+/// Check the numeric flags before anything runs; a value out of range is a usage error
+/// (exit status 2, as `--set` gives) naming the flag, its range and unit.
+pub fn validate(args: &DemoArgs) -> Result<()> {
+    let usage = super::exit::usage_msg;
+    let cfg = AxisConfig::from_preset(&args.preset).map_err(|e| usage(format!("--preset: {e}")))?;
     let rotary = cfg.kind == crate::presets::AxisKind::Rotary;
-    let (max_gap, unit) = if rotary {
-        (crate::presets::MAX_BACKLASH_RAD.to_degrees(), "deg")
-    } else {
-        (crate::presets::MAX_BACKLASH_M * 1e3, "mm")
-    };
-    anyhow::ensure!(
-        args.backlash.is_finite() && (0.0..=max_gap).contains(&args.backlash),
-        "--backlash {}: must be within 0..={max_gap} {unit} (a worn drive train shows 0.01-0.1 \
-         mm; the drive's 0x2000 accepts no more)",
-        args.backlash
-    );
+    let unit = if rotary { "deg" } else { "mm" };
+    for &(param, old, why) in REGISTRY_FLAGS {
+        let Some((flag, v)) = args.registry_flag(param) else {
+            continue;
+        };
+        let spec = drive_physics::params::of_live(param);
+        let form = spec.form(rotary);
+        // A spelling of the other kind of axis: the preset's own is meant.
+        let other = spec.form(!rotary);
+        if flag != old && flag == flag_of(other.key) && other.key != form.key {
+            return Err(usage(format!(
+                "{flag}: {} is a{} axis: its flag is {} (in {})",
+                args.preset,
+                if rotary { " rotary" } else { " linear" },
+                flag_of(form.key),
+                form.unit
+            )));
+        }
+        form.check(v).map_err(|reason| {
+            usage(format!(
+                "{flag} {v}: {reason} (the range of `{}`: {why})",
+                form.key
+            ))
+        })?;
+    }
     // The constant-speed segment must stay below the motor's maximum speed.
-    let built = cfg.build().map_err(|e| anyhow::anyhow!("--preset: {e}"))?;
+    let built = cfg.build().map_err(|e| usage(format!("--preset: {e}")))?;
     let per_unit = if rotary { 1f64.to_radians() } else { 1e-3 };
     let v_max = built.axis.motor.max_speed / built.axis.mech.ratio / per_unit;
-    anyhow::ensure!(
-        args.velocity.is_finite() && args.velocity != 0.0 && args.velocity.abs() <= v_max,
-        "--velocity {}: must be non-zero and within -{v_max:.1}..={v_max:.1} {unit}/s (the \
-         motor's maximum speed on this preset)",
-        args.velocity
-    );
-    anyhow::ensure!(
-        args.cruise_s.is_finite() && args.cruise_s >= 1.0 && args.cruise_s <= 600.0,
-        "--cruise-s {}: must be within 1..=600 s (the analysis needs at least 1 s of constant \
-         speed; the master keeps every sample in memory)",
-        args.cruise_s
-    );
+    if !(args.velocity.is_finite() && args.velocity != 0.0 && args.velocity.abs() <= v_max) {
+        return Err(usage(format!(
+            "--velocity {}: must be non-zero and within -{v_max:.1}..={v_max:.1} {unit}/s (the \
+             motor's maximum speed on this preset)",
+            args.velocity
+        )));
+    }
+    if !(args.cruise_s.is_finite() && args.cruise_s >= 1.0 && args.cruise_s <= 600.0) {
+        return Err(usage(format!(
+            "--cruise-s {}: must be within 1..=600 s (the analysis needs at least 1 s of \
+             constant speed; the master keeps every sample in memory)",
+            args.cruise_s
+        )));
+    }
     Ok(())
 }
 
@@ -292,7 +381,8 @@ fn check_master_outcome(master: &Master, backlash: &str) -> Result<()> {
                 "the reference master failed: {e}. The axis did not settle inside the drive's \
                  position window (0x6067) around the target: with {backlash} of backlash it \
                  hunts wider than that window, as a worn axis does. A worn drive train shows \
-                 0.01-0.1 mm (0.01-0.04 deg on a table); try --backlash 0.05"
+                 0.01-0.1 mm (0.01-0.04 deg on a table); try --backlash-mm 0.05 (--backlash-deg \
+                 0.02 on a table)"
             );
         }
         bail!("the reference master failed: {e}");
@@ -367,6 +457,9 @@ fn chart(values: &[f64], lo: f64, hi: f64, rows: usize) -> Vec<String> {
 
 /// `drive-emu demo`: a healthy and a worn run, reported as JSON or narrated.
 pub fn run(args: &DemoArgs) -> Result<()> {
+    for w in args.moved_flags() {
+        eprintln!("{w}");
+    }
     validate(args)?;
     if args.panel.panel.is_some() {
         anyhow::ensure!(
@@ -374,7 +467,15 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             "--panel runs the demo on its own in-process bus with the page as its output: \
              without --iface and --json"
         );
-        return super::demo_panel::run(args);
+        return super::demo_panel::run(&super::demo_panel::PanelDemo {
+            preset: &args.preset,
+            backlash: args.worn_backlash(),
+            velocity: args.velocity,
+            velocity_uu_s: args.velocity * UU_PER_AXIS_UNIT,
+            cruise_s: args.cruise_s,
+            node: args.node,
+            panel: &args.panel,
+        });
     }
     let unit = if AxisConfig::from_preset(&args.preset)?
         .backlash_deg
@@ -385,7 +486,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         "mm"
     };
     let healthy = run_once(args, 0.0)?;
-    let worn = run_once(args, args.backlash)?;
+    let worn = run_once(args, args.worn_backlash())?;
     if args.json {
         println!(
             "{}",
@@ -422,7 +523,7 @@ fn print_intro(args: &DemoArgs, unit: &str, worn: &RunReport) {
     }
     println!(
         "What the master did, run with {} {unit} backlash:",
-        args.backlash
+        args.worn_backlash()
     );
     for (t, msg) in &worn.log {
         println!("  t={:>7.3} s  {msg}", *t as f64 * 1e-6);
@@ -519,7 +620,7 @@ fn print_conclusion(args: &DemoArgs, unit: &str, healthy: &RunReport, worn: &Run
         (Some(f), None) => println!(
             "\nWith {} {unit} backlash the axis vibrates at {f:.1} Hz (k_v = {} 1/s; the paper: \
              k_v/4 < f < k_v, about 0.6 k_v); the healthy axis runs smooth.",
-            args.backlash, worn.kv_per_s
+            worn.backlash, worn.kv_per_s
         ),
         _ => {
             let hz = |f: Option<f64>| f.map_or("none".to_string(), |f| format!("{f:.1} Hz"));
@@ -539,7 +640,7 @@ fn print_conclusion(args: &DemoArgs, unit: &str, healthy: &RunReport, worn: &Run
         "Next: drive-emu sim --preset {p} --set {key}={b} --velocity {v} --json; \
          drive-emu run --iface vcan0 --preset {p} --set {key}={b} (docs/master.md).",
         p = args.preset,
-        b = args.backlash,
+        b = worn.backlash,
         v = args.velocity
     );
 }

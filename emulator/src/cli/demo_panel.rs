@@ -3,11 +3,10 @@
 //!
 //! The master enables the drive in CSP and moves it back and forth at `--velocity` for
 //! `--cruise-s` each way (the constant speed the detector needs), until Ctrl-C; the drive has
-//! the `--backlash` of the demo's worn run, which the page's control changes live. One tick
-//! of the drive per millisecond of wall time, on the in-process bus (lock-step: its time is
-//! the master's SYNCs).
+//! the backlash of the demo's worn run (`--backlash-mm`, `--backlash-deg`), which the page's
+//! control changes live. One tick of the drive per millisecond of wall time, on the
+//! in-process bus (lock-step: its time is the master's SYNCs).
 
-use super::demo::DemoArgs;
 use crate::bus::fault::FaultyBus;
 use crate::bus::inproc::{InProcBus, InProcEndpoint};
 use crate::bus::CanBus;
@@ -66,9 +65,27 @@ pub fn tick_with_master(
     }
 }
 
+/// What `demo --panel` runs, from the demo's flags (checked already).
+pub struct PanelDemo<'a> {
+    /// The preset's name.
+    pub preset: &'a str,
+    /// The drive's backlash, in the preset's unit (mm or deg).
+    pub backlash: f64,
+    /// The constant speed of each leg, mm/s or deg/s (as the user wrote it).
+    pub velocity: f64,
+    /// The same in the drive's user units per second.
+    pub velocity_uu_s: f64,
+    /// Duration of each leg, s.
+    pub cruise_s: f64,
+    /// The drive's node ID.
+    pub node: u8,
+    /// Where the panel listens, and its token.
+    pub panel: &'a crate::panel::PanelArgs,
+}
+
 /// Run the demo with the panel until Ctrl-C / SIGTERM (or the master's program ends).
-pub fn run(args: &DemoArgs) -> Result<()> {
-    let base = AxisConfig::from_preset(&args.preset)?;
+pub fn run(args: &PanelDemo) -> Result<()> {
+    let base = AxisConfig::from_preset(args.preset)?;
     let (key, unit) = if base.backlash_deg.is_some() {
         ("backlash_deg", "deg")
     } else {
@@ -95,7 +112,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         bus: crate::panel::PanelBus::Can,
         axes: vec![PanelAxis {
             node_id: args.node,
-            preset: args.preset.clone(),
+            preset: args.preset.to_string(),
             config: cfg.clone(),
             overrides: vec![(key.to_string(), args.backlash.to_string())],
         }],
@@ -105,11 +122,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         master_id: mcfg.master_id,
         json_stdout: false,
     };
-    let Some((panel, mut panel_loop)) = crate::panel::start(&args.panel, setup)? else {
+    let Some((panel, mut panel_loop)) = crate::panel::start(args.panel, setup)? else {
         bail!("demo --panel: no panel address");
     };
-    let v_uu = args.velocity * super::demo::UU_PER_AXIS_UNIT;
-    let mut master = Master::new(mcfg, program(v_uu, args.cruise_s));
+    let mut master = Master::new(mcfg, program(args.velocity_uu_s, args.cruise_s));
     println!("drive-emu demo: panel on {}", panel.url());
     println!(
         "(a {} drive with {} {unit} of backlash on an in-process bus, moved back and forth at \

@@ -13,6 +13,7 @@ pub mod exit;
 pub mod figures;
 pub mod fmu;
 pub mod lss_store;
+pub mod param_flags;
 pub mod profiles;
 pub mod run;
 pub mod scenario;

@@ -83,6 +83,10 @@ impl AxisConfig {
 
     /// Validate and convert to SI parameters.
     pub fn build(&self) -> Result<BuiltConfig, ConfigError> {
+        // First: a value outside its registry range is refused under its own key, before a
+        // cross-check with other keys (the physics step against the stiffness, say) could
+        // refuse it under theirs.
+        self.check_registry_ranges()?;
         let units = KindUnits::of(self.kind);
         let ratio = self.read_kinematic_ratio()?;
         let load = self.read_load(&units)?;
@@ -737,6 +741,24 @@ impl AxisConfig {
                     compact(control.speed_ti * 1e3)
                 ),
             ));
+        }
+        Ok(())
+    }
+}
+
+impl AxisConfig {
+    /// Every preset-only parameter within its registry range (`params::Form::check`): the
+    /// range keeps an accepted value from giving NaN or a run that cannot end
+    /// (emulator/tests/param_registry.rs runs each end). Checked before the stages' own
+    /// checks, so a value outside is refused naming its own key and range with its unit.
+    fn check_registry_ranges(&self) -> Result<(), ConfigError> {
+        let preset_only = crate::params::PARAMS
+            .iter()
+            .filter(|p| p.preset && p.live.is_none());
+        for form in preset_only.flat_map(|p| p.forms()) {
+            if let Some(v) = self.preset_only_value(form.key) {
+                form.check(v).map_err(|r| ConfigError::new(form.key, r))?;
+            }
         }
         Ok(())
     }

@@ -244,7 +244,7 @@ fn pick(
 impl AxisConfig {
     /// Parse a preset file's text (unknown keys are rejected) and validate it.
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
-        let cfg: AxisConfig = toml::from_str(text).map_err(parse_error)?;
+        let cfg: AxisConfig = toml::from_str(text).map_err(|e| parse_error_in(text, e))?;
         cfg.build()?;
         Ok(cfg)
     }
@@ -306,6 +306,48 @@ impl AxisConfig {
     }
 }
 
+impl AxisConfig {
+    /// The value this configuration holds for a preset-only registry key (one with no
+    /// running form: `live` is `None`), integers as numbers; `None` where the key is unset
+    /// (an optional key, or one of the other kind of axis) or is not a preset-only key.
+    /// What [`AxisConfig::build`] checks against the registry's range.
+    pub fn preset_only_value(&self, key: &str) -> Option<f64> {
+        Some(match key {
+            "pitch_mm" => self.pitch_mm?,
+            "pinion_diameter_mm" => self.pinion_diameter_mm?,
+            "gear_ratio" => self.gear_ratio,
+            "carriage_mass_kg" => self.carriage_mass_kg?,
+            "table_inertia_kgm2" => self.table_inertia_kgm2?,
+            "counterbalance_fraction" => self.counterbalance_fraction,
+            "damping_ratio" => self.damping_ratio,
+            "load_static_friction_ratio" => self.load_static_friction_ratio?,
+            "stribeck_velocity_mm_per_s" => self.stribeck_velocity_mm_per_s?,
+            "stribeck_velocity_deg_per_s" => self.stribeck_velocity_deg_per_s?,
+            "motor_inertia_kgm2" => self.motor_inertia_kgm2,
+            "torque_constant_nm_per_a" => self.torque_constant_nm_per_a,
+            "rated_torque_nm" => self.rated_torque_nm,
+            "rated_current_a" => self.rated_current_a,
+            "max_current_a" => self.max_current_a,
+            "max_speed_rpm" => self.max_speed_rpm,
+            "motor_thermal_time_constant_s" => self.motor_thermal_time_constant_s,
+            "current_bandwidth_hz" => self.current_bandwidth_hz,
+            "motor_viscous_friction_nm_per_rad_per_s" => {
+                self.motor_viscous_friction_nm_per_rad_per_s
+            }
+            "motor_encoder_counts_per_rev" => self.motor_encoder_counts_per_rev as f64,
+            "direct_encoder_resolution_nm" => self.direct_encoder_resolution_nm?,
+            "direct_encoder_counts_per_rev" => self.direct_encoder_counts_per_rev? as f64,
+            "direct_encoder_noise_counts" => self.direct_encoder_noise_counts,
+            "noise_seed" => self.noise_seed as f64,
+            "speed_filter_ms" => self.speed_filter_ms,
+            "physics_step_us" => self.physics_step_us,
+            "speed_cycle_us" => self.speed_cycle_us,
+            "position_cycle_us" => self.position_cycle_us,
+            _ => return None,
+        })
+    }
+}
+
 fn finite(key: &str, v: f64) -> Result<f64, ConfigError> {
     if v.is_finite() {
         Ok(v)
@@ -354,6 +396,32 @@ fn did_you_mean_key(key: &str) -> String {
 }
 
 /// Turn a serde/toml error into a key + reason.
+/// [`parse_error`] of a file's `text`: a value of the wrong type or out of its type's range
+/// (`noise_seed = -1`: "invalid value: integer `-1`, expected u64") is named by the key
+/// written before it on its line, not by the value the message quotes first.
+fn parse_error_in(text: &str, e: toml::de::Error) -> ConfigError {
+    let key_at = e.span().and_then(|span| {
+        let start = text.get(..span.start)?.rfind('\n').map_or(0, |i| i + 1);
+        let line = text.get(start..)?.lines().next()?;
+        let (key, _) = line.split_once('=')?;
+        let key = key.trim().trim_matches('"');
+        let plain = !key.is_empty()
+            && key
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+        plain.then(|| key.to_string())
+    });
+    let msg = e.message();
+    let named = msg.starts_with("unknown field") || msg.starts_with("missing field");
+    match key_at {
+        Some(key) if !named => ConfigError {
+            key,
+            ..parse_error(e)
+        },
+        _ => parse_error(e),
+    }
+}
+
 fn parse_error(e: toml::de::Error) -> ConfigError {
     let msg = e.message().to_string();
     // "unknown field `foo`, expected one of ..." / "missing field `bar`"

@@ -331,8 +331,10 @@ fn eds(
     request.build().map(|o| o.eds).map_err(to_py_err)
 }
 
-/// One case of a sweep as Python sends it: preset, `key=value` overrides (`backlash` is the
-/// preset's own backlash key), velocity (None: the preset's default), duration.
+/// One case of a sweep as Python sends it: preset, `key=value` overrides by their registry
+/// names (`backlash`, a grid key that moved and the module still takes for one release with a
+/// DeprecationWarning, is the preset's own backlash key), velocity (None: the preset's
+/// default), duration.
 type CaseIn = (String, Vec<String>, Option<f64>, f64);
 
 /// The sweep of one chunk of a grid: every case measured as `drive-emu sweep` measures one,

@@ -69,11 +69,13 @@ def test_parquet_holds_the_table(local_1000, tmp_path):
 
 
 def test_rows_equal_the_cli_sweep(cli, tmp_path):
-    cli("sweep", "--preset", "cnc1,cnc3", "--kv", "0.5x..2x:3", "--backlash", "0.5x,1x",
-        "--duration", "3", "--threads", "2", "--out", tmp_path)
+    cli("sweep", "--preset", "cnc1,cnc3", "--kv-per-s", "0.5x..2x:3", "--backlash-mm",
+        "0.5x,1x", "--backlash-deg", "0.5x,1x", "--duration", "3", "--threads", "2", "--out",
+        tmp_path)
     want = json.loads((tmp_path / "sweep.json").read_text())
-    cases = [{"preset": p, "kv_per_s": kv, "backlash": b, "duration": 3.0}
-             for p, own_kv, own_b in [("cnc1", 30.0, 0.03), ("cnc3", 16.7, 0.02)]
+    cases = [{"preset": p, "kv_per_s": kv, key: b, "duration": 3.0}
+             for p, own_kv, key, own_b in [("cnc1", 30.0, "backlash_mm", 0.03),
+                                          ("cnc3", 16.7, "backlash_deg", 0.02)]
              for kv in np.linspace(0.5, 2.0, 3) * own_kv for b in (0.5 * own_b, own_b)]
     got = drive_emu.sweep(cases, progress=False)
     assert len(got) == len(want)
@@ -126,7 +128,7 @@ def test_a_grid_beyond_the_cap_is_refused_before_it_is_built(monkeypatch):
     monkeypatch.setattr(drive_emu, "MAX_SWEEP_CASES", cap)
     for grid, said in [
         ({"kv_per_s": range(10**9)}, "1,000,000,000 cases"),
-        ({"kv_per_s": range(20), "backlash": range(100)}, "2,000 cases"),
+        ({"kv_per_s": range(20), "backlash_mm": range(100)}, "2,000 cases"),
         ({"kv_per_s": (20.0 + i for i in itertools.count())}, "more than"),
     ]:
         with pytest.raises(ValueError, match="split the grid") as e:

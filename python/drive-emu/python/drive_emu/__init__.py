@@ -25,6 +25,8 @@ import json
 import math
 import numbers
 import os
+import sys
+import warnings
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Any, Optional
 
@@ -351,6 +353,37 @@ def eds(preset: str = "cnc1", *, node: Optional[int] = None, set: Any = None,
 
 _RUN_KEYS = ("preset", "velocity", "duration")
 
+#: Grid keys that moved to the parameter registry's names (one name per parameter in `--set`,
+#: scenario files, `drive-emu sweep`, the panel and here): still taken for one release, with a
+#: DeprecationWarning. `backlash` (in each preset's unit) is `backlash_mm` on a linear preset
+#: and `backlash_deg` on a rotary one.
+_MOVED_GRID_KEYS = {
+    "kv": ("kv_per_s", "`kv_per_s`"),
+    "backlash": (None, "`backlash_mm` (linear presets) or `backlash_deg` (rotary presets)"),
+}
+
+
+def _moved_grid_key(i: int, case: dict, key: str) -> str:
+    """The key a case's `key` is sent as: a moved one warns (DeprecationWarning) and becomes
+    its new name where it has one; given beside its new name it is refused."""
+    moved = _MOVED_GRID_KEYS.get(key)
+    if moved is None:
+        return key
+    new, said = moved
+    # Attributed to the caller's line (the first frame outside this module), where Python's
+    # default filters show a DeprecationWarning.
+    level, frame = 1, sys._getframe(0)
+    while frame is not None and frame.f_globals.get("__name__", "").startswith("drive_emu"):
+        frame = frame.f_back
+        level += 1
+    warnings.warn(f"sweep grid key `{key}` is now {said} (the old name works for this "
+                  "release)", DeprecationWarning, stacklevel=level)
+    if new is None:
+        return key
+    if new in case:
+        raise ValueError(f"case {i}: `{key}` and `{new}` both given: `{key}` is now `{new}`")
+    return new
+
 
 #: Most cases one sweep takes: its table is held in memory. A grid whose size is known
 #: (len()) beyond this is refused before any case runs (a grid over range(10**9) said
@@ -492,7 +525,8 @@ def _native_case(i: int, case: dict) -> tuple:
     try:
         velocity = _opt_number("velocity", velocity)
         duration = _number("duration", duration)
-        sets = [f"{k}={_toml_value(k, v)}" for k, v in case.items() if k not in _RUN_KEYS]
+        sets = [f"{_moved_grid_key(i, case, k)}={_toml_value(k, v)}" for k, v in case.items()
+                if k not in _RUN_KEYS]
     except TypeError as e:
         raise TypeError(f"case {i}: {e}") from None
     return (preset, sets, velocity, duration)
@@ -564,9 +598,11 @@ def sweep(grid: Any, *, workers: int = 0, client: Any = None, progress: bool = T
     (len()) is refused beyond the cap before any case runs; an iterator without len() is
     refused with ValueError when it yields one case more than the cap (the cases before it
     have run; nothing is returned). Keys: `preset` (default cnc1), `velocity` (default 20
-    mm/s, tables 0.026 r/s), `duration` (default 8 s, 2..600), `backlash` (in the preset's
-    unit: backlash_mm or backlash_deg), and any preset key (kv_per_s,
-    load_coulomb_friction_n, motor_encoder_noise_counts, noise_seed, ...).
+    mm/s, tables 0.026 r/s), `duration` (default 8 s, 2..600), and any preset key by its
+    registry name, as `--set` takes it (kv_per_s, backlash_mm or on a rotary preset
+    backlash_deg, load_coulomb_friction_n, motor_encoder_noise_counts, noise_seed, ...; a
+    typo gets "did you mean"). The grid keys that moved, `kv` and `backlash` (in the preset's
+    unit), are taken for this release with a DeprecationWarning.
 
     Runs on `workers` threads of this machine (0 = all cores), or, given a
     `dask.distributed.Client` as `client`, on its cluster in chunks of `chunk_size` cases
