@@ -81,7 +81,7 @@ fn reference_master_over_vcan_sees_the_backlash_limit_cycle() {
             &node,
             "--preset",
             "cnc1",
-            "--backlash",
+            "--backlash-mm",
             "0.05",
             "--cruise-s",
             "3",

@@ -41,7 +41,7 @@ fn the_drive_watching_itself_says_what_analyze_says_of_its_trace() {
         .args([
             "demo", "--iface", &ifname, "--node", &node, "--preset", "cnc1",
         ])
-        .args(["--backlash", "0.05", "--cruise-s", "3", "--json"])
+        .args(["--backlash-mm", "0.05", "--cruise-s", "3", "--json"])
         .output()
         .expect("start drive-emu demo");
     assert!(
