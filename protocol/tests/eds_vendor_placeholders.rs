@@ -211,3 +211,70 @@ fn a_read_only_pdo_cob_id_switches_bit_31_only() {
     b.w32(0x1800, 1, tx | 0x8000_0000).unwrap();
     b.w32(0x1800, 1, (tx + 1) | 0x8000_0000).unwrap();
 }
+
+/// The Whistle Gold DCF's ParameterValues write the placeholder factor group back (0x608F:1
+/// = 1, 0x6092:1 = 1, through python canopen's `load_configuration()`): the master reads back
+/// what it wrote, and the drive runs as with the file's own placeholder
+/// (`od::placeholders::running_factor_group`): 1 uu = 1 increment of its encoder, its top
+/// motor speed 0x6080 in its encoder's increments. Before, the drive took 1 increment per
+/// revolution for its encoder: 3000 rev/min were 50 increments/s and the move below (5000
+/// uu at 20000 uu/s) crawled for 100 s.
+#[test]
+fn a_placeholder_factor_group_written_back_runs_as_the_files_own() {
+    let f = parse(&text("encoder-one-per-rev.eds")).unwrap();
+    let (mut b, _) = bench(&f);
+    b.w32(0x608F, 1, 1).unwrap();
+    b.w32(0x6092, 1, 1).unwrap();
+    assert_eq!(b.r32(0x608F, 1), 1, "what the master wrote reads back");
+    assert_eq!(b.r32(0x6092, 1), 1);
+    b.start();
+    b.enable(1);
+    let p0 = b.node.position_actual();
+    let m0 = b.drive.pos;
+    b.w32(0x6081, 0, 20_000).unwrap();
+    b.w32(0x6083, 0, 200_000).unwrap();
+    b.w32(0x6084, 0, 200_000).unwrap();
+    b.w32(0x607A, 0, (p0 + 5000) as u32).unwrap();
+    b.cw(0x1F);
+    b.cw(0x0F);
+    let mut ticks = None;
+    for k in 0..3000 {
+        b.tick();
+        let p = b.node.position_actual();
+        if b.statusword() & (1 << 10) != 0 && (p - (p0 + 5000)).abs() <= 100 {
+            ticks = Some(k);
+            break;
+        }
+    }
+    assert!(
+        ticks.is_some(),
+        "moved {} of 5000 uu in 3 s",
+        b.node.position_actual() - p0
+    );
+    // 1 uu = 1 increment of the encoder, as before the write
+    assert!(
+        (b.drive.pos - m0 - 5000.0).abs() <= 100.0,
+        "motor moved {} inc for 5000 uu",
+        b.drive.pos - m0
+    );
+    // a real resolution written is taken as it is: 1 uu = 4096 / 1 increments
+    let (mut b, _) = bench(&f);
+    b.w32(0x608F, 1, 4096).unwrap();
+    b.w32(0x6092, 1, 1).unwrap();
+    b.start();
+    b.enable(1);
+    let p0 = b.node.position_actual();
+    let m0 = b.drive.pos;
+    b.w32(0x6081, 0, 5).unwrap();
+    b.w32(0x6083, 0, 50).unwrap();
+    b.w32(0x6084, 0, 50).unwrap();
+    b.w32(0x607A, 0, (p0 + 2) as u32).unwrap();
+    b.cw(0x1F);
+    b.cw(0x0F);
+    b.ticks(2000);
+    assert!(
+        (b.drive.pos - m0 - 2.0 * 4096.0).abs() <= 100.0,
+        "motor moved {} inc for 2 uu of 4096",
+        b.drive.pos - m0
+    );
+}

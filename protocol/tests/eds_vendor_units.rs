@@ -216,3 +216,50 @@ fn motor_limit_placeholders_are_taken_from_the_axis_and_the_drive_moves() {
         drive_protocol::Cia402State::OperationEnabled
     );
 }
+
+/// 0x60A8 = mrad (0xFD100000) and no 0x6092 on a rotary axis: the drive serves the feed
+/// constant that makes 1 uu one mrad of the drive shaft (2000 pi per revolution, the nearest
+/// fraction of UNSIGNED32 terms), and the report says so. A move of 3142 uu (pi rad) is half
+/// a revolution (1000 of the file's 2000 increments), at 0x60A9 mrad/s.
+#[test]
+fn the_si_unit_position_in_radians_gives_the_feed_constant() {
+    let f = load("position-radian.eds");
+    let mut rotary = info();
+    rotary.rotary = true;
+    let (od, report) = ObjectDictionary::from_eds(&f, &rotary).unwrap();
+    let note = report
+        .notes
+        .iter()
+        .find(|n| n.starts_with("0x60A8 SI unit position = 0xFD100000 applied: "))
+        .unwrap_or_else(|| panic!("{:?}", report.notes));
+    // "0x6092 = N/D user units per shaft revolution (2 pi rad ...)"
+    let ratio = note
+        .split("0x6092 = ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .unwrap();
+    let (n, d) = ratio.split_once('/').unwrap();
+    let per_rev = n.parse::<f64>().unwrap() / d.parse::<f64>().unwrap();
+    assert!(
+        (per_rev - 2000.0 * std::f64::consts::PI).abs() < 1e-6,
+        "{note}"
+    );
+    assert!(note.contains("2 pi rad of the drive shaft"), "{note}");
+    let mut b = Bench::with_config(NodeConfig::new(ID, rotary).with_od(od));
+    let (reached, peak, p0) = pp_move(&mut b, 3142, 2000, 20_000);
+    assert!(
+        reached,
+        "moved {} of 3142 uu",
+        b.node.position_actual() - p0
+    );
+    assert!(
+        (1900..=2100).contains(&peak),
+        "peak {peak} mrad/s, commanded 2000"
+    );
+    let inc0 = f64::from(p0) * 2000.0 / per_rev;
+    assert!(
+        (b.drive.pos - (inc0 + 1000.0)).abs() < 15.0,
+        "motor at {} inc, from {inc0}",
+        b.drive.pos
+    );
+}

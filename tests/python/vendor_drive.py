@@ -13,7 +13,12 @@ the vendor's file would:
      signature, not values; PDO parameters go through step 4);
   4. `RemoteNode.load_configuration()`: the PDOs as the file says (python canopen's
      read(from_od=True) + save(): invalidate, sub 0 = 0, entries, sub 0, validate) and every
-     ParameterValue of a DCF, with no abort; the maps read back equal the file's;
+     ParameterValue of a DCF, with no abort; the maps read back equal the file's. A PDO
+     parameter the file leaves without any value (the Elmo Gold DCFs: 0x1601:0 and 0x1A01:0,
+     entries 2..8) is read from the drive first, as a user of python canopen must: canopen
+     2.4.1's own PdoMap.read(from_od=True) raises a TypeError on it (`range(1, None + 1)`)
+     before any SDO is sent, whatever the device; each one is said (STEP ... taken from the
+     drive) and a count so taken must count the entries the file gives;
   5. BaseNode402 with the file: NMT operational, SYNC every 10 ms, OPERATION ENABLED in a mode
      of the file's 0x6502 the emulator runs (PP, else PV, else CSP), a move seen in 0x6064.
 Exits non-zero with a message starting with FAIL on the first failure; PASS at the end. No
@@ -137,7 +142,34 @@ def main():
         n += 1
     step(f"rw objects take their default ({n} written, {unencodable} python cannot encode)")
 
-    # 4. load_configuration: PDOs as the file says, a DCF's ParameterValues
+    # 4. load_configuration: PDOs as the file says, a DCF's ParameterValues. python canopen
+    # 2.4.1 cannot read a PDO parameter without any value in the file (PdoMap.read(from_od=
+    # True): `range(1, None + 1)`, a TypeError before any SDO): what a user does, read it
+    # from the device and give it to the dictionary; then check the device's count counts
+    # the entries the file gives (a device ships its map with those)
+    from_drive = []
+    for obj in od.values():
+        if not (0x1400 <= obj.index < 0x1C00) or not isinstance(obj, (ODRecord, ODArray)):
+            continue
+        for sub in obj.values():
+            if sub.value is None and sub.default is None and sub.readable:
+                sub.default = int.from_bytes(node.sdo.upload(sub.index, sub.subindex), "little")
+                from_drive.append(f"0x{sub.index:04X}:{sub.subindex} = {sub.default}")
+                if sub.subindex == 0 and (0x1600 <= obj.index < 0x1800
+                                          or 0x1A00 <= obj.index < 0x1C00):
+                    given = 0
+                    while given + 1 in obj.subindices:
+                        e = obj[given + 1]
+                        v = e.value if e.value is not None else e.default
+                        if not v:
+                            break
+                        given += 1
+                    check(sub.default == given,
+                          f"0x{obj.index:04X}:0 = {sub.default} from the drive, the file "
+                          f"gives {given} entries")
+    if from_drive:
+        step(f"PDO parameters without a value in the file taken from the drive "
+             f"(python canopen cannot read them): {', '.join(from_drive)}")
     try:
         node.load_configuration()
     except SdoAbortedError as e:

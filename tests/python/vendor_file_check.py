@@ -37,6 +37,11 @@ import logging
 from canopen import lss
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 
+FACTOR_GROUP = ((0x608F, 1), (0x608F, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2))
+# increments per motor revolution below which 0x608F is a placeholder (the drive runs with its
+# encoder's count: protocol/src/od/placeholders.rs)
+MIN_INCREMENTS_PER_REV = 4
+
 SIZES = {0x1: 1, 0x2: 1, 0x3: 2, 0x4: 4, 0x5: 1, 0x6: 2, 0x7: 4, 0x8: 4,
          0x11: 8, 0x15: 8, 0x1B: 8, 0x10: 3, 0x12: 3, 0x13: 5, 0x14: 6,
          0x16: 3, 0x18: 5, 0x19: 6, 0x1A: 7}
@@ -92,6 +97,15 @@ def check(network, node_id, path):
                     raw = node.sdo.upload(sub.index, sub.subindex)
                     sub.default = int.from_bytes(raw, "little")
                     sub0_from_drive.append(f"0x{sub.index:04X}:{sub.subindex}")
+    # the factor group as the drive serves it before the DCF's ParameterValues: a DCF that
+    # writes a placeholder encoder resolution back (Elmo's Whistle Gold: 0x608F:1 = 1,
+    # 0x6092:1 = 1) leaves the drive running with its own encoder's count (the placeholder
+    # rule), which a master of that drive knows; the move below takes it from here then
+    factor_before = {}
+    for index, sub in FACTOR_GROUP:
+        obj = od.get(index)
+        if obj is not None and sub in getattr(obj, "subindices", {}):
+            factor_before[(index, sub)] = sdo_u32(node, index, sub)
     try:
         node.load_configuration()  # raises on the first refused ParameterValue
         configured = True
@@ -116,7 +130,7 @@ def check(network, node_id, path):
     out = {"file": path, "uploads": uploads, "bad_sizes": bad,
            "identity_ok": identity_ok, "configured": configured, "map_mismatches": mismatches,
            "sub0_from_drive": sub0_from_drive}
-    out.update(pp_move(network, node_id, path))
+    out.update(pp_move(network, node_id, path, factor_before))
     return out
 
 
@@ -177,7 +191,7 @@ def sdo_u32(node, index, sub):
     return int.from_bytes(node.sdo.upload(index, sub)[:4].ljust(4, b"\0"), "little")
 
 
-def pp_move(network, node_id, path):
+def pp_move(network, node_id, path, factor_before=None):
     """BaseNode402 in profile position (where the drive offers it, 0x6502 as served): as a
     master does, its own profile (0x6081/0x6083/0x6084 within the file's limits), then a move
     of one motor revolution in the file's own units (its factor group as served);
@@ -196,9 +210,16 @@ def pp_move(network, node_id, path):
     # one motor revolution in user units, from the factor group as served
     def served(index, sub, fallback):
         return sdo_u32(node, index, sub) if od.get(index) is not None else fallback
-    enc, enc_r = served(0x608F, 1, 0), served(0x608F, 2, 1)
-    gm, gs = served(0x6091, 1, 1), served(0x6091, 2, 1)
-    feed, feed_r = served(0x6092, 1, 0), served(0x6092, 2, 1)
+    factor = served
+    if od.get(0x608F) is not None and factor_before:
+        e, r = served(0x608F, 1, 0), served(0x608F, 2, 1)
+        if e and r and e < MIN_INCREMENTS_PER_REV * r:
+            # a placeholder written back: the drive runs as before the write
+            def factor(index, sub, fallback):
+                return factor_before.get((index, sub), fallback)
+    enc, enc_r = factor(0x608F, 1, 0), factor(0x608F, 2, 1)
+    gm, gs = factor(0x6091, 1, 1), factor(0x6091, 2, 1)
+    feed, feed_r = factor(0x6092, 1, 0), factor(0x6092, 2, 1)
     if enc and feed and enc_r and gm and gs and feed_r:
         uu_per_motor_rev = (feed / feed_r) / (gm / gs)
     else:

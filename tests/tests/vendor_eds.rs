@@ -3,7 +3,7 @@
 //! does: identity, every object with its type's size, rw defaults written back,
 //! `load_configuration()` (the file's PDOs, a DCF's ParameterValues), the maps read back,
 //! BaseNode402 moving the axis. The checks live in tests/python/vendor_drive.py. Every file of
-//! tests/eds/vendors/ (seven drives, six makers; sources in SOURCES.md there).
+//! tests/eds/vendors/ (sources in SOURCES.md there).
 //!
 //! Needs vcan: `./vcan-setup.sh -- cargo nextest run -p e2e --test vendor_eds`. Node 21, bus 0.
 
@@ -22,13 +22,14 @@ fn vendor_files() -> Vec<std::path::PathBuf> {
     v
 }
 
-/// Files whose `load_configuration()` and move do not pass yet here (issue 33; SOURCES.md). The
-/// host check (emulator/tests/vendor_files_python.rs) passes all three since the drive fills
-/// their placeholders (protocol/src/od/placeholders.rs); here the two Gold DCFs still stop in
-/// python canopen itself: `load_configuration()`'s `pdo.read(from_od=True)` raises a TypeError
-/// on a mapping count the file leaves without a value (vendor_drive.py does not read it from
-/// the drive first, as the host check does). The SimplIQ DCF passes here too.
-const PENDING: [&str; 2] = ["elmo-gold-cob.dcf", "elmo-whistle-gold.dcf"];
+/// Files whose `load_configuration()` and move do not pass yet here (issue 33; SOURCES.md):
+/// none. The two Elmo Gold DCFs leave PDO mapping counts without a value, on which python
+/// canopen 2.4.1's own `load_configuration()` raised a TypeError (`PdoMap.read(from_od=True)`:
+/// `range(1, None + 1)`) before any SDO reached the drive; vendor_drive.py now reads such
+/// values from the drive first, as a user of python canopen must, and checks that the
+/// drive's count counts the entries the file gives. The Whistle's 0x608F:1 = 1 written back
+/// runs with the drive's encoder count (protocol/src/od/placeholders.rs).
+const PENDING: [&str; 0] = [];
 
 #[test]
 fn python_canopen_masters_the_drive_of_every_vendor_file() {

@@ -120,10 +120,17 @@ impl VendorEds {
         let objects = objects::register(&mut od, base, rotary)
             .map_err(|e| anyhow::anyhow!("{}: the emulator's objects: {e}", self.path.display()))?;
         let mut report = report;
+        // the feed constant 0x60A8 gave (0x6092 stays hidden: the file lacks it), as the
+        // build report's note says it: "... 0x6092 = N/D user units per shaft revolution"
         let feed_from_si = report
             .notes
             .iter()
-            .any(|n| n.starts_with("0x60A8 SI unit position = ") && n.contains(" applied: "));
+            .filter(|n| n.starts_with("0x60A8 SI unit position = ") && n.contains(" applied: "))
+            .find_map(|n| {
+                let ratio = n.split("0x6092 = ").nth(1)?.split(' ').next()?;
+                let (num, den) = ratio.split_once('/')?;
+                Some((num.parse::<u32>().ok()?, den.parse::<u32>().ok()?))
+            });
         report
             .notes
             .insert(0, user_unit_note(&od, info, feed_from_si));
@@ -139,11 +146,11 @@ impl VendorEds {
 /// per time, or 0x60A8's unit per time; an acceleration that per second): said here, with
 /// 0x60A8 where it gives the feed constant the file lacks.
 /// `feed_from_si_position`: the file lacks 0x6092 and its 0x60A8 gave it (the build
-/// report's note says so).
+/// report's note says so): the feed constant served (user units / shaft revolutions).
 pub fn user_unit_note(
     od: &ObjectDictionary,
     info: &DriveInfo,
-    feed_from_si_position: bool,
+    feed_from_si_position: Option<(u32, u32)>,
 ) -> String {
     let v = |index: u16, sub: u8, fallback: u32| {
         od.get(index, sub)
@@ -164,8 +171,8 @@ pub fn user_unit_note(
         v(0x608F, 2, 1),
         v(0x6091, 1, info.gear_motor_revs),
         v(0x6091, 2, info.gear_shaft_revs),
-        v(0x6092, 1, info.feed_user_units),
-        v(0x6092, 2, info.feed_shaft_revs),
+        feed_from_si_position.map_or_else(|| v(0x6092, 1, info.feed_user_units), |f| f.0),
+        feed_from_si_position.map_or_else(|| v(0x6092, 2, info.feed_shaft_revs), |f| f.1),
     );
     // the simulated axis: its own factor says what an increment is in its units
     // (1 um linear, 0.001 deg rotary)
@@ -211,11 +218,14 @@ pub fn user_unit_note(
         s.push_str(&format!(
             "; 0x60A8 SI unit position = 0x{p:08X} ({}): {}",
             si_unit_text(p),
-            if feed_from_si_position {
-                "applied, 1 uu is that unit (the feed constant 0x6092 the file lacks is \
-                 derived from it)"
+            if feed_from_si_position.is_some() {
+                format!(
+                    "applied, 1 uu = {} (the feed constant 0x6092 the file lacks is derived \
+                     from it)",
+                    si_one_unit_text(p)
+                )
             } else {
-                "positions stay in the factor group's user units"
+                "positions stay in the factor group's user units".into()
             }
         ));
     }
@@ -284,6 +294,22 @@ fn si_unit_text(raw: u32) -> String {
     format!("{prefix}{unit}{per}")
 }
 
+/// One SI unit of a position (0x60A8) as a number and its unit: `0.001 rad`, `1 um` for
+/// 1e-6 m, `0.1 deg`.
+fn si_one_unit_text(raw: u32) -> String {
+    use drive_protocol::cia402 as c;
+    let u = c::SiUnit::decode(raw);
+    match (u.unit, u.prefix) {
+        (c::SI_METRE, -6) => "1 um".into(),
+        (c::SI_METRE, -3) => "1 mm".into(),
+        _ => format!(
+            "{} {}",
+            sig(u.scale()),
+            si_unit_text(u32::from(u.unit) << 16)
+        ),
+    }
+}
+
 /// A number with about 6 significant digits, without trailing zeros.
 fn sig(x: f64) -> String {
     if x == 0.0 || !x.is_finite() {
@@ -335,4 +361,47 @@ pub fn report_text(r: &BuildReport, base: u16, file: &Path) -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `eds --from` of a file whose SI unit position 0x60A8 is a milliradian (and no feed
+    /// constant): one user unit is said as 0.001 rad, and as the same angle of the simulated
+    /// rotary axis (0.001 rad = 0.0572958 deg).
+    #[test]
+    fn a_user_unit_in_radians_is_said_in_radians() {
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/eds/units/position-radian.eds");
+        let eds = VendorEds::load(&path).unwrap();
+        // the motor encoder takes the file's resolution (`adapt`): 2000 per revolution
+        let info = DriveInfo {
+            encoder_increments_per_rev: 2000,
+            gear_motor_revs: 1,
+            gear_shaft_revs: 1,
+            feed_user_units: 360_000,
+            feed_shaft_revs: 1,
+            rated_torque_mnm: 1000,
+            rated_current_ma: 2000,
+            max_motor_speed_rpm: 3000,
+            rotary: true,
+        };
+        let base = eds.objects_base(None).unwrap();
+        let (_, _, report) = eds.dictionary(&info, base, true).unwrap();
+        let note = &report.notes[0];
+        assert!(
+            note.contains(
+                "0x60A8 SI unit position = 0xFD100000 (1e-3 rad): applied, 1 uu = 0.001 rad"
+            ),
+            "{note}"
+        );
+        // the file's 2000 increments per revolution: 2000 / (2000 pi) increments per uu,
+        // 360 / (2000 pi) deg of the axis
+        assert!(
+            note.contains("= 0.0572958 deg of the simulated axis"),
+            "{note}"
+        );
+        assert!(note.contains("1 uu = 0.31831 increments"), "{note}");
+    }
 }

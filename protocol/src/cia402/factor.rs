@@ -232,6 +232,38 @@ impl Factor {
     }
 }
 
+/// The fraction `num / den` nearest `x` (> 0) whose terms fit UNSIGNED32, as a factor-group
+/// object holds a real ratio (0x6092 for a user unit in radians: 2*pi*10^-prefix per shaft
+/// revolution): the last continued-fraction convergent of `x` within range. `None` for a
+/// value out of range (0 or less, not finite, above `u32::MAX` or below `1 / u32::MAX`).
+pub fn ratio_u32(x: f64) -> Option<(u32, u32)> {
+    let max = f64::from(u32::MAX);
+    if !(x.is_finite() && x > 0.0 && x <= max && x >= 1.0 / max) {
+        return None;
+    }
+    // convergents h/k: h(n) = a(n) h(n-1) + h(n-2), likewise k
+    let (mut h0, mut h1, mut k0, mut k1) = (0.0f64, 1.0f64, 1.0f64, 0.0f64);
+    let mut best = None;
+    let mut r = x;
+    for _ in 0..64 {
+        let a = r.floor();
+        let (h2, k2) = (a * h1 + h0, a * k1 + k0);
+        if h2 > max || k2 > max {
+            break;
+        }
+        if h2 >= 1.0 {
+            best = Some((h2 as u32, k2 as u32));
+        }
+        (h0, h1, k0, k1) = (h1, h2, k1, k2);
+        let frac = r - a;
+        if frac < 1e-12 || (h2 / k2 - x).abs() <= x * f64::EPSILON {
+            break;
+        }
+        r = 1.0 / frac;
+    }
+    best
+}
+
 /// Saturating conversion of a real user-unit value to the wire's I32.
 #[inline]
 pub fn sat_i32(x: f64) -> i32 {
@@ -276,6 +308,33 @@ mod tests {
         assert!((f.to_inc(10_000.0) - (1u32 << 20) as f64).abs() < 1e-6);
         assert!((f.to_uu((1u32 << 20) as f64) - 10_000.0).abs() < 1e-6);
         assert!(Factor::from_objects(1, 1, 0, 1, 1, 1).is_none());
+    }
+
+    #[test]
+    fn ratio_u32_is_the_nearest_fraction_that_fits() {
+        use std::f64::consts::TAU;
+        for x in [
+            TAU,
+            TAU * 1e3,
+            TAU * 1e6,
+            TAU * 1e-3,
+            0.5,
+            3.0,
+            1e9,
+            1.0 / 7.0,
+        ] {
+            let (n, d) = ratio_u32(x).unwrap();
+            let err = (f64::from(n) / f64::from(d) - x).abs() / x;
+            assert!(err < 1e-12, "{x}: {n}/{d}, relative error {err}");
+        }
+        assert_eq!(ratio_u32(3.0), Some((3, 1)));
+        assert_eq!(ratio_u32(0.25), Some((1, 4)));
+        // 2*pi*1e6 (a micro-radian user unit): the denominator is what keeps it exact
+        let (n, d) = ratio_u32(TAU * 1e6).unwrap();
+        assert!(d > 1 && n > 6_000_000, "{n}/{d}");
+        for x in [0.0, -1.0, f64::NAN, f64::INFINITY, 5e9, 1e-10] {
+            assert_eq!(ratio_u32(x), None, "{x}");
+        }
     }
 
     #[test]

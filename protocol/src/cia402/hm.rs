@@ -48,7 +48,7 @@ impl Hm {
     /// Returns the mode output; sets `ctx.new_origin` when home is found.
     pub fn step(&mut self, ctx: &mut Ctx) -> ModeOut {
         let start = ctx.rising & BIT_HOMING_START != 0;
-        let res = ctx.store.u32(o::ENC_INC).max(1) as i64;
+        let res = (ctx.inc_per_motor_rev.round() as i64).max(1);
         let home_offset_inc = ctx.f.to_inc(ctx.store.i32(o::HOME_OFFSET) as f64);
         if start {
             self.attained = false;

@@ -98,6 +98,9 @@ pub(crate) struct Ctx<'a> {
     pub rising: u16,
     pub halt: bool,
     pub halt_dec: f64,
+    /// Motor-encoder increments per motor revolution the drive runs with (0x608F, a
+    /// placeholder replaced: `od::placeholders::running_factor_group`).
+    pub inc_per_motor_rev: f64,
     pub axis: Axis,
     /// Set by homing when the home position is found.
     pub new_origin: Option<f64>,
@@ -127,7 +130,7 @@ impl Ctx<'_> {
     pub fn vel_limit(&self, v_uu: f64) -> f64 {
         let v = v_uu.min(self.store.u32(o::MAX_PROFILE_VEL) as f64);
         let inc = self.f.vel_to_inc(v);
-        let motor = max_motor_inc_per_s(self.store);
+        let motor = max_motor_inc_per_s(self.store, self.inc_per_motor_rev);
         if motor > 0.0 {
             inc.min(motor)
         } else {
@@ -145,9 +148,8 @@ impl Ctx<'_> {
     }
 }
 
-fn max_motor_inc_per_s(store: &Store) -> f64 {
-    let revs = store.u32(o::ENC_REVS).max(1) as f64;
-    store.u32(o::MAX_MOTOR_SPEED) as f64 / 60.0 * store.u32(o::ENC_INC) as f64 / revs
+fn max_motor_inc_per_s(store: &Store, inc_per_motor_rev: f64) -> f64 {
+    store.u32(o::MAX_MOTOR_SPEED) as f64 / 60.0 * inc_per_motor_rev
 }
 
 /// What the node hands a tick besides the store and the drive's feedback: the time of the
@@ -217,6 +219,9 @@ pub(crate) struct Cia402 {
     /// unit velocity or acceleration: applied to the factor each tick
     /// ([`Factor::with_si_units`], [`Factor::with_si_acceleration`]).
     pub si_rows: Option<SiRows>,
+    /// Motor-encoder increments per motor revolution the drive runs with, as of the last
+    /// tick (0x608F; a placeholder a master wrote replaced by the encoder's count).
+    pub inc_per_motor_rev: f64,
 }
 
 /// The store rows of a dictionary's SI unit objects (UNSIGNED32 ones only).
@@ -259,6 +264,7 @@ impl Cia402 {
             position_actual_uu: 0,
             fe_window_zero_off: false,
             si_rows: None,
+            inc_per_motor_rev: 0.0,
         }
     }
 
@@ -358,12 +364,12 @@ impl Cia402 {
         drive: &mut impl Drive,
     ) -> StepOut {
         let (sync_at, csp_period_us) = (control.sync_at, control.csp_period_us);
-        let input = self.read_inputs(store, fb, now_us, control);
+        let input = self.read_inputs(store, fb, now_us, control, drive.info());
         let mut out = StepOut {
             command: DriveCommand {
                 setpoint: Setpoint::Disabled,
                 max_torque_permille: store.u32(o::MAX_TORQUE) as f64,
-                max_velocity_inc_per_s: max_motor_inc_per_s(store),
+                max_velocity_inc_per_s: max_motor_inc_per_s(store, self.inc_per_motor_rev),
             },
             new_fault: None,
             fault_cleared: false,
@@ -397,35 +403,44 @@ impl Cia402 {
         out
     }
 
-    /// Stage 1: the tick's time step, the factor group (0x608F, 0x6091, 0x6092, if valid),
-    /// the actual position and speed the loops use, and the controlword 0x6040.
+    /// Stage 1: the tick's time step, the factor group (0x608F, 0x6091, 0x6092, if valid;
+    /// a placeholder encoder resolution a master wrote runs as the drive's encoder count,
+    /// `od::placeholders::running_factor_group`), the actual position and speed the loops
+    /// use, and the controlword 0x6040.
     fn read_inputs(
         &mut self,
         store: &Store,
         fb: &Feedback,
         now_us: u64,
         control: TickControl,
+        info: crate::drive::DriveInfo,
     ) -> TickInput {
         let dt = match self.last_now {
             Some(l) => (now_us.saturating_sub(l) as f64 * 1e-6).min(0.1),
             None => 0.0,
         };
         self.last_now = Some(now_us);
-        if let Some(f) = Factor::from_objects(
-            store.u32(o::ENC_INC),
-            store.u32(o::ENC_REVS),
-            store.u32(o::GEAR_MOTOR),
-            store.u32(o::GEAR_SHAFT),
-            store.u32(o::FEED),
-            store.u32(o::FEED_REVS),
-        ) {
+        let [enc, enc_revs, gear_motor, gear_shaft, feed, feed_revs] =
+            crate::od::placeholders::running_factor_group(
+                [
+                    store.u32(o::ENC_INC),
+                    store.u32(o::ENC_REVS),
+                    store.u32(o::GEAR_MOTOR),
+                    store.u32(o::GEAR_SHAFT),
+                    store.u32(o::FEED),
+                    store.u32(o::FEED_REVS),
+                ],
+                info.encoder_increments_per_rev,
+            );
+        self.inc_per_motor_rev = enc as f64 / enc_revs.max(1) as f64;
+        if let Some(f) =
+            Factor::from_objects(enc, enc_revs, gear_motor, gear_shaft, feed, feed_revs)
+        {
             self.factor = match self.si_rows {
                 Some(rows) => {
-                    let revs = store.u32(o::ENC_REVS).max(1) as f64;
-                    let shaft = store.u32(o::GEAR_SHAFT).max(1) as f64;
-                    let inc_per_shaft_rev = store.u32(o::ENC_INC) as f64 / revs
-                        * store.u32(o::GEAR_MOTOR) as f64
-                        / shaft;
+                    let revs = enc_revs.max(1) as f64;
+                    let shaft = gear_shaft.max(1) as f64;
+                    let inc_per_shaft_rev = enc as f64 / revs * gear_motor as f64 / shaft;
                     let pos = rows.position.map(|r| store.u32(r));
                     let f = match rows.velocity {
                         Some(v) => f.with_si_units(pos, store.u32(v), inc_per_shaft_rev).0,
@@ -547,6 +562,7 @@ impl Cia402 {
             rising: input.rising,
             halt: false,
             halt_dec: 0.0,
+            inc_per_motor_rev: self.inc_per_motor_rev,
             axis: self.axis,
             new_origin: None,
         };

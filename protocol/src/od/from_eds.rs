@@ -728,12 +728,13 @@ impl FileUnits {
 
 /// The feed constant 0x6092 (user units per shaft revolution, sub 1 and 2) a file's SI unit
 /// position 0x60A8 makes on the simulated axis, where the file has no 0x6092 of its own: a
-/// length (metre with a prefix) on a linear axis, or an angle of the drive shaft (revolution
-/// or degree with a prefix) on either. With why; `None` where the file has 0x6092, no
-/// 0x60A8, or one this drive cannot map (a radian, another unit, a length on a rotary axis,
-/// a ratio beyond UNSIGNED32).
+/// length (metre with a prefix) on a linear axis, or an angle of the drive shaft (revolution,
+/// degree or radian with a prefix) on either. With why; `None` where the file has 0x6092, no
+/// 0x60A8, or one this drive cannot map (another unit, a length on a rotary axis, a ratio
+/// beyond UNSIGNED32). A radian's 2*pi per revolution is no fraction: 0x6092 is the nearest
+/// one whose terms fit UNSIGNED32 (`cia402::factor::ratio_u32`, relative error below 1e-9).
 fn feed_from_si_position(file: &EdsFile, info: &DriveInfo) -> Option<(u32, u32, String)> {
-    use crate::cia402::{SiUnit, SI_DEGREE, SI_METRE, SI_REVOLUTION};
+    use crate::cia402::{SiUnit, SI_DEGREE, SI_METRE, SI_RADIAN, SI_REVOLUTION};
     if file.object(0x6092).is_some() {
         return None;
     }
@@ -741,6 +742,20 @@ fn feed_from_si_position(file: &EdsFile, info: &DriveInfo) -> Option<(u32, u32, 
     let u = SiUnit::decode(raw);
     if u.per != 0 {
         return None;
+    }
+    if u.unit == SI_RADIAN {
+        let per_rev = std::f64::consts::TAU / u.scale();
+        let (n, d) = crate::cia402::factor::ratio_u32(per_rev)?;
+        return Some((
+            n,
+            d,
+            format!(
+                "0x60A8 SI unit position = 0x{raw:08X} applied: the file has no feed constant \
+                 0x6092, so the drive serves 0x6092 = {n}/{d} user units per shaft revolution \
+                 (2 pi rad of the drive shaft: {per_rev} of 1e{} rad), 1 uu being 0x60A8's unit",
+                u.prefix
+            ),
+        ));
     }
     // the unit per shaft revolution as numerator / denominator * 10^-prefix
     let (num, den, what): (u64, u64, String) = match u.unit {

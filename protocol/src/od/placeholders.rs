@@ -16,7 +16,16 @@
 //!   feed constant 0x6092 1 per 1 shaft revolution), the vendor's user unit is one encoder
 //!   increment (the file's windows and limits are in increments: Elmo's 0x6067 = 100,
 //!   0x607D = +-9e8), so 0x6092:1 is served as the increments per shaft revolution and
-//!   1 uu = 1 increment (`minimal/encoder-one-per-rev.eds`);
+//!   1 uu = 1 increment (`minimal/encoder-one-per-rev.eds`). The same rule holds for a
+//!   value a master writes: the Whistle Gold DCF's ParameterValues 0x608F:1 = 1 and
+//!   0x6092:1 = 1 come back through `load_configuration()`; the master reads back what it
+//!   wrote, the drive runs with its encoder's count ([`running_factor_group`], each tick in
+//!   `cia402`), so 1 uu stays 1 increment and the motor's top speed 0x6080 stays what it is.
+//!   A real Elmo does the same with its own numbers: its factor group only relates user
+//!   units to its internal counts (Elmo's DSP 402 implementation guide: 0x6093 position
+//!   factor, default 1/1), the encoder's counts per revolution being set in Elmo's own tool,
+//!   so 0x608F:1 = 1 with 0x6092:1 = 1 leaves 1 uu = 1 count (`minimal/encoder-one-per-rev.eds`
+//!   written back: `protocol/tests/eds_vendor_placeholders.rs`);
 //! - a PDO COB-ID the file marks read-only (a scanned file: Vector CANeds wrote `ro` for
 //!   every COB-ID of the Elmo SimplIQ): its CAN-ID is fixed, but a master still switches the
 //!   PDO off and on through bit 31 (python canopen's `load_configuration()` writes the
@@ -76,6 +85,49 @@ pub fn empty_pdo_mapping(file: &EdsFile, index: u16, s: &EdsSub) -> Option<(Defa
     ))
 }
 
+/// The factor group terms `[0x608F:1, 0x608F:2, 0x6091:1, 0x6091:2, 0x6092:1, 0x6092:2]`.
+pub type FactorTerms = [u32; 6];
+
+/// Whether an encoder resolution of `enc` increments per `enc_revs` motor revolutions is a
+/// placeholder: below [`MIN_INCREMENTS_PER_REV`] per revolution (0 terms are no factor).
+fn encoder_placeholder(enc: u64, enc_revs: u64) -> bool {
+    enc != 0 && enc_revs != 0 && enc < MIN_INCREMENTS_PER_REV * enc_revs
+}
+
+/// Whether a factor group with a placeholder encoder resolution is all ones: 0x608F n/n,
+/// gear 1:1, feed 1 per 1 shaft revolution; the user unit is then one encoder increment.
+fn all_ones(enc: u64, enc_revs: u64, gear_one: bool, feed: u64, feed_revs: u64) -> bool {
+    enc == enc_revs && gear_one && feed == 1 && feed_revs == 1
+}
+
+/// The factor group a drive runs with, from the terms it holds now (a master may have
+/// written a placeholder 0x608F back: Elmo's DCFs set 0x608F:1 = 1 and 0x6092:1 = 1 through
+/// python canopen's `load_configuration()`), `drive_inc_per_rev` being the increments its own
+/// motor encoder counts. The rule of a file's default ([`factor_group`]), applied to a
+/// written value: a placeholder encoder resolution is replaced by the encoder's count; where
+/// the group is all ones too, the feed by the increments per shaft revolution (1 uu = 1
+/// increment). What the master wrote stays readable; the drive runs with this. Called each
+/// tick: no allocation.
+pub fn running_factor_group(t: FactorTerms, drive_inc_per_rev: u32) -> FactorTerms {
+    let [enc, enc_revs, gm, gs, feed, feed_revs] = t.map(u64::from);
+    if drive_inc_per_rev == 0 || !encoder_placeholder(enc, enc_revs) {
+        return t;
+    }
+    let Some(served_enc) = u64::from(drive_inc_per_rev)
+        .checked_mul(enc_revs)
+        .and_then(|x| u32::try_from(x).ok())
+    else {
+        return t;
+    };
+    let gear_one = gm == gs && gm != 0;
+    let served_feed = if all_ones(enc, enc_revs, gear_one, feed, feed_revs) {
+        drive_inc_per_rev
+    } else {
+        t[4]
+    };
+    [served_enc, t[1], t[2], t[3], served_feed, t[5]]
+}
+
 /// The factor group the drive serves where the file's is a placeholder: 0x608F:1 and, for an
 /// all-ones factor group, 0x6092:1 (see the module doc). `None`: the file's value stands.
 pub fn factor_group(
@@ -86,7 +138,7 @@ pub fn factor_group(
 ) -> Option<(u32, String)> {
     let enc = file_value(file, 0x608F, 1)?;
     let enc_revs = file_value(file, 0x608F, 2).unwrap_or(1);
-    if enc == 0 || enc_revs == 0 || enc >= MIN_INCREMENTS_PER_REV * enc_revs {
+    if !encoder_placeholder(enc, enc_revs) {
         return None;
     }
     let axis_enc = u64::from(info.encoder_increments_per_rev);
@@ -106,9 +158,9 @@ pub fn factor_group(
                 (Some(m), Some(s)) => m == s && m != 0,
                 _ => false,
             };
-            let feed_one = file_value(file, 0x6092, 1) == Some(1)
-                && file_value(file, 0x6092, 2).unwrap_or(1) == 1;
-            if !(gear_one && feed_one && enc == enc_revs) {
+            let feed = file_value(file, 0x6092, 1)?;
+            let feed_revs = file_value(file, 0x6092, 2).unwrap_or(1);
+            if !all_ones(enc, enc_revs, gear_one, feed, feed_revs) {
                 return None;
             }
             let feed = u32::try_from(axis_enc).ok()?;
@@ -164,5 +216,40 @@ mod tests {
         assert!(!keeps_fixed_can_id(0x4000_0185, 0x0000_0185));
         assert!(!keeps_fixed_can_id(0x4000_0185, 0x4000_0186));
         assert!(!keeps_fixed_can_id(0x0000_0185, 0x2000_0185));
+    }
+
+    #[test]
+    fn a_written_placeholder_encoder_resolution_runs_with_the_encoder_count() {
+        let enc = 1 << 20;
+        // Elmo's DCF writes 1/1, gear 1:1, feed 1/1: 1 uu = 1 increment
+        assert_eq!(
+            running_factor_group([1, 1, 1, 1, 1, 1], enc),
+            [enc, 1, 1, 1, enc, 1]
+        );
+        // 1 increment per revolution with a feed of its own: only the encoder is replaced
+        assert_eq!(
+            running_factor_group([1, 1, 1, 1, 3600, 1], enc),
+            [enc, 1, 1, 1, 3600, 1]
+        );
+        // 3 per 1 revolution is a placeholder; 2 per 2 too; a gear of 2:1 is no all-ones group
+        assert_eq!(
+            running_factor_group([3, 1, 2, 1, 1, 1], enc)[..],
+            [enc, 1, 2, 1, 1, 1]
+        );
+        assert_eq!(running_factor_group([2, 2, 1, 1, 1, 1], enc)[4], enc);
+        // a real resolution, or a zero term, stands
+        for t in [
+            [4, 1, 1, 1, 1, 1],
+            [2000, 1, 1, 1, 2000, 1],
+            [0, 1, 1, 1, 1, 1],
+            [1, 0, 1, 1, 1, 1],
+        ] {
+            assert_eq!(running_factor_group(t, enc), t, "{t:?}");
+        }
+        // no encoder count known: the terms stand
+        assert_eq!(
+            running_factor_group([1, 1, 1, 1, 1, 1], 0),
+            [1, 1, 1, 1, 1, 1]
+        );
     }
 }

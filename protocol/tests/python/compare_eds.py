@@ -96,7 +96,11 @@ def main():
                     continue
                 errors.append(f"{where}: python default {theirs!r} does not encode")
                 continue
-            if mine is None:
+            if mine is None and theirs in ("", b""):
+                # `DefaultValue=` (empty) on a string or domain: python '' / b'', ours none;
+                # both serve an empty value
+                known["empty-string"] += 1
+            elif mine is None:
                 errors.append(f"{where}: python default {theirs!r}, ours none")
             elif raw.hex() != mine:
                 errors.append(f"{where}: default python {raw.hex()} ({theirs!r}), ours {mine}")
