@@ -9,7 +9,7 @@ use drive_protocol::{Clocks, ConfigError, Drive, Node, NodeConfig};
 use crate::al::{code, Al, AlState, Checks};
 use crate::coe::{self, Coe};
 use crate::datagram;
-use crate::dc::{self, Sync0};
+use crate::dc::{self, DcClock, Sync0};
 use crate::esc::{eep, reg, Esc};
 use crate::frame::DatagramAt;
 use crate::mailbox::{self, Header, Mailbox, TYPE_COE};
@@ -402,6 +402,8 @@ pub struct Slave {
     pub watchdog_expiries: u32,
     /// The SYNC0 unit as last activated through 0x0981.
     sync0: Sync0,
+    /// The ESC's local clock and its drift control.
+    dc: DcClock,
     /// DC SYNC0 chosen (0x1C32:1 = 2) and checked at SAFE-OP: the drive follows SYNC0.
     dc_synchronised: bool,
     /// A vendor's ESI served instead of the drive's own description: its names and sync
@@ -558,6 +560,7 @@ impl Slave {
             outputs_lost: false,
             watchdog_expiries: 0,
             sync0: Sync0::default(),
+            dc: DcClock::default(),
             dc_synchronised: false,
             esi,
             node,
@@ -721,16 +724,32 @@ impl Slave {
     pub fn dc_synchronised(&self) -> bool {
         self.dc_synchronised && matches!(self.al.state, AlState::SafeOp | AlState::Op)
     }
-    /// The next SYNC0 pulse at or after `local_ns` on the slave's clock (the clock of
+    /// The next SYNC0 pulse at or after `t_ns` on the frames' clock (the clock of
     /// [`Slave::execute`]'s `now_ns`), in that clock, while the drive follows SYNC0 (else
-    /// `None`): the pulse grid is in system time, the slave's clock plus the offset 0x0920.
-    pub fn next_sync0_ns(&self, local_ns: u64) -> Option<u64> {
+    /// `None`): the pulse grid is in system time, the ESC's local clock (the frames' clock
+    /// with its drift, as the master's drift control steers it) plus the offset 0x0920.
+    pub fn next_sync0_ns(&self, t_ns: u64) -> Option<u64> {
         if !self.dc_synchronised() {
             return None;
         }
         let offset = self.esc.u64(reg::DC_OFFSET);
-        let system = self.sync0.next_at_or_after(local_ns.wrapping_add(offset))?;
-        Some(system.wrapping_sub(offset))
+        let local = self.dc.local_ns(t_ns);
+        let system = self.sync0.next_at_or_after(local.wrapping_add(offset))?;
+        Some(self.dc.host_ns(system.wrapping_sub(offset)))
+    }
+
+    /// The ESC's local clock and its drift control (see [`DcClock`]).
+    pub fn dc_clock(&self) -> &DcClock {
+        &self.dc
+    }
+
+    /// Let the ESC's local clock drift by `drift_ppm` (+: fast) against the frames' clock from
+    /// the last frame on: a crystal's error, for a master's drift control to correct. 0 by
+    /// default (the local clock is then the frames' clock).
+    pub fn set_dc_drift_ppm(&mut self, drift_ppm: f64) {
+        let ppb = (drift_ppm * 1000.0).round();
+        let ppb = if ppb.is_finite() { ppb as i64 } else { 0 };
+        self.dc.set_drift_ppb(self.now_ns, ppb);
     }
 
     /// Mailbox messages dropped because the queue was full.
@@ -774,7 +793,8 @@ impl Slave {
     ) -> u16 {
         self.now_ns = now_ns;
         let offset = self.esc.u64(reg::DC_OFFSET);
-        let system_ns = now_ns.wrapping_add(offset);
+        let local_ns = self.dc.local_ns(now_ns);
+        let system_ns = local_ns.wrapping_add(offset);
         self.esc.set_u64(reg::DC_SYSTEM_TIME, system_ns);
         if let Some(next) = self.sync0.next_at_or_after(system_ns) {
             // read back while active, the start time register is the next pulse
@@ -786,9 +806,19 @@ impl Slave {
             self.sync0 = Sync0::activate(&self.esc, system_ns);
         }
         if ev.dc_latch {
-            self.esc.set_u32(reg::DC_RECV_TIME0, now_ns as u32);
-            self.esc.set_u32(reg::DC_RECV_TIME0 + 4, now_ns as u32);
-            self.esc.set_u64(reg::DC_RECV_TIME_PU, now_ns);
+            self.esc.set_u32(reg::DC_RECV_TIME0, local_ns as u32);
+            self.esc.set_u32(reg::DC_RECV_TIME0 + 4, local_ns as u32);
+            self.esc.set_u64(reg::DC_RECV_TIME_PU, local_ns);
+        }
+        if let Some((value, wide)) = ev.dc_system_time {
+            let at = (self.esc.u64(reg::DC_OFFSET), self.esc.u32(reg::DC_DELAY));
+            let depth = self.esc.u8(reg::DC_DIFF_FILTER);
+            let diff = self.dc.received(now_ns, value, wide, at, depth);
+            self.esc.set_u32(reg::DC_DIFF, diff);
+        }
+        if ev.dc_loop_reset {
+            self.dc.reset(now_ns, self.esc.u16(reg::DC_SPEED_START));
+            self.esc.set_u32(reg::DC_DIFF, 0);
         }
         if ev.al_control {
             let v = self.esc.u16(reg::AL_CONTROL);
