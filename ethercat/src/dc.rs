@@ -98,10 +98,7 @@ impl Sync0 {
     }
 }
 
-/// The ESC's default speed counter start (0x0930), the bandwidth of its time control loop.
-pub const SPEED_COUNTER_START_DEFAULT: u16 = 0x1000;
-/// The ESC's default system time difference filter depth (0x0934).
-pub const DIFF_FILTER_DEPTH_DEFAULT: u8 = 4;
+pub use crate::esc::{DIFF_FILTER_DEPTH_DEFAULT, SPEED_COUNTER_START_DEFAULT};
 /// The loop's frequency correction is held within this, ppb (a crystal's drift is tens of ppm).
 pub const FREQ_CORRECTION_MAX_PPB: i64 = 500_000;
 /// A frequency estimate needs at least this much of the frames' clock between the writes it

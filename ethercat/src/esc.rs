@@ -17,6 +17,10 @@ pub const RAM_START: u16 = 0x1000;
 pub const FMMUS: usize = 3;
 /// Sync managers the ESC has.
 pub const SMS: usize = 4;
+/// The ESC's default speed counter start (0x0930), the bandwidth of its time control loop.
+pub const SPEED_COUNTER_START_DEFAULT: u16 = 0x1000;
+/// The ESC's default system time difference filter depth (0x0934).
+pub const DIFF_FILTER_DEPTH_DEFAULT: u8 = 4;
 
 /// Register addresses.
 pub mod reg {
@@ -243,11 +247,8 @@ impl Esc {
         esc.set_u16(reg::WD_TIME_PD, 1000); // 100 ms
         esc.set_u16(reg::EEP_CONTROL, eep::READ_8 | eep::ADDR_16);
         esc.set_u16(reg::AL_STATUS, 1);
-        esc.set_u16(reg::DC_SPEED_START, crate::dc::SPEED_COUNTER_START_DEFAULT);
-        esc.set(
-            reg::DC_DIFF_FILTER,
-            &[crate::dc::DIFF_FILTER_DEPTH_DEFAULT, 0x0C],
-        );
+        esc.set_u16(reg::DC_SPEED_START, SPEED_COUNTER_START_DEFAULT);
+        esc.set(reg::DC_DIFF_FILTER, &[DIFF_FILTER_DEPTH_DEFAULT, 0x0C]);
         esc
     }
 

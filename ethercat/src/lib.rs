@@ -27,6 +27,7 @@ pub mod datagram;
 pub mod dc;
 pub mod esc;
 pub mod esi;
+pub mod esi_od;
 pub mod frame;
 pub mod mailbox;
 pub mod pdo;
