@@ -3,7 +3,8 @@
 //! registers ignore writes; sync managers in mailbox mode gate access to their buffer (a
 //! write into a full mailbox or a read of an empty one is refused: no working counter); a
 //! write that completes a mailbox, a write to AL control, an EEPROM command, a DC receive
-//! time latch, a DC activation and a process-data write are reported as [`Events`] for the slave to act on
+//! time latch, a DC system time write (drift control), a write of the speed counter start,
+//! a DC activation and a process-data write are reported as [`Events`] for the slave to act on
 //! after the datagram. Nothing here allocates after [`Esc::new`].
 
 /// ESC type register value (0x0000); 0x04: an emulated ESC answers as a generic one.
@@ -16,6 +17,10 @@ pub const RAM_START: u16 = 0x1000;
 pub const FMMUS: usize = 3;
 /// Sync managers the ESC has.
 pub const SMS: usize = 4;
+/// The ESC's default speed counter start (0x0930), the bandwidth of its time control loop.
+pub const SPEED_COUNTER_START_DEFAULT: u16 = 0x1000;
+/// The ESC's default system time difference filter depth (0x0934).
+pub const DIFF_FILTER_DEPTH_DEFAULT: u8 = 4;
 
 /// Register addresses.
 pub mod reg {
@@ -83,8 +88,12 @@ pub mod reg {
     pub const DC_OFFSET: u16 = 0x0920;
     /// DC system time delay (32 bit).
     pub const DC_DELAY: u16 = 0x0928;
-    /// DC system time difference.
+    /// DC system time difference (sign bit 31, magnitude bits 0..30).
     pub const DC_DIFF: u16 = 0x092C;
+    /// DC speed counter start (a write resets the time control loop).
+    pub const DC_SPEED_START: u16 = 0x0930;
+    /// DC system time difference filter depth (bits 0..3).
+    pub const DC_DIFF_FILTER: u16 = 0x0934;
     /// DC cyclic unit control.
     pub const DC_CYCLIC_CONTROL: u16 = 0x0980;
     /// DC activation (bit 0 cyclic operation, bit 1 SYNC0, bit 2 SYNC1).
@@ -188,6 +197,11 @@ pub struct Events {
     pub dc_latch: bool,
     /// The DC activation register (0x0981) was written: the SYNC0 unit starts or stops.
     pub dc_activation: bool,
+    /// The system time (0x0910) was written: the value, and whether 8 bytes (else the low
+    /// 4); not stored: it feeds the time control loop.
+    pub dc_system_time: Option<(u64, bool)>,
+    /// The speed counter start (0x0930) was written: the time control loop starts over.
+    pub dc_loop_reset: bool,
 }
 
 /// The ESC memory.
@@ -207,8 +221,9 @@ fn read_only(addr: u16) -> bool {
         | 0x0300..=0x030D
         | 0x0440..=0x0441
         | 0x0501
-        | 0x0918..=0x091F
-        | 0x092C..=0x092F)
+        | 0x0910..=0x091F
+        | 0x092C..=0x092F
+        | 0x0932..=0x0933)
         || (0x0800..0x0800 + 8 * SMS as u16).contains(&addr) && matches!(addr % 8, 5 | 7)
 }
 
@@ -232,6 +247,8 @@ impl Esc {
         esc.set_u16(reg::WD_TIME_PD, 1000); // 100 ms
         esc.set_u16(reg::EEP_CONTROL, eep::READ_8 | eep::ADDR_16);
         esc.set_u16(reg::AL_STATUS, 1);
+        esc.set_u16(reg::DC_SPEED_START, SPEED_COUNTER_START_DEFAULT);
+        esc.set(reg::DC_DIFF_FILTER, &[DIFF_FILTER_DEPTH_DEFAULT, 0x0C]);
         esc
     }
 
@@ -410,6 +427,15 @@ impl Esc {
         }
         if touches(reg::DC_RECV_TIME0, 4) {
             self.events.dc_latch = true;
+        }
+        if addr == reg::DC_SYSTEM_TIME && data.len() >= 4 {
+            let mut v = [0u8; 8];
+            let n = data.len().min(8);
+            v[..n].copy_from_slice(&data[..n]);
+            self.events.dc_system_time = Some((u64::from_le_bytes(v), n == 8));
+        }
+        if touches(reg::DC_SPEED_START, 2) {
+            self.events.dc_loop_reset = true;
         }
         if touches(reg::DC_ACTIVATION, 1) {
             self.events.dc_activation = true;

@@ -103,6 +103,15 @@ pub fn xml(cfg: &SiiConfig, entry_name: impl Fn(u16, u8) -> String) -> String {
                 p.index
             );
             for e in &p.entries {
+                if e.index == 0 {
+                    // a padding entry: a gap of whole bytes
+                    let _ = writeln!(
+                        x,
+                        "          <Entry>\n            <Index>#x0</Index>\n            <BitLen>{}</BitLen>\n          </Entry>",
+                        e.bits
+                    );
+                    continue;
+                }
                 let _ = writeln!(
                     x,
                     "          <Entry>\n            <Index>#x{:04X}</Index>\n            <SubIndex>{}</SubIndex>\n            <BitLen>{}</BitLen>\n            <Name>{}</Name>\n            <DataType>{}</DataType>\n          </Entry>",
@@ -166,6 +175,8 @@ pub struct EsiDevice {
     pub entries_at: Vec<EntryAt>,
     /// Line of each PDO element, by mapping index.
     pub pdos_at: Vec<(u16, u32)>,
+    /// The device's own object dictionary (`Profile/Dictionary`), where the file has one.
+    pub dictionary: crate::esi_od::Dictionary,
 }
 
 /// An ESI that cannot be served: the line (1-based; 0 for the file as a whole) and why.
@@ -218,16 +229,7 @@ fn children<'a, 'i: 'a>(
         .filter(move |c| c.is_element() && c.tag_name().name() == name)
 }
 
-/// An ETG.2000 number: `#x` then hex digits, or decimal.
-pub fn number(text: &str) -> Option<u64> {
-    let t = text.trim();
-    match t.strip_prefix("#x").or_else(|| t.strip_prefix("#X")) {
-        Some(h) if !h.is_empty() => u64::from_str_radix(h, 16).ok(),
-        Some(_) => None,
-        None if !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit()) => t.parse().ok(),
-        None => None,
-    }
-}
+pub use crate::esi_od::number;
 
 fn quoted(s: &str) -> String {
     let short: String = s.chars().take(40).collect();
@@ -338,11 +340,14 @@ impl<'d, 'i> Reader<'d, 'i> {
             if bits == 0 {
                 return Err(err(self.doc, e, "BitLen 0".into()));
             }
-            if ei == 0 {
+            if ei == 0 && (sub != 0 || !bits.is_multiple_of(8)) {
                 return Err(err(
                     self.doc,
                     e,
-                    format!("{tag} #x{index:04X}: a padding entry (Index #x0) is not served"),
+                    format!(
+                        "{tag} #x{index:04X}: a padding entry (Index #x0) of {bits} bits: \
+                         only whole bytes are served (the drive maps bytes, not bits)"
+                    ),
                 ));
             }
             out.entries_at.push(EntryAt {
@@ -365,63 +370,122 @@ impl<'d, 'i> Reader<'d, 'i> {
 
 /// Read the first device of `Descriptions/Devices` of an ESI file (ETG.2000): vendor, type
 /// (product code, revision, order), name, group, the sync managers, the RxPDOs and TxPDOs
-/// with their entries, and that it speaks CoE. Numbers as `#x1234` or decimal.
+/// with their entries (padding entries, `Index` #x0, of whole bytes), that it speaks CoE, and
+/// its object dictionary ([`crate::esi_od`]). Numbers as `#x1234` or decimal.
 pub fn parse(text: &str) -> Result<EsiDevice, EsiError> {
     let doc = roxmltree::Document::parse(text).map_err(|e| EsiError {
         line: e.pos().row,
         why: format!("not well-formed XML: {e}"),
     })?;
     let r = Reader { doc: &doc };
-    let root = doc.root_element();
-    if root.tag_name().name() != "EtherCATInfo" {
-        return Err(err(
-            &doc,
-            root,
-            format!(
-                "the root element is <{}>, not <EtherCATInfo> (not an ESI file)",
-                root.tag_name().name()
-            ),
-        ));
-    }
-    let vendor = r.text_number(r.required(r.required(root, "Vendor")?, "Id")?, 0xFFFF_FFFF)?;
-    let devices = r.required(r.required(root, "Descriptions")?, "Devices")?;
-    let dev = r.required(devices, "Device")?;
-    let ty = r.required(dev, "Type")?;
-    let product = r
-        .attr_number(ty, "ProductCode", 0xFFFF_FFFF)?
-        .ok_or_else(|| err(&doc, ty, "<Type> has no ProductCode".into()))?;
-    let revision = r
-        .attr_number(ty, "RevisionNo", 0xFFFF_FFFF)?
-        .ok_or_else(|| err(&doc, ty, "<Type> has no RevisionNo".into()))?;
-    let name = r
-        .required(dev, "Name")?
-        .text()
-        .unwrap_or("")
-        .trim()
-        .to_string();
-    let order = ty.text().unwrap_or("").trim().to_string();
-    let group = child(dev, "GroupType")
-        .and_then(|g| g.text())
-        .unwrap_or("")
-        .trim()
-        .to_string();
+    let (vendor, dev) = r.device()?;
+    let mut identity = r.identity(dev)?;
+    identity.vendor = vendor;
+    let (name, order, group) = r.names(dev)?;
     let mailbox = r.required(dev, "Mailbox")?;
     r.required(mailbox, "CoE")?;
     let mut out = EsiDevice::default();
-    let mut sms = Vec::new();
-    for sm in children(dev, "Sm") {
-        if sms.len() == 8 {
-            return Err(err(&doc, sm, "more than 8 sync managers".into()));
+    let sms = r.sync_managers(dev)?;
+    let ((rx_pdos, rx_opt), (tx_pdos, tx_opt)) = r.pdos(dev, &mut out)?;
+    out.optional = (rx_opt, tx_opt);
+    out.config = SiiConfig {
+        identity,
+        name,
+        group,
+        order,
+        sms,
+        rx_pdos,
+        tx_pdos,
+    };
+    out.dictionary = crate::esi_od::read(dev, |n| line_of(&doc, n));
+    Ok(out)
+}
+
+/// PDOs of one direction: (assigned by default, the others).
+type Split = (Vec<Pdo>, Vec<Pdo>);
+
+impl<'d, 'i> Reader<'d, 'i> {
+    /// The vendor id and the first device.
+    fn device(&self) -> Result<(u32, roxmltree::Node<'d, 'i>), EsiError> {
+        let root = self.doc.root_element();
+        if root.tag_name().name() != "EtherCATInfo" {
+            return Err(err(
+                self.doc,
+                root,
+                format!(
+                    "the root element is <{}>, not <EtherCATInfo> (not an ESI file)",
+                    root.tag_name().name()
+                ),
+            ));
         }
-        let kind_text = sm.text().unwrap_or("").trim();
-        let kind = match kind_text {
+        let vendor = self.text_number(
+            self.required(self.required(root, "Vendor")?, "Id")?,
+            0xFFFF_FFFF,
+        )?;
+        let devices = self.required(self.required(root, "Descriptions")?, "Devices")?;
+        Ok((vendor as u32, self.required(devices, "Device")?))
+    }
+
+    /// Product code and revision of `<Type>` (the vendor and serial left 0).
+    fn identity(&self, dev: roxmltree::Node<'d, 'i>) -> Result<crate::sii::Identity, EsiError> {
+        let ty = self.required(dev, "Type")?;
+        let product = self
+            .attr_number(ty, "ProductCode", 0xFFFF_FFFF)?
+            .ok_or_else(|| err(self.doc, ty, "<Type> has no ProductCode".into()))?;
+        let revision = self
+            .attr_number(ty, "RevisionNo", 0xFFFF_FFFF)?
+            .ok_or_else(|| err(self.doc, ty, "<Type> has no RevisionNo".into()))?;
+        Ok(crate::sii::Identity {
+            vendor: 0,
+            product: product as u32,
+            revision: revision as u32,
+            serial: 0,
+        })
+    }
+
+    /// Name, order code (the `<Type>` text) and group type.
+    fn names(&self, dev: roxmltree::Node<'d, 'i>) -> Result<(String, String, String), EsiError> {
+        let name = self
+            .required(dev, "Name")?
+            .text()
+            .unwrap_or("")
+            .trim()
+            .to_string();
+        let order = self
+            .required(dev, "Type")?
+            .text()
+            .unwrap_or("")
+            .trim()
+            .to_string();
+        let group = child(dev, "GroupType")
+            .and_then(|g| g.text())
+            .unwrap_or("")
+            .trim()
+            .to_string();
+        Ok((name, order, group))
+    }
+
+    /// The `<Sm>` elements.
+    fn sync_managers(&self, dev: roxmltree::Node<'d, 'i>) -> Result<Vec<SmEntry>, EsiError> {
+        let mut sms = Vec::new();
+        for sm in children(dev, "Sm") {
+            if sms.len() == 8 {
+                return Err(err(self.doc, sm, "more than 8 sync managers".into()));
+            }
+            sms.push(self.sync_manager(sm)?);
+        }
+        Ok(sms)
+    }
+
+    fn sync_manager(&self, sm: roxmltree::Node<'d, 'i>) -> Result<SmEntry, EsiError> {
+        let kind = match sm.text().unwrap_or("").trim() {
             "MBoxOut" => 1,
             "MBoxIn" => 2,
             "Outputs" => 3,
             "Inputs" => 4,
             other => {
                 return Err(err(
-                    &doc,
+                    self.doc,
                     sm,
                     format!(
                         "sync manager type {} (MBoxOut, MBoxIn, Outputs or Inputs)",
@@ -430,68 +494,60 @@ pub fn parse(text: &str) -> Result<EsiDevice, EsiError> {
                 ))
             }
         };
-        let start = r
+        let start = self
             .attr_number(sm, "StartAddress", 0xFFFF)?
-            .ok_or_else(|| err(&doc, sm, "<Sm> has no StartAddress".into()))?;
-        let control = r
+            .ok_or_else(|| err(self.doc, sm, "<Sm> has no StartAddress".into()))?;
+        let control = self
             .attr_number(sm, "ControlByte", 0xFF)?
-            .ok_or_else(|| err(&doc, sm, "<Sm> has no ControlByte".into()))?;
-        let len = match r.attr_number(sm, "DefaultSize", 0xFFFF)? {
+            .ok_or_else(|| err(self.doc, sm, "<Sm> has no ControlByte".into()))?;
+        let len = match self.attr_number(sm, "DefaultSize", 0xFFFF)? {
             Some(v) => v,
-            None => r.attr_number(sm, "MaxSize", 0xFFFF)?.unwrap_or(0),
+            None => self.attr_number(sm, "MaxSize", 0xFFFF)?.unwrap_or(0),
         };
-        let enable = r.attr_number(sm, "Enable", 0xFF)?.unwrap_or(1);
-        sms.push(SmEntry {
+        let enable = self.attr_number(sm, "Enable", 0xFF)?.unwrap_or(1);
+        Ok(SmEntry {
             start: start as u16,
             len: len as u16,
             control: control as u8,
             enable: enable as u8,
             kind,
-        });
+        })
     }
-    let mut rx: Vec<(bool, Pdo)> = Vec::new();
-    let mut tx: Vec<(bool, Pdo)> = Vec::new();
-    for (tag, list) in [("RxPdo", &mut rx), ("TxPdo", &mut tx)] {
-        for p in children(dev, tag) {
-            if list.len() == MAX_PDOS {
-                return Err(err(&doc, p, format!("more than {MAX_PDOS} {tag}s")));
+
+    /// The RxPDOs and TxPDOs, each split into those with an `Sm` attribute (the default
+    /// assignment) and the others.
+    fn pdos(
+        &self,
+        dev: roxmltree::Node<'d, 'i>,
+        out: &mut EsiDevice,
+    ) -> Result<(Split, Split), EsiError> {
+        let mut rx: Vec<(bool, Pdo)> = Vec::new();
+        let mut tx: Vec<(bool, Pdo)> = Vec::new();
+        for (tag, list) in [("RxPdo", &mut rx), ("TxPdo", &mut tx)] {
+            for p in children(dev, tag) {
+                if list.len() == MAX_PDOS {
+                    return Err(err(self.doc, p, format!("more than {MAX_PDOS} {tag}s")));
+                }
+                let pdo = self.pdo(p, out)?;
+                if list.iter().any(|(_, q)| q.index == pdo.index) {
+                    return Err(err(
+                        self.doc,
+                        p,
+                        format!("{tag} #x{:04X} is described twice", pdo.index),
+                    ));
+                }
+                list.push((p.attribute("Sm").is_some(), pdo));
             }
-            let pdo = r.pdo(p, &mut out)?;
-            if list.iter().any(|(_, q)| q.index == pdo.index) {
-                return Err(err(
-                    &doc,
-                    p,
-                    format!("{tag} #x{:04X} is described twice", pdo.index),
-                ));
-            }
-            list.push((p.attribute("Sm").is_some(), pdo));
         }
+        let split = |list: Vec<(bool, Pdo)>| -> Split {
+            let (a, o): (Vec<_>, Vec<_>) = list.into_iter().partition(|(s, _)| *s);
+            (
+                a.into_iter().map(|(_, p)| p).collect(),
+                o.into_iter().map(|(_, p)| p).collect(),
+            )
+        };
+        Ok((split(rx), split(tx)))
     }
-    let split = |list: Vec<(bool, Pdo)>| -> (Vec<Pdo>, Vec<Pdo>) {
-        let (a, o): (Vec<_>, Vec<_>) = list.into_iter().partition(|(s, _)| *s);
-        (
-            a.into_iter().map(|(_, p)| p).collect(),
-            o.into_iter().map(|(_, p)| p).collect(),
-        )
-    };
-    let (rx_pdos, rx_opt) = split(rx);
-    let (tx_pdos, tx_opt) = split(tx);
-    out.optional = (rx_opt, tx_opt);
-    out.config = SiiConfig {
-        identity: crate::sii::Identity {
-            vendor: vendor as u32,
-            product: product as u32,
-            revision: revision as u32,
-            serial: 0,
-        },
-        name,
-        group,
-        order,
-        sms,
-        rx_pdos,
-        tx_pdos,
-    };
-    Ok(out)
 }
 
 #[cfg(test)]

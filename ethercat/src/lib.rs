@@ -9,14 +9,15 @@
 //!   ESI XML file a master imports;
 //! - [`al`]: the INIT / PRE-OP / SAFE-OP / OP / BOOT state machine and its AL status codes;
 //! - [`mailbox`] and [`coe`]: SM0 / SM1 mailboxes, CoE SDO, SDO information, emergency;
-//! - [`dc`]: distributed clocks, the SYNC0 unit and the DC SYNC0 synchronisation type;
+//! - [`dc`]: distributed clocks: the local clock and its drift control, the SYNC0 unit and
+//!   the DC SYNC0 synchronisation type;
 //! - [`pdo`]: PDO assignment and the process image through the FMMUs;
 //! - [`slave`]: one slave around one drive-core node; [`segment`]: slaves in line order.
 //!
 //! What is not emulated: EoE, FoE, SoE, port redundancy, the ESC's three-buffer mode (process
-//! data has one buffer), DC drift control (the system time is the slave's clock plus the
-//! offset the master writes: a write to 0x0910 does not steer it), SYNC1 and the latch unit. A PDO mapping may be as long as a sync manager buffer
-//! ([`pdo::MAX_IMAGE`]), not 8 bytes as on CAN.
+//! data has one buffer), SYNC1 and the latch unit. Drift control is a model of the ESC's time
+//! control loop ([`dc::DcClock`]), not its gate-level arithmetic. A PDO mapping may be as
+//! long as a sync manager buffer ([`pdo::MAX_IMAGE`]), not 8 bytes as on CAN.
 
 #![warn(missing_docs)]
 
@@ -26,6 +27,7 @@ pub mod datagram;
 pub mod dc;
 pub mod esc;
 pub mod esi;
+pub mod esi_od;
 pub mod frame;
 pub mod mailbox;
 pub mod pdo;

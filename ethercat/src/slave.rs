@@ -9,7 +9,7 @@ use drive_protocol::{Clocks, ConfigError, Drive, Node, NodeConfig};
 use crate::al::{code, Al, AlState, Checks};
 use crate::coe::{self, Coe};
 use crate::datagram;
-use crate::dc::{self, Sync0};
+use crate::dc::{self, DcClock, Sync0};
 use crate::esc::{eep, reg, Esc};
 use crate::frame::DatagramAt;
 use crate::mailbox::{self, Header, Mailbox, TYPE_COE};
@@ -73,139 +73,156 @@ type SubSpec = (
 /// 0x1C12 / 0x1C13 PDO assignment (by default the second RxPDO and TxPDO: controlword +
 /// target position, statusword + position actual), 0x1C32 / 0x1C33 sync manager parameters.
 pub fn add_coe_objects(od: &mut ObjectDictionary) -> Result<(), String> {
-    let err = |e: drive_protocol::od::OdError| e.to_string();
-    if !od.has_index(0x1C00) {
-        let arr = ObjType::Array;
-        let name = "Sync manager communication type";
-        od.insert(
-            Entry::member(
-                0x1C00,
-                0,
-                arr,
-                name,
-                "Used sync managers",
-                DataType::U8,
-                Access::Const,
-            )
-            .with_default(DefaultValue::Value(4)),
-        )
-        .map_err(err)?;
-        for s in 1..=4u8 {
-            od.insert(
-                Entry::member(
-                    0x1C00,
-                    s,
-                    arr,
-                    name,
-                    format!("SM{}", s - 1),
-                    DataType::U8,
-                    Access::Const,
-                )
-                .with_default(DefaultValue::Value(u64::from(s))),
-            )
-            .map_err(err)?;
-        }
-    }
+    add_sm_types(od).map_err(|e| e.to_string())?;
     for (index, base, name) in [
         (0x1C12u16, 0x1600u16, "RxPDO assign"),
         (0x1C13, 0x1A00, "TxPDO assign"),
     ] {
-        if od.has_index(index) {
-            continue;
-        }
-        let mappings: Vec<u16> = (0..8u16)
-            .map(|n| base + n)
-            .filter(|&m| od.get(m, 0).is_some())
-            .collect();
-        // the default: the second PDO first (position set-point / actual), the rest after
-        let mut order = mappings.clone();
-        if order.len() > 1 {
-            order.swap(0, 1);
-        }
-        let arr = ObjType::Array;
-        od.insert(
-            Entry::member(
-                index,
-                0,
-                arr,
-                name,
-                "Number of assigned PDOs",
-                DataType::U8,
-                Access::Rw,
-            )
-            .with_default(DefaultValue::Value(u64::from(!order.is_empty())))
-            .with_limits(Some(0), Some(order.len() as i128)),
-        )
-        .map_err(err)?;
-        for (k, &m) in order.iter().enumerate() {
-            od.insert(
-                Entry::member(
-                    index,
-                    k as u8 + 1,
-                    arr,
-                    name,
-                    format!("PDO {}", k + 1),
-                    DataType::U16,
-                    Access::Rw,
-                )
-                .with_default(DefaultValue::Value(u64::from(m)))
-                .with_limits(Some(i128::from(base)), Some(i128::from(base) + 0x1FF)),
-            )
-            .map_err(err)?;
-        }
+        add_pdo_assign(od, index, base, name).map_err(|e| e.to_string())?;
     }
     for (index, name) in [
         (0x1C32u16, "SM output parameter"),
         (0x1C33, "SM input parameter"),
     ] {
-        if od.has_index(index) {
-            continue;
+        add_sm_parameters(od, index, name).map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+type OdResult = Result<(), drive_protocol::od::OdError>;
+
+/// 0x1C00: the four sync managers' types (mailbox out, in, outputs, inputs).
+fn add_sm_types(od: &mut ObjectDictionary) -> OdResult {
+    if od.has_index(0x1C00) {
+        return Ok(());
+    }
+    let arr = ObjType::Array;
+    let name = "Sync manager communication type";
+    let count = Entry::member(
+        0x1C00,
+        0,
+        arr,
+        name,
+        "Used sync managers",
+        DataType::U8,
+        Access::Const,
+    );
+    od.insert(count.with_default(DefaultValue::Value(4)))?;
+    for s in 1..=4u8 {
+        let e = Entry::member(
+            0x1C00,
+            s,
+            arr,
+            name,
+            format!("SM{}", s - 1),
+            DataType::U8,
+            Access::Const,
+        );
+        od.insert(e.with_default(DefaultValue::Value(u64::from(s))))?;
+    }
+    Ok(())
+}
+
+/// 0x1C12 / 0x1C13 (`index`): every mapping object from `base` the dictionary has, the
+/// second first (position set-point / actual), one assigned by default.
+fn add_pdo_assign(
+    od: &mut ObjectDictionary,
+    index: u16,
+    base: u16,
+    name: &'static str,
+) -> OdResult {
+    if od.has_index(index) {
+        return Ok(());
+    }
+    let mut order: Vec<u16> = (0..8u16)
+        .map(|n| base + n)
+        .filter(|&m| od.get(m, 0).is_some())
+        .collect();
+    if order.len() > 1 {
+        order.swap(0, 1);
+    }
+    let arr = ObjType::Array;
+    let count = Entry::member(
+        index,
+        0,
+        arr,
+        name,
+        "Number of assigned PDOs",
+        DataType::U8,
+        Access::Rw,
+    );
+    od.insert(
+        count
+            .with_default(DefaultValue::Value(u64::from(!order.is_empty())))
+            .with_limits(Some(0), Some(order.len() as i128)),
+    )?;
+    for (k, &m) in order.iter().enumerate() {
+        let e = Entry::member(
+            index,
+            k as u8 + 1,
+            arr,
+            name,
+            format!("PDO {}", k + 1),
+            DataType::U16,
+            Access::Rw,
+        );
+        od.insert(
+            e.with_default(DefaultValue::Value(u64::from(m)))
+                .with_limits(Some(i128::from(base)), Some(i128::from(base) + 0x1FF)),
+        )?;
+    }
+    Ok(())
+}
+
+/// 0x1C32 / 0x1C33 (`index`): synchronisation type (free run, SM, DC SYNC0), cycle time,
+/// the types supported, the minimum cycle time, sync error.
+fn add_sm_parameters(od: &mut ObjectDictionary, index: u16, name: &'static str) -> OdResult {
+    if od.has_index(index) {
+        return Ok(());
+    }
+    let subs: [SubSpec; 6] = [
+        (
+            0,
+            "Highest sub-index supported",
+            DataType::U8,
+            Access::Const,
+            0x20,
+            None,
+        ),
+        (
+            1,
+            "Synchronization type",
+            DataType::U16,
+            Access::Rw,
+            0,
+            Some((0, 2)),
+        ),
+        (2, "Cycle time", DataType::U32, Access::Rw, 1_000_000, None),
+        (
+            4,
+            "Synchronization types supported",
+            DataType::U16,
+            Access::Const,
+            0x0007,
+            None,
+        ),
+        (
+            5,
+            "Minimum cycle time",
+            DataType::U32,
+            Access::Const,
+            125_000,
+            None,
+        ),
+        (0x20, "Sync error", DataType::Boolean, Access::Ro, 0, None),
+    ];
+    for (sub, n, dt, acc, def, lim) in subs {
+        let mut e = Entry::member(index, sub, ObjType::Record, name, n, dt, acc)
+            .with_default(DefaultValue::Value(def));
+        if let Some((lo, hi)) = lim {
+            e = e.with_limits(Some(lo), Some(hi));
         }
-        let rec = ObjType::Record;
-        let subs: [SubSpec; 6] = [
-            (
-                0,
-                "Highest sub-index supported",
-                DataType::U8,
-                Access::Const,
-                0x20,
-                None,
-            ),
-            (
-                1,
-                "Synchronization type",
-                DataType::U16,
-                Access::Rw,
-                0,
-                Some((0, 2)),
-            ),
-            (2, "Cycle time", DataType::U32, Access::Rw, 1_000_000, None),
-            (
-                4,
-                "Synchronization types supported",
-                DataType::U16,
-                Access::Const,
-                0x0007,
-                None,
-            ),
-            (
-                5,
-                "Minimum cycle time",
-                DataType::U32,
-                Access::Const,
-                125_000,
-                None,
-            ),
-            (0x20, "Sync error", DataType::Boolean, Access::Ro, 0, None),
-        ];
-        for (sub, n, dt, acc, def, lim) in subs {
-            let mut e = Entry::member(index, sub, rec, name, n, dt, acc)
-                .with_default(DefaultValue::Value(def));
-            if let Some((lo, hi)) = lim {
-                e = e.with_limits(Some(lo), Some(hi));
-            }
-            od.insert(e).map_err(err)?;
-        }
+        od.insert(e)?;
     }
     Ok(())
 }
@@ -214,44 +231,56 @@ fn esi_err(line: u32, why: String) -> crate::esi::EsiError {
     crate::esi::EsiError { line, why }
 }
 
-/// The ESI's identity and PDO mappings as the dictionary's defaults (before the CoE objects
-/// are added); everything checked against the drive's objects.
+/// Whether the ESI's object at `index` is the slave's own business, not the file's to add:
+/// PDO mappings (the drive's PDO engine has 0x1600.. / 0x1A00..) and the sync manager
+/// objects (0x1C00..0x1C3F, the slave's).
+fn slave_managed(index: u16) -> bool {
+    // 0x1600..=0x1BFF mappings, 0x1C00..=0x1C3F sync manager objects
+    matches!(index, 0x1600..=0x1C3F)
+}
+
+/// The ESI's own objects the drive lacks, into its dictionary (default value, access, PDO
+/// mapping flag); objects the drive has stay the drive's. Returns the objects added.
+fn add_esi_objects(
+    od: &mut ObjectDictionary,
+    dict: &crate::esi_od::Dictionary,
+) -> Result<usize, crate::esi::EsiError> {
+    let mut added = 0;
+    for o in &dict.objects {
+        if slave_managed(o.index) || od.has_index(o.index) {
+            continue;
+        }
+        for s in &o.subs {
+            let mut e = Entry::member(
+                o.index,
+                s.sub,
+                o.otype,
+                o.name.clone(),
+                s.name.clone(),
+                s.dtype,
+                s.access,
+            )
+            .with_pdo(s.pdo)
+            .with_default(s.default.clone());
+            if s.capacity > 0 {
+                e = e.with_capacity(s.capacity);
+            }
+            od.insert(e)
+                .map_err(|err| esi_err(o.line, format!("object #x{:04X}: {err}", o.index)))?;
+        }
+        added += 1;
+    }
+    Ok(added)
+}
+
+/// The ESI's identity, PDO mappings and own objects as the dictionary's defaults (before the
+/// CoE objects are added); everything checked against the drive's objects.
 fn apply_esi(
     od: &mut ObjectDictionary,
     esi: &crate::esi::EsiDevice,
 ) -> Result<(), crate::esi::EsiError> {
     let c = &esi.config;
-    // the sync managers: where this slave has them
-    let want = [
-        (1u8, MBX_OUT_START, Some(mailbox::SIZE as u16), "MBoxOut"),
-        (2, MBX_IN_START, Some(mailbox::SIZE as u16), "MBoxIn"),
-        (3, OUTPUTS_START, None, "Outputs"),
-        (4, INPUTS_START, None, "Inputs"),
-    ];
-    if c.sms.len() != want.len() {
-        return Err(esi_err(
-            0,
-            format!(
-                "the device has {} sync managers; this slave serves 4 (MBoxOut, MBoxIn,                  Outputs, Inputs)",
-                c.sms.len()
-            ),
-        ));
-    }
-    for (k, (sm, (kind, start, len, name))) in c.sms.iter().zip(want).enumerate() {
-        let len_ok = len.is_none_or(|l| sm.len == l);
-        if sm.kind != kind || sm.start != start || !len_ok {
-            return Err(esi_err(
-                0,
-                format!(
-                    "sync manager {k} is type {} at #x{:04X} ({} bytes); this slave serves SM{k}                      as {name} at #x{start:04X}{}",
-                    sm.kind,
-                    sm.start,
-                    sm.len,
-                    len.map_or(String::new(), |l| format!(", {l} bytes"))
-                ),
-            ));
-        }
-    }
+    check_esi_sms(&c.sms)?;
     let id = [
         (1u8, c.identity.vendor, "vendor"),
         (2, c.identity.product, "product code"),
@@ -261,12 +290,7 @@ fn apply_esi(
         od.set_default(0x1018, sub, DefaultValue::Value(u64::from(v)))
             .map_err(|e| esi_err(0, format!("the {what} as 0x1018:{sub}: {e}")))?;
     }
-    let line = |index: u16| {
-        esi.pdos_at
-            .iter()
-            .find(|(i, _)| *i == index)
-            .map_or(0, |(_, l)| *l)
-    };
+    add_esi_objects(od, &esi.dictionary)?;
     let all = c
         .rx_pdos
         .iter()
@@ -274,69 +298,134 @@ fn apply_esi(
         .chain(&c.tx_pdos)
         .chain(&esi.optional.1);
     for p in all {
-        let at = line(p.index);
-        let subs = (1..=u8::MAX)
-            .take_while(|&s| od.get(p.index, s).is_some())
-            .count();
-        if od.get(p.index, 0).is_none() {
+        apply_esi_pdo(od, esi, p)?;
+    }
+    Ok(())
+}
+
+/// The ESI's sync managers must be where this slave has them.
+fn check_esi_sms(sms: &[SmEntry]) -> Result<(), crate::esi::EsiError> {
+    let want = [
+        (1u8, MBX_OUT_START, Some(mailbox::SIZE as u16), "MBoxOut"),
+        (2, MBX_IN_START, Some(mailbox::SIZE as u16), "MBoxIn"),
+        (3, OUTPUTS_START, None, "Outputs"),
+        (4, INPUTS_START, None, "Inputs"),
+    ];
+    if sms.len() != want.len() {
+        return Err(esi_err(
+            0,
+            format!(
+                "the device has {} sync managers; this slave serves 4 (MBoxOut, MBoxIn, \
+                 Outputs, Inputs)",
+                sms.len()
+            ),
+        ));
+    }
+    for (k, (sm, (kind, start, len, name))) in sms.iter().zip(want).enumerate() {
+        let len_ok = len.is_none_or(|l| sm.len == l);
+        if sm.kind != kind || sm.start != start || !len_ok {
             return Err(esi_err(
-                at,
+                0,
                 format!(
-                    "PDO #x{:04X}: the drive has no mapping object 0x{:04X}",
-                    p.index, p.index
+                    "sync manager {k} is type {} at #x{:04X} ({} bytes); this slave serves SM{k} \
+                     as {name} at #x{start:04X}{}",
+                    sm.kind,
+                    sm.start,
+                    sm.len,
+                    len.map_or(String::new(), |l| format!(", {l} bytes"))
                 ),
             ));
         }
-        if p.entries.len() > subs {
-            return Err(esi_err(
-                at,
-                format!(
-                    "PDO #x{:04X} has {} entries; the drive's mapping object holds {subs}",
-                    p.index,
-                    p.entries.len()
-                ),
-            ));
+    }
+    Ok(())
+}
+
+/// One PDO of the ESI as the default of its mapping object: each entry the drive's object
+/// (mappable, of the entry's bit length) or a padding of whole bytes.
+fn apply_esi_pdo(
+    od: &mut ObjectDictionary,
+    esi: &crate::esi::EsiDevice,
+    p: &crate::sii::Pdo,
+) -> Result<(), crate::esi::EsiError> {
+    let at = esi
+        .pdos_at
+        .iter()
+        .find(|(i, _)| *i == p.index)
+        .map_or(0, |(_, l)| *l);
+    let subs = (1..=u8::MAX)
+        .take_while(|&s| od.get(p.index, s).is_some())
+        .count();
+    if od.get(p.index, 0).is_none() {
+        return Err(esi_err(
+            at,
+            format!(
+                "PDO #x{:04X}: the drive has no mapping object 0x{:04X}",
+                p.index, p.index
+            ),
+        ));
+    }
+    if p.entries.len() > subs {
+        return Err(esi_err(
+            at,
+            format!(
+                "PDO #x{:04X} has {} entries; the drive's mapping object holds {subs}",
+                p.index,
+                p.entries.len()
+            ),
+        ));
+    }
+    for (k, e) in p.entries.iter().enumerate() {
+        let at = esi
+            .entries_at
+            .iter()
+            .find(|a| a.pdo == p.index && a.index == e.index && a.sub == e.sub)
+            .map_or(at, |a| a.line);
+        if e.index != 0 {
+            check_esi_entry(od, p.index, e, at)?;
         }
-        for (k, e) in p.entries.iter().enumerate() {
-            let at = esi
-                .entries_at
-                .iter()
-                .find(|a| a.pdo == p.index && a.index == e.index && a.sub == e.sub)
-                .map_or(at, |a| a.line);
-            let Some((_, obj)) = od.get(e.index, e.sub) else {
-                return Err(esi_err(
-                    at,
-                    format!(
-                        "PDO #x{:04X} maps 0x{:04X}:{}, an object the drive does not have",
-                        p.index, e.index, e.sub
-                    ),
-                ));
-            };
-            if !obj.pdo {
-                return Err(esi_err(
-                    at,
-                    format!(
-                        "PDO #x{:04X} maps 0x{:04X}:{} ({}), which the drive does not map                          into PDOs",
-                        p.index, e.index, e.sub, obj.name
-                    ),
-                ));
-            }
-            let bits = obj.dtype.size() * 8;
-            if bits != usize::from(e.bits) {
-                return Err(esi_err(
-                    at,
-                    format!(
-                        "PDO #x{:04X} maps 0x{:04X}:{} ({}) with BitLen {}; the object has {bits} bits",
-                        p.index, e.index, e.sub, obj.name, e.bits
-                    ),
-                ));
-            }
-            let v = (u32::from(e.index) << 16) | (u32::from(e.sub) << 8) | u32::from(e.bits);
-            od.set_default(p.index, k as u8 + 1, DefaultValue::Value(u64::from(v)))
-                .map_err(|err| esi_err(at, format!("PDO #x{:04X}: {err}", p.index)))?;
-        }
-        od.set_default(p.index, 0, DefaultValue::Value(p.entries.len() as u64))
+        let v = (u32::from(e.index) << 16) | (u32::from(e.sub) << 8) | u32::from(e.bits);
+        od.set_default(p.index, k as u8 + 1, DefaultValue::Value(u64::from(v)))
             .map_err(|err| esi_err(at, format!("PDO #x{:04X}: {err}", p.index)))?;
+    }
+    od.set_default(p.index, 0, DefaultValue::Value(p.entries.len() as u64))
+        .map_err(|err| esi_err(at, format!("PDO #x{:04X}: {err}", p.index)))
+}
+
+/// A PDO entry of the ESI against the drive's object: there, mappable, as many bits.
+fn check_esi_entry(
+    od: &ObjectDictionary,
+    pdo: u16,
+    e: &crate::sii::PdoEntry,
+    at: u32,
+) -> Result<(), crate::esi::EsiError> {
+    let Some((_, obj)) = od.get(e.index, e.sub) else {
+        return Err(esi_err(
+            at,
+            format!(
+                "PDO #x{pdo:04X} maps 0x{:04X}:{}, an object the drive does not have",
+                e.index, e.sub
+            ),
+        ));
+    };
+    if !obj.pdo {
+        return Err(esi_err(
+            at,
+            format!(
+                "PDO #x{pdo:04X} maps 0x{:04X}:{} ({}), which the drive does not map \
+                 into PDOs",
+                e.index, e.sub, obj.name
+            ),
+        ));
+    }
+    let bits = obj.dtype.size() * 8;
+    if bits != usize::from(e.bits) {
+        return Err(esi_err(
+            at,
+            format!(
+                "PDO #x{pdo:04X} maps 0x{:04X}:{} ({}) with BitLen {}; the object has {bits} bits",
+                e.index, e.sub, obj.name, e.bits
+            ),
+        ));
     }
     Ok(())
 }
@@ -402,6 +491,8 @@ pub struct Slave {
     pub watchdog_expiries: u32,
     /// The SYNC0 unit as last activated through 0x0981.
     sync0: Sync0,
+    /// The ESC's local clock and its drift control.
+    dc: DcClock,
     /// DC SYNC0 chosen (0x1C32:1 = 2) and checked at SAFE-OP: the drive follows SYNC0.
     dc_synchronised: bool,
     /// A vendor's ESI served instead of the drive's own description: its names and sync
@@ -512,6 +603,8 @@ impl Slave {
         esi: Option<SiiConfig>,
     ) -> Result<Slave, SlaveError> {
         add_coe_objects(&mut cfg.od).map_err(SlaveError::Dictionary)?;
+        // an ESI's padding entries (index 0): gaps of whole bytes in the process data
+        cfg.od.device.padding_entries = true;
         if let Some(e) = &esi {
             assign_esi(&mut cfg.od, e).map_err(SlaveError::Esi)?;
         }
@@ -558,6 +651,7 @@ impl Slave {
             outputs_lost: false,
             watchdog_expiries: 0,
             sync0: Sync0::default(),
+            dc: DcClock::default(),
             dc_synchronised: false,
             esi,
             node,
@@ -721,16 +815,32 @@ impl Slave {
     pub fn dc_synchronised(&self) -> bool {
         self.dc_synchronised && matches!(self.al.state, AlState::SafeOp | AlState::Op)
     }
-    /// The next SYNC0 pulse at or after `local_ns` on the slave's clock (the clock of
+    /// The next SYNC0 pulse at or after `t_ns` on the frames' clock (the clock of
     /// [`Slave::execute`]'s `now_ns`), in that clock, while the drive follows SYNC0 (else
-    /// `None`): the pulse grid is in system time, the slave's clock plus the offset 0x0920.
-    pub fn next_sync0_ns(&self, local_ns: u64) -> Option<u64> {
+    /// `None`): the pulse grid is in system time, the ESC's local clock (the frames' clock
+    /// with its drift, as the master's drift control steers it) plus the offset 0x0920.
+    pub fn next_sync0_ns(&self, t_ns: u64) -> Option<u64> {
         if !self.dc_synchronised() {
             return None;
         }
         let offset = self.esc.u64(reg::DC_OFFSET);
-        let system = self.sync0.next_at_or_after(local_ns.wrapping_add(offset))?;
-        Some(system.wrapping_sub(offset))
+        let local = self.dc.local_ns(t_ns);
+        let system = self.sync0.next_at_or_after(local.wrapping_add(offset))?;
+        Some(self.dc.host_ns(system.wrapping_sub(offset)))
+    }
+
+    /// The ESC's local clock and its drift control (see [`DcClock`]).
+    pub fn dc_clock(&self) -> &DcClock {
+        &self.dc
+    }
+
+    /// Let the ESC's local clock drift by `drift_ppm` (+: fast) against the frames' clock from
+    /// the last frame on: a crystal's error, for a master's drift control to correct. 0 by
+    /// default (the local clock is then the frames' clock).
+    pub fn set_dc_drift_ppm(&mut self, drift_ppm: f64) {
+        let ppb = (drift_ppm * 1000.0).round();
+        let ppb = if ppb.is_finite() { ppb as i64 } else { 0 };
+        self.dc.set_drift_ppb(self.now_ns, ppb);
     }
 
     /// Mailbox messages dropped because the queue was full.
@@ -774,7 +884,8 @@ impl Slave {
     ) -> u16 {
         self.now_ns = now_ns;
         let offset = self.esc.u64(reg::DC_OFFSET);
-        let system_ns = now_ns.wrapping_add(offset);
+        let local_ns = self.dc.local_ns(now_ns);
+        let system_ns = local_ns.wrapping_add(offset);
         self.esc.set_u64(reg::DC_SYSTEM_TIME, system_ns);
         if let Some(next) = self.sync0.next_at_or_after(system_ns) {
             // read back while active, the start time register is the next pulse
@@ -786,9 +897,19 @@ impl Slave {
             self.sync0 = Sync0::activate(&self.esc, system_ns);
         }
         if ev.dc_latch {
-            self.esc.set_u32(reg::DC_RECV_TIME0, now_ns as u32);
-            self.esc.set_u32(reg::DC_RECV_TIME0 + 4, now_ns as u32);
-            self.esc.set_u64(reg::DC_RECV_TIME_PU, now_ns);
+            self.esc.set_u32(reg::DC_RECV_TIME0, local_ns as u32);
+            self.esc.set_u32(reg::DC_RECV_TIME0 + 4, local_ns as u32);
+            self.esc.set_u64(reg::DC_RECV_TIME_PU, local_ns);
+        }
+        if let Some((value, wide)) = ev.dc_system_time {
+            let at = (self.esc.u64(reg::DC_OFFSET), self.esc.u32(reg::DC_DELAY));
+            let depth = self.esc.u8(reg::DC_DIFF_FILTER);
+            let diff = self.dc.received(now_ns, value, wide, at, depth);
+            self.esc.set_u32(reg::DC_DIFF, diff);
+        }
+        if ev.dc_loop_reset {
+            self.dc.reset(now_ns, self.esc.u16(reg::DC_SPEED_START));
+            self.esc.set_u32(reg::DC_DIFF, 0);
         }
         if ev.al_control {
             let v = self.esc.u16(reg::AL_CONTROL);

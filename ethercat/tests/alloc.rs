@@ -152,9 +152,12 @@ fn dc_sync0_frames_cycle_and_pulse_times_allocate_nothing() {
         &[
             (14, 0, u32::from(st) | 0x0910 << 16, &sys_time),
             (12, 1, 0, &image),
+            // and as a slave behind the reference gets it: written, drift control steers
+            (14, 2, u32::from(st + 1) | 0x0910 << 16, &sys_time),
         ],
     );
     let mut buf = vec![0u8; 1600];
+    m.seg.slaves[0].set_dc_drift_ppm(50.0);
     let mut now_ns = m.now_ns;
     let mut pulses = 0u64;
     ALLOCS.with(|n| n.set(0));
@@ -175,6 +178,11 @@ fn dc_sync0_frames_cycle_and_pulse_times_allocate_nothing() {
     assert_eq!(allocs, 0, "allocations with DC SYNC0 active");
     assert!(m.seg.slaves[0].dc_synchronised());
     assert_eq!(pulses, 500);
+    assert_ne!(
+        m.seg.slaves[0].dc_clock().freq_correction_ppb(),
+        0,
+        "steered"
+    );
 }
 
 #[test]

@@ -107,3 +107,169 @@ fn free_run_ignores_an_active_sync0() {
     assert!(!m.seg.slaves[0].dc_synchronised());
     assert_eq!(m.seg.slaves[0].next_sync0_ns(0), None);
 }
+
+/// Two slaves, the second's clock `drift_ppm` off; the offsets a master's `config_dc` writes
+/// (the reference's system time less each one's local time, read in one frame).
+fn drifting(drift_ppm: f64) -> Master {
+    let mut m = preop(2);
+    m.seg.slaves[1].set_dc_drift_ppm(drift_ppm);
+    let r = m.frame(&[
+        (4, Master::addr(Master::station(0), 0x0910), &[0; 8]),
+        (4, Master::addr(Master::station(1), 0x0910), &[0; 8]),
+    ]);
+    let local = |k: usize| u64::from_le_bytes(r[k].data.clone().try_into().unwrap());
+    for k in 0..2 {
+        let off = OFFSET_NS.wrapping_add(local(0)).wrapping_sub(local(k));
+        assert_eq!(m.fpwr(Master::station(k), 0x0920, &off.to_le_bytes()), 1);
+    }
+    m
+}
+
+/// One cycle of 1 ms: with `compensate`, the FRMW of the reference clock's system time (the
+/// first slave reads it, the second gets it written), as SOEM and ethercrab send it with the
+/// process data. Returns the second slave's 0x092C and its system time less the reference's,
+/// read in one frame (the same instant).
+fn dc_cycle(m: &mut Master, compensate: bool) -> (u32, i64) {
+    m.now_ns += 1_000_000;
+    if compensate {
+        let (_, wkc) = m.one(14, Master::addr(Master::station(0), 0x0910), &[0; 8]);
+        assert_eq!(wkc, 2, "FRMW: one read, one write");
+    }
+    let r = m.frame(&[
+        (4, Master::addr(Master::station(0), 0x0910), &[0; 8]),
+        (4, Master::addr(Master::station(1), 0x0910), &[0; 8]),
+        (4, Master::addr(Master::station(1), 0x092C), &[0; 4]),
+    ]);
+    let t = |k: usize| u64::from_le_bytes(r[k].data.clone().try_into().unwrap());
+    let diff_reg = u32::from_le_bytes(r[2].data.clone().try_into().unwrap());
+    (diff_reg, t(1).wrapping_sub(t(0)) as i64)
+}
+
+fn signed(v: u32) -> i64 {
+    let m = i64::from(v & 0x7FFF_FFFF);
+    if v & 0x8000_0000 != 0 {
+        -m
+    } else {
+        m
+    }
+}
+
+#[test]
+fn drift_control_holds_a_50_ppm_clock_to_the_reference() {
+    // without drift compensation the difference grows at 50 ns per ms
+    let mut m = drifting(50.0);
+    let mut last = 0;
+    for _ in 0..1000 {
+        let (reg, d) = dc_cycle(&mut m, false);
+        assert_eq!(reg, 0, "no write of 0x0910, no difference measured");
+        last = d;
+    }
+    assert!(
+        (49_000..=51_000).contains(&last),
+        "after 1 s free: {last} ns apart"
+    );
+
+    // a master's FRMW every cycle: the loop brings the difference down and holds it
+    let mut m = drifting(50.0);
+    let (first, _) = dc_cycle(&mut m, true);
+    assert_eq!(
+        first & 0x8000_0000,
+        0,
+        "the local copy is ahead: bit 31 clear"
+    );
+    let mut worst = (0i64, 0i64);
+    for k in 0..1000 {
+        let (reg, d) = dc_cycle(&mut m, true);
+        if k >= 100 {
+            worst.0 = worst.0.max(signed(reg).abs());
+            worst.1 = worst.1.max(d.abs());
+        }
+    }
+    assert!(worst.0 <= 20, "|0x092C| after settling: {} ns", worst.0);
+    assert!(worst.1 <= 20, "|system time difference|: {} ns", worst.1);
+    let corr = m.seg.slaves[1].dc_clock().freq_correction_ppb();
+    assert!(
+        (-51_000..=-49_000).contains(&corr),
+        "frequency correction {corr} ppb for a 50 ppm clock"
+    );
+    // the reference (nothing written to it) is not steered
+    assert_eq!(m.seg.slaves[0].dc_clock().freq_correction_ppb(), 0);
+
+    // the compensation stops: the difference grows again, at what is left of the drift
+    // (now corrected), and a master resetting the loop (0x0930) loses the correction
+    for _ in 0..200 {
+        let (_, d) = dc_cycle(&mut m, false);
+        assert!(d.abs() <= 200, "held by the frequency correction: {d} ns");
+    }
+    assert_eq!(
+        m.fpwr(Master::station(1), 0x0930, &0x1000u16.to_le_bytes()),
+        1
+    );
+    let (reg, before) = dc_cycle(&mut m, false);
+    assert_eq!(reg, 0, "a reset loop has no difference");
+    for _ in 0..100 {
+        dc_cycle(&mut m, false);
+    }
+    let (_, after) = dc_cycle(&mut m, false);
+    assert!(
+        (4_500..=5_500).contains(&(after - before)),
+        "100 ms at 50 ppm uncorrected: {} ns",
+        after - before
+    );
+}
+
+#[test]
+fn a_slow_clock_reads_back_with_the_sign_bit_and_is_corrected_too() {
+    let mut m = drifting(-50.0);
+    let (first, d) = dc_cycle(&mut m, true);
+    assert_ne!(
+        first & 0x8000_0000,
+        0,
+        "the local copy is behind: bit 31 set"
+    );
+    assert!((1..=0x7FFF_FFFF).contains(&(first & 0x7FFF_FFFF)));
+    assert!(d < 0);
+    for _ in 0..300 {
+        dc_cycle(&mut m, true);
+    }
+    let (reg, d) = dc_cycle(&mut m, true);
+    assert!(signed(reg).abs() <= 20 && d.abs() <= 20, "{reg:#x} {d}");
+    assert!(m.seg.slaves[1].dc_clock().freq_correction_ppb() > 49_000);
+}
+
+#[test]
+fn sync0_follows_the_steered_clock() {
+    // the drifting slave's SYNC0 pulses are on its own (steered) system time: with drift
+    // control they stay within nanoseconds of the reference's pulses
+    let mut m = drifting(50.0);
+    for k in 0..2 {
+        let (o, i) = m.map_pdos(k, 6 * k as u32, 12 + 6 * k as u32);
+        assert_eq!((o, i), (6, 6));
+        m.sdo_write(k, 0x1C32, 1, false, &2u16.to_le_bytes())
+            .unwrap();
+    }
+    let start = dc_sync0(&mut m, 0, CYCLE_NS);
+    let st = Master::station(1);
+    assert_eq!(m.fpwr(st, 0x0990, &start.to_le_bytes()), 1);
+    assert_eq!(m.fpwr(st, 0x09A0, &CYCLE_NS.to_le_bytes()), 1);
+    assert_eq!(m.fpwr(st, 0x0981, &[3]), 1);
+    for k in 0..2 {
+        assert_eq!(m.request(k, 0x04), 0x04, "SAFE-OP with DC SYNC0");
+    }
+    for _ in 0..300 {
+        dc_cycle(&mut m, true);
+    }
+    let at = m.now_ns;
+    let p0 = m.seg.slaves[0].next_sync0_ns(at).unwrap();
+    let p1 = m.seg.slaves[1].next_sync0_ns(at).unwrap();
+    assert!(p0.abs_diff(p1) <= 20, "pulses {p0} and {p1}");
+    // without compensation for 1 s of frames the second slave's pulses come 50 us early
+    // (its clock runs fast; the correction is kept, so reset the loop first)
+    assert_eq!(m.fpwr(st, 0x0930, &0x1000u16.to_le_bytes()), 1);
+    m.now_ns += 1_000_000_000;
+    let at = m.now_ns;
+    let p0 = m.seg.slaves[0].next_sync0_ns(at).unwrap();
+    let p1 = m.seg.slaves[1].next_sync0_ns(at).unwrap();
+    let early = (p0 as i64 - p1 as i64).rem_euclid(i64::from(CYCLE_NS));
+    assert!((49_000..=51_000).contains(&early), "{early} ns early");
+}

@@ -47,10 +47,7 @@ const PENDING: &[(&str, &str)] = &[
     ("emulator/src/api/analyze.rs", "analyze_request"),
     ("emulator/src/cli/run.rs", "run_live"),
     ("emulator/src/report/ballbar.rs", "polar_plot"),
-    ("ethercat/src/slave.rs", "add_coe_objects"),
     ("emulator/src/study/figures.rs", "fig_outer_loop"),
-    ("ethercat/src/esi.rs", "parse"),
-    ("ethercat/src/slave.rs", "apply_esi"),
     ("emulator/src/report/mod.rs", "plot_spectrum"),
 ];
 

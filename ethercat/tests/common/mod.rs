@@ -201,6 +201,9 @@ impl Master {
         self.bwr(0x0800, &[0; 32]);
         self.bwr(0x0981, &[0]);
         self.bwr(0x0910, &[0; 4]);
+        // DC speed counter start and filter depths: resets the time control loop
+        self.bwr(0x0930, &0x1000u16.to_le_bytes());
+        self.bwr(0x0934, &0x0C00u16.to_le_bytes());
         self.bwr(0x0500, &[2]);
         self.bwr(0x0500, &[0]);
         for k in 1..=n as u16 {

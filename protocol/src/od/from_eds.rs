@@ -574,6 +574,7 @@ fn device_description(
         shipped_short_entries: Vec::new(),
         following_error_window_zero_off: fe_window_zero,
         fixed_pdo_can_ids,
+        padding_entries: false,
     }
 }
 

@@ -369,6 +369,10 @@ pub struct DeviceDescription {
     /// PDO communication records (0x1400.., 0x1800..) whose COB-ID the file marks read-only:
     /// served writable for bit 31 (valid) only (`placeholders::read_only_pdo_cob_id`).
     pub fixed_pdo_can_ids: Vec<u16>,
+    /// Mapping entries of index 0, sub-index 0 are padding (an EtherCAT ESI's gap entries):
+    /// a gap of whole bytes in an RPDO or TPDO, sent as zeros, skipped when received. Not on
+    /// CAN (CiA 301 has dummy entries for that).
+    pub padding_entries: bool,
 }
 
 impl Default for DeviceDescription {
@@ -385,6 +389,7 @@ impl Default for DeviceDescription {
             shipped_short_entries: Vec::new(),
             following_error_window_zero_off: false,
             fixed_pdo_can_ids: Vec::new(),
+            padding_entries: false,
         }
     }
 }

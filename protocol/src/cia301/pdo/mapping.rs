@@ -42,11 +42,24 @@ impl Mapped {
 /// Check one mapping entry (index << 16 | sub << 8 | bits) for a TPDO (`tx`) or RPDO: a
 /// visible, PDO-mappable, stored object of a fixed size whose bits are its size, readable
 /// (TPDO) or writable (RPDO); or, in an RPDO, a dummy entry (a data type index 0x0001..=0x0007
-/// that `[DummyUsage]` allows).
+/// that `[DummyUsage]` allows); or, where the device has them, a padding entry (index 0, sub 0,
+/// whole bytes) in either.
 pub fn check_entry(od: &ObjectDictionary, entry: u32, tx: bool) -> Result<Mapped, u32> {
     let index = (entry >> 16) as u16;
     let sub = (entry >> 8) as u8;
     let bits = entry as u8 as usize;
+    if index == 0 && sub == 0 && od.device.padding_entries {
+        // a gap of whole bytes (EtherCAT padding)
+        if bits == 0 || !bits.is_multiple_of(8) {
+            return Err(abort::NOT_MAPPABLE);
+        }
+        return Ok(Mapped {
+            slot: None,
+            dtype: DataType::U8,
+            write: false,
+            len: (bits / 8) as u8,
+        });
+    }
     if (1..=7).contains(&index) {
         let dtype = DataType::from_code(index).ok_or(abort::NOT_MAPPABLE)?;
         if tx || !od.device.dummy_usage[index as usize] || bits != dtype.size() * 8 {
