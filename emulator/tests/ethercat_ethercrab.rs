@@ -1,11 +1,18 @@
 //! `drive-emu run --ethercat` against a second, independent master: the ethercrab crate (pure
 //! Rust, its own SII, CoE and PDI code; nothing shared with SOEM or with this project), used
 //! as its users write it, on a veth pair of the host. One emulator process per slave count
-//! (1 and 3 axes): discovery, the identity ethercrab reads from the SII equal to CoE 0x1018,
+//! (1 and 3 axes): discovery, the identity ethercrab read from the SII equal to CoE 0x1018,
 //! an SDO write and read back, the abort of a missing object, PRE-OP -> SAFE-OP -> OP with
 //! the working counter of the group's LRW (3 per slave) in every cycle, CiA 402 enable from
 //! the controlword in the process data (0x6041 comes back) and a CSP move whose 0x6064 follows
 //! in the inputs. A few hundred cycles of 1 ms.
+//!
+//! The three slaves run with distributed clocks as ethercrab's DC example sets them up: DC
+//! SYNC0 chosen (0x1C32:1 = 2) and `DcSync::Sync0` in PRE-OP, the PDI's cycles with ethercrab's
+//! FRMW of the reference clock's system time (`tx_rx_sync_system_time`: drift control in the
+//! slaves behind it, their 0x092C read back small), `configure_dc_sync` with SYNC0 at 1 ms,
+//! SAFE-OP, `request_into_op` and `tx_rx_dc` cycles; at OP each slave says DC SYNC0 in 0x1C32:1
+//! and its drive is locked to SYNC0 (0x2100:8 = 2, period 1000 us), and moves.
 //!
 //! Root (or CI, where a veth pair that cannot be made fails the test): see ethercat_rig.
 
@@ -17,7 +24,11 @@ use std::time::Duration;
 
 use ethercrab::error::{CoeAbortCode, Error, MailboxError};
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::subdevice_group::{DcConfiguration, Op, PreOp};
+use ethercrab::{
+    DcSync, DefaultLock, MainDevice, MainDeviceConfig, PduStorage, RegisterAddress, SubDeviceGroup,
+    Timeouts,
+};
 
 const MAX_SUBDEVICES: usize = 4;
 const PDI_LEN: usize = 64;
@@ -30,15 +41,15 @@ static PDU_THREE: PduStorage<MAX_FRAMES, MAX_PDU_DATA> = PduStorage::new();
 
 #[test]
 fn ethercrab_drives_one_slave() {
-    run(1, 'a', &PDU_ONE);
+    run(1, 'a', &PDU_ONE, false);
 }
 
 #[test]
-fn ethercrab_drives_three_slaves_in_one_process() {
-    run(3, 'b', &PDU_THREE);
+fn ethercrab_drives_three_slaves_in_one_process_with_dc_sync0() {
+    run(3, 'b', &PDU_THREE, true);
 }
 
-fn run(n: usize, tag: char, storage: &'static PduStorage<MAX_FRAMES, MAX_PDU_DATA>) {
+fn run(n: usize, tag: char, storage: &'static PduStorage<MAX_FRAMES, MAX_PDU_DATA>, dc: bool) {
     if !may_run("ethercat_ethercrab") {
         return;
     }
@@ -87,7 +98,7 @@ fn run(n: usize, tag: char, storage: &'static PduStorage<MAX_FRAMES, MAX_PDU_DAT
         .build()
         .unwrap();
     let positions = rt
-        .block_on(scenario(&maindevice, n))
+        .block_on(scenario(&maindevice, n, dc))
         .unwrap_or_else(|e| panic!("ethercrab: {e}"));
     for p in positions {
         assert!((p - 2000).abs() <= 20, "0x6064 {p}");
@@ -96,6 +107,14 @@ fn run(n: usize, tag: char, storage: &'static PduStorage<MAX_FRAMES, MAX_PDU_DAT
     assert!(stats["frames"].as_u64().unwrap() > 300, "{stats}");
     assert_eq!(stats["refused"], 0, "{stats}");
     assert_eq!(stats["socket_errors"], 0, "{stats}");
+    if dc {
+        // the loop locked to SYNC0 (how many cycles it took depends on the host's load; the
+        // scenario read 0x2100 locked over CoE already)
+        assert!(
+            stats["sync0_locked_cycles"].as_u64().unwrap() > 0,
+            "{stats}"
+        );
+    }
 }
 
 fn statusword(i: &[u8]) -> u16 {
@@ -106,19 +125,144 @@ fn position(i: &[u8]) -> i32 {
     i32::from_le_bytes([i[2], i[3], i[4], i[5]])
 }
 
-/// What an ethercrab user writes; returns each slave's 0x6064 at the end.
-async fn scenario(md: &MainDevice<'_>, n: usize) -> Result<Vec<i32>, String> {
-    let e = |what: &str| {
-        let what = what.to_string();
-        move |err: Error| format!("{what}: {err}")
-    };
-    let group = md
+type Group<S, DC> = SubDeviceGroup<MAX_SUBDEVICES, PDI_LEN, DefaultLock, S, DC>;
+
+fn e(what: &str) -> impl Fn(Error) -> String {
+    let what = what.to_string();
+    move |err: Error| format!("{what}: {err}")
+}
+
+/// What an ethercrab user writes; returns each slave's 0x6064 at the end. With `dc`, as
+/// ethercrab's DC example: SYNC0 at 1 ms, the clocks aligned first.
+async fn scenario(md: &MainDevice<'_>, n: usize, dc: bool) -> Result<Vec<i32>, String> {
+    let mut group = md
         .init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now)
         .await
         .map_err(e("init_single_group"))?;
     if group.len() != n {
         return Err(format!("discovered {} slaves, expected {n}", group.len()));
     }
+    check_slaves(md, &group).await?;
+    if !dc {
+        let group = group.into_safe_op(md).await.map_err(e("SAFE-OP"))?;
+        check_image(md, &group)?;
+        let group = group.into_op(md).await.map_err(e("OP"))?;
+        let pos = enable_and_move(md, &group, n, async || {
+            group.tx_rx(md).await.map(|r| r.working_counter)
+        })
+        .await?;
+        let group = group.into_safe_op(md).await.map_err(e("OP -> SAFE-OP"))?;
+        let group = group
+            .into_pre_op(md)
+            .await
+            .map_err(e("SAFE-OP -> PRE-OP"))?;
+        group.into_init(md).await.map_err(e("PRE-OP -> INIT"))?;
+        return Ok(pos);
+    }
+    for mut s in group.iter_mut(md) {
+        s.sdo_write(0x1C32, 1, 2u16)
+            .await
+            .map_err(e("0x1C32:1 = 2"))?;
+        s.set_dc_sync(DcSync::Sync0);
+    }
+    let group = group.into_pre_op_pdi(md).await.map_err(e("PRE-OP PDI"))?;
+    // the clocks aligned with ethercrab's FRMW of the reference's system time
+    let mut tick = tokio::time::interval(Duration::from_millis(1));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    for _ in 0..200 {
+        tick.tick().await;
+        group
+            .tx_rx_sync_system_time(md)
+            .await
+            .map_err(e("tx_rx_sync_system_time"))?;
+    }
+    for (k, s) in group.iter(md).enumerate() {
+        let raw = s
+            .register_read::<u32>(RegisterAddress::DcSystemTimeDifference)
+            .await
+            .map_err(e("0x092C"))?;
+        // sign in bit 31, magnitude in bits 0..30
+        let ns = raw & 0x7FFF_FFFF;
+        if ns > 1000 {
+            return Err(format!(
+                "slave {k}: 0x092C {raw:#010x}: {ns} ns off the reference"
+            ));
+        }
+    }
+    let group = group
+        .configure_dc_sync(
+            md,
+            DcConfiguration {
+                start_delay: Duration::from_millis(100),
+                sync0_period: Duration::from_millis(1),
+                sync0_shift: Duration::ZERO,
+            },
+        )
+        .await
+        .map_err(e("configure_dc_sync"))?;
+    let group = group.into_safe_op(md).await.map_err(e("SAFE-OP"))?;
+    check_image(md, &group)?;
+    let group = group.request_into_op(md).await.map_err(e("request OP"))?;
+    let mut op = false;
+    for _ in 0..5000 {
+        tick.tick().await;
+        if group.tx_rx_dc(md).await.map_err(e("tx_rx_dc"))?.all_op() {
+            op = true;
+            break;
+        }
+    }
+    if !op {
+        return Err("OP not reached with DC".into());
+    }
+    for (k, s) in group.iter(md).enumerate() {
+        let sync = s.sdo_read::<u16>(0x1C32, 1).await.map_err(e("0x1C32:1"))?;
+        if sync != 2 {
+            return Err(format!(
+                "slave {k} at OP: sync mode {sync}, not DC SYNC0 (2)"
+            ));
+        }
+    }
+    let pos = enable_and_move(md, &group, n, async || {
+        group.tx_rx_dc(md).await.map(|r| r.working_counter)
+    })
+    .await?;
+    // the drive's cycle locked to SYNC0 (16 good pulses after 8 for the period)
+    let mut lock = Vec::new();
+    for _ in 0..20 {
+        lock.clear();
+        for s in group.iter(md) {
+            let state = s.sdo_read::<u32>(0x2100, 8).await.map_err(e("0x2100:8"))?;
+            let period = s
+                .sdo_read::<u32>(0x2100, 10)
+                .await
+                .map_err(e("0x2100:10"))?;
+            lock.push((state, period));
+        }
+        if lock.iter().all(|&l| l == (2, 1000)) {
+            break;
+        }
+        for _ in 0..100 {
+            tick.tick().await;
+            group.tx_rx_dc(md).await.map_err(e("tx_rx_dc"))?;
+        }
+    }
+    if !lock.iter().all(|&l| l == (2, 1000)) {
+        return Err(format!("0x2100 (lock state, SYNC period us): {lock:?}"));
+    }
+    let group = group.into_safe_op(md).await.map_err(e("OP -> SAFE-OP"))?;
+    let group = group
+        .into_pre_op(md)
+        .await
+        .map_err(e("SAFE-OP -> PRE-OP"))?;
+    group.into_init(md).await.map_err(e("PRE-OP -> INIT"))?;
+    Ok(pos)
+}
+
+/// In PRE-OP: identity, SDO write and read back, the abort of a missing object, CSP.
+async fn check_slaves(
+    md: &MainDevice<'_>,
+    group: &Group<PreOp, ethercrab::subdevice_group::NoDc>,
+) -> Result<(), String> {
     for (k, s) in group.iter(md).enumerate() {
         // the identity ethercrab read from the SII, against the dictionary's 0x1018
         let id = s.identity();
@@ -153,7 +297,14 @@ async fn scenario(md: &MainDevice<'_>, n: usize) -> Result<Vec<i32>, String> {
         s.sdo_write(0x6060, 0, 8i8).await.map_err(e("0x6060"))?;
         s.sdo_write(0x607A, 0, 0i32).await.map_err(e("0x607A"))?;
     }
-    let group = group.into_safe_op(md).await.map_err(e("SAFE-OP"))?;
+    Ok(())
+}
+
+/// The process image: 6 bytes in and out per slave (the default assignment).
+fn check_image<S: ethercrab::subdevice_group::HasPdi, DC>(
+    md: &MainDevice<'_>,
+    group: &Group<S, DC>,
+) -> Result<(), String> {
     for s in group.iter(md) {
         let io = s.io_raw();
         if (io.inputs().len(), io.outputs().len()) != (6, 6) {
@@ -164,7 +315,18 @@ async fn scenario(md: &MainDevice<'_>, n: usize) -> Result<Vec<i32>, String> {
             ));
         }
     }
-    let group = group.into_op(md).await.map_err(e("OP"))?;
+    Ok(())
+}
+
+/// In OP, cycling with `txrx` (its working counter) every 1 ms: CiA 402 enable, a CSP ramp
+/// to 2000 followed in 0x6064, the group's working counter 3 per slave in every cycle.
+/// Returns each slave's 0x6064.
+async fn enable_and_move<DC>(
+    md: &MainDevice<'_>,
+    group: &Group<Op, DC>,
+    n: usize,
+    mut txrx: impl AsyncFnMut() -> Result<u16, Error>,
+) -> Result<Vec<i32>, String> {
     let expected_wkc = 3 * n as u16;
     let mut wkcs = Vec::new();
     let mut tick = tokio::time::interval(Duration::from_millis(1));
@@ -183,7 +345,7 @@ async fn scenario(md: &MainDevice<'_>, n: usize) -> Result<Vec<i32>, String> {
                 io.outputs()[..2].copy_from_slice(&cw.to_le_bytes());
                 io.outputs()[2..6].copy_from_slice(&0i32.to_le_bytes());
             }
-            wkcs.push(group.tx_rx(md).await.map_err(e("tx_rx"))?.working_counter);
+            wkcs.push(txrx().await.map_err(e("tx_rx"))?);
             reached = group
                 .iter(md)
                 .all(|s| statusword(s.io_raw().inputs()) & mask == want);
@@ -213,7 +375,7 @@ async fn scenario(md: &MainDevice<'_>, n: usize) -> Result<Vec<i32>, String> {
             io.outputs()[..2].copy_from_slice(&0x0Fu16.to_le_bytes());
             io.outputs()[2..6].copy_from_slice(&target.to_le_bytes());
         }
-        wkcs.push(group.tx_rx(md).await.map_err(e("tx_rx"))?.working_counter);
+        wkcs.push(txrx().await.map_err(e("tx_rx"))?);
         at_target = step > 200
             && group
                 .iter(md)
@@ -240,11 +402,5 @@ async fn scenario(md: &MainDevice<'_>, n: usize) -> Result<Vec<i32>, String> {
             &bad[..bad.len().min(10)]
         ));
     }
-    let group = group.into_safe_op(md).await.map_err(e("OP -> SAFE-OP"))?;
-    let group = group
-        .into_pre_op(md)
-        .await
-        .map_err(e("SAFE-OP -> PRE-OP"))?;
-    group.into_init(md).await.map_err(e("PRE-OP -> INIT"))?;
     Ok(pos)
 }

@@ -1,6 +1,7 @@
 """Distributed clocks with SOEM (pysoem) against `drive-emu run --ethercat`: SYNC0 at 1 ms.
 
 Usage: ethercat_dc.py IFACE [SECONDS]
+       ethercat_dc.py IFACE --lockstep CYCLES   (against `run --ethercat IFACE --lockstep`)
 
 Checks, and exits non-zero with the reason on the first failure:
 - DC SYNC0 chosen (0x1C32:1 = 2) without SYNC0 activated: SAFE-OP refused, AL status code
@@ -12,6 +13,10 @@ Checks, and exits non-zero with the reason on the first failure:
 - CiA 402 enable and a CSP move from the process data: 0x6064 follows.
 With SECONDS, the drive is held in OP that long more (the SYNC0-to-tick benchmark: the
 emulator's --json statistics give the phase error's p50/p99).
+With --lockstep: config_dc, SYNC0 at 1 ms, DC SYNC0, SAFE-OP, OP, enable, then CYCLES
+process-data cycles of a CSP ramp as fast as the master goes; reports the process-data
+frames sent and the drive's ticks from 0x2100 (sub 1) around the ramp and at the end, the
+lock (0x2100 sub 8, 9, 10) and 0x6064 before and after the ramp.
 Prints one JSON line with what it measured.
 """
 
@@ -37,13 +42,80 @@ def check(cond, msg):
 
 def main():
     iface = sys.argv[1]
-    hold_s = float(sys.argv[2]) if len(sys.argv) > 2 else 0.0
     m = pysoem.Master()
     m.open(iface)
     try:
-        run(m, hold_s)
+        if len(sys.argv) > 3 and sys.argv[2] == "--lockstep":
+            run_lockstep(m, int(sys.argv[3]))
+        else:
+            run(m, float(sys.argv[2]) if len(sys.argv) > 2 else 0.0)
     finally:
         m.close()
+
+
+def ticks(s):
+    """0x2100 sub 1: the drive ticks the loop ran."""
+    return struct.unpack("<I", s.sdo_read(0x2100, 1))[0]
+
+
+def run_lockstep(m, cycles):
+    s = init(m)
+    check(m.config_dc(), "config_dc found no DC slave")
+    s.dc_sync(True, SYNC0_NS)
+    s.sdo_write(0x1C32, 1, struct.pack("<H", 2))
+    s.sdo_write(0x6060, 0, struct.pack("<b", 8))
+    size = m.config_map()
+    check(size == 12, f"process image {size} bytes, expected 12")
+    check(m.state_check(pysoem.SAFEOP_STATE, 500000) == pysoem.SAFEOP_STATE,
+          f"SAFE-OP not reached: 0x{s.state:02X} code 0x{s.al_status:04X}")
+    expected = m.expected_wkc
+    sent = [0]
+    wkcs = []
+
+    def cycle(cw, target):
+        s.output = struct.pack("<Hi", cw, target)
+        m.send_processdata()
+        sent[0] += 1
+        wkcs.append(m.receive_processdata(10000))
+
+    def statusword():
+        return struct.unpack("<H", s.input[0:2])[0]
+
+    def position():
+        return struct.unpack("<i", s.input[2:6])[0]
+
+    cycle(0, 0)
+    m.state = pysoem.OP_STATE
+    m.write_state()
+    reached = pysoem.NONE_STATE
+    for _ in range(200):
+        cycle(0, 0)
+        reached = m.state_check(pysoem.OP_STATE, 5000)
+        if reached == pysoem.OP_STATE:
+            break
+    check(reached == pysoem.OP_STATE, f"OP not reached: 0x{s.state:02X}")
+    for cw, want in [(0x06, 0x21), (0x07, 0x23), (0x0F, 0x27)]:
+        for _ in range(3000):
+            cycle(cw, 0)
+            if statusword() & 0x6F == want:
+                break
+        check(statusword() & 0x6F == want,
+              f"controlword 0x{cw:02X}: statusword 0x{statusword():04X}")
+    sent_before, ticks_before, pos_before = sent[0], ticks(s), position()
+    for step in range(1, cycles + 1):
+        cycle(0x0F, 2 * step)
+    sent_after, ticks_after = sent[0], ticks(s)
+    for _ in range(100):
+        cycle(0x0F, 2 * cycles)
+    bad = [w for w in wkcs if w != expected]
+    check(not bad, f"{len(bad)} of {len(wkcs)} cycles with a working counter other than "
+          f"{expected}: {bad[:10]}")
+    print(json.dumps({"frames": sent_after - sent_before, "ticks": ticks_after - ticks_before,
+                      "frames_total": sent[0], "ticks_total": ticks(s), "lock": stats(s),
+                      "position_before": pos_before, "position_actual": position(),
+                      "target": 2 * cycles}))
+    m.state = pysoem.INIT_STATE
+    m.write_state()
 
 
 def init(m):

@@ -5,7 +5,10 @@
 //! advances one period). Frames carry the wall clock (DC, watchdog); the drive's cycle the
 //! simulated time. With `lockstep`, the drives' time advances by one period per frame that
 //! carries process data (the master's cycle, as per SYNC on CAN) instead of by the tick: the
-//! drive then sees exactly one cycle per master cycle however busy the machine is.
+//! drive then sees exactly one cycle per master cycle however busy the machine is. When a
+//! slave follows SYNC0 in lock-step, each process-data frame is a SYNC0 event and the drives'
+//! time advances by the SYNC0 cycle, in whole ticks ([`lockstep_ticks`]), as per SYNC on CAN;
+//! 0x2100 then says locked, with the SYNC0 period.
 //!
 //! Distributed clocks: once a slave follows SYNC0 (DC SYNC0 chosen and accepted at SAFE-OP,
 //! [`drive_ethercat::Slave::next_sync0_ns`]), its SYNC0 pulses feed the same phase lock as
@@ -220,6 +223,40 @@ fn next_pulse(seg: &Segment, t_ns: u64) -> Option<u64> {
     seg.slaves.iter().find_map(|s| s.next_sync0_ns(t_ns))
 }
 
+/// In lock-step: the SYNC0 cycle of the first slave that follows SYNC0, ns (`None`: none
+/// does, or it pulses once).
+fn lockstep_sync0_ns(seg: &Segment) -> Option<u64> {
+    seg.slaves
+        .iter()
+        .find(|s| s.dc_synchronised() && s.sync0().active())
+        .map(|s| u64::from(s.sync0().cycle_ns()))
+        .filter(|&c| c > 0)
+}
+
+/// Drive ticks per process-data frame in lock-step: one, or the SYNC0 cycle's worth of
+/// ticks (rounded, at least one) while a slave follows SYNC0: each master cycle is a SYNC0
+/// event, as each SYNC is on CAN.
+pub fn lockstep_ticks(sync0_ns: Option<u64>, period_us: u64) -> u64 {
+    let period_ns = period_us.max(1).saturating_mul(1000);
+    sync0_ns.map_or(1, |c| ((c + period_ns / 2) / period_ns).max(1))
+}
+
+/// 0x2100 in lock-step: the ticks run; following SYNC0, locked (2) with the SYNC0 period and
+/// no phase error (the ticks are the SYNC0 events), else free-running.
+pub fn lockstep_values(lock: &Sync0Lock, ticks: u64, sync0_ns: Option<u64>) -> StatsValues {
+    let mut v = lock.stats_values();
+    v[0] = ticks.min(u64::from(u32::MAX)) as u32;
+    (v[7], v[8], v[9]) = match sync0_ns {
+        Some(c) => (
+            LockState::Locked.code(),
+            0,
+            (c / 1000).min(u64::from(u32::MAX)) as u32,
+        ),
+        None => (LockState::FreeRunning.code(), 0, 0),
+    };
+    v
+}
+
 /// Write the loop's statistics into every slave's statistics object (0x2100).
 fn publish<D: SimulatedDrive>(seg: &mut Segment, drives: &[D], values: &StatsValues) {
     for (s, d) in seg.slaves.iter_mut().zip(drives.iter()) {
@@ -278,16 +315,20 @@ pub fn serve<D: SimulatedDrive>(
                             }
                         }
                         if lockstep && seg.process_data_frames != pd_before {
-                            // the master's cycle: the drives' one period, after the answer
-                            let t = sim_us;
-                            step(seg, drives, &mut sim_us, now_ns / 1000, period_us);
-                            after_cycle(seg, drives, faults, t);
-                            stats.cycles += 1;
-                            if stats.cycles.is_multiple_of(PUBLISH_EVERY) {
-                                let mut v = lock.stats_values();
-                                v[0] = stats.cycles.min(u64::from(u32::MAX)) as u32;
-                                publish(seg, drives, &v);
+                            // the master's cycle: the drives' period (or, following SYNC0,
+                            // the SYNC0 cycle's ticks), after the answer
+                            let sync0_ns = lockstep_sync0_ns(seg);
+                            for _ in 0..lockstep_ticks(sync0_ns, period_us) {
+                                let t = sim_us;
+                                step(seg, drives, &mut sim_us, now_ns / 1000, period_us);
+                                after_cycle(seg, drives, faults, t);
+                                stats.cycles += 1;
+                                if sync0_ns.is_some() {
+                                    stats.sync0_locked_cycles += 1;
+                                }
                             }
+                            let v = lockstep_values(&lock, stats.cycles, sync0_ns);
+                            publish(seg, drives, &v);
                         }
                     } else {
                         stats.refused += 1;
@@ -395,6 +436,21 @@ mod tests {
             lock.ticked(now, pulses);
         }
         out
+    }
+
+    #[test]
+    fn lockstep_runs_the_sync0_cycles_ticks_per_process_data_frame() {
+        assert_eq!(lockstep_ticks(None, 1000), 1);
+        assert_eq!(lockstep_ticks(Some(1_000_000), 1000), 1);
+        assert_eq!(lockstep_ticks(Some(1_000_000), 250), 4);
+        assert_eq!(lockstep_ticks(Some(2_000_000), 1000), 2);
+        assert_eq!(lockstep_ticks(Some(125_000), 1000), 1, "at least one");
+        assert_eq!(lockstep_ticks(Some(1_600_000), 1000), 2, "rounded");
+        let lock = Sync0Lock::new(0, 250);
+        let v = lockstep_values(&lock, 4000, Some(1_000_000));
+        assert_eq!((v[0], v[7], v[8], v[9]), (4000, 2, 0, 1000));
+        let v = lockstep_values(&lock, 17, None);
+        assert_eq!((v[0], v[7], v[8], v[9]), (17, 0, 0, 0));
     }
 
     #[test]
