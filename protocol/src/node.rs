@@ -4,31 +4,30 @@
 //! allocates after `Node::new`.
 
 pub(crate) mod access;
+pub(crate) mod writes;
 
 use heapless::Deque;
 
-use crate::cia301::cob_id;
 use crate::cia301::emcy::{Cause, Emcy};
-use crate::cia301::heartbeat::{self, Consumer, Producer};
+use crate::cia301::heartbeat::{Consumer, Producer};
 use crate::cia301::nmt::{self, NmtCommand, NmtState};
+use crate::cia301::pdo::mapping;
 use crate::cia301::pdo::rpdo::RxOutcome;
 use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer};
 use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
 use crate::cia305::{LssEvent, LssIdentity, LssSlave, LssState};
 use crate::cia402::factor::Factor;
-use crate::cia402::mode::Mode;
 use crate::cia402::{objects as o402, Cia402, State};
 use crate::drive::{Drive, DriveInfo};
 use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
 use crate::od::{idx, Backing, DefaultValue, Entry, Lookup, ObjectDictionary, Slot, Store};
-use crate::quirks::{
-    ControlwordLatch, HomingMethodZero, QuirkState, Quirks, SdoAnswer, SdoGate, WatchdogPeriod,
-};
+use crate::quirks::{ControlwordLatch, QuirkState, Quirks, SdoAnswer, SdoGate, WatchdogPeriod};
 use crate::wire::cob::{Rx, RxTable};
 use crate::wire::lss::UNCONFIGURED_NODE_ID;
 use crate::wire::{cob, Heartbeat};
+use writes::{ObjectWrite, Origin, Verdict, WriteHooks};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
 /// [`Node::tx_overflows`] and dropped.
@@ -51,8 +50,6 @@ const R_1015: usize = idx(0x1015, 0);
 const R_1016: usize = idx(0x1016, 1);
 const R_1017: usize = idx(0x1017, 0);
 const R_1019: usize = idx(0x1019, 0);
-const R_6098: usize = idx(0x6098, 0);
-const R_6502: usize = idx(0x6502, 0);
 const R_SERIAL: usize = idx(0x1018, 4);
 
 /// The bit timing an LSS slave reports at power-on unless told otherwise: CiA 301 table
@@ -269,22 +266,23 @@ fn push(tx: &mut Deque<CanFrame, TX_QUEUE>, overflows: &mut u32, f: CanFrame) {
     }
 }
 
-/// Everything but the SDO server (so the server can borrow it as its object access).
+/// Everything but the SDO server (so the server can borrow it as its object access). The
+/// fields the services' write hooks ([`writes`]) work on are visible to the crate.
 #[derive(Clone, Debug)]
-struct Core {
+pub(crate) struct Core {
     node_id: u8,
     info: DriveInfo,
-    od: ObjectDictionary,
-    store: Store,
+    pub(crate) od: ObjectDictionary,
+    pub(crate) store: Store,
     /// Parameters saved by 0x1010 (`has_saved`), allocated with the node.
-    saved: Store,
-    has_saved: bool,
+    pub(crate) saved: Store,
+    pub(crate) has_saved: bool,
     nmt: NmtState,
-    pdo: PdoEngine,
+    pub(crate) pdo: PdoEngine,
     sync: SyncConsumer,
-    hb: Producer,
-    hbc: Consumer,
-    hb_lost: bool,
+    pub(crate) hb: Producer,
+    pub(crate) hbc: Consumer,
+    pub(crate) hb_lost: bool,
     emcy: Emcy,
     cia: Cia402,
     tx: Deque<CanFrame, TX_QUEUE>,
@@ -295,17 +293,19 @@ struct Core {
     /// Application clock, as last given.
     now_us: u64,
     /// Communication clock, as last given.
-    comm_us: u64,
+    pub(crate) comm_us: u64,
     /// Time from power-on to the boot-up message, us (0: at once).
     boot_delay_us: u64,
     /// From an NMT reset node / reset communication to the boot-up, us.
     reset_node_delay_us: u64,
     reset_comm_delay_us: u64,
     /// The vendor switches and what they keep while the node runs.
-    quirks: Quirks,
+    pub(crate) quirks: Quirks,
     qs: QuirkState,
     /// Controlword edges written between ticks (and the hold time's view of it).
-    cw_latch: ControlwordLatch,
+    pub(crate) cw_latch: ControlwordLatch,
+    /// The services' write rules, by object index (filled in [`Node::new`]).
+    hooks: WriteHooks,
     /// While initialising after a reset: when the boot-up is due.
     boot_due_us: Option<u64>,
     /// The pending boot follows a communication reset: the application (CiA 402) keeps
@@ -396,38 +396,14 @@ impl<D: Drive> ObjectAccess for Access<'_, D> {
         if let Backing::Handler(tag) = e.backing {
             return self.drive.write_object(tag, index, sub, data);
         }
-        self.core.write_checked(slot, index, sub, raw)
+        self.core.write_stored(&ObjectWrite {
+            row: slot,
+            index,
+            sub,
+            raw,
+            origin: Origin::Sdo,
+        })
     }
-}
-
-/// Rules on application values beyond the dictionary's limits, the same for an SDO write and
-/// an RPDO: a mode of operation the drive supports (0x6502), software position limits with
-/// min <= max, a homing method 0 a vendor refuses (docs/quirks.md 3.4).
-fn value_rule(store: &Store, quirks: &Quirks, index: u16, sub: u8, raw: u64) -> Result<(), u32> {
-    let supported = store.u32(R_6502);
-    match (index, sub) {
-        (0x6098, 0) if raw as i8 == 0 && quirks.homing_method_zero == HomingMethodZero::Refuse => {
-            Err(abort::VALUE_RANGE)
-        }
-        (0x6060, _) if !Mode::from_value(raw as i8).is_some_and(|m| m.in_mask(supported)) => {
-            Err(abort::VALUE_RANGE)
-        }
-        (0x607D, 1) if raw as i32 > store.i32(o402::SW_LIMIT_MAX) => Err(abort::MAX_LT_MIN),
-        (0x607D, 2) if (raw as i32) < store.i32(o402::SW_LIMIT_MIN) => Err(abort::MAX_LT_MIN),
-        _ => Ok(()),
-    }
-}
-
-/// Whether an RPDO may write `raw` to a slot: the dictionary's limits and [`value_rule`].
-fn rpdo_accepts(
-    od: &ObjectDictionary,
-    quirks: &Quirks,
-    store: &Store,
-    slot: usize,
-    raw: u64,
-) -> bool {
-    let e = od.entry(Slot::at(slot));
-    e.check_limits(raw).is_ok() && value_rule(store, quirks, e.index, e.sub, raw).is_ok()
 }
 
 impl Core {
@@ -460,7 +436,7 @@ impl Core {
         }
     }
 
-    fn clear_emcy(&mut self, code: u16, cause: Cause) {
+    pub(crate) fn clear_emcy(&mut self, code: u16, cause: Cause) {
         if self.emcy.clear(&mut self.store, code, cause) {
             self.event(NodeEvent::EmcyCleared { code });
         }
@@ -514,7 +490,7 @@ impl Core {
     }
 
     /// A reconfigured (or reset) RPDO starts without errors: they are reported again.
-    fn rpdo_conditions_reset(&mut self, k: usize) {
+    pub(crate) fn rpdo_conditions_reset(&mut self, k: usize) {
         self.rpdo_length_condition(k, 0, 0);
         self.rpdo_value_condition(k, true);
     }
@@ -523,123 +499,46 @@ impl Core {
         push(&mut self.tx, &mut self.tx_overflows, f);
     }
 
-    /// Semantic checks and side effects of an SDO write (limits and type already checked).
-    /// PDO parameters go to the PDO engine's rules (`cia301/pdo/rules.rs`); one arm per
-    /// other object with a rule; the `if`s stay inside the arms for readability.
-    #[allow(clippy::collapsible_match)]
-    fn write_checked(&mut self, row: usize, index: u16, sub: u8, raw: u64) -> Result<(), u32> {
-        if let Some(k) = self.pdo.rpdo_of(index) {
-            self.rpdo_conditions_reset(k);
-        }
-        if let Some(r) = self
-            .pdo
-            .write(&self.od, &mut self.store, row, index, sub, raw)
-        {
-            return r;
-        }
-        match (index, sub) {
-            (0x1003, 0) => {
-                if raw != 0 {
-                    return Err(abort::VALUE_RANGE);
-                }
-                for s in 0..=8 {
-                    self.store.set(row + s, 0);
-                }
+    /// A write to a stored object whose type and dictionary limits were checked, from an SDO
+    /// download or an RPDO: the hook of the service that owns the object ([`WriteHooks`])
+    /// checks it and applies its side effects; the value is stored unless the hook applied
+    /// it itself. A refused write changes nothing.
+    pub(crate) fn write_stored(&mut self, w: &ObjectWrite) -> Result<(), u32> {
+        if let Some(hook) = self.hooks.find(w.index) {
+            if hook(self, w)? == Verdict::Applied {
                 return Ok(());
             }
-            (0x1005, _) => {
-                // bit 30: we do not produce SYNC; bit 31 is "don't care"
-                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw as u32, true) {
-                    return Err(abort::VALUE_RANGE);
-                }
-            }
-            (0x1014, _) => {
-                // bit 31: EMCY not valid (any CAN-ID may be stored then); bit 30 reserved
-                let valid = raw & 0x8000_0000 == 0;
-                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw as u32, valid) {
-                    return Err(abort::VALUE_RANGE);
-                }
-            }
-            (0x1010, 1) => {
-                if raw != 0x6576_6173 {
-                    return Err(abort::CANNOT_STORE);
-                }
-                self.saved.copy_from(&self.store);
-                self.has_saved = true;
-                return Ok(());
-            }
-            (0x1011, 1) => {
-                if raw != 0x6461_6F6C {
-                    return Err(abort::CANNOT_STORE);
-                }
-                self.has_saved = false;
-                return Ok(());
-            }
-            (0x1016, s) => {
-                let mut entries = [0u32; 4];
-                for (i, e) in entries.iter_mut().enumerate() {
-                    *e = self.store.u32(R_1016 + i);
-                }
-                let i = s as usize - 1;
-                if heartbeat::conflicts(&entries, i, raw as u32) {
-                    return Err(abort::PARAM_INCOMPATIBLE);
-                }
-                self.hbc.configure(i, raw as u32);
-                // the consumer restarts (it waits for a first heartbeat again): a loss it
-                // reported is over; the fault it caused stays until the fault reset
-                if self.hb_lost {
-                    self.hb_lost = false;
-                    self.clear_emcy(EMCY_HEARTBEAT, Cause::Condition);
-                }
-            }
-            (0x1017, _) => self.hb.restart(self.comm_us, raw as u16),
-            (0x1019, _) => {
-                if self.store.u32(R_1006) != 0 {
-                    return Err(abort::DEVICE_STATE);
-                }
-                if raw == 1 {
-                    return Err(abort::VALUE_RANGE);
-                }
-            }
-            (0x6060, _) | (0x607D, _) => value_rule(&self.store, &self.quirks, index, sub, raw)?,
-            (0x6098, 0) if raw as i8 == 0 => match self.quirks.homing_method_zero {
-                HomingMethodZero::Store => {}
-                // confirmed, and the method stays (docs/quirks.md 3.4)
-                HomingMethodZero::Ignore => return Ok(()),
-                HomingMethodZero::Refuse => return Err(abort::VALUE_RANGE),
-            },
-            (0x6040, 0) => {
-                let old = self.store.u32(row) as u16;
-                let hold = self.quirks.controlword_min_hold;
-                self.cw_latch.on_write(old, raw as u16, self.comm_us, hold);
-            }
-            _ => {}
         }
-        self.store.set(row, raw);
+        self.store.set(w.row, w.raw);
         Ok(())
     }
 
-    /// What an RPDO wrote, seen by the write hooks an SDO write passes (`cw` and `homing`:
-    /// 0x6040 and 0x6098 before it): the controlword latch, a homing method 0 ignored.
-    fn after_rpdo(&mut self, cw: u16, homing: u64) {
-        let now = self.store.u32(o402::CONTROLWORD) as u16;
-        if now != cw {
-            let hold = self.quirks.controlword_min_hold;
-            self.cw_latch.on_write(cw, now, self.comm_us, hold);
+    /// One value of a received RPDO for the store row `row`: the dictionary's limits, then
+    /// [`Core::write_stored`] as for an SDO write. Whether it was taken.
+    fn rpdo_value(&mut self, row: usize, raw: u64) -> bool {
+        let e = self.od.entry(Slot::at(row));
+        if e.check_limits(raw).is_err() {
+            return false;
         }
-        if self.quirks.homing_method_zero == HomingMethodZero::Ignore
-            && self.store.raw(R_6098) as i8 == 0
-        {
-            self.store.set(R_6098, homing);
-        }
+        let w = ObjectWrite {
+            row,
+            index: e.index,
+            sub: e.sub,
+            raw,
+            origin: Origin::Rpdo,
+        };
+        self.write_stored(&w).is_ok()
     }
 
-    /// 0x6040 and 0x6098 before an RPDO (for [`Core::after_rpdo`]).
-    fn before_rpdo(&self) -> (u16, u64) {
-        (
-            self.store.u32(o402::CONTROLWORD) as u16,
-            self.store.raw(R_6098),
-        )
+    /// Apply received data to RPDO `k`'s mapped objects, each value through
+    /// [`Core::rpdo_value`]. Whether every value was taken (for
+    /// [`Core::rpdo_value_condition`]).
+    fn apply_rpdo(&mut self, k: usize, data: &[u8]) -> bool {
+        let (map, n, len) = self.pdo.rpdo[k].rx_map();
+        let Some(data) = data.get(..len) else {
+            return false;
+        };
+        mapping::unpack(&map[..n], data, |row, raw| self.rpdo_value(row, raw))
     }
 
     /// An SDO answer to a request at `now_us`: sent now or after the vendor's delay.
@@ -803,11 +702,8 @@ impl Core {
         self.pending_sync = Some(now_us);
         if self.nmt == NmtState::Operational {
             for k in 0..self.pdo.rpdo.len() {
-                let (od, quirks) = (&self.od, &self.quirks);
-                let accept = |st: &Store, slot, raw| rpdo_accepts(od, quirks, st, slot, raw);
-                let (cw, homing) = self.before_rpdo();
-                if let Some(ok) = self.pdo.apply_sync_rpdo(k, &mut self.store, accept) {
-                    self.after_rpdo(cw, homing);
+                if let Some(data) = self.pdo.take_sync_rpdo(k) {
+                    let ok = self.apply_rpdo(k, &data);
                     self.rpdo_value_condition(k, ok);
                 }
             }
@@ -922,6 +818,7 @@ impl Node {
             quirks,
             qs,
             cw_latch: ControlwordLatch::default(),
+            hooks: WriteHooks::standard(),
             boot_due_us: None,
             boot_keeps_app: false,
             events: Deque::new(),
@@ -1203,20 +1100,17 @@ impl Node {
     /// A data frame in operational: an RPDO if one is configured on its COB-ID.
     fn rpdo_frame(&mut self, frame: &CanFrame) -> FrameEvent {
         let c = &mut self.core;
-        let (od, quirks) = (&c.od, &c.quirks);
-        let accept = |st: &Store, slot, raw| rpdo_accepts(od, quirks, st, slot, raw);
-        let (cw, homing) = (c.store.u32(o402::CONTROLWORD) as u16, c.store.raw(R_6098));
-        match c.pdo.receive(&mut c.store, frame, accept) {
+        match c.pdo.receive(frame) {
             RxOutcome::NotRpdo => FrameEvent::Ignored,
             RxOutcome::Received {
                 k,
                 len,
                 length_code,
-                values_ok,
+                apply,
             } => {
-                c.after_rpdo(cw, homing);
+                let ok = apply.then(|| c.apply_rpdo(k, &frame.data));
                 c.rpdo_length_condition(k, length_code, len);
-                if let Some(ok) = values_ok {
+                if let Some(ok) = ok {
                     c.rpdo_value_condition(k, ok);
                 }
                 FrameEvent::Handled
