@@ -2,33 +2,43 @@
 //! Sans-IO: `handle` takes a received frame, `poll` runs timers and one CiA 402 tick,
 //! `pop_tx` hands out frames to send. Built once from a [`NodeConfig`]; nothing here
 //! allocates after `Node::new`.
+//!
+//! By what it holds (docs/decisions/0018): this file the types, the node's state and
+//! `Node::new`; `frames` the CAN front end (a received frame dispatched to its service, NMT);
+//! `drive_core` the drive core (object access, the write path, EMCY bookkeeping, boot);
+//! `writes` the services' write hooks; `cycle` the timers and the CiA 402 tick; `deadlines`
+//! the next deadline; `access` the core as a front end other than CAN (EtherCAT) calls it.
 
 pub(crate) mod access;
+mod cycle;
+mod deadlines;
+mod drive_core;
+mod frames;
+pub(crate) mod writes;
 
 use heapless::Deque;
 
-use crate::cia301::cob_id;
 use crate::cia301::emcy::{Cause, Emcy};
-use crate::cia301::heartbeat::{self, Consumer, Producer};
+use crate::cia301::heartbeat::{Consumer, Producer};
 use crate::cia301::nmt::{self, NmtCommand, NmtState};
+use crate::cia301::pdo::mapping;
 use crate::cia301::pdo::rpdo::RxOutcome;
 use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer};
 use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
 use crate::cia305::{LssEvent, LssIdentity, LssSlave, LssState};
 use crate::cia402::factor::Factor;
-use crate::cia402::mode::Mode;
 use crate::cia402::{objects as o402, Cia402, State};
 use crate::drive::{Drive, DriveInfo};
 use crate::event::{NodeEvent, EVENT_QUEUE};
 use crate::frame::CanFrame;
 use crate::od::{idx, Backing, DefaultValue, Entry, Lookup, ObjectDictionary, Slot, Store};
-use crate::quirks::{
-    ControlwordLatch, HomingMethodZero, QuirkState, Quirks, SdoAnswer, SdoGate, WatchdogPeriod,
-};
+use crate::quirks::{ControlwordLatch, QuirkState, Quirks, SdoAnswer, SdoGate, WatchdogPeriod};
 use crate::wire::cob::{Rx, RxTable};
 use crate::wire::lss::UNCONFIGURED_NODE_ID;
 use crate::wire::{cob, Heartbeat};
+use drive_core::{csp_period_us, interpolation_period_us, si_unit_rows};
+use writes::{ObjectWrite, Origin, Verdict, WriteHooks};
 
 /// Capacity of the transmit queue; frames beyond it are counted in
 /// [`Node::tx_overflows`] and dropped.
@@ -36,8 +46,8 @@ pub const TX_QUEUE: usize = 64;
 
 /// EMCY code for a lost heartbeat producer (the master).
 pub const EMCY_HEARTBEAT: u16 = 0x8130;
-/// EMCY code for an RPDO value the drive refuses (the checks of an SDO write: range, a
-/// supported mode, min <= max): CiA 402 "parameter error" (0x6320). The object keeps its
+/// EMCY code for an RPDO value the drive refuses (the rules of an SDO write: range, then the
+/// write hook of the object's service: a supported mode, min <= max, ...): CiA 402 "parameter error" (0x6320). The object keeps its
 /// value, as with the refused SDO write; CiA 301 has no code for it and CANopenNode drops
 /// such a value silently, but a master is better served by knowing why 0x6061 did not
 /// follow its RPDO.
@@ -51,8 +61,6 @@ const R_1015: usize = idx(0x1015, 0);
 const R_1016: usize = idx(0x1016, 1);
 const R_1017: usize = idx(0x1017, 0);
 const R_1019: usize = idx(0x1019, 0);
-const R_6098: usize = idx(0x6098, 0);
-const R_6502: usize = idx(0x6502, 0);
 const R_SERIAL: usize = idx(0x1018, 4);
 
 /// The bit timing an LSS slave reports at power-on unless told otherwise: CiA 301 table
@@ -269,22 +277,23 @@ fn push(tx: &mut Deque<CanFrame, TX_QUEUE>, overflows: &mut u32, f: CanFrame) {
     }
 }
 
-/// Everything but the SDO server (so the server can borrow it as its object access).
+/// Everything but the SDO server (so the server can borrow it as its object access). The
+/// fields the services' write hooks ([`writes`]) work on are visible to the crate.
 #[derive(Clone, Debug)]
-struct Core {
+pub(crate) struct Core {
     node_id: u8,
     info: DriveInfo,
-    od: ObjectDictionary,
-    store: Store,
+    pub(crate) od: ObjectDictionary,
+    pub(crate) store: Store,
     /// Parameters saved by 0x1010 (`has_saved`), allocated with the node.
-    saved: Store,
-    has_saved: bool,
+    pub(crate) saved: Store,
+    pub(crate) has_saved: bool,
     nmt: NmtState,
-    pdo: PdoEngine,
+    pub(crate) pdo: PdoEngine,
     sync: SyncConsumer,
-    hb: Producer,
-    hbc: Consumer,
-    hb_lost: bool,
+    pub(crate) hb: Producer,
+    pub(crate) hbc: Consumer,
+    pub(crate) hb_lost: bool,
     emcy: Emcy,
     cia: Cia402,
     tx: Deque<CanFrame, TX_QUEUE>,
@@ -295,17 +304,19 @@ struct Core {
     /// Application clock, as last given.
     now_us: u64,
     /// Communication clock, as last given.
-    comm_us: u64,
+    pub(crate) comm_us: u64,
     /// Time from power-on to the boot-up message, us (0: at once).
     boot_delay_us: u64,
     /// From an NMT reset node / reset communication to the boot-up, us.
     reset_node_delay_us: u64,
     reset_comm_delay_us: u64,
     /// The vendor switches and what they keep while the node runs.
-    quirks: Quirks,
+    pub(crate) quirks: Quirks,
     qs: QuirkState,
     /// Controlword edges written between ticks (and the hold time's view of it).
-    cw_latch: ControlwordLatch,
+    pub(crate) cw_latch: ControlwordLatch,
+    /// The services' write rules, by object index (filled in [`Node::new`]).
+    hooks: WriteHooks,
     /// While initialising after a reset: when the boot-up is due.
     boot_due_us: Option<u64>,
     /// The pending boot follows a communication reset: the application (CiA 402) keeps
@@ -343,484 +354,6 @@ fn lookup(od: &ObjectDictionary, index: u16, sub: u8) -> Result<(usize, &Entry),
         Lookup::Found(slot) => Ok((slot.get(), od.entry(slot))),
         Lookup::NoObject => Err(abort::NO_OBJECT),
         Lookup::NoSub => Err(abort::NO_SUB),
-    }
-}
-
-impl<D: Drive> ObjectAccess for Access<'_, D> {
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, u32> {
-        let (slot, e) = lookup(&self.core.od, index, sub)?;
-        if !e.access.readable() {
-            return Err(abort::WRITE_ONLY);
-        }
-        match e.backing {
-            Backing::Handler(tag) => self.drive.read_object(tag, index, sub, buf),
-            Backing::Stored => Ok(self.core.store.read_bytes(slot, e.dtype.size(), buf)),
-        }
-    }
-
-    fn check_write(&mut self, index: u16, sub: u8, size: Option<usize>) -> Result<(), u32> {
-        let (_, e) = lookup(&self.core.od, index, sub)?;
-        if !e.access.writable() {
-            return Err(abort::READ_ONLY);
-        }
-        let n = e.dtype.size();
-        match size {
-            Some(s) if n > 0 && s > n => Err(abort::TOO_LONG),
-            Some(s) if n > 0 && s < n => Err(abort::TOO_SHORT),
-            Some(s) if n == 0 && s > e.capacity => Err(abort::TOO_LONG),
-            _ => Ok(()),
-        }
-    }
-
-    fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), u32> {
-        self.check_write(index, sub, Some(data.len()))?;
-        let (slot, e) = lookup(&self.core.od, index, sub)?;
-        if e.dtype.variable() {
-            if let Backing::Handler(tag) = e.backing {
-                return self.drive.write_object(tag, index, sub, data);
-            }
-            return if self.core.store.write_bytes(slot, data) {
-                Ok(())
-            } else {
-                Err(abort::TOO_LONG)
-            };
-        }
-        let raw = e.decode(data);
-        if let Err(high) = e.check_limits(raw) {
-            return Err(if high {
-                abort::VALUE_HIGH
-            } else {
-                abort::VALUE_LOW
-            });
-        }
-        if let Backing::Handler(tag) = e.backing {
-            return self.drive.write_object(tag, index, sub, data);
-        }
-        self.core.write_checked(slot, index, sub, raw)
-    }
-}
-
-/// Rules on application values beyond the dictionary's limits, the same for an SDO write and
-/// an RPDO: a mode of operation the drive supports (0x6502), software position limits with
-/// min <= max, a homing method 0 a vendor refuses (docs/quirks.md 3.4).
-fn value_rule(store: &Store, quirks: &Quirks, index: u16, sub: u8, raw: u64) -> Result<(), u32> {
-    let supported = store.u32(R_6502);
-    match (index, sub) {
-        (0x6098, 0) if raw as i8 == 0 && quirks.homing_method_zero == HomingMethodZero::Refuse => {
-            Err(abort::VALUE_RANGE)
-        }
-        (0x6060, _) if !Mode::from_value(raw as i8).is_some_and(|m| m.in_mask(supported)) => {
-            Err(abort::VALUE_RANGE)
-        }
-        (0x607D, 1) if raw as i32 > store.i32(o402::SW_LIMIT_MAX) => Err(abort::MAX_LT_MIN),
-        (0x607D, 2) if (raw as i32) < store.i32(o402::SW_LIMIT_MIN) => Err(abort::MAX_LT_MIN),
-        _ => Ok(()),
-    }
-}
-
-/// Whether an RPDO may write `raw` to a slot: the dictionary's limits and [`value_rule`].
-fn rpdo_accepts(
-    od: &ObjectDictionary,
-    quirks: &Quirks,
-    store: &Store,
-    slot: usize,
-    raw: u64,
-) -> bool {
-    let e = od.entry(Slot::at(slot));
-    e.check_limits(raw).is_ok() && value_rule(store, quirks, e.index, e.sub, raw).is_ok()
-}
-
-impl Core {
-    fn event(&mut self, e: NodeEvent) {
-        if self.events.push_back(e).is_err() {
-            self.events_dropped = self.events_dropped.wrapping_add(1);
-        }
-    }
-
-    /// Report state changes since the last call as events.
-    fn observe(&mut self) {
-        if self.cia.state != self.seen_cia {
-            let from = self.seen_cia;
-            self.seen_cia = self.cia.state;
-            self.event(NodeEvent::Cia402State {
-                from,
-                to: self.cia.state,
-            });
-        }
-        if self.nmt != self.seen_nmt {
-            let from = self.seen_nmt;
-            self.seen_nmt = self.nmt;
-            self.event(NodeEvent::NmtState { from, to: self.nmt });
-        }
-    }
-
-    fn raise_emcy(&mut self, code: u16, info: [u8; 5], cause: Cause) {
-        if self.emcy.raise(&mut self.store, code, info, cause) {
-            self.event(NodeEvent::EmcyRaised { code });
-        }
-    }
-
-    fn clear_emcy(&mut self, code: u16, cause: Cause) {
-        if self.emcy.clear(&mut self.store, code, cause) {
-            self.event(NodeEvent::EmcyCleared { code });
-        }
-    }
-
-    /// `cause` holds no error any more: the errors only it held clear.
-    fn clear_cause(&mut self, cause: Cause) {
-        for code in self.emcy.clear_cause(&mut self.store, cause) {
-            self.event(NodeEvent::EmcyCleared { code });
-        }
-    }
-
-    /// Every error goes (reset node).
-    fn clear_all_emcy(&mut self) {
-        for code in self.emcy.active_codes() {
-            self.event(NodeEvent::EmcyCleared { code });
-        }
-        self.emcy.reset(&mut self.store);
-    }
-
-    /// RPDO `k` arrived with a length error `code` (0 = right length): raise it once, and
-    /// clear it when no RPDO holds it any more.
-    fn rpdo_length_condition(&mut self, k: usize, code: u16, len: u8) {
-        let old = self.pdo.rpdo[k].len_error;
-        if old == code {
-            return;
-        }
-        self.pdo.rpdo[k].len_error = code;
-        if old != 0 && !self.pdo.rpdo.iter().any(|p| p.len_error == old) {
-            self.clear_emcy(old, Cause::Condition);
-        }
-        if code != 0 {
-            let info = [k as u8 + 1, len, self.pdo.rpdo[k].len, 0, 0];
-            self.raise_emcy(code, info, Cause::Condition);
-        }
-    }
-
-    /// RPDO `k` carried only acceptable values (`ok`) or not: EMCY 0x6320 held meanwhile.
-    fn rpdo_value_condition(&mut self, k: usize, ok: bool) {
-        if self.pdo.rpdo[k].value_error != ok {
-            return;
-        }
-        self.pdo.rpdo[k].value_error = !ok;
-        if ok {
-            if !self.pdo.rpdo.iter().any(|p| p.value_error) {
-                self.clear_emcy(EMCY_RPDO_VALUE, Cause::Condition);
-            }
-        } else {
-            self.raise_emcy(EMCY_RPDO_VALUE, [k as u8 + 1, 0, 0, 0, 0], Cause::Condition);
-        }
-    }
-
-    /// A reconfigured (or reset) RPDO starts without errors: they are reported again.
-    fn rpdo_conditions_reset(&mut self, k: usize) {
-        self.rpdo_length_condition(k, 0, 0);
-        self.rpdo_value_condition(k, true);
-    }
-
-    fn push(&mut self, f: CanFrame) {
-        push(&mut self.tx, &mut self.tx_overflows, f);
-    }
-
-    /// Semantic checks and side effects of an SDO write (limits and type already checked).
-    /// PDO parameters go to the PDO engine's rules (`cia301/pdo/rules.rs`); one arm per
-    /// other object with a rule; the `if`s stay inside the arms for readability.
-    #[allow(clippy::collapsible_match)]
-    fn write_checked(&mut self, row: usize, index: u16, sub: u8, raw: u64) -> Result<(), u32> {
-        if let Some(k) = self.pdo.rpdo_of(index) {
-            self.rpdo_conditions_reset(k);
-        }
-        if let Some(r) = self
-            .pdo
-            .write(&self.od, &mut self.store, row, index, sub, raw)
-        {
-            return r;
-        }
-        match (index, sub) {
-            (0x1003, 0) => {
-                if raw != 0 {
-                    return Err(abort::VALUE_RANGE);
-                }
-                for s in 0..=8 {
-                    self.store.set(row + s, 0);
-                }
-                return Ok(());
-            }
-            (0x1005, _) => {
-                // bit 30: we do not produce SYNC; bit 31 is "don't care"
-                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw as u32, true) {
-                    return Err(abort::VALUE_RANGE);
-                }
-            }
-            (0x1014, _) => {
-                // bit 31: EMCY not valid (any CAN-ID may be stored then); bit 30 reserved
-                let valid = raw & 0x8000_0000 == 0;
-                if raw & 0x4000_0000 != 0 || !cob_id::acceptable(raw as u32, valid) {
-                    return Err(abort::VALUE_RANGE);
-                }
-            }
-            (0x1010, 1) => {
-                if raw != 0x6576_6173 {
-                    return Err(abort::CANNOT_STORE);
-                }
-                self.saved.copy_from(&self.store);
-                self.has_saved = true;
-                return Ok(());
-            }
-            (0x1011, 1) => {
-                if raw != 0x6461_6F6C {
-                    return Err(abort::CANNOT_STORE);
-                }
-                self.has_saved = false;
-                return Ok(());
-            }
-            (0x1016, s) => {
-                let mut entries = [0u32; 4];
-                for (i, e) in entries.iter_mut().enumerate() {
-                    *e = self.store.u32(R_1016 + i);
-                }
-                let i = s as usize - 1;
-                if heartbeat::conflicts(&entries, i, raw as u32) {
-                    return Err(abort::PARAM_INCOMPATIBLE);
-                }
-                self.hbc.configure(i, raw as u32);
-                // the consumer restarts (it waits for a first heartbeat again): a loss it
-                // reported is over; the fault it caused stays until the fault reset
-                if self.hb_lost {
-                    self.hb_lost = false;
-                    self.clear_emcy(EMCY_HEARTBEAT, Cause::Condition);
-                }
-            }
-            (0x1017, _) => self.hb.restart(self.comm_us, raw as u16),
-            (0x1019, _) => {
-                if self.store.u32(R_1006) != 0 {
-                    return Err(abort::DEVICE_STATE);
-                }
-                if raw == 1 {
-                    return Err(abort::VALUE_RANGE);
-                }
-            }
-            (0x6060, _) | (0x607D, _) => value_rule(&self.store, &self.quirks, index, sub, raw)?,
-            (0x6098, 0) if raw as i8 == 0 => match self.quirks.homing_method_zero {
-                HomingMethodZero::Store => {}
-                // confirmed, and the method stays (docs/quirks.md 3.4)
-                HomingMethodZero::Ignore => return Ok(()),
-                HomingMethodZero::Refuse => return Err(abort::VALUE_RANGE),
-            },
-            (0x6040, 0) => {
-                let old = self.store.u32(row) as u16;
-                let hold = self.quirks.controlword_min_hold;
-                self.cw_latch.on_write(old, raw as u16, self.comm_us, hold);
-            }
-            _ => {}
-        }
-        self.store.set(row, raw);
-        Ok(())
-    }
-
-    /// What an RPDO wrote, seen by the write hooks an SDO write passes (`cw` and `homing`:
-    /// 0x6040 and 0x6098 before it): the controlword latch, a homing method 0 ignored.
-    fn after_rpdo(&mut self, cw: u16, homing: u64) {
-        let now = self.store.u32(o402::CONTROLWORD) as u16;
-        if now != cw {
-            let hold = self.quirks.controlword_min_hold;
-            self.cw_latch.on_write(cw, now, self.comm_us, hold);
-        }
-        if self.quirks.homing_method_zero == HomingMethodZero::Ignore
-            && self.store.raw(R_6098) as i8 == 0
-        {
-            self.store.set(R_6098, homing);
-        }
-    }
-
-    /// 0x6040 and 0x6098 before an RPDO (for [`Core::after_rpdo`]).
-    fn before_rpdo(&self) -> (u16, u64) {
-        (
-            self.store.u32(o402::CONTROLWORD) as u16,
-            self.store.raw(R_6098),
-        )
-    }
-
-    /// An SDO answer to a request at `now_us`: sent now or after the vendor's delay.
-    fn sdo_answer(&mut self, f: CanFrame, now_us: u64) {
-        match self.qs.sdo_answer(&self.quirks, f, now_us) {
-            SdoAnswer::Now(f) => self.push(f),
-            SdoAnswer::Queued => {}
-            SdoAnswer::Dropped => self.tx_overflows = self.tx_overflows.wrapping_add(1),
-        }
-    }
-
-    /// The period `sync_watchdog` watches, us (0: none), and whether the drive is in a
-    /// watched state (OPERATION ENABLED in one of its modes).
-    fn watchdog_period(&self) -> (u64, bool) {
-        let Some(w) = &self.quirks.sync_watchdog else {
-            return (0, false);
-        };
-        let watched =
-            self.cia.state == State::OperationEnabled && w.modes.contains(&self.cia.mode_display);
-        let cycle = u64::from(self.store.u32(R_1006));
-        let period = match w.period_from {
-            WatchdogPeriod::Interpolation => match interpolation_period_us(&self.store) {
-                0 => cycle,
-                p => p,
-            },
-            WatchdogPeriod::CommunicationCycle => cycle,
-        };
-        (period, watched)
-    }
-
-    fn refresh_all(&mut self) {
-        for k in 0..self.pdo.rpdo.len() {
-            self.rpdo_conditions_reset(k);
-        }
-        self.pdo.refresh_all(&self.od, &self.store);
-        for i in 0..4 {
-            let e = self.store.u32(R_1016 + i);
-            self.hbc.configure(i, e);
-        }
-    }
-
-    /// Event-driven TPDOs (with the values of the last CiA 402 cycle) and EMCYs held by their
-    /// inhibit time, on the communication clock.
-    fn comm_timers_after(&mut self, comm_us: u64) {
-        if self.nmt == NmtState::Operational {
-            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
-            self.pdo
-                .poll_events(&self.store, comm_us, &mut |f| push(tx, overflows, f));
-        }
-        if self.emcy_allowed() {
-            let inhibit = self.store.u32(R_1015) as u16;
-            while let Some(d) = self.emcy.next(comm_us, inhibit) {
-                let f = CanFrame::new(self.store.u32(R_1014) & 0x7FF, &d);
-                self.push(f);
-            }
-        }
-    }
-
-    fn emcy_allowed(&self) -> bool {
-        matches!(self.nmt, NmtState::PreOperational | NmtState::Operational)
-            && self.store.u32(R_1014) & 0x8000_0000 == 0
-            && !self.qs.not_ready()
-    }
-
-    /// Report a communication event without keeping it active (history + EMCY frame).
-    fn report(&mut self, code: u16, info: [u8; 5]) {
-        if self.emcy.report(&mut self.store, code, info) {
-            self.event(NodeEvent::EmcyRaised { code });
-            self.event(NodeEvent::EmcyCleared { code });
-        }
-    }
-
-    /// Begin a boot: at once without a boot delay (`delay_us`), else initialising (silent,
-    /// deaf) until the delay has passed ([`Node::poll`] or [`Node::finish_boot`] completes
-    /// it).
-    fn start_boot(&mut self, now_us: u64, keeps_app: bool, delay_us: u64) {
-        self.qs.on_reset();
-        if delay_us == 0 {
-            self.boot(now_us);
-        } else {
-            self.nmt = NmtState::Initialising;
-            self.boot_due_us = Some(now_us.saturating_add(delay_us));
-            self.boot_keeps_app = keeps_app;
-        }
-    }
-
-    fn boot(&mut self, now_us: u64) {
-        self.boot_due_us = None;
-        self.boot_keeps_app = false;
-        if self.node_id == UNCONFIGURED_NODE_ID {
-            // CiA 305: no node-ID, no boot-up; the node stays initialising and answers LSS
-            // only (as Lely's NMT does; CANopenNode skips the other services).
-            return;
-        }
-        self.nmt = NmtState::PreOperational;
-        self.refresh_all();
-        self.sync = SyncConsumer::default();
-        self.pending_sync = None;
-        self.hb_lost = false;
-        self.hb.restart(now_us, self.store.u32(R_1017) as u16);
-        self.push(CanFrame::new(
-            cob::HEARTBEAT + self.node_id as u32,
-            &Heartbeat::BOOTUP.emit(),
-        ));
-        self.qs.on_bootup(&self.quirks, now_us);
-    }
-
-    fn restore_range(&mut self, lo: u16, hi: u16) {
-        let serial = self.store.raw(R_SERIAL);
-        if self.has_saved {
-            self.store.copy_range(&self.saved, &self.od, lo, hi);
-        } else {
-            self.store.reset_range(&self.od, lo, hi, self.node_id);
-        }
-        // The serial number (0x1018:4, $NODEID in the standard dictionary) is part of the
-        // LSS address: it stays what it was at power-on when LSS changes the node-ID.
-        self.store.set(R_SERIAL, serial);
-    }
-
-    /// An NMT reset: the LSS slave's node-ID for the reset (pending at reset communication,
-    /// stored at reset node) becomes the node's.
-    fn take_lss_node_id(&mut self, reset_node: bool) {
-        let Some(lss) = self.lss.as_mut() else { return };
-        if reset_node {
-            lss.reset_node();
-            self.lss_store = None;
-        } else {
-            lss.reset_communication();
-        }
-        self.node_id = lss.active_node_id().unwrap_or(UNCONFIGURED_NODE_ID);
-    }
-
-    /// A SYNC, handled `late_us` after it arrived (the runtime read it late). Synchronous TPDOs
-    /// are sampled and queued now, unless the synchronous window (0x1007, non-zero) has
-    /// already closed: then CiA 301 says they are not sent (counted in 0x2100).
-    fn on_sync(&mut self, frame: &CanFrame, clocks: Clocks, late_us: u64) -> FrameEvent {
-        let now_us = clocks.app_us;
-        let window_us = u64::from(self.store.u32(R_1007));
-        let window_closed = window_us > 0 && late_us > window_us;
-        let overflow = self.store.u32(R_1019) as u8;
-        if let Some(l) = self.quirks.late_sync_statusword_bit15 {
-            // a SYNC later than the period 0x1006 allows (docs/quirks.md 3.14)
-            let period = u64::from(self.store.u32(R_1006));
-            self.qs.late_sync = period != 0
-                && self.sync.last_us.is_some_and(|last| {
-                    now_us.saturating_sub(last) > period + u64::from(l.late_tolerance_us)
-                });
-        }
-        let (_, watched) = self.watchdog_period();
-        self.qs.watchdog_sync(now_us, watched);
-        let s = self
-            .sync
-            .on_sync(now_us, frame.len, frame.data[0], overflow);
-        if s.length_error && self.emcy_allowed() {
-            self.report(EMCY_SYNC_LENGTH, [frame.len, 0, 0, 0, 0]);
-        }
-        if s.recovered {
-            // the supervision is satisfied again; a fault it caused stays until reset
-            self.clear_emcy(EMCY_SYNC_LOSS, Cause::Condition);
-        }
-        self.pending_sync = Some(now_us);
-        if self.nmt == NmtState::Operational {
-            for k in 0..self.pdo.rpdo.len() {
-                let (od, quirks) = (&self.od, &self.quirks);
-                let accept = |st: &Store, slot, raw| rpdo_accepts(od, quirks, st, slot, raw);
-                let (cw, homing) = self.before_rpdo();
-                if let Some(ok) = self.pdo.apply_sync_rpdo(k, &mut self.store, accept) {
-                    self.after_rpdo(cw, homing);
-                    self.rpdo_value_condition(k, ok);
-                }
-            }
-            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
-            let missed = self
-                .pdo
-                .on_sync(&self.store, clocks.comm_us, window_closed, &mut |f| {
-                    push(tx, overflows, f)
-                });
-            self.sync_window_missed = self.sync_window_missed.wrapping_add(missed);
-        }
-        self.event(NodeEvent::Sync { counter: s.counter });
-        FrameEvent::Sync { counter: s.counter }
     }
 }
 
@@ -922,6 +455,7 @@ impl Node {
             quirks,
             qs,
             cw_latch: ControlwordLatch::default(),
+            hooks: WriteHooks::standard(),
             boot_due_us: None,
             boot_keeps_app: false,
             events: Deque::new(),
@@ -974,358 +508,6 @@ impl Node {
         }
     }
 
-    fn nmt_command(&mut self, cmd: NmtCommand, now_us: u64, drive: &mut impl Drive) {
-        let c = &mut self.core;
-        match cmd {
-            NmtCommand::ResetNode => {
-                // The application resets too: the drive re-initialises its axis.
-                drive.reset();
-                c.take_lss_node_id(true);
-                c.restore_range(0x0000, 0xFFFF);
-                let f = Factor::from_info(&c.info).unwrap_or(Factor {
-                    inc_per_uu: 1.0,
-                    vel_inc_per_uu: 1.0,
-                    acc_inc_per_uu: 1.0,
-                });
-                c.cia = Cia402::new(f, c.quirks.cia402()).with_device(
-                    c.od.device.following_error_window_zero_off,
-                    si_unit_rows(&c.od),
-                );
-                c.cw_latch = ControlwordLatch::default();
-                c.clear_all_emcy();
-                self.sdo.reset();
-                let delay = c.reset_node_delay_us;
-                c.start_boot(now_us, false, delay);
-            }
-            NmtCommand::ResetCommunication => {
-                c.take_lss_node_id(false);
-                c.restore_range(0x1000, 0x1FFF);
-                // 0x1001 / 0x1003 keep what the drive is still in FAULT for
-                let before = c.emcy.active_codes();
-                c.emcy.reset_communication(&mut c.store);
-                for code in before {
-                    if !c.emcy.is_active(code) {
-                        c.event(NodeEvent::EmcyCleared { code });
-                    }
-                }
-                self.sdo.reset();
-                let delay = c.reset_comm_delay_us;
-                c.start_boot(now_us, true, delay);
-            }
-            _ => {
-                let next = nmt::next_state(cmd);
-                if next == NmtState::Operational && c.nmt != NmtState::Operational {
-                    c.pdo.restart();
-                }
-                if next != NmtState::Operational {
-                    self.sdo_reset_if_stopped(next);
-                }
-                self.core.nmt = next;
-            }
-        }
-    }
-
-    fn sdo_reset_if_stopped(&mut self, next: NmtState) {
-        if next == NmtState::Stopped {
-            self.sdo.reset();
-        }
-    }
-
-    /// Handle one received frame.
-    pub fn handle(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
-        self.handle_with(frame, Clocks::same(now_us), 0, drive)
-    }
-
-    /// Handle one received frame that arrived `late_us` before `now_us` (a runtime that read it
-    /// late says so): a SYNC handled after its synchronous window (0x1007) closed sends no
-    /// synchronous TPDOs. Everything else is as [`Node::handle`].
-    pub fn handle_late(
-        &mut self,
-        frame: &CanFrame,
-        now_us: u64,
-        late_us: u64,
-        drive: &mut impl Drive,
-    ) -> FrameEvent {
-        self.handle_with(frame, Clocks::same(now_us), late_us, drive)
-    }
-
-    /// [`Node::handle_late`] with two clocks ([`Clocks`]): a lock-step runtime gives the wall
-    /// clock as the communication clock.
-    pub fn handle_with(
-        &mut self,
-        frame: &CanFrame,
-        clocks: Clocks,
-        late_us: u64,
-        drive: &mut impl Drive,
-    ) -> FrameEvent {
-        let ev = self.handle_frame(frame, clocks, late_us, drive);
-        if let Some(t) = self.sdo.take_finished() {
-            self.core.event(NodeEvent::SdoTransfer(t));
-        }
-        self.core.observe();
-        ev
-    }
-
-    /// A frame, dispatched on what it is for this node ([`RxTable::classify`] on the COB-IDs
-    /// configured now) to one function per service, once the NMT and quirk states that hear
-    /// little have had their say.
-    fn handle_frame(
-        &mut self,
-        frame: &CanFrame,
-        clocks: Clocks,
-        late_us: u64,
-        drive: &mut impl Drive,
-    ) -> FrameEvent {
-        self.core.now_us = clocks.app_us;
-        self.core.comm_us = clocks.comm_us;
-        // everything a frame times here is communication: resets (boot delay), heartbeats,
-        // SDO, RTR answers; a SYNC is the exception (on_sync takes both)
-        let now_us = clocks.comm_us;
-        let rx = self.rx_table().classify(frame);
-        match rx {
-            Rx::Other => return FrameEvent::Ignored,
-            Rx::Lss => return self.lss_frame(frame, now_us, drive),
-            _ => {}
-        }
-        if let Some(ev) = self.hard_of_hearing(frame, now_us, drive) {
-            return ev;
-        }
-        let nmt = self.core.nmt;
-        match rx {
-            Rx::Nmt => self.nmt_frame(frame, now_us, drive),
-            Rx::Sync => self.core.on_sync(frame, clocks, late_us),
-            Rx::Heartbeat(node) => {
-                self.heartbeat_in(node, now_us);
-                FrameEvent::Handled
-            }
-            _ if nmt == NmtState::Stopped => FrameEvent::Ignored,
-            Rx::Sdo => self.sdo_frame(frame, now_us, drive),
-            _ if nmt != NmtState::Operational => FrameEvent::Ignored,
-            Rx::Rpdo => self.rpdo_frame(frame),
-            Rx::Rtr => self.rtr_frame(frame, now_us),
-            Rx::Other | Rx::Lss => FrameEvent::Ignored,
-        }
-    }
-
-    /// The COB-IDs this node receives on, as configured now.
-    fn rx_table(&self) -> RxTable {
-        RxTable {
-            sync: self.sync_cob(),
-            sdo_rx: cob::SDO_RX + self.core.node_id as u32,
-            lss: self.core.boot_due_us.is_none() && self.core.lss.is_some(),
-        }
-    }
-
-    /// The SYNC COB-ID (0x1005, 11 bits).
-    fn sync_cob(&self) -> u32 {
-        self.core.store.u32(R_1005) & 0x7FF
-    }
-
-    /// The states that hear little (LSS aside): non-configured, booting, not ready after
-    /// boot-up. `Some`: the frame's fate there; `None`: the node hears it.
-    fn hard_of_hearing(
-        &mut self,
-        frame: &CanFrame,
-        now_us: u64,
-        drive: &mut impl Drive,
-    ) -> Option<FrameEvent> {
-        if self.lss_unconfigured() {
-            // Non-configured: silent but for LSS; a broadcast NMT reset still resets it.
-            return Some(match nmt::decode(frame, 0) {
-                Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication)) => {
-                    self.nmt_command(cmd, now_us, drive);
-                    FrameEvent::Handled
-                }
-                _ => FrameEvent::Ignored,
-            });
-        }
-        let is_sync = frame.id == self.sync_cob() && !frame.rtr;
-        if self.core.nmt == NmtState::Initialising {
-            // Deaf while booting, but a SYNC still tells a lock-step runtime time goes on.
-            if self.core.boot_due_us.is_some() && is_sync {
-                return Some(FrameEvent::Sync { counter: None });
-            }
-            return Some(FrameEvent::Ignored);
-        }
-        if self.core.qs.not_ready() {
-            // not_ready_after_bootup (docs/quirks.md 3.6): only a reset is heard; a SYNC still
-            // tells a lock-step runtime that time goes on
-            return Some(match nmt::decode(frame, self.core.node_id) {
-                Some(cmd @ (NmtCommand::ResetNode | NmtCommand::ResetCommunication))
-                    if frame.id == 0 =>
-                {
-                    self.nmt_command(cmd, now_us, drive);
-                    FrameEvent::Handled
-                }
-                _ if is_sync => FrameEvent::Sync { counter: None },
-                _ => FrameEvent::Ignored,
-            });
-        }
-        None
-    }
-
-    /// NMT module control (COB-ID 0) addressed to this node or to all.
-    fn nmt_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
-        match nmt::decode(frame, self.core.node_id) {
-            Some(cmd) => {
-                self.nmt_command(cmd, now_us, drive);
-                FrameEvent::Handled
-            }
-            None => FrameEvent::Ignored,
-        }
-    }
-
-    /// An SDO request to this node's server (pre-operational and operational).
-    fn sdo_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
-        if frame.rtr || frame.len != 8 {
-            return FrameEvent::Ignored;
-        }
-        let in_block = self.sdo.expects_block_segment();
-        let c = &mut self.core;
-        if c.qs.sdo_request(&c.quirks, &frame.data, in_block) == SdoGate::Drop {
-            return FrameEvent::Handled;
-        }
-        let mut outv: heapless::Vec<[u8; 8], 16> = heapless::Vec::new();
-        let mut acc = Access {
-            core: &mut self.core,
-            drive,
-        };
-        self.sdo.handle(&frame.data, now_us, &mut acc, &mut |f| {
-            let _ = outv.push(f);
-        });
-        let tx_cob = cob::SDO_TX + self.core.node_id as u32;
-        for f in outv {
-            self.core.sdo_answer(CanFrame::new(tx_cob, &f), now_us);
-        }
-        FrameEvent::Handled
-    }
-
-    /// A data frame in operational: an RPDO if one is configured on its COB-ID.
-    fn rpdo_frame(&mut self, frame: &CanFrame) -> FrameEvent {
-        let c = &mut self.core;
-        let (od, quirks) = (&c.od, &c.quirks);
-        let accept = |st: &Store, slot, raw| rpdo_accepts(od, quirks, st, slot, raw);
-        let (cw, homing) = (c.store.u32(o402::CONTROLWORD) as u16, c.store.raw(R_6098));
-        match c.pdo.receive(&mut c.store, frame, accept) {
-            RxOutcome::NotRpdo => FrameEvent::Ignored,
-            RxOutcome::Received {
-                k,
-                len,
-                length_code,
-                values_ok,
-            } => {
-                c.after_rpdo(cw, homing);
-                c.rpdo_length_condition(k, length_code, len);
-                if let Some(ok) = values_ok {
-                    c.rpdo_value_condition(k, ok);
-                }
-                FrameEvent::Handled
-            }
-        }
-    }
-
-    /// A remote frame in operational: the TPDO configured on its COB-ID, if it may answer.
-    fn rtr_frame(&mut self, frame: &CanFrame, now_us: u64) -> FrameEvent {
-        let c = &mut self.core;
-        if c.quirks.tpdo_rtr_unsupported.is_some() {
-            // no remote frames answered (docs/quirks.md 3.10)
-            return FrameEvent::Ignored;
-        }
-        let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
-        if c.pdo
-            .on_rtr(&c.store, frame, now_us, &mut |f| push(tx, overflows, f))
-        {
-            return FrameEvent::Handled;
-        }
-        FrameEvent::Ignored
-    }
-
-    /// Non-configured (node-ID 0xFF) and not booting: only LSS is served.
-    fn lss_unconfigured(&self) -> bool {
-        self.core.node_id == UNCONFIGURED_NODE_ID && self.core.boot_due_us.is_none()
-    }
-
-    /// An LSS request (COB-ID 0x7E5), in every NMT state once booted (as Lely and
-    /// CANopenNode) and while non-configured.
-    fn lss_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
-        let Some(lss) = self.core.lss.as_mut() else {
-            return FrameEvent::Ignored;
-        };
-        let out = lss.handle(frame);
-        if let Some(f) = out.response {
-            self.core.push(f);
-        }
-        match out.event {
-            Some(LssEvent::ResetCommunication { .. }) => {
-                // CiA 305: a non-configured node given a node-ID boots with it when switched
-                // back to waiting.
-                self.nmt_command(NmtCommand::ResetCommunication, now_us, drive);
-            }
-            Some(LssEvent::StoreRequested {
-                node_id,
-                bit_timing_index,
-            }) => {
-                if self.core.lss_store_external {
-                    self.core.lss_store = Some(LssStore {
-                        node_id,
-                        bit_timing_index,
-                    });
-                } else if let Some(f) = self.core.lss.as_mut().and_then(|l| l.store_done(true)) {
-                    self.core.push(f);
-                }
-            }
-            Some(LssEvent::ActivateBitTiming {
-                table_index,
-                switch_delay_ms,
-            }) => self.core.lss_bit_timing_activated = Some((table_index, switch_delay_ms)),
-            _ => {}
-        }
-        FrameEvent::Handled
-    }
-
-    fn heartbeat_in(&mut self, id_low: u8, now_us: u64) {
-        let node = id_low & 0x7F;
-        let c = &mut self.core;
-        if c.hbc.is_monitoring(node) {
-            c.hbc.on_heartbeat(node, now_us);
-            if c.hb_lost {
-                c.hb_lost = false;
-                c.clear_emcy(EMCY_HEARTBEAT, Cause::Condition);
-            }
-        }
-    }
-
-    /// Timers, the CiA 402 state machine and mode, and exactly one `drive.command(..)`.
-    pub fn poll(&mut self, now_us: u64, drive: &mut impl Drive) {
-        self.poll_with(Clocks::same(now_us), drive);
-    }
-
-    /// [`Node::poll`] with two clocks ([`Clocks`]).
-    pub fn poll_with(&mut self, clocks: Clocks, drive: &mut impl Drive) {
-        self.poll_timers_and_drive(clocks, drive);
-        if let Some(t) = self.sdo.take_finished() {
-            self.core.event(NodeEvent::SdoTransfer(t));
-        }
-        self.core.observe();
-    }
-
-    /// The communication timers alone, at `comm_us` on the communication clock: SDO
-    /// time-out, a boot whose delay is over, the heartbeat producer and consumer, event-driven
-    /// TPDOs, EMCYs held by their inhibit time. No CiA 402 cycle, no command to the drive: a
-    /// lock-step runtime calls it between SYNCs, when [`Node::poll_at_comm`] says.
-    pub fn poll_comm(&mut self, comm_us: u64, drive: &mut impl Drive) {
-        self.core.comm_us = comm_us;
-        self.comm_timers_before(comm_us);
-        if self.core.nmt != NmtState::Initialising {
-            self.core.comm_timers_after(comm_us);
-        }
-        let _ = drive;
-        if let Some(t) = self.sdo.take_finished() {
-            self.core.event(NodeEvent::SdoTransfer(t));
-        }
-        self.core.observe();
-    }
-
     /// The next event (state change, EMCY raised or cleared, SYNC, finished SDO transfer),
     /// oldest first. Events beyond [`EVENT_QUEUE`] unread are dropped and counted in
     /// [`Node::events_dropped`].
@@ -1336,181 +518,6 @@ impl Node {
     /// Events dropped because the event queue was full.
     pub fn events_dropped(&self) -> u32 {
         self.core.events_dropped
-    }
-
-    /// The next time (us, on the clock given to `handle` / `poll`) at which [`Node::poll`]
-    /// has a communication deadline: an SDO transfer timeout, the heartbeat producer, a
-    /// heartbeat consumer timeout, SYNC supervision (1.5 periods), a TPDO event timer or the
-    /// end of a TPDO or EMCY inhibit time holding back a frame. A SYNC received and not yet
-    /// processed makes it the time of that SYNC (poll now). `None`: no deadline; the node
-    /// then needs `poll` only for its CiA 402 cycle, which the caller runs at its own rate.
-    ///
-    /// **Contract:** right after `poll(now)`, `poll_at()` is `None` or `> now`: `poll` does
-    /// everything due at `now` (every heartbeat consumer that timed out, every EMCY the
-    /// inhibit time lets go, every event-driven TPDO due), so a loop that sleeps until
-    /// `poll_at()` never spins. With two clocks the same holds for the communication clock:
-    /// right after `poll_comm(comm)` or `poll_with(clocks)`, [`Node::poll_at_comm`] is `None`
-    /// or `> comm`. A frame that finds the transmit queue full is dropped and counted
-    /// ([`Node::tx_overflows`]), never held for a later poll. `handle` may bring the deadline
-    /// to `now` or before it (a SYNC to process, a TPDO whose data a received frame changed):
-    /// poll then. Checked after every poll by the property tests over the fuzz harness
-    /// (`protocol/tests/fuzz/`) and by the `cargo fuzz` target.
-    ///
-    /// **The clock** is the caller's, in u64 microseconds (584 542 years), and is not assumed
-    /// to be monotonic (a clock that goes back delays the timers that started later). It does
-    /// not wrap: a period or timeout whose end would lie beyond `u64::MAX` never ends (the
-    /// heartbeat producer stops, a stalled SDO transfer is not aborted, a heartbeat, SYNC or
-    /// TPDO timer does not expire); the boot-up after a reset and the end of an EMCY inhibit
-    /// time are clamped to `u64::MAX`. Nothing overflows, in an overflow-checked build too.
-    pub fn poll_at(&self) -> Option<u64> {
-        let c = &self.core;
-        let mut at = self.poll_at_comm();
-        let mut take = |t: Option<u64>| {
-            if let Some(t) = t {
-                at = Some(at.map_or(t, |a| a.min(t)));
-            }
-        };
-        if c.nmt == NmtState::Initialising {
-            return at;
-        }
-        take(c.pending_sync);
-        if c.nmt == NmtState::Operational {
-            take(c.sync.deadline_us(c.store.u32(R_1006)));
-        }
-        take(c.qs.watchdog_deadline(&c.quirks, c.watchdog_period().0));
-        at
-    }
-
-    /// The communication deadlines of [`Node::poll_at`] alone (on the communication clock):
-    /// when [`Node::poll_comm`] has something to do. Right after `poll_comm(comm)` or
-    /// `poll_with(clocks)` it is `None` or later than the communication time (the contract
-    /// of [`Node::poll_at`]).
-    pub fn poll_at_comm(&self) -> Option<u64> {
-        let c = &self.core;
-        let mut at = self.sdo.deadline_us();
-        let mut take = |t: Option<u64>| {
-            if let Some(t) = t {
-                at = Some(at.map_or(t, |a| a.min(t)));
-            }
-        };
-        if c.nmt == NmtState::Initialising {
-            take(c.boot_due_us); // the boot-up after the boot delay
-            return at;
-        }
-        take(c.qs.deadline_comm()); // the vendor switches' heartbeats, delayed SDO answers
-        take(c.hb.deadline_us(c.store.u32(R_1017) as u16));
-        take(c.hbc.deadline_us());
-        if c.nmt == NmtState::Operational {
-            for k in 0..c.pdo.tpdo.len() {
-                take(c.pdo.deadline_us(&c.store, k, c.comm_us));
-            }
-        }
-        if c.emcy_allowed() {
-            take(c.emcy.next_at_us(c.store.u32(R_1015) as u16));
-        }
-        at
-    }
-
-    /// SDO time-out, the boot after its delay, the heartbeat producer and consumer.
-    fn comm_timers_before(&mut self, comm_us: u64) {
-        {
-            let mut outv: heapless::Vec<[u8; 8], 2> = heapless::Vec::new();
-            self.sdo.poll(comm_us, &mut |f| {
-                let _ = outv.push(f);
-            });
-            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
-            for f in outv {
-                self.core.push(CanFrame::new(tx_cob, &f));
-            }
-        }
-        let c = &mut self.core;
-        if c.nmt == NmtState::Initialising && c.boot_due_us.is_some_and(|due| comm_us >= due) {
-            c.boot(comm_us);
-        }
-        if c.nmt == NmtState::Initialising {
-            return;
-        }
-        // the vendor switches' heartbeats and delayed SDO answers
-        let (qs, quirks, tx, overflows) = (&mut c.qs, &c.quirks, &mut c.tx, &mut c.tx_overflows);
-        if qs.poll_comm(quirks, comm_us, c.node_id, c.nmt as u8, &mut |f| {
-            push(tx, overflows, f)
-        }) {
-            c.hb.restart(comm_us, c.store.u32(R_1017) as u16);
-        }
-        if c.qs.not_ready() {
-            return;
-        }
-        // heartbeat producer
-        if c.hb.due(comm_us, c.store.u32(R_1017) as u16) {
-            let hb = Heartbeat { state: c.nmt as u8 };
-            let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
-            c.push(f);
-        }
-        // heartbeat consumer: every producer whose time is up (one EMCY, for the first)
-        let mut lost = None;
-        while let Some(n) = c.hbc.poll(comm_us) {
-            lost.get_or_insert(n);
-        }
-        if let Some(n) = lost {
-            c.hb_lost = true;
-            c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
-            c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
-        }
-    }
-
-    fn poll_timers_and_drive(&mut self, clocks: Clocks, drive: &mut impl Drive) {
-        let now_us = clocks.app_us;
-        self.core.now_us = now_us;
-        self.core.comm_us = clocks.comm_us;
-        let fb = drive.feedback();
-        self.comm_timers_before(clocks.comm_us);
-        let c = &mut self.core;
-        if c.nmt == NmtState::Initialising && !c.boot_keeps_app {
-            drive.command(&crate::drive::DriveCommand {
-                setpoint: crate::drive::Setpoint::Disabled,
-                max_torque_permille: 0.0,
-                max_velocity_inc_per_s: 0.0,
-            });
-            return;
-        }
-        // SYNC supervision
-        if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
-            c.raise_emcy(EMCY_SYNC_LOSS, [0; 5], Cause::Condition);
-            c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
-        }
-        // the vendor's SYNC watchdog (docs/quirks.md 3.13): a fault whatever 0x6007 says
-        let (wd_period, watched) = c.watchdog_period();
-        if let Some(code) = c.qs.watchdog_poll(&c.quirks, now_us, watched, wd_period) {
-            c.cia.request_fault(code);
-        }
-        // CiA 402 (a lost master or SYNC whose reaction is a fault blocks the fault reset)
-        c.cia.comm_fault_present = (c.hb_lost || c.sync.lost) && c.store.i32(o402::ABORT_CONN) == 1;
-        c.cia.status_extra = if c.qs.late_sync { 0x8000 } else { 0 };
-        let period = csp_period_us(&c.store, c.sync.interval_us);
-        let sync_at = c.pending_sync.take();
-        let (level, latched) = c.cw_latch.for_tick(
-            c.store.u32(o402::CONTROLWORD) as u16,
-            clocks.comm_us,
-            c.quirks.controlword_min_hold,
-        );
-        let control = crate::cia402::TickControl {
-            sync_at,
-            csp_period_us: period,
-            level,
-            latched,
-        };
-        let out = c.cia.step(&mut c.store, &fb, now_us, control, drive);
-        if let Some(code) = out.new_fault {
-            c.raise_emcy(code, [0; 5], Cause::Fault);
-        }
-        if out.fault_cleared {
-            // errors a supervision still holds (master still lost) stay active
-            c.clear_cause(Cause::Fault);
-        }
-        drive.command(&out.command);
-        if c.nmt != NmtState::Initialising {
-            c.comm_timers_after(clocks.comm_us);
-        }
     }
 
     /// A store configuration to write (once per request, with [`LssConfig::store_external`]);
@@ -1672,20 +679,6 @@ impl Node {
     }
 }
 
-/// The interpolation time period 0x60C2 (value x 10^index s), us; 0 when not set.
-fn interpolation_period_us(store: &Store) -> u64 {
-    let v = store.u32(o402::IP_VALUE) as u64;
-    let i = store.i32(o402::IP_INDEX);
-    if v > 0 && (-6..=0).contains(&i) {
-        let mut p = v;
-        for _ in 0..(i + 6) {
-            p *= 10;
-        }
-        return p;
-    }
-    0
-}
-
 /// The dictionary with the defaults a vendor switch changes: TPDO COB-IDs with bit 30 (no
 /// RTR, 3.10), the heartbeat producer's period (3.5).
 fn quirk_defaults(
@@ -1725,35 +718,4 @@ fn quirk_defaults(
         }
     }
     Ok(od)
-}
-
-/// The CSP interpolation period: 0x60C2, else 0x1006, else the measured SYNC interval.
-fn csp_period_us(store: &Store, measured_us: u64) -> u64 {
-    let p = interpolation_period_us(store);
-    if p > 0 {
-        return p;
-    }
-    let c = store.u32(R_1006) as u64;
-    if c > 0 {
-        c
-    } else {
-        measured_us
-    }
-}
-
-/// The rows of a dictionary's SI unit objects 0x60A8, 0x60A9 and 0x60AA (a vendor's file may
-/// have them; the CiA 402 layer applies 0x60A9 and 0x60AA where it can), `None` without
-/// 0x60A9 and 0x60AA.
-fn si_unit_rows(od: &ObjectDictionary) -> Option<crate::cia402::SiRows> {
-    let row = |index: u16| {
-        od.get(index, 0)
-            .filter(|(_, e)| e.dtype == crate::od::DataType::U32)
-            .map(|(s, _)| s.get())
-    };
-    let rows = crate::cia402::SiRows {
-        position: row(0x60A8),
-        velocity: row(0x60A9),
-        acceleration: row(0x60AA),
-    };
-    (rows.velocity.is_some() || rows.acceleration.is_some()).then_some(rows)
 }

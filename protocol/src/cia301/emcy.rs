@@ -7,6 +7,10 @@
 //! a heartbeat that comes back while the drive is still in FAULT clears nothing; the fault
 //! reset does (CiA 301: the error register reflects the errors that are active).
 
+use crate::cia301::cob_id;
+use crate::cia301::sdo::abort;
+use crate::node::writes::{ObjectWrite, Verdict, WriteHooks};
+use crate::node::Core;
 use crate::od::{idx, Store};
 use crate::wire::emcy::EmcyFrame;
 use heapless::{Deque, Vec};
@@ -243,4 +247,36 @@ impl Emcy {
         self.last_tx_us = Some(now_us);
         self.queue.pop_front()
     }
+}
+
+/// The EMCY objects whose writes the producer rules: 0x1003 (0 clears the history) and 0x1014
+/// (the COB-ID).
+pub(crate) fn register_writes(t: &mut WriteHooks) {
+    t.register(0x1003, 0x1003, write_history);
+    t.register(0x1014, 0x1014, write_cob_id);
+}
+
+/// 0x1003 sub 0: writing 0 clears the history (sub 0 and every entry); any other value is
+/// refused (CiA 301 7.5.2.5).
+fn write_history(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+    if w.sub != 0 {
+        return Ok(Verdict::Store);
+    }
+    if w.raw != 0 {
+        return Err(abort::VALUE_RANGE);
+    }
+    for s in 0..=MAX_HISTORY {
+        c.store.set(w.row + s, 0);
+    }
+    Ok(Verdict::Applied)
+}
+
+/// 0x1014: bit 31 set (EMCY not valid) takes any CAN-ID; bit 30 is reserved; a valid COB-ID
+/// must be an 11-bit CAN-ID outside the restricted ranges.
+fn write_cob_id(_: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+    let valid = w.raw & 0x8000_0000 == 0;
+    if w.raw & 0x4000_0000 != 0 || !cob_id::acceptable(w.raw as u32, valid) {
+        return Err(abort::VALUE_RANGE);
+    }
+    Ok(Verdict::Store)
 }

@@ -3,6 +3,12 @@
 //! Near the end of the clock's range a period or timeout that would end after `u64::MAX` us
 //! never ends (no deadline, never due): see `Node::poll_at`.
 
+use crate::cia301::emcy::Cause;
+use crate::cia301::sdo::abort;
+use crate::node::writes::{ObjectWrite, Verdict, WriteHooks};
+use crate::node::Core;
+use crate::od::idx;
+
 /// Producer: sends the NMT state every 0x1017 ms.
 #[derive(Clone, Copy, Debug)]
 pub struct Producer {
@@ -126,4 +132,40 @@ pub fn conflicts(entries: &[u32; 4], i: usize, new: u32) -> bool {
         .iter()
         .enumerate()
         .any(|(k, &e)| k != i && (e >> 16) as u8 == node && e as u16 != 0)
+}
+
+/// The heartbeat objects whose writes the producer and consumer rule: 0x1016 (consumer
+/// entries) and 0x1017 (producer time).
+pub(crate) fn register_writes(t: &mut WriteHooks) {
+    t.register(0x1016, 0x1016, write_consumer);
+    t.register(0x1017, 0x1017, write_producer);
+}
+
+/// 0x1016:1..=4: an entry that monitors a node another entry monitors with a time is refused
+/// (CiA 301 7.5.2.32); the consumer restarts that entry (it waits for a first heartbeat
+/// again): a loss it reported is over, the fault it caused stays until the fault reset.
+fn write_consumer(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+    let Some(i) = (w.sub as usize).checked_sub(1).filter(|&i| i < 4) else {
+        return Ok(Verdict::Store);
+    };
+    let first = idx(0x1016, 1);
+    let mut entries = [0u32; 4];
+    for (k, e) in entries.iter_mut().enumerate() {
+        *e = c.store.u32(first + k);
+    }
+    if conflicts(&entries, i, w.raw as u32) {
+        return Err(abort::PARAM_INCOMPATIBLE);
+    }
+    c.hbc.configure(i, w.raw as u32);
+    if c.hb_lost {
+        c.hb_lost = false;
+        c.clear_emcy(crate::node::EMCY_HEARTBEAT, Cause::Condition);
+    }
+    Ok(Verdict::Store)
+}
+
+/// 0x1017: the producer restarts its period with the new time.
+fn write_producer(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+    c.hb.restart(c.comm_us, w.raw as u16);
+    Ok(Verdict::Store)
 }

@@ -7,4 +7,5 @@ pub mod heartbeat;
 pub mod nmt;
 pub mod pdo;
 pub mod sdo;
+pub(crate) mod store;
 pub mod sync;

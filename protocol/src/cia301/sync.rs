@@ -1,6 +1,12 @@
 //! SYNC consumer: counter (0x1019) and supervision of the communication cycle period
 //! (0x1006). A SYNC missing for more than 1.5 periods is reported once as SYNC loss.
 
+use crate::cia301::cob_id;
+use crate::cia301::sdo::abort;
+use crate::node::writes::{ObjectWrite, Verdict, WriteHooks};
+use crate::node::Core;
+use crate::od::idx;
+
 /// Manufacturer-chosen EMCY code for SYNC loss: 0x8100 "communication, generic" (CiA 301
 /// defines none; CANopenNode uses the same). 0x8240 = unexpected SYNC data length.
 pub const EMCY_SYNC_LOSS: u16 = 0x8100;
@@ -74,4 +80,32 @@ impl SyncConsumer {
 /// for whole microseconds "more than floor(1.5 p)" is "more than 1.5 p").
 fn loss_after_us(period_us: u32) -> u64 {
     period_us as u64 * 3 / 2
+}
+
+/// The SYNC objects whose writes the consumer rules: 0x1005 (the COB-ID) and 0x1019 (the
+/// counter overflow value).
+pub(crate) fn register_writes(t: &mut WriteHooks) {
+    t.register(0x1005, 0x1005, write_cob_id);
+    t.register(0x1019, 0x1019, write_overflow);
+}
+
+/// 0x1005: bit 30 set (this node produces SYNC) is refused, as is a COB-ID that is not an
+/// 11-bit CAN-ID outside the restricted ranges; bit 31 is "don't care".
+fn write_cob_id(_: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+    if w.raw & 0x4000_0000 != 0 || !cob_id::acceptable(w.raw as u32, true) {
+        return Err(abort::VALUE_RANGE);
+    }
+    Ok(Verdict::Store)
+}
+
+/// 0x1019: only while the communication cycle period 0x1006 is 0 (CiA 301 7.5.2.22); 1 is
+/// not an overflow value.
+fn write_overflow(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+    if c.store.u32(idx(0x1006, 0)) != 0 {
+        return Err(abort::DEVICE_STATE);
+    }
+    if w.raw == 1 {
+        return Err(abort::VALUE_RANGE);
+    }
+    Ok(Verdict::Store)
 }

@@ -19,6 +19,7 @@ pub(crate) mod profile;
 mod pv;
 pub(crate) mod state_machine;
 pub mod statusword;
+mod writes;
 
 use crate::drive::{Drive, DriveCommand, Feedback, Setpoint};
 use crate::od::Store;
@@ -32,6 +33,7 @@ use objects as o;
 use profile::Axis;
 pub use state_machine::State;
 use statusword as sw;
+pub(crate) use writes::register_writes;
 
 /// EMCY / 0x603F code for a following error.
 pub(crate) const EMCY_FOLLOWING_ERROR: u16 = 0x8611;

@@ -4,7 +4,7 @@
 //! own path (the SDO server's object access, the PDO engine's mapping and the RPDO checks,
 //! the SYNC and the tick); none copies a rule. None allocates: fit for the real-time path.
 
-use super::{rpdo_accepts, Access, Node};
+use super::{Access, Node};
 use crate::cia301::emcy::Cause;
 use crate::cia301::pdo::layout::{self, Param};
 use crate::cia301::pdo::{compile, mapping, Direction, Pdo};
@@ -168,9 +168,10 @@ impl Node {
     }
 
     /// Apply an RxPDO byte image of mapping `mapping_index` (0x1600..) as a received RPDO is
-    /// applied: each value passes the checks of an SDO write (a refused one is not written,
-    /// the others are; EMCY 0x6320 is held while the RPDO carries a refused value), then the
-    /// write hooks an RPDO passes (controlword latch, homing method). `data` shorter than the
+    /// applied: each value passes the rules of an SDO write (the dictionary's limits, then the
+    /// write hook of the service that owns the object: a supported mode, min <= max, the
+    /// controlword latch, a homing method 0; a refused value is not written, the others are;
+    /// EMCY 0x6320 is held while the RPDO carries a refused value). `data` shorter than the
     /// mapping: nothing is written, abort 0x06070013. Ok(true) when every value was taken.
     pub fn apply_rpdo_image(&mut self, mapping_index: u16, data: &[u8]) -> Result<bool, u32> {
         let (p, k) = self.compiled(mapping_index, Direction::Rx)?;
@@ -178,11 +179,10 @@ impl Node {
             return Err(abort::TOO_SHORT);
         }
         let c = &mut self.core;
-        let (cw, homing) = c.before_rpdo();
-        let (od, quirks) = (&c.od, &c.quirks);
-        let accept = |st: &Store, slot, raw| rpdo_accepts(od, quirks, st, slot, raw);
-        let ok = mapping::unpack(&p, &mut c.store, &data[..p.len as usize], accept);
-        c.after_rpdo(cw, homing);
+        let map = &p.map[..p.n as usize];
+        let ok = mapping::unpack(map, &data[..p.len as usize], |row, raw| {
+            c.rpdo_value(row, raw)
+        });
         c.rpdo_value_condition(k, ok);
         Ok(ok)
     }

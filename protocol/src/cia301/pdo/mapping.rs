@@ -158,20 +158,16 @@ pub fn pack(p: &Pdo, store: &Store, out: &mut [u8]) -> usize {
     pos
 }
 
-/// Write received data to the objects `p` maps.
-///
-/// Each value must pass `accept(store, slot, raw)` (the checks an SDO write makes); a refused
-/// value is not written and the object keeps its value, the others are written (as
-/// CANopenNode does). Dummy entries are skipped. Returns false if any value was refused.
-pub fn unpack(
-    p: &Pdo,
-    store: &mut Store,
-    data: &[u8],
-    accept: impl Fn(&Store, usize, u64) -> bool,
-) -> bool {
+/// Hand the values of received `data` to the objects `map` maps, in order, through
+/// `write(slot, raw)`: the node's write path, which checks each value as an SDO write is
+/// checked (type limits, then the rule of the service that owns the object) and stores it or
+/// refuses it (false). A refused value is not written and the object keeps its value, the
+/// others are written (as CANopenNode does). Dummy entries and read-only entries a device
+/// ships in its default mapping are skipped. Returns false if any value was refused.
+pub fn unpack(map: &[Mapped], data: &[u8], mut write: impl FnMut(usize, u64) -> bool) -> bool {
     let mut pos = 0;
     let mut all = true;
-    for m in &p.map[..p.n as usize] {
+    for m in map {
         let n = m.bytes();
         let Some(bytes) = data.get(pos..pos + n) else {
             return false;
@@ -181,11 +177,7 @@ pub fn unpack(
             let mut full = [0u8; 8];
             full[..n].copy_from_slice(bytes);
             let raw = od::decode(m.dtype, &full[..m.dtype.size().max(n)]);
-            if accept(store, s as usize, raw) {
-                store.set(s as usize, raw);
-            } else {
-                all = false;
-            }
+            all &= write(s as usize, raw);
         }
         pos += n;
     }

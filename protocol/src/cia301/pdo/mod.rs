@@ -21,6 +21,8 @@ pub mod tpdo;
 pub use mapping::{check_entry, compile, Mapped};
 
 use crate::frame::CanFrame;
+use crate::node::writes::{ObjectWrite, Verdict, WriteHooks};
+use crate::node::Core;
 use crate::od::{ObjectDictionary, Store};
 use layout::{PdoSlots, MAX_ENTRIES};
 
@@ -152,15 +154,10 @@ impl Pdo {
         mapping::pack(self, store, out)
     }
 
-    /// Write received data to the mapped objects that `accept` their value; false if any
-    /// was refused.
-    pub fn unpack(
-        &self,
-        store: &mut Store,
-        data: &[u8],
-        accept: impl Fn(&Store, usize, u64) -> bool,
-    ) -> bool {
-        mapping::unpack(self, store, data, accept)
+    /// The compiled mapping an RPDO's data is unpacked with (a copy: the writes it leads to
+    /// may reconfigure the PDO), and its length in bytes.
+    pub fn rx_map(&self) -> ([Mapped; MAX_ENTRIES], usize, usize) {
+        (self.map, self.n as usize, self.len as usize)
     }
 
     /// Whether the data to send differs from the last transmission (or none was sent).
@@ -326,4 +323,24 @@ pub(crate) fn send(p: &mut Pdo, store: &Store, now_us: u64, out: &mut impl FnMut
     p.has_last = true;
     p.last_tx_us = Some(now_us);
     out(CanFrame::new(p.id(), &d[..n]));
+}
+
+/// The PDO parameters (0x1400..=0x1BFF), ruled by [`rules`]: a write to an RPDO's parameter
+/// also starts that RPDO without the errors it held (they are reported again).
+pub(crate) fn register_writes(t: &mut WriteHooks) {
+    t.register(0x1400, 0x1BFF, write_parameter);
+}
+
+fn write_parameter(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+    if let Some(k) = c.pdo.rpdo_of(w.index) {
+        c.rpdo_conditions_reset(k);
+    }
+    match c
+        .pdo
+        .write(&c.od, &mut c.store, w.row, w.index, w.sub, w.raw)
+    {
+        Some(r) => r.map(|()| Verdict::Applied),
+        // an index in the range of a PDO the dictionary does not have
+        None => Ok(Verdict::Store),
+    }
 }

@@ -2,13 +2,12 @@
 //! or hold until the next SYNC (synchronous types 0..=240).
 //!
 //! Length (as CANopenNode): a frame longer than the mapping is used (its mapped bytes) and
-//! reported with EMCY 0x8220, a shorter one is ignored and reported with EMCY 0x8210. Values
-//! pass the checks of an SDO write (`accept`); a refused one is not written. The node holds
-//! the EMCYs while the condition lasts.
+//! reported with EMCY 0x8220, a shorter one is ignored and reported with EMCY 0x8210. The
+//! node applies the data ([`super::mapping::unpack`] through its write path, so each value
+//! passes the rules of an SDO write) and holds the EMCYs while the condition lasts.
 
 use super::PdoEngine;
 use crate::frame::CanFrame;
-use crate::od::Store;
 
 /// EMCY code for an RPDO shorter than its mapping (ignored).
 pub const EMCY_PDO_LENGTH: u16 = 0x8210;
@@ -28,20 +27,15 @@ pub enum RxOutcome {
         len: u8,
         /// Length error EMCY code (0: the mapped length).
         length_code: u16,
-        /// Whether every value was accepted; `None` when nothing was applied now (too
-        /// short, or held for SYNC).
-        values_ok: Option<bool>,
+        /// The frame's data is to be applied now (an event-driven RPDO of the right length
+        /// or longer); false when it is too short or held for SYNC.
+        apply: bool,
     },
 }
 
 impl PdoEngine {
     /// A data frame received in operational.
-    pub fn receive(
-        &mut self,
-        store: &mut Store,
-        frame: &CanFrame,
-        accept: impl Fn(&Store, usize, u64) -> bool,
-    ) -> RxOutcome {
+    pub fn receive(&mut self, frame: &CanFrame) -> RxOutcome {
         if frame.rtr {
             return RxOutcome::NotRpdo;
         }
@@ -55,39 +49,32 @@ impl PdoEngine {
                 core::cmp::Ordering::Equal => 0,
                 core::cmp::Ordering::Greater => EMCY_PDO_LENGTH_EXCEEDED,
             };
-            let mut values_ok = None;
+            let mut apply = false;
             if length_code != EMCY_PDO_LENGTH {
                 if p.ttype.is_sync() {
                     p.rx = frame.data;
                     p.rx_pending = true;
                 } else {
-                    let data = frame.data;
-                    values_ok = Some(p.unpack(store, &data[..p.len as usize], accept));
+                    apply = true;
                 }
             }
             return RxOutcome::Received {
                 k,
                 len: frame.len,
                 length_code,
-                values_ok,
+                apply,
             };
         }
         RxOutcome::NotRpdo
     }
 
-    /// At SYNC: apply synchronous RPDO `k` if it received data since the last SYNC.
-    /// Whether its values were all accepted (`None`: nothing applied).
-    pub fn apply_sync_rpdo(
-        &mut self,
-        k: usize,
-        store: &mut Store,
-        accept: impl Fn(&Store, usize, u64) -> bool,
-    ) -> Option<bool> {
+    /// At SYNC: the data synchronous RPDO `k` received since the last SYNC, to apply now
+    /// (`None`: nothing to apply).
+    pub fn take_sync_rpdo(&mut self, k: usize) -> Option<[u8; 8]> {
         let p = &mut self.rpdo[k];
         if p.valid && p.rx_pending && p.ttype.is_sync() {
             p.rx_pending = false;
-            let data = p.rx;
-            return Some(p.unpack(store, &data[..p.len as usize], accept));
+            return Some(p.rx);
         }
         None
     }

@@ -1,0 +1,159 @@
+//! The node's timers and the drive cycle: the communication timers (SDO time-out, boot
+//! delay, heartbeats, event-driven TPDOs, EMCY inhibit) and one CiA 402 tick with its SYNC
+//! supervision.
+
+use super::*;
+
+impl Node {
+    /// Timers, the CiA 402 state machine and mode, and exactly one `drive.command(..)`.
+    pub fn poll(&mut self, now_us: u64, drive: &mut impl Drive) {
+        self.poll_with(Clocks::same(now_us), drive);
+    }
+
+    /// [`Node::poll`] with two clocks ([`Clocks`]).
+    pub fn poll_with(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+        self.poll_timers_and_drive(clocks, drive);
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+    }
+
+    /// The communication timers alone, at `comm_us` on the communication clock: SDO
+    /// time-out, a boot whose delay is over, the heartbeat producer and consumer, event-driven
+    /// TPDOs, EMCYs held by their inhibit time. No CiA 402 cycle, no command to the drive: a
+    /// lock-step runtime calls it between SYNCs, when [`Node::poll_at_comm`] says.
+    pub fn poll_comm(&mut self, comm_us: u64, drive: &mut impl Drive) {
+        self.core.comm_us = comm_us;
+        self.comm_timers_before(comm_us);
+        if self.core.nmt != NmtState::Initialising {
+            self.core.comm_timers_after(comm_us);
+        }
+        let _ = drive;
+        if let Some(t) = self.sdo.take_finished() {
+            self.core.event(NodeEvent::SdoTransfer(t));
+        }
+        self.core.observe();
+    }
+
+    /// SDO time-out, the boot after its delay, the heartbeat producer and consumer.
+    fn comm_timers_before(&mut self, comm_us: u64) {
+        {
+            let mut outv: heapless::Vec<[u8; 8], 2> = heapless::Vec::new();
+            self.sdo.poll(comm_us, &mut |f| {
+                let _ = outv.push(f);
+            });
+            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
+            for f in outv {
+                self.core.push(CanFrame::new(tx_cob, &f));
+            }
+        }
+        let c = &mut self.core;
+        if c.nmt == NmtState::Initialising && c.boot_due_us.is_some_and(|due| comm_us >= due) {
+            c.boot(comm_us);
+        }
+        if c.nmt == NmtState::Initialising {
+            return;
+        }
+        // the vendor switches' heartbeats and delayed SDO answers
+        let (qs, quirks, tx, overflows) = (&mut c.qs, &c.quirks, &mut c.tx, &mut c.tx_overflows);
+        if qs.poll_comm(quirks, comm_us, c.node_id, c.nmt as u8, &mut |f| {
+            push(tx, overflows, f)
+        }) {
+            c.hb.restart(comm_us, c.store.u32(R_1017) as u16);
+        }
+        if c.qs.not_ready() {
+            return;
+        }
+        // heartbeat producer
+        if c.hb.due(comm_us, c.store.u32(R_1017) as u16) {
+            let hb = Heartbeat { state: c.nmt as u8 };
+            let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
+            c.push(f);
+        }
+        // heartbeat consumer: every producer whose time is up (one EMCY, for the first)
+        let mut lost = None;
+        while let Some(n) = c.hbc.poll(comm_us) {
+            lost.get_or_insert(n);
+        }
+        if let Some(n) = lost {
+            c.hb_lost = true;
+            c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
+            c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
+        }
+    }
+
+    fn poll_timers_and_drive(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+        let now_us = clocks.app_us;
+        self.core.now_us = now_us;
+        self.core.comm_us = clocks.comm_us;
+        let fb = drive.feedback();
+        self.comm_timers_before(clocks.comm_us);
+        let c = &mut self.core;
+        if c.nmt == NmtState::Initialising && !c.boot_keeps_app {
+            drive.command(&crate::drive::DriveCommand {
+                setpoint: crate::drive::Setpoint::Disabled,
+                max_torque_permille: 0.0,
+                max_velocity_inc_per_s: 0.0,
+            });
+            return;
+        }
+        // SYNC supervision
+        if c.nmt == NmtState::Operational && c.sync.poll(now_us, c.store.u32(R_1006)) {
+            c.raise_emcy(EMCY_SYNC_LOSS, [0; 5], Cause::Condition);
+            c.cia.comm_loss(&c.store, EMCY_SYNC_LOSS);
+        }
+        // the vendor's SYNC watchdog (docs/quirks.md 3.13): a fault whatever 0x6007 says
+        let (wd_period, watched) = c.watchdog_period();
+        if let Some(code) = c.qs.watchdog_poll(&c.quirks, now_us, watched, wd_period) {
+            c.cia.request_fault(code);
+        }
+        // CiA 402 (a lost master or SYNC whose reaction is a fault blocks the fault reset)
+        c.cia.comm_fault_present = (c.hb_lost || c.sync.lost) && c.store.i32(o402::ABORT_CONN) == 1;
+        c.cia.status_extra = if c.qs.late_sync { 0x8000 } else { 0 };
+        let period = csp_period_us(&c.store, c.sync.interval_us);
+        let sync_at = c.pending_sync.take();
+        let (level, latched) = c.cw_latch.for_tick(
+            c.store.u32(o402::CONTROLWORD) as u16,
+            clocks.comm_us,
+            c.quirks.controlword_min_hold,
+        );
+        let control = crate::cia402::TickControl {
+            sync_at,
+            csp_period_us: period,
+            level,
+            latched,
+        };
+        let out = c.cia.step(&mut c.store, &fb, now_us, control, drive);
+        if let Some(code) = out.new_fault {
+            c.raise_emcy(code, [0; 5], Cause::Fault);
+        }
+        if out.fault_cleared {
+            // errors a supervision still holds (master still lost) stay active
+            c.clear_cause(Cause::Fault);
+        }
+        drive.command(&out.command);
+        if c.nmt != NmtState::Initialising {
+            c.comm_timers_after(clocks.comm_us);
+        }
+    }
+}
+
+impl Core {
+    /// Event-driven TPDOs (with the values of the last CiA 402 cycle) and EMCYs held by their
+    /// inhibit time, on the communication clock.
+    fn comm_timers_after(&mut self, comm_us: u64) {
+        if self.nmt == NmtState::Operational {
+            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
+            self.pdo
+                .poll_events(&self.store, comm_us, &mut |f| push(tx, overflows, f));
+        }
+        if self.emcy_allowed() {
+            let inhibit = self.store.u32(R_1015) as u16;
+            while let Some(d) = self.emcy.next(comm_us, inhibit) {
+                let f = CanFrame::new(self.store.u32(R_1014) & 0x7FF, &d);
+                self.push(f);
+            }
+        }
+    }
+}

@@ -1,0 +1,162 @@
+//! The write-hook table: which service rules a write to a stored object, as CANopenNode's
+//! `OD_extension_init` attaches a service's read/write functions to its objects.
+//!
+//! Each service module registers its objects (an index range and one function) when the
+//! node is built ([`WriteHooks::standard`]); an SDO download and an RPDO value go through the
+//! same [`Core::write_stored`](super::Core::write_stored): the dictionary's type and limits
+//! first, then the hook of the object's range, if any. A hook refuses (a CiA 301 abort
+//! code), lets the value be stored, or applies it itself. The table is a fixed-size array:
+//! filling it does not allocate, and a lookup is a scan of a dozen ranges.
+
+use super::Core;
+
+/// Ranges a node's table holds at most (a registration beyond it is a bug in this crate,
+/// caught by every test that builds a node).
+pub(crate) const MAX_HOOKS: usize = 16;
+
+/// Where a write comes from. The rules are the same; a hook that reacts to a value's change
+/// (the controlword latch) sees an RPDO that repeats the value as no new write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Origin {
+    /// An SDO download (or a front end's object write).
+    Sdo,
+    /// A value of a received RPDO (or a front end's RxPDO image).
+    Rpdo,
+}
+
+/// One write to a stored object whose type and dictionary limits were checked.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ObjectWrite {
+    /// The object's slot in the store.
+    pub row: usize,
+    /// Index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// The value (raw form: signed sign-extended, REAL as bits).
+    pub raw: u64,
+    /// SDO or RPDO.
+    pub origin: Origin,
+}
+
+/// What a hook decided about a write it accepts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Verdict {
+    /// Store the value as written.
+    Store,
+    /// The hook applied the write itself (or keeps the old value on purpose): store nothing.
+    Applied,
+}
+
+/// A service's check-and-apply function for the objects it registered.
+pub(crate) type Hook = fn(&mut Core, &ObjectWrite) -> Result<Verdict, u32>;
+
+#[derive(Clone, Copy)]
+struct Range {
+    lo: u16,
+    hi: u16,
+    hook: Hook,
+}
+
+impl core::fmt::Debug for Range {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "0x{:04X}..=0x{:04X}", self.lo, self.hi)
+    }
+}
+
+/// Index ranges and the hook that rules each.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct WriteHooks {
+    ranges: [Option<Range>; MAX_HOOKS],
+    n: usize,
+}
+
+impl WriteHooks {
+    /// An empty table.
+    pub(crate) const fn new() -> WriteHooks {
+        WriteHooks {
+            ranges: [None; MAX_HOOKS],
+            n: 0,
+        }
+    }
+
+    /// The table of every service a node has: CiA 301 (EMCY, SYNC, heartbeat, store and
+    /// restore, the PDO parameters) and CiA 402.
+    pub(crate) fn standard() -> WriteHooks {
+        let mut t = WriteHooks::new();
+        crate::cia301::emcy::register_writes(&mut t);
+        crate::cia301::sync::register_writes(&mut t);
+        crate::cia301::heartbeat::register_writes(&mut t);
+        crate::cia301::store::register_writes(&mut t);
+        crate::cia301::pdo::register_writes(&mut t);
+        crate::cia402::register_writes(&mut t);
+        t
+    }
+
+    /// A service rules writes to `lo..=hi`. Ranges do not overlap: one owner per object.
+    /// Panics on an overlap or a full table (a bug in the services' registrations, not
+    /// something a dictionary or a bus peer can cause).
+    pub(crate) fn register(&mut self, lo: u16, hi: u16, hook: Hook) {
+        assert!(lo <= hi, "write hook range 0x{lo:04X}..=0x{hi:04X}");
+        assert!(
+            self.find(lo).is_none() && self.find(hi).is_none(),
+            "write hook range 0x{lo:04X}..=0x{hi:04X} overlaps one registered before"
+        );
+        assert!(self.n < MAX_HOOKS, "write hook table full");
+        self.ranges[self.n] = Some(Range { lo, hi, hook });
+        self.n += 1;
+    }
+
+    /// The hook ruling writes to `index`, if a service registered one.
+    #[inline]
+    pub(crate) fn find(&self, index: u16) -> Option<Hook> {
+        self.ranges[..self.n]
+            .iter()
+            .flatten()
+            .find(|r| (r.lo..=r.hi).contains(&index))
+            .map(|r| r.hook)
+    }
+
+    /// The registered ranges (tests and the decision record's table).
+    #[cfg(test)]
+    pub(crate) fn ranges(&self) -> impl Iterator<Item = (u16, u16)> + '_ {
+        self.ranges[..self.n].iter().flatten().map(|r| (r.lo, r.hi))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_object_with_a_rule_has_exactly_one_owner() {
+        let t = WriteHooks::standard();
+        for index in [
+            0x1003u16, 0x1005, 0x1010, 0x1011, 0x1014, 0x1016, 0x1017, 0x1019, 0x1400, 0x1A03,
+            0x6040, 0x6060, 0x607D, 0x6098,
+        ] {
+            assert_eq!(
+                t.ranges()
+                    .filter(|&(lo, hi)| (lo..=hi).contains(&index))
+                    .count(),
+                1,
+                "0x{index:04X}"
+            );
+        }
+        // objects without a rule are stored as the dictionary's limits allow
+        for index in [0x1000u16, 0x1006, 0x1C00, 0x6041, 0x607A, 0x6081, 0x2000] {
+            assert!(t.find(index).is_none(), "0x{index:04X}");
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "overlaps")]
+    fn an_overlapping_registration_is_a_bug() {
+        fn keep(_: &mut Core, _: &ObjectWrite) -> Result<Verdict, u32> {
+            Ok(Verdict::Store)
+        }
+        let mut t = WriteHooks::new();
+        t.register(0x1400, 0x1BFF, keep);
+        t.register(0x1A00, 0x1A00, keep);
+    }
+}
