@@ -6,13 +6,14 @@
 //! Modules, bottom layer first: a module imports only modules before it in this list
 //! (`tests/layering.rs`, docs/decisions/0006-emulator-layers.md).
 
-pub mod quote;
-
-pub mod infile;
+// What measures without running a drive (file content in messages, the bounded input-file
+// reader, trace samples, and above the runtime the detector's and the report's modules) is its
+// own crate, `drive-analysis`: re-exported here under the names the emulator has always used.
+// `analysis` stays a module of the emulator: it re-exports the crate's detector, spectra and
+// capture decoding and holds what runs drives (experiments, the ballbar, line contours).
+pub use drive_analysis::{infile, quote, report, samples};
 
 pub mod time;
-
-pub mod samples;
 
 pub mod bus;
 
@@ -31,8 +32,6 @@ pub mod master;
 pub mod analysis;
 
 pub mod monitor;
-
-pub mod report;
 
 pub mod session;
 

@@ -3,7 +3,7 @@
 //! plus a few microseconds of deterministic jitter), and the decoded log must give what the
 //! master itself received: the same samples, the same detector verdict, frequency and amplitude.
 
-use drive_emu::analysis::candump::{self, DecodeOptions, PdoConfig, PeriodSource};
+use drive_emu::analysis::candump::{self, DecodeOptions, DriveDefaults, PdoConfig, PeriodSource};
 use drive_emu::analysis::detector::{analyze, AxisTrace, DetectorConfig, DetectorReport, Verdict};
 use drive_emu::bus::inproc::InProcEndpoint;
 use drive_emu::bus::{CanBus, CanFrame};

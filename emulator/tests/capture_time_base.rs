@@ -7,7 +7,7 @@
 //! spaced) show; placed at k x the SYNC period, the same capture falls apart, as the issue
 //! reported ("192 stretches, the longest 0.19 s: too_short").
 
-use drive_emu::analysis::candump::{decode, DecodeOptions, PdoConfig};
+use drive_emu::analysis::candump::{decode, DecodeOptions, DriveDefaults, PdoConfig};
 use drive_emu::analysis::capture::trace::TimeBase;
 use drive_emu::analysis::detector::{analyze, AxisTrace, DetectorConfig, Verdict};
 use drive_emu::bus::inproc::{InProcBus, InProcEndpoint};

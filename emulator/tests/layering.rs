@@ -11,9 +11,11 @@ use std::path::{Path, PathBuf};
 /// The layer order, bottom first. A module may import only modules before it in this list.
 /// Written once here and in docs/decisions/0006-emulator-layers.md.
 const LAYERS: &[&str] = &[
-    "quote",   // file content rendered in messages: control characters escaped, capped
-    "infile",  // the bounded reader of every input file: regular files only, size cap
-    "time",    // clocks: monotonic wall clock, virtual clock
+    // crate drive-analysis, re-exported (lib.rs `pub use drive_analysis::{...}`):
+    "quote",  // file content rendered in messages: control characters escaped, capped
+    "infile", // the bounded reader of every input file: regular files only, size cap
+    "time",   // clocks: monotonic wall clock, virtual clock
+    // crate drive-analysis, re-exported:
     "samples", // trace sample types and trace-file reading
     "bus",     // CAN bus abstraction: SocketCAN, in-process, fault injector
     // crate drive-physics, re-exported (lib.rs `pub use drive_physics::{...}`):
@@ -24,9 +26,9 @@ const LAYERS: &[&str] = &[
     "drive",    // the Drive adapter on the simulated axis, machine file
     "observe",  // the tick's observation fan-out: per-axis snapshots in a seqlock ring
     "master",   // reference CiA 402 master (sans-IO) and its bus loop
-    "analysis", // backlash detector, capture decoding, experiments
+    "analysis", // re-exports drive-analysis' detector and decoding; experiments, ballbar
     "monitor",  // the detector on a running drive's own samples (run --detect)
-    "report",   // report files and plots
+    "report",   // report files and plots (crate drive-analysis, re-exported)
     "session",  // runtime + master on one bus: offline runs
     "scenario", // scenario files, timelines, expectations, runner
     "panel",    // the live panel of `run --panel`: server, stream, injections, recording
@@ -38,14 +40,49 @@ const LAYERS: &[&str] = &[
 /// The physics crate's modules (physics/src), bottom first: the same rule inside it.
 const PHYSICS_LAYERS: &[&str] = &["params", "axis", "control", "presets"];
 
+/// The analysis crate's modules (analysis/src), bottom first: the same rule inside it.
+const ANALYSIS_LAYERS: &[&str] = &[
+    "quote",      // file content rendered in messages
+    "infile",     // the bounded reader of every input file
+    "samples",    // trace sample types and trace-file reading
+    "spectrum",   // amplitude spectra, fundamentals
+    "windows",    // constant-velocity windows of a trace
+    "axis_trace", // the trace the detector reads
+    "verdict",    // what the detector finds per window
+    "gap",        // how large the gap is where a window is flagged
+    "detector",   // the backlash detector
+    "capture",    // a CAN capture decoded into the detector's trace
+    "ballbar",    // the ballbar's trace, figures and capture decoding
+    "report",     // report files and plots
+];
+
+/// The emulator's modules that are the analysis crate's, re-exported (lib.rs or
+/// `analysis/mod.rs`), as paths under emulator/src that must not exist (no copies).
+const ANALYSIS_REEXPORTED: &[&str] = &[
+    "quote.rs",
+    "infile.rs",
+    "samples",
+    "report",
+    "analysis/spectrum.rs",
+    "analysis/windows.rs",
+    "analysis/detector.rs",
+    "analysis/gap.rs",
+    "analysis/ballbar/metrics.rs",
+    "analysis/capture/candump.rs",
+];
+
 /// The workspace's crates and the workspace crates each may depend on (its `[dependencies]`
 /// on a `path`): the compiler keeps these layers, this test keeps the list. Bottom first.
 const CRATES: &[(&str, &[&str])] = &[
     ("protocol", &[]),
     ("physics", &[]),
+    ("analysis", &["protocol", "physics"]),
     ("fmu", &["physics"]),
     ("ethercat", &["protocol"]),
-    ("emulator", &["protocol", "physics", "fmu", "ethercat"]),
+    (
+        "emulator",
+        &["protocol", "physics", "analysis", "fmu", "ethercat"],
+    ),
 ];
 
 /// What the physics crate must never name: a fieldbus, a thread, a clock, a socket.
@@ -57,6 +94,22 @@ const PHYSICS_FORBIDDEN: &[&str] = &[
     "SystemTime",
     "std::net",
     "std::sync",
+];
+
+/// What the analysis crate must never name: the emulator, a thread, a lock, a clock, a
+/// socket (it reads traces and files and computes; the emulator runs the drives).
+const ANALYSIS_FORBIDDEN: &[&str] = &[
+    "drive_emu",
+    "std::thread",
+    "Instant",
+    "SystemTime",
+    "std::net",
+    "Mutex",
+    "RwLock",
+    "mpsc",
+    "Atomic",
+    "tokio",
+    "socketcan::",
 ];
 
 /// Files directly in `src/` that are not modules of the layering (crate root, binary).
@@ -233,6 +286,53 @@ fn every_physics_module_imports_only_modules_below_it_and_nothing_of_a_bus_or_a_
     assert!(named.is_empty(), "{}", named.join("\n"));
 }
 
+/// The files under `src` that name one of `forbidden`, as messages.
+fn naming(src: &Path, forbidden: &[&str]) -> Vec<String> {
+    let mut files = Vec::new();
+    rs_files(src, &mut files);
+    let mut named = Vec::new();
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        for w in forbidden {
+            if text.contains(w) {
+                named.push(format!("{} names `{w}`", f.display()));
+            }
+        }
+    }
+    named
+}
+
+#[test]
+fn every_analysis_module_imports_only_modules_below_it_and_nothing_that_runs() {
+    let src = workspace().join("analysis/src");
+    let bad = violations_in(&src, ANALYSIS_LAYERS);
+    assert!(
+        bad.is_empty(),
+        "analysis layering broken:\n{}",
+        bad.join("\n")
+    );
+    // Every module of the crate is placed, and every place is a module.
+    let lib = std::fs::read_to_string(src.join("lib.rs")).unwrap();
+    let declared: Vec<&str> = lib
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("pub mod "))
+        .map(|l| l.trim_end_matches(';'))
+        .collect();
+    assert_eq!(
+        declared, ANALYSIS_LAYERS,
+        "analysis/src/lib.rs in layer order"
+    );
+    let named = naming(&src, ANALYSIS_FORBIDDEN);
+    assert!(named.is_empty(), "{}", named.join("\n"));
+    // The check sees a forbidden word.
+    let dir = scratch(
+        "analysis-forbidden",
+        &[("spectrum.rs", "use std::sync::Mutex;\n")],
+    );
+    assert_eq!(naming(&dir, ANALYSIS_FORBIDDEN).len(), 1);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// The workspace root.
 fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -283,7 +383,9 @@ fn every_crate_depends_only_on_the_crates_below_it() {
     );
     // Every member of the workspace with a library is placed.
     let ws = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
-    for m in ["protocol", "physics", "fmu", "ethercat", "emulator"] {
+    for m in [
+        "protocol", "physics", "analysis", "fmu", "ethercat", "emulator",
+    ] {
         assert!(
             ws.contains(&format!("\"{m}\"")),
             "{m} not a workspace member"
@@ -305,6 +407,7 @@ fn every_module_of_lib_rs_has_a_layer_and_every_layer_is_a_module() {
         .chain(lib.lines().filter_map(|l| l.trim().strip_prefix("mod ")))
         .map(|l| l.trim_end_matches(';'))
         .chain(reexported(&lib, "drive_physics"))
+        .chain(reexported(&lib, "drive_analysis"))
         .collect();
     let layers: BTreeSet<&str> = LAYERS.iter().copied().collect();
     assert_eq!(declared, layers);
@@ -316,6 +419,16 @@ fn every_module_of_lib_rs_has_a_layer_and_every_layer_is_a_module() {
                 .join(m)
                 .exists(),
             "emulator/src/{m} exists beside the physics crate's"
+        );
+    }
+    // The analysis crate's modules are re-exported, not copied.
+    for p in ANALYSIS_REEXPORTED {
+        assert!(
+            !Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("src")
+                .join(p)
+                .exists(),
+            "emulator/src/{p} exists beside the analysis crate's"
         );
     }
 }

@@ -6,7 +6,7 @@
 //! show; a healthy axis under the same master is ok; and the set-points that force an axis by
 //! their own timing (jitter, a task that beats with SYNC) are not taken for a loop.
 
-use drive_emu::analysis::candump::{decode, DecodeOptions, PdoConfig};
+use drive_emu::analysis::candump::{decode, DecodeOptions, DriveDefaults, PdoConfig};
 use drive_emu::analysis::detector::{analyze, AxisTrace, DetectorConfig, Verdict};
 use drive_emu::analysis::spectrum::fundamental;
 use drive_emu::bus::CanBus;

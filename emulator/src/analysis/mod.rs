@@ -1,13 +1,14 @@
-//! Signal analysis: spectra (fundamental frequency and amplitude) and the constant-velocity
-//! experiment of the paper (run an axis at constant speed, find its vibration).
+//! Signal analysis: spectra (fundamental frequency and amplitude), the backlash detector, the
+//! capture decoding and the ballbar's figures are the analysis crate's (`drive-analysis`,
+//! re-exported here under their old paths); what runs drives is here: the constant-velocity
+//! experiment of the paper ([`experiment`]), the ballbar and line contours on two or three
+//! drives ([`ballbar`]), and our drive's PDO configuration for a capture ([`capture`]).
+
+pub use drive_analysis::{detector, gap, spectrum, windows};
 
 pub mod ballbar;
 pub mod capture;
-pub mod detector;
 pub mod experiment;
-pub mod gap;
-pub mod spectrum;
-pub mod windows;
 
 /// The capture reader's old name.
 pub use self::capture as candump;

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use super::ApiError;
-use crate::analysis::candump;
+use crate::analysis::candump::{self, DriveDefaults};
 use crate::analysis::detector::{
     analyze, AxisTrace, DetectorConfig, DetectorReport, Inconclusive, Verdict,
 };
@@ -342,112 +342,16 @@ impl AnalyzeRequest {
 
 /// [`AnalyzeRequest::run`], its errors as they come: a usage error holds [`UsageError`].
 fn analyze_request(args: &AnalyzeRequest, input: AnalyzeInput<'_>) -> anyhow::Result<Analysis> {
-    if let Some(kv) = args.kv_per_s {
-        if !kv_in_range(kv) {
-            return Err(UsageError(format!(
-                "--kv {}: must be within the drive's range {} .. {} (1/s)",
-                crate::quote::number(kv),
-                crate::quote::number(KV_RANGE_PER_S.0),
-                crate::quote::number(KV_RANGE_PER_S.1)
-            ))
-            .into());
-        }
-    }
-    for (name, v) in [("--suspect", args.suspect_um), ("--alarm", args.alarm_um)] {
-        if v.is_some_and(|v| !(v > 0.0 && v.is_finite())) {
-            return Err(UsageError(format!("{name}: must be a finite number > 0")).into());
-        }
-    }
+    check_flags(args)?;
     let preset = args.preset.clone().unwrap_or_else(|| "cnc1".into());
     if args.preset.is_some() {
         preset_kv(&preset)?;
     }
-    let path = &args.trace;
-    let mut notes = Vec::new();
-    let mut capture = None;
-    let mut kv_written = None;
-    let rotary_units = args.rotary;
-    // A CSV is read line by line, and so is a candump log (found by its first line).
-    let csv = match input {
-        AnalyzeInput::File => trace_from_csv_lines(path, TraceLines::open(path)?, rotary_units)?,
-        AnalyzeInput::Bytes(b) => {
-            trace_from_csv_lines(path, TraceLines::from_reader(path, b)?, rotary_units)?
-        }
-        AnalyzeInput::Columns { .. } => None,
-    };
-    let from_file = matches!(input, AnalyzeInput::File | AnalyzeInput::Bytes(_));
-    let candump = from_file && csv.is_none();
-    let built: Result<AxisTrace, String> = if let AnalyzeInput::Columns { source, columns } = input
-    {
-        Ok(trace_from_columns(source, columns, rotary_units)?)
-    } else if let Some((t, n)) = csv {
-        notes.extend(n);
-        Ok(t)
-    } else {
-        // Streamed as the CSV is: only the decoded samples are kept, never the log's text.
-        let mut lines = match input {
-            AnalyzeInput::Bytes(b) => TraceLines::from_reader(path, b)?,
-            _ => TraceLines::open(path)?,
-        };
-        let (defaults, preset_rotary) = candump::PdoConfig::drive_defaults(args.node, &preset)?;
-        let log = candump::decode_lines(
-            &mut lines,
-            &path.display().to_string(),
-            &candump::DecodeOptions {
-                node_id: args.node,
-                defaults,
-                sync_period_us: args.sync_period_us,
-            },
-        )?;
-        drop(lines);
-        capture = Some(log.summary());
-        kv_written = log.kv_written;
-        match log.to_axis_trace_on(rotary_units || preset_rotary, args.time_base) {
-            Ok(t) => Ok(t),
-            Err(e) => match e.downcast::<candump::MissingObjects>() {
-                Ok(m) => Err(m.0),
-                Err(e) => return Err(e),
-            },
-        }
-    };
-    if let (None, Some(k)) = (args.kv_per_s, kv_written) {
-        if !kv_in_range(k) {
-            return Err(UsageError(format!(
-                "the capture writes k_v = {} 1/s to 0x2007, outside the drive's range {} .. {} \
-                 (the drive refuses it): give the k_v in effect with --kv",
-                crate::quote::number(k),
-                crate::quote::number(KV_RANGE_PER_S.0),
-                crate::quote::number(KV_RANGE_PER_S.1)
-            ))
-            .into());
-        }
-    }
-    let (kv, kv_source) = match (args.kv_per_s, kv_written, &args.preset) {
-        (Some(k), _, _) => (k, "--kv".to_string()),
-        (None, Some(k), _) => (k, "0x2007 kv_per_s written in the capture".to_string()),
-        (None, _, Some(p)) => (preset_kv(p)?, format!("preset {p}")),
-        (None, _, None) => {
-            return Err(UsageError(
-                "no k_v: give --kv, or --preset (its k_v), or a capture that writes 0x2007".into(),
-            )
-            .into())
-        }
-    };
-    let mut cfg = DetectorConfig::new(kv);
-    if let Some(s) = args.suspect_um {
-        cfg.suspect_um = s;
-    }
-    if let Some(a) = args.alarm_um {
-        cfg.alarm_um = a;
-    }
-    // The preset's mechanics for the gap estimate, in the trace's current unit.
-    cfg.gap = match (&built, crate::presets::AxisConfig::from_preset(&preset)) {
-        (Ok(tr), Ok(axis)) => crate::analysis::gap::GapModel::current_unit(&tr.current_unit)
-            .and_then(|u| crate::analysis::gap::GapModel::for_axis(&axis, u)),
-        _ => None,
-    };
-    let unit = if rotary_units { "mdeg" } else { "um" };
-    let rep = match &built {
+    let read = read_trace(args, input, &preset)?;
+    let (kv, kv_source) = kv_in_force(args, read.kv_written)?;
+    let cfg = detector_config(args, kv, &read.built, &preset);
+    let unit = if args.rotary { "mdeg" } else { "um" };
+    let rep = match &read.built {
         Ok(tr) => analyze(tr, &cfg),
         Err(why) => {
             DetectorReport::inconclusive(&cfg, Inconclusive::MissingObjects, why.clone(), unit)
@@ -466,18 +370,18 @@ fn analyze_request(args: &AnalyzeRequest, input: AnalyzeInput<'_>) -> anyhow::Re
     };
     let output = AnalyzeOutput {
         trace: match input {
-            AnalyzeInput::File | AnalyzeInput::Bytes(_) => path.display().to_string(),
+            AnalyzeInput::File | AnalyzeInput::Bytes(_) => args.trace.display().to_string(),
             AnalyzeInput::Columns { source, .. } => source.to_string(),
         },
         format: match input {
             AnalyzeInput::Columns { .. } => "columns",
-            AnalyzeInput::File | AnalyzeInput::Bytes(_) if candump => "candump",
+            AnalyzeInput::File | AnalyzeInput::Bytes(_) if read.candump => "candump",
             AnalyzeInput::File | AnalyzeInput::Bytes(_) => "csv",
         },
         kv_per_s: kv,
         kv_source,
-        notes,
-        capture,
+        notes: read.notes,
+        capture: read.capture,
         exit_code: exit_code(rep.verdict, args.fail_on_backlash),
         report: rep,
         plots: Vec::new(),
@@ -485,8 +389,167 @@ fn analyze_request(args: &AnalyzeRequest, input: AnalyzeInput<'_>) -> anyhow::Re
     };
     Ok(Analysis {
         output,
-        trace: built.ok(),
+        trace: read.built.ok(),
     })
+}
+
+/// The flags' own limits: `--kv` within the drive's range, `--suspect` and `--alarm` finite
+/// and positive.
+fn check_flags(args: &AnalyzeRequest) -> anyhow::Result<()> {
+    if let Some(kv) = args.kv_per_s {
+        if !kv_in_range(kv) {
+            return Err(UsageError(format!(
+                "--kv {}: must be within the drive's range {} .. {} (1/s)",
+                crate::quote::number(kv),
+                crate::quote::number(KV_RANGE_PER_S.0),
+                crate::quote::number(KV_RANGE_PER_S.1)
+            ))
+            .into());
+        }
+    }
+    for (name, v) in [("--suspect", args.suspect_um), ("--alarm", args.alarm_um)] {
+        if v.is_some_and(|v| !(v > 0.0 && v.is_finite())) {
+            return Err(UsageError(format!("{name}: must be a finite number > 0")).into());
+        }
+    }
+    Ok(())
+}
+
+/// The trace as read, and what the reading found beside it.
+struct ReadTrace {
+    /// The detector's trace, or why there is none (a capture without the objects it needs).
+    built: Result<AxisTrace, String>,
+    /// Notes on the CSV's columns.
+    notes: Vec<String>,
+    /// A candump log's decoding summary.
+    capture: Option<String>,
+    /// The k_v a capture writes to 0x2007.
+    kv_written: Option<f64>,
+    /// The file was a candump log.
+    candump: bool,
+}
+
+/// Read the trace from `input`: a CSV trace, named columns, or a candump log of our drive
+/// with `preset` (all streamed: only the decoded samples are kept).
+fn read_trace(
+    args: &AnalyzeRequest,
+    input: AnalyzeInput<'_>,
+    preset: &str,
+) -> anyhow::Result<ReadTrace> {
+    let path = &args.trace;
+    let rotary_units = args.rotary;
+    // A CSV is read line by line, and so is a candump log (found by its first line).
+    let csv = match input {
+        AnalyzeInput::File => trace_from_csv_lines(path, TraceLines::open(path)?, rotary_units)?,
+        AnalyzeInput::Bytes(b) => {
+            trace_from_csv_lines(path, TraceLines::from_reader(path, b)?, rotary_units)?
+        }
+        AnalyzeInput::Columns { .. } => None,
+    };
+    let from_file = matches!(input, AnalyzeInput::File | AnalyzeInput::Bytes(_));
+    let mut read = ReadTrace {
+        built: Err(String::new()),
+        notes: Vec::new(),
+        capture: None,
+        kv_written: None,
+        candump: from_file && csv.is_none(),
+    };
+    read.built = if let AnalyzeInput::Columns { source, columns } = input {
+        Ok(trace_from_columns(source, columns, rotary_units)?)
+    } else if let Some((t, n)) = csv {
+        read.notes.extend(n);
+        Ok(t)
+    } else {
+        read_capture(args, input, preset, &mut read)?
+    };
+    Ok(read)
+}
+
+/// Decode a candump log of node `args.node` of our drive with `preset` into the detector's
+/// trace, its summary and the k_v it writes into `read`; streamed as the CSV is: only the
+/// decoded samples are kept, never the log's text.
+fn read_capture(
+    args: &AnalyzeRequest,
+    input: AnalyzeInput<'_>,
+    preset: &str,
+    read: &mut ReadTrace,
+) -> anyhow::Result<Result<AxisTrace, String>> {
+    let path = &args.trace;
+    let mut lines = match input {
+        AnalyzeInput::Bytes(b) => TraceLines::from_reader(path, b)?,
+        _ => TraceLines::open(path)?,
+    };
+    let (defaults, preset_rotary) = candump::PdoConfig::drive_defaults(args.node, preset)?;
+    let log = candump::decode_lines(
+        &mut lines,
+        &path.display().to_string(),
+        &candump::DecodeOptions {
+            node_id: args.node,
+            defaults,
+            sync_period_us: args.sync_period_us,
+        },
+    )?;
+    drop(lines);
+    read.capture = Some(log.summary());
+    read.kv_written = log.kv_written;
+    match log.to_axis_trace_on(args.rotary || preset_rotary, args.time_base) {
+        Ok(t) => Ok(Ok(t)),
+        Err(e) => match e.downcast::<candump::MissingObjects>() {
+            Ok(m) => Ok(Err(m.0)),
+            Err(e) => Err(e),
+        },
+    }
+}
+
+/// The k_v the band is judged against and where it came from: `--kv`, else the one the
+/// capture writes (within the drive's range), else the preset's.
+fn kv_in_force(args: &AnalyzeRequest, kv_written: Option<f64>) -> anyhow::Result<(f64, String)> {
+    if let (None, Some(k)) = (args.kv_per_s, kv_written) {
+        if !kv_in_range(k) {
+            return Err(UsageError(format!(
+                "the capture writes k_v = {} 1/s to 0x2007, outside the drive's range {} .. {} \
+                 (the drive refuses it): give the k_v in effect with --kv",
+                crate::quote::number(k),
+                crate::quote::number(KV_RANGE_PER_S.0),
+                crate::quote::number(KV_RANGE_PER_S.1)
+            ))
+            .into());
+        }
+    }
+    Ok(match (args.kv_per_s, kv_written, &args.preset) {
+        (Some(k), _, _) => (k, "--kv".to_string()),
+        (None, Some(k), _) => (k, "0x2007 kv_per_s written in the capture".to_string()),
+        (None, _, Some(p)) => (preset_kv(p)?, format!("preset {p}")),
+        (None, _, None) => {
+            return Err(UsageError(
+                "no k_v: give --kv, or --preset (its k_v), or a capture that writes 0x2007".into(),
+            )
+            .into())
+        }
+    })
+}
+
+/// The detector's settings: k_v, the flags' thresholds, and the preset's mechanics for the
+/// gap estimate in the trace's current unit.
+fn detector_config(
+    args: &AnalyzeRequest,
+    kv: f64,
+    built: &Result<AxisTrace, String>,
+    preset: &str,
+) -> DetectorConfig {
+    let mut cfg = DetectorConfig::new(kv);
+    if let Some(s) = args.suspect_um {
+        cfg.suspect_um = s;
+    }
+    if let Some(a) = args.alarm_um {
+        cfg.alarm_um = a;
+    }
+    cfg.gap = match (built, crate::presets::AxisConfig::from_preset(preset)) {
+        (Ok(tr), Ok(axis)) => crate::analysis::gap::GapModel::current_unit(&tr.current_unit)
+            .and_then(|u| crate::analysis::gap::GapModel::for_axis(&axis, u)),
+        _ => None,
+    };
+    cfg
 }
 
 /// Write the report directory of an analysis (`detector.json`, and the plots when windows

@@ -215,7 +215,14 @@ pub fn analyze_input(args: &AnalyzeArgs, input: AnalyzeInput<'_>) -> anyhow::Res
 /// verdict's code ([`exit_code`]).
 pub fn run(args: &AnalyzeArgs) -> anyhow::Result<std::process::ExitCode> {
     if let Some(spec) = &args.ballbar {
-        super::analyze_ballbar::run(args, spec)?;
+        let ballbar = super::analyze_ballbar::BallbarArgs {
+            trace: &args.trace,
+            preset: args.preset.as_deref(),
+            sync_period_us: args.sync_period_us,
+            radius_mm: args.radius_mm,
+            json: args.json,
+        };
+        super::analyze_ballbar::run(&ballbar, spec)?;
         return Ok(std::process::ExitCode::SUCCESS);
     }
     match run_inner(args) {

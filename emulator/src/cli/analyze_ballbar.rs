@@ -3,8 +3,8 @@
 //! same figures and JSON report as `drive-emu ballbar` (docs/ballbar.md).
 
 use std::collections::BTreeMap;
+use std::path::Path;
 
-use super::analyze::AnalyzeArgs;
 use super::exit;
 use crate::analysis::ballbar::{capture, metrics};
 
@@ -39,8 +39,22 @@ fn nodes(spec: &str) -> anyhow::Result<[u8; 2]> {
     }
 }
 
+/// What `analyze --ballbar` reads of `analyze`'s arguments.
+pub struct BallbarArgs<'a> {
+    /// The capture (`candump -L`).
+    pub trace: &'a Path,
+    /// Both drives' preset (`--preset`; `None`: cnc1).
+    pub preset: Option<&'a str>,
+    /// `--sync-period-us`.
+    pub sync_period_us: Option<u32>,
+    /// `--radius-mm`; `None`: the commanded circle's fitted radius.
+    pub radius_mm: Option<f64>,
+    /// `--json`.
+    pub json: bool,
+}
+
 /// Run it; the exit status is 0 with figures, else the error's (crate::cli::exit).
-pub fn run(args: &AnalyzeArgs, spec: &str) -> anyhow::Result<()> {
+pub fn run(args: &BallbarArgs, spec: &str) -> anyhow::Result<()> {
     let ids = nodes(spec)?;
     if let Some(r) = args.radius_mm {
         if !(r.is_finite() && r > 0.0) {
@@ -49,10 +63,10 @@ pub fn run(args: &AnalyzeArgs, spec: &str) -> anyhow::Result<()> {
             )));
         }
     }
-    let preset = args.preset.clone().unwrap_or_else(|| "cnc1".into());
-    let text = crate::samples::csv::read_trace_text(&args.trace).map_err(exit::unreadable)?;
+    let preset = args.preset.unwrap_or("cnc1");
+    let text = crate::samples::csv::read_trace_text(args.trace).map_err(exit::unreadable)?;
     let source = args.trace.display().to_string();
-    let c = capture::from_capture(&text, &source, ids, &preset, args.sync_period_us)
+    let c = capture::from_capture(&text, &source, ids, preset, args.sync_period_us)
         .map_err(exit::usage)?;
     let radius = args.radius_mm.unwrap_or(c.radius_mm);
     let names = ["X".to_string(), "Y".to_string()];

@@ -103,7 +103,8 @@ pub fn code_of(e: &anyhow::Error) -> u8 {
         UNREADABLE
     } else if e.chain().any(|c| {
         c.downcast_ref::<Usage>().is_some()
-            || c.downcast_ref::<super::analyze::UsageError>().is_some()
+            || c.downcast_ref::<crate::api::analyze::UsageError>()
+                .is_some()
     }) {
         USAGE
     } else {

@@ -1,5 +1,5 @@
 //! Reports: a JSON summary and PNG plots (plotters, bitmap backend only). Text is drawn with
-//! an embedded DejaVu Sans (`emulator/assets/DejaVuSans.ttf`, Bitstream Vera licence in
+//! an embedded DejaVu Sans (`analysis/assets/DejaVuSans.ttf`, Bitstream Vera licence in
 //! `assets/DejaVuSans-LICENSE.txt`) registered with plotters' ab_glyph backend, so drawing needs
 //! no system font library (no fontconfig, no freetype).
 
@@ -16,8 +16,9 @@ pub fn user_unit(rotary: bool) -> &'static str {
     }
 }
 
-use crate::analysis::detector::{AxisTrace, DetectorReport, WindowResult};
-use crate::analysis::spectrum::WindowSpectra;
+use crate::detector::{AxisTrace, DetectorReport, WindowResult};
+use crate::spectrum::WindowSpectra;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 use std::path::{Path, PathBuf};
@@ -26,7 +27,8 @@ const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 const W: u32 = 1000;
 const H: u32 = 600;
 
-pub(crate) fn font_ready() {
+/// Register the embedded font with plotters (once per process): call before drawing text.
+pub fn font_ready() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         // Cannot fail for the embedded font; if it did, plots would lack text only.
@@ -214,6 +216,10 @@ pub fn plot_traces(
     draw().map_err(err)
 }
 
+/// A chart of frequency (Hz) against amplitude.
+type SpectrumChart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
 /// Amplitude spectra of motor speed and current in one window, k_v/4 .. k_v band shaded, the
 /// paper's 0.6 k_v marked.
 pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> anyhow::Result<()> {
@@ -221,22 +227,8 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
     let n = w.end - w.start;
     let dt = (tr.t_s[w.end - 1] - tr.t_s[w.start]) / (n - 1).max(1) as f64;
     let fs = 1.0 / dt.max(1e-9);
-    // The detector's own spectra: on the samples' times (the FFT where they are even).
-    let mut ws = WindowSpectra::new();
     let fmax = (2.5 * kv).min(fs / 2.0);
-    let band = (0.5, fmax);
-    let mut spectra = Vec::new();
-    for sig in [&tr.motor_velocity, &tr.current] {
-        let s = ws.band(&tr.t_s[w.start..w.end], &sig[w.start..w.end], band);
-        let pts: Vec<(f64, f64)> = s
-            .band
-            .iter()
-            .enumerate()
-            .map(|(i, a)| (s.first_hz + i as f64 * s.resolution_hz, *a))
-            .filter(|(f, _)| *f <= fmax)
-            .collect();
-        spectra.push(pts);
-    }
+    let spectra = window_spectra(tr, w, fmax);
     let unit = unit_text(&tr.position_unit);
     // No current panel when the trace has no current (a capture without it).
     let panels = if has_signal(&tr.current[w.start..w.end]) {
@@ -277,56 +269,17 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
                 .x_desc("frequency, Hz")
                 .y_desc(labels[k].as_str())
                 .draw()?;
-            let band = RGBColor(255, 230, 150).mix(0.5).filled();
-            c.draw_series(std::iter::once(Rectangle::new(
-                [(kv / 4.0, 0.0), (kv, hi)],
-                band,
-            )))?
-            .label("band k_v/4 .. k_v (paper)")
-            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], band));
-            let green = RGBColor(0, 150, 0);
-            c.draw_series(LineSeries::new(
-                [(0.6 * kv, 0.0), (0.6 * kv, hi)],
-                ShapeStyle::from(&green).stroke_width(1),
-            ))?
-            .label("0.6 k_v (paper's fit)")
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], green));
+            draw_paper_band(&mut c, kv, hi)?;
             c.draw_series(LineSeries::new(pts.iter().copied(), &BLUE))?
                 .label("spectrum")
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-            let f = if k == 0 { w.speed_hz } else { w.current_hz };
-            if let Some(f) = f {
-                let a = if k == 0 {
-                    w.speed_amplitude
-                } else {
-                    w.current_amplitude
-                };
-                // A line outside the band is no limit cycle of the paper's kind (often a
-                // harmonic of it in the current): said so, in another colour.
-                let (label, col) = if f > kv / 4.0 && f < kv {
-                    ("fundamental found", RED)
-                } else {
-                    ("strongest line, outside the band", RGBColor(230, 120, 0))
-                };
-                c.draw_series(std::iter::once(Circle::new((f, a), 5, col.filled())))?
-                    .label(label)
-                    .legend(move |(x, y)| Circle::new((x + 10, y), 5, col.filled()));
-                // Right of the peak, inside the frame (left of it near the right edge).
-                let right = f < 0.8 * fmax;
-                let pos = plotters::style::text_anchor::Pos::new(
-                    if right {
-                        plotters::style::text_anchor::HPos::Left
-                    } else {
-                        plotters::style::text_anchor::HPos::Right
-                    },
-                    plotters::style::text_anchor::VPos::Center,
-                );
-                let dx = if right { 0.015 } else { -0.015 } * fmax;
-                c.draw_series(std::iter::once(Text::new(
-                    format!("{f:.2} Hz"),
-                    (f + dx, a),
-                    ("sans-serif", 16).into_font().color(&BLACK).pos(pos),
-                )))?;
+            let peak = if k == 0 {
+                w.speed_hz.map(|f| (f, w.speed_amplitude))
+            } else {
+                w.current_hz.map(|f| (f, w.current_amplitude))
+            };
+            if let Some(peak) = peak {
+                mark_peak(&mut c, peak, kv, fmax)?;
             }
             c.configure_series_labels()
                 .position(SeriesLabelPosition::UpperRight)
@@ -338,6 +291,76 @@ pub fn plot_spectrum(path: &Path, tr: &AxisTrace, w: &WindowResult, kv: f64) -> 
         Ok(())
     };
     draw().map_err(err)
+}
+
+/// The detector's own spectra of the window's motor speed and current, up to `fmax`, Hz: on
+/// the samples' times (the FFT where they are even), as (frequency Hz, amplitude) points.
+fn window_spectra(tr: &AxisTrace, w: &WindowResult, fmax: f64) -> Vec<Vec<(f64, f64)>> {
+    let mut ws = WindowSpectra::new();
+    let band = (0.5, fmax);
+    let mut spectra = Vec::new();
+    for sig in [&tr.motor_velocity, &tr.current] {
+        let s = ws.band(&tr.t_s[w.start..w.end], &sig[w.start..w.end], band);
+        let pts: Vec<(f64, f64)> = s
+            .band
+            .iter()
+            .enumerate()
+            .map(|(i, a)| (s.first_hz + i as f64 * s.resolution_hz, *a))
+            .filter(|(f, _)| *f <= fmax)
+            .collect();
+        spectra.push(pts);
+    }
+    spectra
+}
+
+/// The paper's band k_v/4 .. k_v shaded and its fit 0.6 k_v marked, up to amplitude `hi`.
+fn draw_paper_band(c: &mut SpectrumChart, kv: f64, hi: f64) -> Result<(), DynErr> {
+    let band = RGBColor(255, 230, 150).mix(0.5).filled();
+    c.draw_series(std::iter::once(Rectangle::new(
+        [(kv / 4.0, 0.0), (kv, hi)],
+        band,
+    )))?
+    .label("band k_v/4 .. k_v (paper)")
+    .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], band));
+    let green = RGBColor(0, 150, 0);
+    c.draw_series(LineSeries::new(
+        [(0.6 * kv, 0.0), (0.6 * kv, hi)],
+        ShapeStyle::from(&green).stroke_width(1),
+    ))?
+    .label("0.6 k_v (paper's fit)")
+    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], green));
+    Ok(())
+}
+
+/// The window's strongest line `(f Hz, amplitude)`, labelled with its frequency.
+fn mark_peak(c: &mut SpectrumChart, (f, a): (f64, f64), kv: f64, fmax: f64) -> Result<(), DynErr> {
+    // A line outside the band is no limit cycle of the paper's kind (often a
+    // harmonic of it in the current): said so, in another colour.
+    let (label, col) = if f > kv / 4.0 && f < kv {
+        ("fundamental found", RED)
+    } else {
+        ("strongest line, outside the band", RGBColor(230, 120, 0))
+    };
+    c.draw_series(std::iter::once(Circle::new((f, a), 5, col.filled())))?
+        .label(label)
+        .legend(move |(x, y)| Circle::new((x + 10, y), 5, col.filled()));
+    // Right of the peak, inside the frame (left of it near the right edge).
+    let right = f < 0.8 * fmax;
+    let pos = plotters::style::text_anchor::Pos::new(
+        if right {
+            plotters::style::text_anchor::HPos::Left
+        } else {
+            plotters::style::text_anchor::HPos::Right
+        },
+        plotters::style::text_anchor::VPos::Center,
+    );
+    let dx = if right { 0.015 } else { -0.015 } * fmax;
+    c.draw_series(std::iter::once(Text::new(
+        format!("{f:.2} Hz"),
+        (f + dx, a),
+        ("sans-serif", 16).into_font().color(&BLACK).pos(pos),
+    )))?;
+    Ok(())
 }
 
 /// Displacement amplitude per window over time, with the thresholds, and optionally a
@@ -387,7 +410,7 @@ pub fn plot_amplitude_trend(
             .x_desc("scenario time, min")
             .y_desc(format!("displacement amplitude, {unit}"))
             .draw()?;
-        use crate::analysis::detector::Verdict;
+        use crate::detector::Verdict;
         let orange = RGBColor(230, 140, 0);
         let colour = |v: Verdict| match v {
             Verdict::Inconclusive => RGBColor(128, 128, 128),

@@ -26,7 +26,8 @@
 //! cycle, with its own delays, is not the drive's cascade the calibration is of). docs/scenarios.md ("How large is the gap") gives the method and its
 //! error over the sweep (`emulator/tests/gap_estimate.rs`).
 
-use super::detector::{median, AxisTrace, Verdict, WindowResult};
+use crate::axis_trace::AxisTrace;
+use crate::verdict::{median, Verdict, WindowResult};
 
 /// A measure over the gap as a function of the limit cycle's frequency f (Hz):
 /// `a + c_per_hz2 f^2`.
@@ -108,7 +109,10 @@ pub enum CurrentUnit {
 impl GapModel {
     /// The model of a configured axis (a preset with its overrides), for a trace whose current
     /// is in `current`.
-    pub fn for_axis(cfg: &crate::presets::AxisConfig, current: CurrentUnit) -> Option<Self> {
+    pub fn for_axis(
+        cfg: &drive_physics::presets::AxisConfig,
+        current: CurrentUnit,
+    ) -> Option<Self> {
         let built = cfg.build().ok()?;
         let mech = &built.axis.mech;
         let motor = &built.axis.motor;

@@ -7,7 +7,7 @@
 //! 1. fundamental of the motor speed and of the motor current in a search band wider than the
 //!    paper's (k_v/8 .. 2 k_v, below Nyquist/1.25), so a peak outside the band is seen and
 //!    rejected rather than missed; on the samples' own times
-//!    ([`super::spectrum::WindowSpectra`]: the FFT where they are even, a weighted
+//!    ([`crate::spectrum::WindowSpectra`]: the FFT where they are even, a weighted
 //!    least-squares sine fit where SYNCs came late or were lost, with its limits there);
 //! 2. displacement-equivalent amplitude of the speed fluctuation, `x = A_v / (2 pi f)` (um or
 //!    mdeg: the trace's position unit), and the peak's prominence over the band's median;
@@ -27,236 +27,15 @@
 //! constant on average, else a line of the set-point against the samples' own time stamps;
 //! then the same with stalled SYNCs bridged where the position went on along its line.
 
-use super::gap::{BacklashEstimate, GapModel};
-use super::spectrum::{uniform_interval, WindowSpectra};
-use super::windows::{Window, WindowOptions};
-use crate::samples::{Sample, SampleSource};
+use crate::gap::{BacklashEstimate, GapModel};
+use crate::spectrum::{uniform_interval, WindowSpectra};
+use crate::windows::{Window, WindowOptions};
 
-/// A trace as the detector needs it. Positions in one unit `u` (um for a linear axis, mdeg for a
-/// rotary one: the master's user units), velocities in u/s, current in any unit (per mille of
-/// rated current for the master's log, A for the simulator's trace).
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct AxisTrace {
-    pub t_s: Vec<f64>,
-    pub set_velocity: Vec<f64>,
-    pub motor_velocity: Vec<f64>,
-    pub current: Vec<f64>,
-    pub motor_position: Vec<f64>,
-    pub direct_position: Vec<f64>,
-    /// Unit names for reports, e.g. ("um", "permille").
-    pub position_unit: String,
-    pub current_unit: String,
-    /// Where `set_velocity` came from, for the report (e.g. "0x607A target position (CSP,
-    /// RPDO)"); empty: "set velocity column".
-    pub set_velocity_source: String,
-    /// The position set-point per sample as the master sent it (CSP targets, the integral of
-    /// CSV/PV target velocities, a demand column), position unit, with its jitter, gaps and
-    /// duplicates; NaN where none is in force; empty when the trace has none. Used to find
-    /// constant speed on average where the set-points jitter, and to tell a line the
-    /// set-point forces from the axis's own.
-    pub set_position: Vec<f64>,
-    /// How `t_s` was had, for the report (a capture: its SYNC time stamps or the SYNC count,
-    /// and why); empty: the trace's time column.
-    pub time_base: String,
-}
-
-impl AxisTrace {
-    pub fn len(&self) -> usize {
-        self.t_s.len()
-    }
-    pub fn is_empty(&self) -> bool {
-        self.t_s.is_empty()
-    }
-    /// Check that every column has the same length.
-    pub fn check(&self) -> Result<(), String> {
-        let n = self.t_s.len();
-        for (name, c) in [
-            ("set_velocity", &self.set_velocity),
-            ("motor_velocity", &self.motor_velocity),
-            ("current", &self.current),
-            ("motor_position", &self.motor_position),
-            ("direct_position", &self.direct_position),
-        ] {
-            if c.len() != n {
-                return Err(format!(
-                    "column {name} has {} samples, time has {n}",
-                    c.len()
-                ));
-            }
-        }
-        if !self.set_position.is_empty() && self.set_position.len() != n {
-            return Err(format!(
-                "column set_position has {} samples, time has {n}",
-                self.set_position.len()
-            ));
-        }
-        Ok(())
-    }
-}
-
-impl AxisTrace {
-    /// From the simulator's trace (`analysis::Trace`, axis units mm or deg): positions to user
-    /// units (um / mdeg), set velocity from the set-point, motor velocity from the motor
-    /// speed (rpm) scaled by the kinematic ratio estimated from the motor-encoder position.
-    pub fn from_sim(
-        t_s: &[f64],
-        setpoint: &[f64],
-        motor_position: &[f64],
-        direct_position: &[f64],
-        motor_rpm: &[f64],
-        current_a: &[f64],
-        rotary: bool,
-    ) -> Self {
-        let n = t_s.len();
-        let uu = |v: &[f64]| v.iter().map(|x| x * 1000.0).collect::<Vec<_>>();
-        let deriv = |x: &[f64]| {
-            let mut d = vec![0.0; n];
-            for i in 1..n {
-                let dt = t_s[i] - t_s[i - 1];
-                d[i] = if dt > 0.0 {
-                    (x[i] - x[i - 1]) / dt
-                } else {
-                    d[i - 1]
-                };
-            }
-            if n > 1 {
-                d[0] = d[1];
-            }
-            d
-        };
-        let motor_position = uu(motor_position);
-        let set_position = uu(setpoint);
-        let set_velocity: Vec<f64> = deriv(&set_position)
-            .into_iter()
-            // The set-point is stored with finite precision: round the noise away so constant
-            // segments are exactly constant.
-            .map(|v| (v * 1e3).round() / 1e3)
-            .collect();
-        let mv = deriv(&motor_position);
-        let (sa, sb): (f64, f64) = mv
-            .iter()
-            .zip(motor_rpm)
-            .filter(|(_, r)| r.abs() > 1e-9)
-            .fold((0.0, 0.0), |(a, b), (v, r)| (a + v * r, b + r * r));
-        let k = if sb > 0.0 { sa / sb } else { 0.0 };
-        Self {
-            t_s: t_s.to_vec(),
-            set_velocity,
-            motor_velocity: motor_rpm.iter().map(|r| r * k).collect(),
-            current: current_a.to_vec(),
-            motor_position,
-            direct_position: uu(direct_position),
-            position_unit: if rotary { "mdeg" } else { "um" }.into(),
-            current_unit: "A".into(),
-            set_velocity_source: "derivative of the position set-point".into(),
-            set_position,
-            time_base: String::new(),
-        }
-    }
-
-    /// From a sample log (user units, per mille current), read by who wrote it: the set
-    /// velocity is the master's interpolator velocity ([`SampleSource::Master`]). A drive has
-    /// none to report in a position mode (its 0x606B is the position controller's output,
-    /// which carries the limit cycle), so for [`SampleSource::Drive`] (`run --trace`, live
-    /// scenarios: [`crate::runtime::trace::node_sample`]) it is derived from the position
-    /// demand `target_uu` (0x6062); in a velocity mode (CSV, PV: mode display 9 or 3) 0x606B is
-    /// the commanded velocity itself (0x60FF, or PV's ramp), and the set position its integral.
-    pub fn from_sample_log(samples: &[Sample], source: SampleSource, rotary: bool) -> Self {
-        Self::from_sample_rows(samples.len(), |k| samples[k], source, rotary)
-    }
-
-    /// [`AxisTrace::from_sample_log`] of `n` samples that `row` gives by index (`analyze`
-    /// reads a CSV sample log by columns, without a copy of it as samples).
-    pub fn from_sample_rows(
-        n: usize,
-        row: impl Fn(usize) -> Sample,
-        source: SampleSource,
-        rotary: bool,
-    ) -> Self {
-        let t_s: Vec<f64> = (0..n).map(|k| row(k).t_s).collect();
-        let demand: Vec<f64> = (0..n).map(|k| row(k).target_uu).collect();
-        let (set_velocity, set_position, set_velocity_source) = match source {
-            SampleSource::Master => (
-                (0..n).map(|k| row(k).setpoint_velocity_uu_s).collect(),
-                demand,
-                "the master's interpolator velocity".to_string(),
-            ),
-            SampleSource::Drive => {
-                let from_demand = super::windows::set_velocity_from_demand(
-                    &t_s,
-                    &demand,
-                    super::windows::DEMAND_SPAN_S,
-                );
-                drop(demand);
-                let velocity_mode = |s: &Sample| matches!(s.mode_display, 3 | 9);
-                let (mut v, mut sp) = (Vec::with_capacity(n), Vec::new());
-                let mut x = f64::NAN;
-                let mut any_velocity_mode = false;
-                for k in 0..n {
-                    let s = row(k);
-                    if velocity_mode(&s) {
-                        any_velocity_mode = true;
-                        let dt = if k > 0 { t_s[k] - t_s[k - 1] } else { 0.0 };
-                        x = if x.is_finite() { x } else { s.target_uu }
-                            + s.setpoint_velocity_uu_s * dt;
-                        v.push(s.setpoint_velocity_uu_s);
-                        sp.push(x);
-                    } else {
-                        x = f64::NAN;
-                        v.push(from_demand[k]);
-                        sp.push(s.target_uu);
-                    }
-                }
-                let text = if any_velocity_mode {
-                    "position demand 0x6062; in CSV/PV velocity demand 0x606B"
-                } else {
-                    "position demand 0x6062"
-                };
-                (v, sp, text.to_string())
-            }
-        };
-        Self {
-            t_s,
-            set_velocity,
-            motor_velocity: (0..n).map(|k| f64::from(row(k).velocity_uu_s)).collect(),
-            current: (0..n).map(|k| f64::from(row(k).current_permille)).collect(),
-            motor_position: (0..n).map(|k| f64::from(row(k).position_uu)).collect(),
-            direct_position: (0..n)
-                .map(|k| f64::from(row(k).direct_position_uu))
-                .collect(),
-            position_unit: if rotary { "mdeg" } else { "um" }.into(),
-            current_unit: "permille".into(),
-            set_velocity_source,
-            set_position,
-            time_base: String::new(),
-        }
-    }
-}
-
-/// Detector verdict.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "snake_case")]
-pub enum Verdict {
-    /// Nothing could be measured (no usable constant-speed window): never "ok". Only a
-    /// report's verdict, never a window's level.
-    Inconclusive,
-    Ok,
-    BacklashSuspected,
-    Backlash,
-}
-
-impl Verdict {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Verdict::Inconclusive => "inconclusive",
-            Verdict::Ok => "ok",
-            Verdict::BacklashSuspected => "backlash_suspected",
-            Verdict::Backlash => "backlash",
-        }
-    }
-}
+// The trace the detector reads and what it finds per window are modules of their own below
+// the gap estimate (which reads them too): re-exported here under their old paths.
+pub use crate::axis_trace::AxisTrace;
+pub(crate) use crate::verdict::median;
+pub use crate::verdict::{LoopFit, Verdict, WindowResult};
 
 /// Detector settings.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -299,68 +78,6 @@ impl DetectorConfig {
             (2.0 * self.kv_per_s).min(sample_rate_hz / 2.5),
         )
     }
-}
-
-/// The analysis of one window.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct WindowResult {
-    pub t_start_s: f64,
-    pub t_end_s: f64,
-    pub start: usize,
-    pub end: usize,
-    pub set_velocity: f64,
-    /// Fundamental of the motor speed, Hz, and its amplitude (zero-to-peak, u/s).
-    pub speed_hz: Option<f64>,
-    pub speed_amplitude: f64,
-    /// Fundamental of the motor current, Hz, and its amplitude (current unit).
-    pub current_hz: Option<f64>,
-    pub current_amplitude: f64,
-    /// Displacement-equivalent amplitude of the speed fluctuation, position unit.
-    pub displacement_amplitude: f64,
-    pub prominence: f64,
-    pub in_band: bool,
-    /// Speed and current peaks agree within 10 %.
-    pub current_agrees: bool,
-    /// Mean and half peak-to-peak of motor minus direct position.
-    pub encoder_difference_mean: f64,
-    pub encoder_difference_half_pp: f64,
-    pub level: Verdict,
-    /// Why the window got its level: frequency against the band, prominence, amplitude
-    /// against the thresholds.
-    pub reason: String,
-    /// The set-point's own strongest line in the search band, as a displacement (NaN: the
-    /// trace has no set position), position unit.
-    pub set_point_amplitude: f64,
-    /// The speed's line reaches the suspect level, and the set-point itself moves in the
-    /// search band by the suspect level and by half that line or more (set-points that jitter
-    /// by a good part of a period, or a set-point task that beats with SYNC): the axis is
-    /// forced, its own line cannot be told apart. Such a window measures nothing.
-    pub forced: bool,
-    /// The axis did not follow the set speed: the mean motor speed in the window is off the
-    /// set speed by more than half (a drive in fault, disabled, or in another mode). Such a
-    /// window measures nothing either.
-    pub not_following: bool,
-    /// The set-point follows the axis: the master closes the position loop itself
-    /// ([`fit_master_loop`]). Its motion is then the loop's answer to the axis, not a force
-    /// from outside: the window is measured, against the master's k_v.
-    pub master_loop: Option<LoopFit>,
-}
-
-/// The master's own position loop, fitted from one window: the set velocity (the derivative
-/// of the set position the master sent) against the position it had from the drive,
-/// `v_set(t) = v0 + a t - k x(t - lag)` (`v0 + a t` stands for its reference `k x_ref(t)`
-/// and feed-forward at constant speed).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct LoopFit {
-    /// The master's gain k, 1/s.
-    pub kv_per_s: f64,
-    /// How long before the set-point the position it answers was sampled, s (whole
-    /// set-point periods).
-    pub lag_s: f64,
-    /// "direct" (the direct-encoder column, 0x60E4) or "motor" (0x6064).
-    pub encoder: &'static str,
-    /// Share of the set velocity's variation (beyond its trend) the position explains.
-    pub explained: f64,
 }
 
 /// The master's position loop as the report gives it: the median of the windows' fits.
@@ -576,20 +293,6 @@ pub struct DetectorReport {
     pub master_loop: Option<MasterLoop>,
 }
 
-/// The median of `v` (sorted in place); `None` when empty.
-pub(crate) fn median(v: &mut [f64]) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    })
-}
-
 /// Least-squares slope of y over x.
 fn slope(x: &[f64], y: &[f64]) -> Option<f64> {
     if x.len() < 2 {
@@ -703,7 +406,7 @@ pub fn analyze_window(
 }
 
 /// The line's amplitude over the median amplitude of the search band's grid (`band`, the
-/// amplitudes of a [`BandSpectrum`](super::spectrum::BandSpectrum)): how far the line stands
+/// amplitudes of a [`BandSpectrum`](crate::spectrum::BandSpectrum)): how far the line stands
 /// out of the noise.
 fn line_prominence(amplitude: f64, band: &[f64]) -> f64 {
     let mut m: Vec<f64> = band.to_vec();
@@ -721,7 +424,7 @@ fn encoder_difference(trace: &AxisTrace, w: &Window) -> (f64, f64) {
         .map(|i| trace.motor_position[i] - trace.direct_position[i])
         .collect();
     let mean = diff.iter().sum::<f64>() / w.len().max(1) as f64;
-    (mean, super::spectrum::half_peak_to_peak(&diff))
+    (mean, crate::spectrum::half_peak_to_peak(&diff))
 }
 
 /// The level a measured window's speed line earns, and why: none, outside k_v/4..k_v, not
@@ -907,14 +610,14 @@ struct Found {
 }
 
 /// The windows of a trace: stretches of exactly constant set speed; else, where the
-/// set-points jitter, constant on average ([`super::windows::set_velocity_on_average`]);
+/// set-points jitter, constant on average ([`crate::windows::set_velocity_on_average`]);
 /// else a line of the set position against the samples' times
-/// ([`super::windows::set_velocity_by_line`]). Where none of these gives a window, the same
+/// ([`crate::windows::set_velocity_by_line`]). Where none of these gives a window, the same
 /// again with silences bridged where the position advanced as the speed says
-/// ([`super::windows::scan_windows_bridging`]: the set position, or where there is none the
+/// ([`crate::windows::scan_windows_bridging`]: the set position, or where there is none the
 /// direct encoder's).
-fn find_windows(trace: &AxisTrace, wo: &WindowOptions) -> (super::windows::WindowScan, Found) {
-    use super::windows::{scan_windows_bridging, set_velocity_by_line, set_velocity_on_average};
+fn find_windows(trace: &AxisTrace, wo: &WindowOptions) -> (crate::windows::WindowScan, Found) {
+    use crate::windows::{scan_windows_bridging, set_velocity_by_line, set_velocity_on_average};
     let has_set_position = trace.set_position.iter().any(|x| x.is_finite());
     let mut first = None;
     for bridged in [false, true] {
@@ -989,40 +692,62 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
         .partition(|r| r.forced || r.not_following);
     let mut rep = summarize(results, trace, cfg);
     if let Some(m) = master_loop {
-        rep.master_loop = Some(m);
-        let at = usize::from(!rep.reasons.is_empty());
-        rep.reasons.insert(
-            at,
-            format!(
-                "the set-point follows the axis: the master closes the position loop itself \
-                 (v_set = v0 + k (x_cmd - x) fits with k = {:.2} 1/s on the {} position, {:.1} \
-                 ms late, explaining {:.0} % of the set velocity's variation, in {} of {} \
-                 windows): the limit cycle is its loop's, judged against its k (band \
-                 {:.2}..{:.2} Hz)",
-                m.kv_per_s,
-                m.encoder,
-                m.lag_s * 1e3,
-                m.explained * 100.0,
-                m.windows,
-                m.of_windows,
-                m.kv_per_s / 4.0,
-                m.kv_per_s
-            ),
-        );
+        note_master_loop(&mut rep, m);
     }
+    note_window_source(&mut rep, found, &wo);
+    note_forced(&mut rep, &forced, trace);
+    if rep.windows.is_empty() {
+        let (why, text) = why_inconclusive(trace, cfg, &forced, non_finite, &scan, &rep);
+        rep.mark_inconclusive(why, text);
+    } else if non_finite > 0 {
+        rep.reasons.push(format!(
+            "{non_finite} windows skipped: non-finite motor-speed samples (NaN or infinite)"
+        ));
+    }
+    rep
+}
+
+/// The master closes the position loop itself: the report says so (its second reason, after
+/// the verdict's own) and gives its loop.
+fn note_master_loop(rep: &mut DetectorReport, m: MasterLoop) {
+    rep.master_loop = Some(m);
+    let at = usize::from(!rep.reasons.is_empty());
+    rep.reasons.insert(
+        at,
+        format!(
+            "the set-point follows the axis: the master closes the position loop itself \
+             (v_set = v0 + k (x_cmd - x) fits with k = {:.2} 1/s on the {} position, {:.1} \
+             ms late, explaining {:.0} % of the set velocity's variation, in {} of {} \
+             windows): the limit cycle is its loop's, judged against its k (band \
+             {:.2}..{:.2} Hz)",
+            m.kv_per_s,
+            m.encoder,
+            m.lag_s * 1e3,
+            m.explained * 100.0,
+            m.windows,
+            m.of_windows,
+            m.kv_per_s / 4.0,
+            m.kv_per_s
+        ),
+    );
+}
+
+/// How the windows were found, beyond exactly constant set-points: bridged silences, constant
+/// on average, a line against the time stamps.
+fn note_window_source(rep: &mut DetectorReport, found: Found, wo: &WindowOptions) {
     if found.bridged {
         rep.window_source.push_str(&format!(
             "; silences longer than {:.3} s bridged (up to {} s) where the position advanced \
              as the set speed says (SYNCs that stalled)",
             wo.max_gap_s.unwrap_or(0.0),
-            super::windows::MAX_BRIDGE_S
+            crate::windows::MAX_BRIDGE_S
         ));
     }
     if found.how == FoundBy::Average {
         rep.window_source.push_str(&format!(
             "; constant on average over {} s (the set-points jitter: no stretch of exactly \
              constant set speed)",
-            super::windows::AVERAGE_SPAN_S
+            crate::windows::AVERAGE_SPAN_S
         ));
     }
     if found.how == FoundBy::Line {
@@ -1030,13 +755,18 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
             "; constant where the set-point against the samples' time stamps is a line (blocks \
              of {} s, rms residual <= {} s of travel or {} units; the increments per SYNC are \
              uneven)",
-            super::windows::LINE_BLOCK_S,
-            super::windows::LINE_RESIDUAL_S,
-            super::windows::LINE_RESIDUAL_UNITS
+            crate::windows::LINE_BLOCK_S,
+            crate::windows::LINE_RESIDUAL_S,
+            crate::windows::LINE_RESIDUAL_UNITS
         ));
     }
-    rep.forced_windows.clone_from(&forced);
-    for r in &forced {
+}
+
+/// The windows that measure nothing (forced by the set-point, or the axis not following),
+/// each with its reason.
+fn note_forced(rep: &mut DetectorReport, forced: &[WindowResult], trace: &AxisTrace) {
+    rep.forced_windows = forced.to_vec();
+    for r in forced {
         rep.reasons.push(format!(
             "window {:.2}..{:.2} s at {:.1} {}/s: {}",
             r.t_start_s,
@@ -1046,70 +776,76 @@ pub fn analyze(trace: &AxisTrace, cfg: &DetectorConfig) -> DetectorReport {
             r.reason
         ));
     }
-    let o = &cfg.windows;
-    let need = format!(
-        "a window needs {:.1} s of settling plus {:.1} s at constant set speed (|v| >= {} {}/s)",
-        o.settle_s,
-        o.min_len_s,
-        o.min_speed,
-        unit_text(&trace.position_unit)
-    );
-    if rep.windows.is_empty() {
-        let any_finite = trace.motor_velocity.iter().any(|v| v.is_finite());
-        let (why, text) = if !forced.is_empty() && forced.iter().all(|r| !r.forced) {
-            (
-                Inconclusive::AxisNotFollowing,
+}
+
+/// Why no window measured anything, and the sentence that says it.
+fn why_inconclusive(
+    trace: &AxisTrace,
+    cfg: &DetectorConfig,
+    forced: &[WindowResult],
+    non_finite: usize,
+    scan: &crate::windows::WindowScan,
+    rep: &DetectorReport,
+) -> (Inconclusive, String) {
+    let any_finite = trace.motor_velocity.iter().any(|v| v.is_finite());
+    if !forced.is_empty() && forced.iter().all(|r| !r.forced) {
+        (
+            Inconclusive::AxisNotFollowing,
+            format!(
+                "in all {} constant-speed windows the axis did not follow the set speed \
+                 (a drive in fault, disabled or in another mode)",
+                forced.len()
+            ),
+        )
+    } else if !forced.is_empty() {
+        (
+            Inconclusive::SetPointNotConstant,
+            format!(
+                "in all {} constant-speed windows the set-point itself moves in the search \
+                 band by the suspect level or more: the axis was forced by the master's \
+                 set-point timing, its own vibration cannot be told apart",
+                forced.len()
+            ),
+        )
+    } else if !any_finite || non_finite > 0 {
+        (
+            Inconclusive::NoFiniteSamples,
+            if any_finite {
+                format!("all {non_finite} constant-speed windows hold non-finite motor-speed samples (NaN or infinite)")
+            } else {
                 format!(
-                    "in all {} constant-speed windows the axis did not follow the set speed \
-                     (a drive in fault, disabled or in another mode)",
-                    forced.len()
-                ),
-            )
-        } else if !forced.is_empty() {
-            (
-                Inconclusive::SetPointNotConstant,
-                format!(
-                    "in all {} constant-speed windows the set-point itself moves in the search \
-                     band by the suspect level or more: the axis was forced by the master's \
-                     set-point timing, its own vibration cannot be told apart",
-                    forced.len()
-                ),
-            )
-        } else if !any_finite || non_finite > 0 {
-            (
-                Inconclusive::NoFiniteSamples,
-                if any_finite {
-                    format!("all {non_finite} constant-speed windows hold non-finite motor-speed samples (NaN or infinite)")
-                } else {
-                    format!("no finite motor-speed sample in the trace ({} samples, all NaN or infinite)", trace.len())
-                },
-            )
-        } else if scan.runs == 0 {
-            (
-                Inconclusive::NoConstantSpeed,
-                format!(
-                    "no constant set speed anywhere in the trace ({} samples, {:.2} s; set speed from {})",
-                    trace.len(),
-                    trace.t_s.last().copied().unwrap_or(0.0) - trace.t_s.first().copied().unwrap_or(0.0),
-                    rep.window_source
-                ),
-            )
-        } else {
-            (
-                Inconclusive::TooShort,
-                format!(
-                    "{} constant-speed stretches, the longest {:.2} s: too short ({need})",
-                    scan.runs, scan.longest_run_s
-                ),
-            )
-        };
-        rep.mark_inconclusive(why, text);
-    } else if non_finite > 0 {
-        rep.reasons.push(format!(
-            "{non_finite} windows skipped: non-finite motor-speed samples (NaN or infinite)"
-        ));
+                    "no finite motor-speed sample in the trace ({} samples, all NaN or infinite)",
+                    trace.len()
+                )
+            },
+        )
+    } else if scan.runs == 0 {
+        (
+            Inconclusive::NoConstantSpeed,
+            format!(
+                "no constant set speed anywhere in the trace ({} samples, {:.2} s; set speed from {})",
+                trace.len(),
+                trace.t_s.last().copied().unwrap_or(0.0) - trace.t_s.first().copied().unwrap_or(0.0),
+                rep.window_source
+            ),
+        )
+    } else {
+        let o = &cfg.windows;
+        let need = format!(
+            "a window needs {:.1} s of settling plus {:.1} s at constant set speed (|v| >= {} {}/s)",
+            o.settle_s,
+            o.min_len_s,
+            o.min_speed,
+            unit_text(&trace.position_unit)
+        );
+        (
+            Inconclusive::TooShort,
+            format!(
+                "{} constant-speed stretches, the longest {:.2} s: too short ({need})",
+                scan.runs, scan.longest_run_s
+            ),
+        )
     }
-    rep
 }
 
 impl DetectorReport {
@@ -1208,7 +944,7 @@ fn summarize(
     let lost_motion = lost_motion(trace, &results);
     let backlash_estimate = BacklashEstimate {
         rotary: trace.position_unit == "mdeg",
-        estimate: super::gap::estimate(trace, &results, verdict, cfg.gap.as_ref()),
+        estimate: crate::gap::estimate(trace, &results, verdict, cfg.gap.as_ref()),
     };
     let mut reasons = reasons;
     if backlash_estimate.estimate.is_some() {
@@ -1358,7 +1094,7 @@ fn unit_text(unit: &str) -> &str {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::windows::scan_windows;
+    use crate::windows::scan_windows;
 
     /// A synthetic cruise with a limit cycle of displacement amplitude `x` at `f` Hz.
     fn synth(x: f64, f: f64, secs: f64) -> AxisTrace {
@@ -1427,10 +1163,10 @@ mod tests {
             tr.direct_position.push(p);
         }
         tr.position_unit = "um".into();
-        tr.set_velocity = super::super::windows::set_velocity_from_demand(
+        tr.set_velocity = crate::windows::set_velocity_from_demand(
             &tr.t_s,
             &tr.set_position,
-            super::super::windows::DEMAND_SPAN_S,
+            crate::windows::DEMAND_SPAN_S,
         );
         tr
     }
@@ -1558,10 +1294,10 @@ mod tests {
             k += 1;
         }
         tr.position_unit = "um".into();
-        tr.set_velocity = super::super::windows::set_velocity_from_demand(
+        tr.set_velocity = crate::windows::set_velocity_from_demand(
             &tr.t_s,
             &tr.set_position,
-            super::super::windows::DEMAND_SPAN_S,
+            crate::windows::DEMAND_SPAN_S,
         );
         tr
     }

@@ -217,11 +217,11 @@ pub fn set_velocity_from_demand(t: &[f64], demand: &[f64], span_s: f64) -> Vec<f
     piecewise_constant_velocity(t, &demand, span_s, 5e-3, 2.0)
 }
 
-/// Whether `t` is evenly sampled ([`super::spectrum::uniform_interval`]): the glitch repairs
+/// Whether `t` is evenly sampled ([`crate::spectrum::uniform_interval`]): the glitch repairs
 /// here are for a time base that counts samples, where a lost or late one shows as a step of
 /// the wrong size; on a capture's own time stamps it shows as an interval of another length.
 fn evenly_sampled(t: &[f64]) -> bool {
-    super::spectrum::uniform_interval(t).0
+    crate::spectrum::uniform_interval(t).0
 }
 
 /// Span of the derivative in [`set_velocity_from_actual`], s: long against the limit cycle's
