@@ -40,12 +40,10 @@ const SOURCE_DIRS: &[&str] = &[
 /// but split, or given its `long-fn:` reason (at most [`MAX_LONG_FNS`]).
 const PENDING: &[(&str, &str)] = &[
     ("emulator/src/scenario/expect.rs", "check"),
-    ("emulator/src/cli/run.rs", "run_ethercat"),
     ("emulator/src/master/mod.rs", "run_step"),
     ("emulator/src/analysis/ballbar/capture.rs", "from_capture"),
     ("emulator/src/analysis/detector.rs", "analyze"),
     ("emulator/src/api/analyze.rs", "analyze_request"),
-    ("emulator/src/cli/run.rs", "run_live"),
     ("emulator/src/report/ballbar.rs", "polar_plot"),
     ("ethercat/src/slave.rs", "add_coe_objects"),
     ("emulator/src/study/figures.rs", "fig_outer_loop"),
@@ -59,7 +57,6 @@ const PENDING_CIRCLES: &[&str] = &[
     "emulator/src: {analysis/detector, analysis/gap}",
     "emulator/src: {cli/analyze, cli/analyze_ballbar, cli/exit}",
     "emulator/src: {cli/demo, cli/demo_panel}",
-    "emulator/src: {scenario/live, scenario/runner}",
 ];
 
 fn workspace() -> PathBuf {

@@ -7,10 +7,12 @@ use crate::drive::axis_drive::AxisDrive;
 use crate::drive::machine::{self, AxisEntry, MachineFile};
 use crate::drive::vendor::{self, VendorEds};
 use crate::drive::{node_setup, NodeOptions};
-use crate::monitor::{AxisFacts, DetectOptions, DetectTap, Detector};
+use crate::monitor::{AxisFacts, DetectOptions, DetectResults, Detector};
+use crate::observe::trace::Recorder;
+use crate::observe::{AxisSnapshot, Observation, Observer};
 use crate::presets::AxisConfig;
 use crate::runtime::realtime::{self, RealtimeRequest};
-use crate::runtime::trace::{trace_paths, Recorder, TraceTap};
+use crate::runtime::trace::trace_paths;
 use crate::runtime::{AxisSlot, Lockstep, Runtime};
 use crate::scenario::live::{run_timeline, LiveEnd, LiveLink, LiveOutcome, LoopInjector};
 use crate::scenario::Scenario;
@@ -19,7 +21,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 use std::sync::Arc;
 
 #[derive(Args, Debug, Clone)]
@@ -470,18 +472,10 @@ fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
     Ok(m)
 }
 
-/// What the loop thread publishes for the status line, per axis: plain atomics, no locks.
+/// The LSS store service of one axis between the loop and the watch thread: plain atomics,
+/// no locks.
 #[derive(Default)]
-struct AxisStatus {
-    /// The drive train's gap now (f64 bits, m or rad): 0 on a healthy axis.
-    gap_si: AtomicU64,
-    rotary: AtomicBool,
-    node_id: AtomicU64,
-    nmt: AtomicU64,
-    statusword: AtomicU64,
-    mode: AtomicI64,
-    position_uu: AtomicI64,
-    following_error_uu: AtomicI64,
+struct LssSlot {
     /// LSS store configuration to write: 0 none, else `1 << 32 | node_id << 8 | bit timing`.
     lss_store_request: AtomicU64,
     /// Its outcome for the loop: 0 none, 1 written, 2 failed.
@@ -490,67 +484,51 @@ struct AxisStatus {
     lss_activation: AtomicU64,
 }
 
-impl AxisStatus {
-    /// The wear the axis runs with now (`backlash 0.03 mm`), `None` on a healthy axis.
-    fn wear(&self) -> Option<String> {
-        machine::wear_text(
-            f64::from_bits(self.gap_si.load(Ordering::Relaxed)),
-            self.rotary.load(Ordering::Relaxed),
-        )
-    }
+/// The wear an axis runs with now (`backlash 0.03 mm`), `None` on a healthy axis.
+fn wear(a: &AxisSnapshot) -> Option<String> {
+    machine::wear_text(a.gap_si, a.rotary)
 }
 
-#[derive(Default)]
+/// The watch thread's side of the run: the LSS store service and whether every node booted;
+/// what it shows (status line, ready line) it reads from the observation bus.
 struct Status {
-    axes: Vec<AxisStatus>,
-    overruns: AtomicU64,
-    ticks: AtomicU64,
-    sim_time_us: AtomicU64,
-    lockstep_period_us: AtomicU64,
-    link_up: AtomicBool,
-    sync_lock: AtomicU64,
-    sync_phase_error_us: AtomicU64,
-    /// Frames the kernel dropped on the socket's full receive queue.
-    rx_overflows: AtomicU64,
+    axes: Vec<LssSlot>,
+    obs: Arc<Observation>,
+    /// Each axis's wear at power-on, for the ready line (in lock-step no tick has run then).
+    wear_at_boot: Vec<Option<String>>,
     /// Every node has sent its boot-up (power-on boot delay over).
     booted: AtomicBool,
 }
 
-impl Status {
-    /// After every tick (loop thread): what the status line and the ready line show.
-    /// Relaxed atomics only: no allocation, lock or I/O.
-    fn publish(&self, rt: &Runtime<LiveBus, AxisDrive>) {
-        for (a, st) in rt.axes.iter().zip(&self.axes) {
-            let n = &a.node;
-            use drive_protocol::Drive as _;
-            let gap = a.drive.param(crate::drive::objects::AxisParam::Backlash);
-            st.gap_si.store(gap.to_bits(), Ordering::Relaxed);
-            st.rotary.store(a.drive.info().rotary, Ordering::Relaxed);
-            st.node_id.store(u64::from(n.node_id()), Ordering::Relaxed);
-            st.nmt.store(n.nmt_state() as u64, Ordering::Relaxed);
-            st.statusword
-                .store(u64::from(n.statusword()), Ordering::Relaxed);
-            st.mode.store(i64::from(n.mode()), Ordering::Relaxed);
-            st.position_uu
-                .store(i64::from(n.position_actual()), Ordering::Relaxed);
-            st.following_error_uu
-                .store(n.following_error().round() as i64, Ordering::Relaxed);
-        }
-        self.overruns.store(rt.stats.overruns, Ordering::Relaxed);
-        self.ticks.store(rt.stats.ticks, Ordering::Relaxed);
-        self.sim_time_us.store(rt.sim_time_us, Ordering::Relaxed);
-        self.lockstep_period_us
-            .store(rt.lockstep_period_us, Ordering::Relaxed);
-        self.sync_lock
-            .store(u64::from(rt.stats.sync_lock_state), Ordering::Relaxed);
-        self.sync_phase_error_us
-            .store(rt.stats.sync_phase_error_us, Ordering::Relaxed);
-        self.rx_overflows
-            .store(rt.stats.rx_overflows, Ordering::Relaxed);
-        self.link_up
-            .store(rt.bus.inner().link_up(), Ordering::Relaxed);
-    }
+/// The loop line of the status block, as the observation bus's board has it.
+#[derive(Debug, Default, Clone, Copy)]
+struct LoopLine {
+    sim_time_us: u64,
+    ticks: u64,
+    overruns: u64,
+    sync_lock: u64,
+    sync_phase_error_us: u64,
+    rx_overflows: u64,
+    link_up: bool,
+}
 
+impl LoopLine {
+    fn of(obs: &Observation) -> Self {
+        let b = &obs.board;
+        let ld = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        LoopLine {
+            sim_time_us: ld(&b.sim_time_us),
+            ticks: ld(&b.loop_ticks),
+            overruns: ld(&b.overruns),
+            sync_lock: ld(&b.sync_lock),
+            sync_phase_error_us: ld(&b.sync_phase_error_us),
+            rx_overflows: ld(&b.rx_overflows),
+            link_up: b.link_up.load(Ordering::Relaxed),
+        }
+    }
+}
+
+impl Status {
     /// After every tick (loop thread): hand LSS store requests and bit timing activations
     /// out to the watch thread, and its store outcomes back to the nodes. Atomics only.
     fn lss_exchange<B: crate::bus::CanBus>(&self, rt: &mut Runtime<B, AxisDrive>) {
@@ -580,8 +558,8 @@ impl Status {
     /// Watch thread: write the LSS stores the loop handed out (to `path`; a node asks only
     /// when it has one) and say what the masters did.
     fn lss_service(&self, path: Option<&std::path::Path>) {
-        for st in &self.axes {
-            let node = st.node_id.load(Ordering::Relaxed);
+        for (k, st) in self.axes.iter().enumerate() {
+            let node = self.obs.latest(k).map_or(0, |a| a.node_id);
             let req = st.lss_store_request.swap(0, Ordering::Acquire);
             if req != 0 {
                 let s = drive_protocol::LssStore {
@@ -621,70 +599,71 @@ impl Status {
         }
     }
 
-    fn new(n_axes: usize) -> Self {
+    fn new(obs: Arc<Observation>, wear_at_boot: Vec<Option<String>>) -> Self {
         Self {
-            axes: (0..n_axes).map(|_| AxisStatus::default()).collect(),
-            ..Self::default()
+            axes: (0..obs.rings.len()).map(|_| LssSlot::default()).collect(),
+            obs,
+            wear_at_boot,
+            booted: AtomicBool::new(false),
         }
     }
 
-    /// The status block: the loop (time, ticks, overruns, SYNC lock, drops, link), then one
-    /// line per axis with its node ID, NMT state, CiA 402 state, mode name, position and
-    /// following error (in user units, uu), and under a worn axis the wear it runs with.
-    fn lines(&self, iface: &str, lockstep: bool) -> Vec<String> {
-        let mut head = format!(
-            "{iface} t={:.1} s | ticks {} overruns {}",
-            self.sim_time_us.load(Ordering::Relaxed) as f64 * 1e-6,
-            self.ticks.load(Ordering::Relaxed),
-            self.overruns.load(Ordering::Relaxed)
-        );
-        if lockstep {
-            head += " | lock-step";
-        } else {
-            let lock = self.sync_lock.load(Ordering::Relaxed);
-            head += " | ";
-            head += crate::runtime::stats::lock_name(lock as u32);
-            if lock == 2 {
-                head += &format!(
-                    " (phase error {} us)",
-                    self.sync_phase_error_us.load(Ordering::Relaxed)
-                );
-            }
-        }
-        let lost = self.rx_overflows.load(Ordering::Relaxed);
-        if lost > 0 {
-            head += &format!(" | rx overflow {lost}");
-        }
-        if !self.link_up.load(Ordering::Relaxed) {
-            head += " | LINK DOWN";
-        }
-        let axes = self.axes.iter().flat_map(|a| {
-            let nmt = a.nmt.load(Ordering::Relaxed) as u8;
-            let line = format!(
-                "node {:<3} {:<15} {:<21} {:<7} pos {} ferr {} uu",
-                a.node_id.load(Ordering::Relaxed),
-                // The heartbeat's 0x00 is the boot-up; the state before it is initialising,
-                // or, without a node-ID, waiting for one by LSS.
-                if nmt == 0 && a.node_id.load(Ordering::Relaxed) == 255 {
-                    "UNCONFIGURED"
-                } else if nmt == 0 {
-                    "INITIALISING"
-                } else {
-                    crate::master::nmt_name(nmt)
-                },
-                crate::master::state_name(a.statusword.load(Ordering::Relaxed) as u16),
-                crate::master::mode_short(a.mode.load(Ordering::Relaxed) as i8),
-                a.position_uu.load(Ordering::Relaxed),
-                a.following_error_uu.load(Ordering::Relaxed),
-            );
-            // a worn axis: a line of its own under it (the axis line fills 80 columns)
-            let wear = a
-                .wear()
-                .map(|w| format!("         WORN: {w} (healthy: without --worn)"));
-            std::iter::once(line).chain(wear)
-        });
-        std::iter::once(head).chain(axes).collect()
+    /// Every axis's newest snapshot (an axis not published yet: a default one).
+    fn snapshots(&self) -> Vec<AxisSnapshot> {
+        (0..self.axes.len())
+            .map(|k| self.obs.latest(k).unwrap_or_default())
+            .collect()
     }
+}
+
+/// The status block: the loop (time, ticks, overruns, SYNC lock, drops, link), then one line
+/// per axis with its node ID, NMT state, CiA 402 state, mode name, position and following
+/// error (in user units, uu), and under a worn axis the wear it runs with.
+fn status_lines(lp: &LoopLine, axes: &[AxisSnapshot], iface: &str, lockstep: bool) -> Vec<String> {
+    let mut head = format!(
+        "{iface} t={:.1} s | ticks {} overruns {}",
+        lp.sim_time_us as f64 * 1e-6,
+        lp.ticks,
+        lp.overruns
+    );
+    if lockstep {
+        head += " | lock-step";
+    } else {
+        head += " | ";
+        head += crate::runtime::stats::lock_name(lp.sync_lock as u32);
+        if lp.sync_lock == 2 {
+            head += &format!(" (phase error {} us)", lp.sync_phase_error_us);
+        }
+    }
+    if lp.rx_overflows > 0 {
+        head += &format!(" | rx overflow {}", lp.rx_overflows);
+    }
+    if !lp.link_up {
+        head += " | LINK DOWN";
+    }
+    let axes = axes.iter().flat_map(|a| {
+        let line = format!(
+            "node {:<3} {:<15} {:<21} {:<7} pos {} ferr {} uu",
+            a.node_id,
+            // The heartbeat's 0x00 is the boot-up; the state before it is initialising,
+            // or, without a node-ID, waiting for one by LSS.
+            if a.nmt == 0 && a.node_id == 255 {
+                "UNCONFIGURED"
+            } else if a.nmt == 0 {
+                "INITIALISING"
+            } else {
+                crate::master::nmt_name(a.nmt)
+            },
+            crate::master::state_name(a.sample.statusword),
+            crate::master::mode_short(a.sample.mode_display),
+            a.sample.position_uu,
+            a.sample.following_error_uu,
+        );
+        // a worn axis: a line of its own under it (the axis line fills 80 columns)
+        let wear = wear(a).map(|w| format!("         WORN: {w} (healthy: without --worn)"));
+        std::iter::once(line).chain(wear)
+    });
+    std::iter::once(head).chain(axes).collect()
 }
 
 /// Draw the status block on a terminal over the one drawn before (`drawn` lines): up to its
@@ -812,6 +791,7 @@ pub fn outcome_json(run: &LiveRun, s: &Scenario) -> serde_json::Value {
             "expectations": o.expectations,
             "samples": o.record.samples.len(),
             "samples_lost": o.samples_lost,
+            "emcys_lost": o.emcys_lost,
         });
     }
     v
@@ -852,8 +832,14 @@ pub fn print_outcome(o: &LiveOutcome) {
     }
     if o.samples_lost > 0 {
         println!(
-            "  ({} samples lost: the scenario thread fell behind)",
+            "  ({} samples lost: the scenario thread fell more than the observation ring behind)",
             o.samples_lost
+        );
+    }
+    if o.emcys_lost > 0 {
+        println!(
+            "  ({} EMCYs not recorded: more in one tick than a snapshot carries)",
+            o.emcys_lost
         );
     }
 }
@@ -903,64 +889,29 @@ fn open_transport(args: &RunArgs) -> Result<LiveTransport> {
 }
 
 /// Run the drive(s) on the bus; with a scenario, inject its timeline into axis 0 and return
-/// what it found. The steps: the machine and its axes, the stop flag, the trace files, the
-/// scenario thread, the loop thread, the status line until the run stops, the summary.
+/// what it found. The steps: the checks, the machine and its axes, the bus, the stop flag,
+/// the observation bus and its readers (trace, detector), the panel, the scenario thread, the
+/// loop thread, the status line until the run stops, the readers' end, the summary.
 pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> {
-    validate_args(args)?;
-    if let Some(s) = scenario {
-        // its bus faults must be CAN's
-        crate::scenario::live::check_bus(s, "can").map_err(super::exit::usage)?;
-    }
-    crate::panel::check_args(&args.panel)?;
+    check_live(args, scenario)?;
     let (machine, axes) = live_axes(args, scenario)?;
-    // The timeline's values within what axis 0's drive accepts (the live loop would drop a
-    // refused one silently).
-    if let Some((s, cfg)) = scenario.and_then(|s| Some((s, s.machine.configs.first()?))) {
-        crate::scenario::inject::check_ranges(s, cfg).map_err(super::exit::scenario_file)?;
-    }
-    let seed = scenario.map_or(1, |s| s.run.seed);
-    let transport = open_transport(args)?;
-    let socketcand = transport.socketcand().map(SocketcandBus::local_addr);
-    let label = match socketcand {
-        Some(a) => format!("socketcand {a}"),
-        None => args.iface.clone(),
-    };
-    let bus = FaultyBus::new(transport, seed);
-    let period_us = 1_000_000 / u64::from(machine.tick_hz);
-    let n_axes = axes.len();
-    let rt = Runtime::new(bus, axes, period_us);
-
+    let (bus, socketcand, label) = open_bus(args, scenario)?;
+    let rt = Runtime::new(bus, axes, 1_000_000 / u64::from(machine.tick_hz));
     let stop = stop_flag(args, scenario)?;
-    let status = Arc::new(Status::new(n_axes));
-    let request = RealtimeRequest {
-        fifo_priority: (args.rt_priority > 0).then_some(args.rt_priority),
-        cpu: args.cpu,
-        lock_memory: !args.no_mlock,
-    };
-    let lockstep = args.lockstep.then_some(Lockstep {
-        sync_period_us: args.sync_period_us,
-        // A live scenario must end: a SYNC missing for a second hands the clock to the wall.
-        free_run_after_us: scenario.map(|_| {
-            args.sync_period_us
-                .map_or(1_000_000, |p| (10 * p).max(1_000_000))
-        }),
-    });
-    // The trace files are created before the loop starts: a bad path loses nothing.
-    let node_ids: Vec<u8> = rt.axes.iter().map(|a| a.node.node_id()).collect();
-    let (tap, recorder) = start_trace(args, &node_ids)?;
-    // --detect: the detector thread, fed by the loop.
-    let detect = args.detect.then(|| Arc::new(DetectTap::new(n_axes)));
-    let detector = match &detect {
-        Some(tap) => Some(start_detector(
-            args,
-            tap,
-            rt.axes.iter().map(|a| &a.drive),
-            gap_models(&machine, scenario),
-        )?),
-        None => None,
-    };
+    // The observation bus: the loop publishes every tick into it; the trace recorder, the
+    // detector, the scenario thread, the status line and the panel read it.
+    let (observer, obs) = crate::observe::channel(
+        rt.axes.len(),
+        crate::observe::run_ring_capacity(machine.tick_hz),
+    );
+    let lockstep = lockstep_of(args, scenario);
+    let readers = start_readers(
+        args,
+        &obs,
+        rt.axes.iter().map(|a| (a.node.node_id(), &a.drive)),
+        gap_models(&machine, scenario),
+    )?;
     announce(args, &label, &machine, lockstep.as_ref(), scenario);
-
     // The scenario thread follows the loop's time and feeds it injections.
     let link = Arc::new(LiveLink::new());
     let mut injector = scenario.map(|s| LoopInjector::new(s.run.master.master_id));
@@ -976,53 +927,124 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
         scenario,
     };
     let (panel, panel_loop) =
-        crate::panel::start_for_run(&args.panel, context, &link, &mut injector)?.unzip();
+        crate::panel::start_for_run(&args.panel, context, (&link, &obs), &mut injector)?.unzip();
     let scenario_thread = match scenario {
-        Some(s) => Some(spawn_scenario(args, s, &link, &stop)?),
+        Some(s) => Some(spawn_scenario(args, s, (&link, &obs), &stop)?),
         None => None,
     };
+    let wear_at_boot = rt.axes.iter().map(|a| {
+        use drive_protocol::Drive as _;
+        let gap = a.drive.param(crate::drive::objects::AxisParam::Backlash);
+        machine::wear_text(gap, a.drive.info().rotary)
+    });
+    let status = Arc::new(Status::new(Arc::clone(&obs), wear_at_boot.collect()));
     let loop_thread = spawn_loop(LoopParts {
         rt,
-        request,
+        request: realtime_request(args),
         lockstep,
         stop: Arc::clone(&stop),
-        status: Arc::clone(&status),
-        link: Arc::clone(&link),
-        injector,
-        tap: tap.clone(),
-        panel: panel_loop,
-        detect: detect.clone(),
+        observer,
+        injections: LoopInjections {
+            status: Arc::clone(&status),
+            link,
+            injector,
+            panel: panel_loop,
+            detect: readers.detect.clone(),
+        },
     })?;
-
-    watch(
-        args,
-        (&label, socketcand),
-        &machine,
-        lockstep.as_ref(),
-        &status,
-        &stop,
-        &loop_thread,
-    )?;
+    let bus_of = (label.as_str(), socketcand);
+    let shown = (&machine, lockstep.as_ref());
+    watch(args, bus_of, shown, &status, &stop, &loop_thread)?;
     stop.store(true, Ordering::Relaxed);
     let joined = loop_thread.join();
     if std::io::stderr().is_terminal() {
         eprintln!();
     }
     // The trace is flushed whatever happened to the loop.
-    if let (Some(rec), Some(tap)) = (recorder, &tap) {
-        finish_trace(rec, tap)?;
-    }
+    let detector = readers.finish()?;
     if let Some(p) = panel {
         p.stop();
     }
     let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
+    let scenario = join_scenario(scenario_thread)?;
+    Ok(live_summary(&rt, lockstep.is_some(), detector, scenario))
+}
+
+/// A live run's options and scenario, checked before anything opens: its bus faults must be
+/// CAN's, the panel's options, and the timeline's values within what axis 0's drive accepts
+/// (the live loop would drop a refused one silently).
+fn check_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<()> {
+    validate_args(args)?;
+    if let Some(s) = scenario {
+        crate::scenario::check_bus(s, "can").map_err(super::exit::usage)?;
+    }
+    crate::panel::check_args(&args.panel)?;
+    if let Some((s, cfg)) = scenario.and_then(|s| Some((s, s.machine.configs.first()?))) {
+        crate::scenario::inject::check_ranges(s, cfg).map_err(super::exit::scenario_file)?;
+    }
+    Ok(())
+}
+
+/// The live bus (the interface or socketcand server behind the scenario's fault injector),
+/// the socketcand server's address, and the bus's name for people.
+fn open_bus(
+    args: &RunArgs,
+    scenario: Option<&Scenario>,
+) -> Result<(LiveBus, Option<std::net::SocketAddr>, String)> {
+    let transport = open_transport(args)?;
+    let socketcand = transport.socketcand().map(SocketcandBus::local_addr);
+    let label = match socketcand {
+        Some(a) => format!("socketcand {a}"),
+        None => args.iface.clone(),
+    };
+    let seed = scenario.map_or(1, |s| s.run.seed);
+    Ok((FaultyBus::new(transport, seed), socketcand, label))
+}
+
+/// The loop thread's scheduling: SCHED_FIFO priority, CPU, locked memory.
+fn realtime_request(args: &RunArgs) -> RealtimeRequest {
+    RealtimeRequest {
+        fifo_priority: (args.rt_priority > 0).then_some(args.rt_priority),
+        cpu: args.cpu,
+        lock_memory: !args.no_mlock,
+    }
+}
+
+/// `--lockstep`: simulated time per SYNC; with a scenario, a SYNC missing for a second hands
+/// the clock to the wall (a live scenario must end).
+fn lockstep_of(args: &RunArgs, scenario: Option<&Scenario>) -> Option<Lockstep> {
+    args.lockstep.then_some(Lockstep {
+        sync_period_us: args.sync_period_us,
+        free_run_after_us: scenario.map(|_| {
+            args.sync_period_us
+                .map_or(1_000_000, |p| (10 * p).max(1_000_000))
+        }),
+    })
+}
+
+/// The scenario thread's outcome, once it ended.
+fn join_scenario(t: Option<std::thread::JoinHandle<LiveOutcome>>) -> Result<Option<LiveOutcome>> {
+    t.map(|t| {
+        t.join()
+            .map_err(|_| anyhow::anyhow!("the scenario thread panicked"))
+    })
+    .transpose()
+}
+
+/// What the loop did, said on stderr, and the run's result.
+fn live_summary(
+    rt: &Runtime<LiveBus, AxisDrive>,
+    lockstep: bool,
+    detector: Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>,
+    scenario: Option<LiveOutcome>,
+) -> LiveRun {
     let summary = rt.stats.summary();
-    eprintln!("drive-emu: stopped. {}", summary.text(lockstep.is_some()));
+    eprintln!("drive-emu: stopped. {}", summary.text(lockstep));
     if let Some(server) = rt.bus.inner().socketcand() {
         eprintln!("drive-emu: socketcand: {}", server.stats().summary());
     }
     let lockstep_period_us =
-        (lockstep.is_some() && rt.lockstep_period_us > 0).then_some(rt.lockstep_period_us);
+        (lockstep && rt.lockstep_period_us > 0).then_some(rt.lockstep_period_us);
     if let Some(p) = lockstep_period_us {
         eprintln!("drive-emu: lock-step: {p} us of simulated time per SYNC");
     }
@@ -1032,24 +1054,66 @@ pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> 
             rt.lockstep_free_ticks
         );
     }
-    let scenario = match scenario_thread {
-        Some(t) => Some(
-            t.join()
-                .map_err(|_| anyhow::anyhow!("the scenario thread panicked"))?,
-        ),
-        None => None,
-    };
-    let detector = match (detector, &detect) {
-        (Some(d), Some(tap)) => finish_detector(d, tap, &node_ids)?,
-        _ => Vec::new(),
-    };
-    Ok(LiveRun {
+    LiveRun {
         stats: summary,
         detector,
         lockstep_period_us,
         free_run_ticks: rt.lockstep_free_ticks,
         scenario,
+    }
+}
+
+/// The readers of the observation bus a live run starts before its loop (`--trace`,
+/// `--detect`), the same on CAN and on EtherCAT, and the detector's way back to the loop.
+struct Readers {
+    recorder: Option<Recorder>,
+    detect: Option<Arc<DetectResults>>,
+    detector: Option<Detector>,
+    node_ids: Vec<u8>,
+}
+
+/// Start the readers the options ask for, one axis per (node ID, drive) of `axes`: the trace
+/// files are created here, before the loop starts (a bad path loses nothing).
+fn start_readers<'a>(
+    args: &RunArgs,
+    obs: &Arc<Observation>,
+    axes: impl Iterator<Item = (u8, &'a AxisDrive)>,
+    gap: Vec<Option<crate::analysis::gap::GapModel>>,
+) -> Result<Readers> {
+    let (node_ids, drives): (Vec<u8>, Vec<&AxisDrive>) = axes.unzip();
+    let recorder = start_trace(args, obs, &node_ids)?;
+    let detect = args
+        .detect
+        .then(|| Arc::new(DetectResults::new(node_ids.len())));
+    let detector = match &detect {
+        Some(results) => Some(start_detector(
+            args,
+            (obs, results),
+            drives.into_iter(),
+            gap,
+        )?),
+        None => None,
+    };
+    Ok(Readers {
+        recorder,
+        detect,
+        detector,
+        node_ids,
     })
+}
+
+impl Readers {
+    /// After the loop has stopped: the trace flushed and closed, the detector's last analysis
+    /// (per axis, its node ID and report), each said on stderr.
+    fn finish(self) -> Result<Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>> {
+        if let Some(rec) = self.recorder {
+            finish_trace(rec)?;
+        }
+        match self.detector {
+            Some(d) => finish_detector(d, &self.node_ids),
+            None => Ok(Vec::new()),
+        }
+    }
 }
 
 /// The machine a live run serves and its axes, validated, with the boot delay set: the
@@ -1249,16 +1313,16 @@ fn announce(
 fn spawn_scenario(
     args: &RunArgs,
     s: &Scenario,
-    link: &Arc<LiveLink>,
+    (link, obs): (&Arc<LiveLink>, &Arc<Observation>),
     stop: &Arc<AtomicBool>,
 ) -> Result<std::thread::JoinHandle<LiveOutcome>> {
     let end = LiveEnd::for_scenario(s, args.duration.map(|d| (d * 1e6) as u64));
     eprintln!("drive-emu: scenario {} ends {}", s.name, end.describe(s));
     let (s, snapshot) = (s.clone(), AxisDrive::from_config(&s.machine.configs[0])?);
-    let (link, stop) = (Arc::clone(link), Arc::clone(stop));
+    let (link, obs, stop) = (Arc::clone(link), Arc::clone(obs), Arc::clone(stop));
     Ok(std::thread::spawn(move || {
         let cfg = s.machine.configs[0].clone();
-        let outcome = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
+        let outcome = run_timeline(&s, &cfg, &snapshot, (&link, &obs), &stop, end);
         stop.store(true, Ordering::Relaxed);
         outcome
     }))
@@ -1270,29 +1334,47 @@ struct LoopParts {
     request: RealtimeRequest,
     lockstep: Option<Lockstep>,
     stop: Arc<AtomicBool>,
+    /// The observation bus's writer: every tick published, the node events drained.
+    observer: Observer,
+    injections: LoopInjections,
+}
+
+/// Everything the loop applies to the drives after a tick: the panel's and a live scenario's
+/// injections, the detector's results (`--detect`), the LSS store service.
+struct LoopInjections {
     status: Arc<Status>,
     link: Arc<LiveLink>,
     injector: Option<LoopInjector>,
-    tap: Option<Arc<TraceTap>>,
     panel: Option<crate::panel::PanelLoop>,
-    detect: Option<Arc<DetectTap>>,
+    detect: Option<Arc<DetectResults>>,
+}
+
+impl LoopInjections {
+    /// After every tick, once it is published: no allocation, lock or I/O.
+    fn apply(&mut self, rt: &mut Runtime<LiveBus, AxisDrive>) {
+        if let Some(p) = self.panel.as_mut() {
+            p.on_tick(rt);
+        } else if let Some(inj) = self.injector.as_mut() {
+            inj.on_tick(&self.link, rt);
+        }
+        if let Some(d) = &self.detect {
+            d.apply(rt);
+        }
+        self.status.lss_exchange(rt);
+    }
 }
 
 /// Start the loop thread: real-time setup, boot (the delay on the wall clock), then the loop
-/// (lock-step or real-time) with the per-tick hook (scenario injections, trace, status) until
-/// `stop`. It hands the runtime back for the summary.
+/// (lock-step or real-time) whose hook, after every tick until `stop`, is publish (the
+/// observation bus) plus apply the injections. It hands the runtime back for the summary.
 fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBus, AxisDrive>>> {
     let LoopParts {
         mut rt,
         request,
         lockstep,
         stop,
-        status,
-        link,
-        mut injector,
-        tap,
-        mut panel,
-        detect,
+        mut observer,
+        mut injections,
     } = parts;
     Ok(std::thread::Builder::new()
         .name("drive-emu-loop".into())
@@ -1310,21 +1392,11 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
                 std::thread::sleep(std::time::Duration::from_micros(d));
                 rt.finish_boots();
             }
-            status.booted.store(true, Ordering::Release);
+            injections.status.booted.store(true, Ordering::Release);
             let hook = |rt: &mut Runtime<LiveBus, AxisDrive>| {
-                if let Some(p) = panel.as_mut() {
-                    p.on_tick(rt);
-                } else if let Some(inj) = injector.as_mut() {
-                    inj.on_tick(&link, rt);
-                }
-                if let Some(tap) = &tap {
-                    tap.on_tick(rt);
-                }
-                if let Some(d) = &detect {
-                    d.on_tick(rt);
-                }
-                status.lss_exchange(rt);
-                status.publish(rt);
+                observer.publish(rt);
+                observer.set_link_up(rt.bus.inner().link_up());
+                injections.apply(rt);
             };
             match lockstep {
                 Some(cfg) => rt.run_lockstep_with(cfg, &stop, hook),
@@ -1339,8 +1411,7 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
 fn watch(
     args: &RunArgs,
     (label, socketcand): (&str, Option<std::net::SocketAddr>),
-    machine: &MachineFile,
-    lockstep: Option<&Lockstep>,
+    (machine, lockstep): (&MachineFile, Option<&Lockstep>),
     status: &Status,
     stop: &AtomicBool,
     loop_thread: &std::thread::JoinHandle<Runtime<LiveBus, AxisDrive>>,
@@ -1352,6 +1423,7 @@ fn watch(
     while !stop.load(Ordering::Relaxed) && !loop_thread.is_finished() {
         // LSS store configuration: the master waits for the answer (python canopen 0.5 s).
         status.lss_service(args.lss_store.as_deref());
+        let published = status.obs.board.ticks.load(Ordering::Acquire) > 0;
         if !ready_sent && status.booted.load(Ordering::Acquire) {
             ready_sent = true;
             let line = serde_json::json!({
@@ -1361,10 +1433,10 @@ fn watch(
                     "host": a.ip().to_string(), "port": a.port(),
                     "channel": crate::bus::socketcand::CHANNEL,
                 })),
-                "nodes": machine.axes.iter().zip(&status.axes).map(|(a, st)| serde_json::json!({
+                "nodes": machine.axes.iter().zip(&status.wear_at_boot).map(|(a, w)| serde_json::json!({
                     "node_id": a.node_id, "preset": a.preset,
                     // the wear the axis runs with (null: healthy, no gap)
-                    "worn": st.wear(),
+                    "worn": w,
                     "eds": a.eds.as_ref().map(|p| p.display().to_string()),
                     "objects_base": a.objects_base.map(|b| format!("0x{b:04X}")),
                     "profile": a.quirk_profile.as_ref().and_then(|b| b.profile.clone()),
@@ -1392,12 +1464,14 @@ fn watch(
         ));
         // Nothing to show before the loop's first tick has published the axes; redrawn every
         // 200 ms.
-        if tty
-            && status.ticks.load(Ordering::Relaxed) > 0
-            && drawn_at.elapsed() >= std::time::Duration::from_millis(200)
-        {
+        if tty && published && drawn_at.elapsed() >= std::time::Duration::from_millis(200) {
             drawn_at = std::time::Instant::now();
-            let lines = status.lines(label, lockstep.is_some());
+            let lines = status_lines(
+                &LoopLine::of(&status.obs),
+                &status.snapshots(),
+                label,
+                lockstep.is_some(),
+            );
             drawn = redraw(
                 &mut std::io::stderr().lock(),
                 drawn,
@@ -1443,10 +1517,9 @@ fn terminal_width() -> usize {
 /// amplitude, the k_v judged against.
 fn finish_detector(
     d: Detector,
-    tap: &DetectTap,
     node_ids: &[u8],
 ) -> Result<Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>> {
-    let reports = d.finish().context("the detector")?;
+    let (reports, lost) = d.finish().context("the detector")?;
     for (n, rep) in node_ids.iter().zip(&reports) {
         match rep {
             Some(r) if r.inconclusive.is_some() => {
@@ -1469,10 +1542,10 @@ fn finish_detector(
             None => eprintln!("drive-emu: detector: node {n}: no samples"),
         }
     }
-    if tap.lost() > 0 {
+    if lost > 0 {
         eprintln!(
-            "drive-emu: detector: {} samples lost (the detector thread fell behind)",
-            tap.lost()
+            "drive-emu: detector: {lost} ticks lost (the detector thread fell more than the \
+             observation ring behind)"
         );
     }
     Ok(node_ids.iter().copied().zip(reports).collect())
@@ -1480,11 +1553,11 @@ fn finish_detector(
 
 /// Per axis, the mechanics of the gap estimate (`--detect`): the scenario's machine, or each
 /// axis's preset with its overrides; the drive's samples carry the current in per mille.
-/// The detector thread of `--detect`, fed through `tap`, with each drive's facts: the same
-/// for the drives on CAN and on EtherCAT.
+/// The detector thread of `--detect`, a reader of the bus `obs` whose results go to the loop
+/// through `results`, with each drive's facts: the same for the drives on CAN and on EtherCAT.
 fn start_detector<'a>(
     args: &RunArgs,
-    tap: &Arc<DetectTap>,
+    (obs, results): (&Arc<Observation>, &Arc<DetectResults>),
     drives: impl Iterator<Item = &'a AxisDrive>,
     gap: Vec<Option<crate::analysis::gap::GapModel>>,
 ) -> Result<Detector> {
@@ -1500,7 +1573,12 @@ fn start_detector<'a>(
         history_s: args.detect_history,
         ..DetectOptions::default()
     };
-    Ok(Detector::start(Arc::clone(tap), facts, opts)?)
+    Ok(Detector::start(
+        Arc::clone(obs),
+        Arc::clone(results),
+        facts,
+        opts,
+    )?)
 }
 
 fn gap_models(
@@ -1521,24 +1599,26 @@ fn gap_models(
         .collect()
 }
 
-/// `--trace`: the tap the loop feeds (one axis per node of `node_ids`) and the recorder that
-/// writes it, the same for the drives on CAN and on EtherCAT. The files are created here,
-/// before the loop starts: a bad path loses nothing.
+/// `--trace`: the recorder, a reader of the bus `obs` (one file per node of `node_ids`), the
+/// same for the drives on CAN and on EtherCAT. The files are created here, before the loop
+/// starts: a bad path loses nothing.
 fn start_trace(
     args: &RunArgs,
+    obs: &Arc<Observation>,
     node_ids: &[u8],
-) -> Result<(Option<Arc<TraceTap>>, Option<Recorder>)> {
+) -> Result<Option<Recorder>> {
     let Some(path) = &args.trace else {
-        return Ok((None, None));
+        return Ok(None);
     };
-    let tap = Arc::new(TraceTap::new(node_ids.len()));
-    let recorder = Recorder::start(Arc::clone(&tap), trace_paths(path, node_ids))?;
-    Ok((Some(tap), Some(recorder)))
+    Ok(Some(Recorder::start(
+        Arc::clone(obs),
+        trace_paths(path, node_ids),
+    )?))
 }
 
-/// Drain and close the trace files, and say what they hold.
-fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
-    let t = rec.finish(tap).context("writing the trace")?;
+/// Read the rest and close the trace files, and say what they hold.
+fn finish_trace(rec: Recorder) -> Result<()> {
+    let t = rec.finish().context("writing the trace")?;
     eprintln!(
         "drive-emu: trace: {} samples in {}{}",
         t.samples,
@@ -1548,7 +1628,11 @@ fn finish_trace(rec: Recorder, tap: &TraceTap) -> Result<()> {
             .collect::<Vec<_>>()
             .join(", "),
         if t.lost > 0 {
-            format!(" ({} lost: the disk was too slow)", t.lost)
+            format!(
+                " ({} ticks lost: the recorder fell more than the observation ring behind, a \
+                 slow disk)",
+                t.lost
+            )
         } else {
             String::new()
         }
@@ -1625,61 +1709,25 @@ fn load_esi(path: &std::path::Path) -> Result<(PathBuf, drive_ethercat::esi::Esi
 /// `--scenario`, its machine on one slave and its timeline (parameters, sensor and EtherCAT
 /// faults) injected as on CAN.
 fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
-    validate_args(args)?;
-    crate::panel::check_args(&args.panel)?;
-    let scenario = match &args.scenario {
-        Some(path) => Some(crate::scenario::load(path).map_err(super::exit::scenario_file)?),
-        None => None,
-    };
-    if let Some(s) = &scenario {
-        crate::scenario::live::check_bus(s, "ethercat").map_err(super::exit::usage)?;
-    }
+    let scenario = ethercat_scenario(args)?;
     let (machine, slaves, mut drives) = ethercat_slaves_for(args, scenario.as_ref())?;
     let mut sock = crate::bus::ethercat::PacketSocket::open(iface)?;
     let stop = stop_flag(args, scenario.as_ref())?;
     let period_us = 1_000_000 / u64::from(machine.tick_hz);
-    eprintln!(
-        "drive-emu: {} EtherCAT slave(s) on {iface}, {} Hz{}{}",
+    announce_ethercat(args, iface, &machine, scenario.as_ref());
+    // The observation bus, as on CAN: published after each drive cycle
+    let (mut observer, obs) = crate::observe::channel(
         slaves.len(),
-        machine.tick_hz,
-        if args.lockstep {
-            " per process-data cycle (lock-step)"
-        } else {
-            ""
-        },
-        scenario
-            .as_ref()
-            .map_or(String::new(), |s| format!("; scenario {}", s.name)),
+        crate::observe::run_ring_capacity(machine.tick_hz),
     );
-    if args.ready {
-        let nodes: Vec<serde_json::Value> = machine
-            .axes
-            .iter()
-            .map(|e| serde_json::json!({"node_id": e.node_id, "preset": e.preset}))
-            .collect();
-        println!(
-            "{}",
-            serde_json::json!({"event": "ready", "ethercat": iface, "nodes": nodes,
-                "scenario": scenario.as_ref().map(|s| s.name.clone()),
-                "pid": std::process::id()})
-        );
-        use std::io::Write;
-        std::io::stdout().flush().ok();
-    }
-    // --trace: the same tap and recorder as on CAN, fed after each drive cycle
-    let node_ids: Vec<u8> = slaves.iter().map(|s| s.node().node_id()).collect();
-    let (tap, recorder) = start_trace(args, &node_ids)?;
-    // --detect: the same detector thread as on CAN, fed after each drive cycle
-    let detect = args.detect.then(|| Arc::new(DetectTap::new(slaves.len())));
-    let detector = match &detect {
-        Some(dtap) => Some(start_detector(
-            args,
-            dtap,
-            drives.iter(),
-            gap_models(&machine, scenario.as_ref()),
-        )?),
-        None => None,
-    };
+    // --trace, --detect: the same readers as on CAN
+    let readers = start_readers(
+        args,
+        &obs,
+        slaves.iter().map(|s| s.node().node_id()).zip(drives.iter()),
+        gap_models(&machine, scenario.as_ref()),
+    )?;
+    let detect = readers.detect.clone();
     // --scenario: its thread follows the drives' time and feeds the first slave injections
     let link = Arc::new(LiveLink::new());
     let mut injector = scenario
@@ -1697,20 +1745,16 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         scenario: scenario.as_ref(),
     };
     let (panel, mut panel_loop) =
-        crate::panel::start_for_run(&args.panel, context, &link, &mut injector)?.unzip();
+        crate::panel::start_for_run(&args.panel, context, (&link, &obs), &mut injector)?.unzip();
     let scenario_thread = match &scenario {
-        Some(s) => Some(spawn_scenario(args, s, &link, &stop)?),
+        Some(s) => Some(spawn_scenario(args, s, (&link, &obs), &stop)?),
         None => None,
     };
     let mut faults =
         crate::bus::ethercat::EcatFaults::new(scenario.as_ref().map_or(1, |s| s.run.seed));
     let mut seg = drive_ethercat::Segment::new(slaves);
     // The loop runs on this thread: real-time scheduling, CPU and locked memory as on CAN.
-    let report = realtime::apply(&RealtimeRequest {
-        fifo_priority: (args.rt_priority > 0).then_some(args.rt_priority),
-        cpu: args.cpu,
-        lock_memory: !args.no_mlock,
-    });
+    let report = realtime::apply(&realtime_request(args));
     for w in &report.warnings {
         eprintln!("drive-emu: warning: {w}");
     }
@@ -1723,8 +1767,16 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
         &stop,
         &mut faults,
         |seg, drives, faults, t_us| {
+            // publish: every slave's node beside its drive, its events drained
+            observer.publish_axes(
+                t_us,
+                seg.slaves
+                    .iter_mut()
+                    .map(|s| s.node_mut())
+                    .zip(drives.iter()),
+            );
+            // apply the injections: the panel's and the scenario's, the detector's results
             if let Some(p) = panel_loop.as_mut() {
-                // publishes every slave and applies the panel's and the scenario's injections
                 p.on_ethercat_cycle(seg, drives, faults, t_us);
             } else if let (Some(inj), Some(slave), Some(drive)) = (
                 injector.as_mut(),
@@ -1733,12 +1785,9 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
             ) {
                 inj.on_ethercat_cycle(&link, t_us, slave, drive, faults);
             }
-            if let Some(tap) = &tap {
-                tap.push_nodes(seg.slaves.iter().map(|s| s.node()), t_us);
-            }
-            if let Some(dtap) = &detect {
-                for (k, (s, d)) in seg.slaves.iter_mut().zip(drives.iter()).enumerate() {
-                    dtap.on_axis(k, s.node_mut(), d, t_us);
+            if let Some(d) = &detect {
+                for (k, (s, drive)) in seg.slaves.iter_mut().zip(drives.iter()).enumerate() {
+                    d.apply_axis(k, s.node_mut(), drive);
                 }
             }
         },
@@ -1748,20 +1797,79 @@ fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     if let Some(p) = panel {
         p.stop();
     }
-    if let (Some(rec), Some(tap)) = (recorder, &tap) {
-        finish_trace(rec, tap)?;
-    }
-    let detector = match (detector, &detect) {
-        (Some(d), Some(dtap)) => finish_detector(d, dtap, &node_ids)?,
-        _ => Vec::new(),
-    };
-    let outcome = match scenario_thread {
-        Some(t) => Some(
-            t.join()
-                .map_err(|_| anyhow::anyhow!("the scenario thread panicked"))?,
-        ),
+    let detector = readers.finish()?;
+    let outcome = join_scenario(scenario_thread)?;
+    ethercat_summary(
+        &stats,
+        &faults,
+        (detector, outcome),
+        (iface, scenario.as_ref()),
+        args,
+    )
+}
+
+/// `run --ethercat`'s options and scenario, checked before anything opens: the scenario read
+/// and its bus faults EtherCAT's.
+fn ethercat_scenario(args: &RunArgs) -> Result<Option<Scenario>> {
+    validate_args(args)?;
+    crate::panel::check_args(&args.panel)?;
+    let scenario = match &args.scenario {
+        Some(path) => Some(crate::scenario::load(path).map_err(super::exit::scenario_file)?),
         None => None,
     };
+    if let Some(s) = &scenario {
+        crate::scenario::check_bus(s, "ethercat").map_err(super::exit::usage)?;
+    }
+    Ok(scenario)
+}
+
+/// What runs where, on stderr, and with `--ready` the ready line on stdout.
+fn announce_ethercat(
+    args: &RunArgs,
+    iface: &str,
+    machine: &MachineFile,
+    scenario: Option<&Scenario>,
+) {
+    eprintln!(
+        "drive-emu: {} EtherCAT slave(s) on {iface}, {} Hz{}{}",
+        machine.axes.len(),
+        machine.tick_hz,
+        if args.lockstep {
+            " per process-data cycle (lock-step)"
+        } else {
+            ""
+        },
+        scenario.map_or(String::new(), |s| format!("; scenario {}", s.name)),
+    );
+    if args.ready {
+        let nodes: Vec<serde_json::Value> = machine
+            .axes
+            .iter()
+            .map(|e| serde_json::json!({"node_id": e.node_id, "preset": e.preset}))
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({"event": "ready", "ethercat": iface, "nodes": nodes,
+                "scenario": scenario.map(|s| s.name.clone()),
+                "pid": std::process::id()})
+        );
+        use std::io::Write;
+        std::io::stdout().flush().ok();
+    }
+}
+
+/// What the EtherCAT loop did and, with a scenario, what it found: on stderr, on stdout
+/// (text, or `--json`), and the run's exit status.
+fn ethercat_summary(
+    stats: &crate::runtime::ethercat::EthercatStats,
+    faults: &crate::bus::ethercat::EcatFaults,
+    (detector, outcome): (
+        Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>,
+        Option<LiveOutcome>,
+    ),
+    (iface, scenario): (&str, Option<&Scenario>),
+    args: &RunArgs,
+) -> Result<()> {
     let fs = faults.stats();
     eprintln!(
         "drive-emu: stopped. {} frames answered, {} refused, {} socket errors, {} cycles ({} late); \
@@ -1831,22 +1939,29 @@ fn scenario_status(o: &LiveOutcome) -> Result<()> {
 mod tests {
     use super::*;
 
-    fn axis(st: &AxisStatus, node: u8, nmt: u8, statusword: u16, mode: i8) {
-        st.node_id.store(u64::from(node), Ordering::Relaxed);
-        st.nmt.store(u64::from(nmt), Ordering::Relaxed);
-        st.statusword
-            .store(u64::from(statusword), Ordering::Relaxed);
-        st.mode.store(i64::from(mode), Ordering::Relaxed);
-        st.position_uu.store(-1234, Ordering::Relaxed);
+    fn axis(node: u8, nmt: u8, statusword: u16, mode: i8) -> AxisSnapshot {
+        let mut a = AxisSnapshot {
+            node_id: node,
+            nmt,
+            ..AxisSnapshot::default()
+        };
+        a.sample.statusword = statusword;
+        a.sample.mode_display = mode;
+        a.sample.position_uu = -1234;
+        a
+    }
+
+    fn up() -> LoopLine {
+        LoopLine {
+            link_up: true,
+            ..LoopLine::default()
+        }
     }
 
     #[test]
     fn status_block_has_one_named_line_per_axis() {
-        let s = Status::new(2);
-        s.link_up.store(true, Ordering::Relaxed);
-        axis(&s.axes[0], 20, 0x05, 0x0637, 8);
-        axis(&s.axes[1], 21, 0x7F, 0x0250, 0);
-        let lines = s.lines("vcan0", true);
+        let axes = [axis(20, 0x05, 0x0637, 8), axis(21, 0x7F, 0x0250, 0)];
+        let lines = status_lines(&up(), &axes, "vcan0", true);
         assert_eq!(lines.len(), 3, "{lines:#?}");
         assert!(lines[0].starts_with("vcan0 t=") && lines[0].contains("lock-step"));
         for (l, want) in lines[1..].iter().zip([
@@ -1884,12 +1999,10 @@ mod tests {
 
     #[test]
     fn status_of_one_axis_is_the_loop_line_and_the_axis_line() {
-        let s = Status::new(1);
-        s.link_up.store(false, Ordering::Relaxed);
-        axis(&s.axes[0], 5, 0x00, 0x0000, 3);
-        s.axes[0].position_uu.store(-123_456, Ordering::Relaxed);
-        s.axes[0].following_error_uu.store(-789, Ordering::Relaxed);
-        let lines = s.lines("can0", false);
+        let mut a = axis(5, 0x00, 0x0000, 3);
+        a.sample.position_uu = -123_456;
+        a.sample.following_error_uu = -789;
+        let lines = status_lines(&LoopLine::default(), &[a], "can0", false);
         assert_eq!(lines.len(), 2, "{lines:#?}");
         assert!(lines[0].starts_with("can0 t=") && lines[0].contains("LINK DOWN"));
         for w in ["node 5 ", "INITIALISING", "NOT READY TO SWITCH ON", "PV"] {
@@ -1897,32 +2010,61 @@ mod tests {
         }
         // Each line fits an 80-column terminal with a six-digit position.
         assert!(lines.iter().all(|l| l.chars().count() <= 80), "{lines:#?}");
-        let s = Status::new(1);
-        axis(&s.axes[0], 5, 0x05, 0x0637, -2);
-        assert!(s.lines("can0", true)[1].contains("manufacturer-specific mode -2"));
+        let mut a = axis(5, 0x05, 0x0637, -2);
+        assert!(
+            status_lines(&up(), &[a], "can0", true)[1].contains("manufacturer-specific mode -2")
+        );
         // a worn axis (issue 33, item 4): a line under it says so, and fits the terminal
-        s.axes[0].gap_si.store(3e-5f64.to_bits(), Ordering::Relaxed);
-        let lines = s.lines("can0", false);
+        a.gap_si = 3e-5;
+        let lines = status_lines(&up(), &[a], "can0", false);
         assert_eq!(lines.len(), 3, "{lines:#?}");
         assert!(lines[2].contains("WORN: backlash 0.03 mm"), "{lines:#?}");
         assert!(lines[2].chars().count() <= 80, "{lines:#?}");
-        s.axes[0].rotary.store(true, Ordering::Relaxed);
-        s.axes[0]
-            .gap_si
-            .store(0.02f64.to_radians().to_bits(), Ordering::Relaxed);
-        assert!(s.lines("can0", false)[2].contains("WORN: backlash 0.02 deg"));
-        s.axes[0].gap_si.store(0f64.to_bits(), Ordering::Relaxed);
-        assert_eq!(s.lines("can0", false).len(), 2, "healthy: no wear line");
+        a.rotary = true;
+        a.gap_si = 0.02f64.to_radians();
+        assert!(status_lines(&up(), &[a], "can0", false)[2].contains("WORN: backlash 0.02 deg"));
+        a.gap_si = 0.0;
+        assert_eq!(
+            status_lines(&up(), &[a], "can0", false).len(),
+            2,
+            "healthy: no wear line"
+        );
     }
 
     #[test]
     fn a_non_configured_axis_is_shown_as_such() {
-        let s = Status::new(1);
-        axis(&s.axes[0], 255, 0x00, 0x0000, 0);
-        let line = &s.lines("can0", false)[1];
+        let line = &status_lines(&up(), &[axis(255, 0x00, 0x0000, 0)], "can0", false)[1];
         assert!(line.contains("node 255 UNCONFIGURED"), "{line}");
-        axis(&s.axes[0], 12, 0x00, 0x0000, 0);
-        assert!(s.lines("can0", false)[1].contains("INITIALISING"));
+        let line = &status_lines(&up(), &[axis(12, 0x00, 0x0000, 0)], "can0", false)[1];
+        assert!(line.contains("INITIALISING"));
+    }
+
+    /// The status line reads the observation bus: what the loop published (board and
+    /// snapshot) is what it shows, and nothing before the first tick.
+    #[test]
+    fn the_status_line_shows_what_the_loop_published() {
+        use crate::bus::inproc::InProcBus;
+        let mut drive = AxisDrive::from_config(&AxisConfig::from_preset("cnc1").unwrap()).unwrap();
+        let node = crate::drive::node(&mut drive, 9).unwrap();
+        let bus = InProcBus::endpoints(1, 16).remove(0);
+        let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
+        rt.boot();
+        let (mut observer, obs) = crate::observe::channel(1, 1024);
+        let status = Status::new(Arc::clone(&obs), vec![None]);
+        assert_eq!(status.obs.latest(0), None, "nothing published yet");
+        for _ in 0..3 {
+            rt.tick();
+            rt.stats.record_tick(5, 20);
+            observer.publish(&mut rt);
+        }
+        observer.set_link_up(false);
+        let lines = status_lines(&LoopLine::of(&obs), &status.snapshots(), "can0", false);
+        assert!(
+            lines[0].contains("ticks 3 ") && lines[0].contains("LINK DOWN"),
+            "{lines:?}"
+        );
+        assert!(lines[1].starts_with("node 9 "), "{lines:?}");
+        assert_eq!(status.snapshots()[0].t_us, rt.sim_time_us);
     }
 
     /// LSS store configuration from a node on the loop to the file and the answer back:
@@ -1947,7 +2089,7 @@ mod tests {
         node.boot(0);
         let bus = InProcBus::endpoints(1, 16).remove(0);
         let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
-        let status = Status::new(1);
+        let status = Status::new(crate::observe::channel(1, 1024).1, vec![None]);
         let lss = |rt: &mut Runtime<InProcEndpoint, AxisDrive>, d: [u8; 8]| {
             let ax = &mut rt.axes[0];
             ax.node.handle(&CanFrame::new(0x7E5, &d), 0, &mut ax.drive);
