@@ -313,6 +313,13 @@ pub fn check_bus(s: &Scenario, on: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The action of an `[[event]]` given outside a file (the live panel's JSON deserialised into
+/// the file reader's own [`file::RawEvent`]), checked as in a file, on a `rotary` or linear
+/// axis; the error names the key at fault.
+pub fn action_of(raw: &file::RawEvent, rotary: bool) -> Result<timeline::Action, ScenarioError> {
+    validate::action_of(raw, rotary)
+}
+
 /// Read and parse a scenario file (at most [`MAX_FILE_BYTES`]; a longer one, or an endless
 /// one such as `/dev/zero`, is refused after reading one byte beyond the cap).
 pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
