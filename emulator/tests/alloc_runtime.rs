@@ -1,16 +1,17 @@
 //! Proof that the real-time path does not allocate: a counting global allocator watches
 //! `Runtime::tick` (receive -> node -> drive -> physics -> send), the statistics recording,
-//! their publication to the node and the trace tap of `run --trace`, while the drive runs CSP
-//! at constant speed with backlash, answers SDO requests and consumes the master's heartbeat.
+//! their publication to the node and the loop's hook (publish on the observation bus, apply
+//! the injections: the detector's results, the panel's), with every reader of the bus on
+//! (trace recorder, detector thread, status line, panel), while the drive runs CSP at constant
+//! speed with backlash, answers SDO requests and consumes the master's heartbeat.
 
 use drive_emu::analysis::detector::Verdict;
 use drive_emu::bus::CanFrame;
 use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::drive::AxisParam;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
-use drive_emu::monitor::{verdict_code, DetectResult, DetectTap};
+use drive_emu::monitor::{verdict_code, DetectResult, DetectResults};
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::trace::TraceTap;
 use drive_emu::runtime::{AxisSlot, SimulatedDrive};
 use drive_emu::session::OfflineRun;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -147,12 +148,13 @@ fn runtime_tick_allocations(
     let sdo_read = CanFrame::new(0x605, &[0x40, 0x41, 0x60, 0, 0, 0, 0, 0]);
     let sdo_write_backlash = CanFrame::new(0x605, &[0x23, 0x00, 0x20, 0, 0, 0, 0, 0]);
     let sdo_write_preload = CanFrame::new(0x605, &[0x23, 0x0E, 0x20, 0, 0, 0, 0, 0]);
-    // `run --trace`: the loop also samples every axis into the recorder's queue.
-    let tap = TraceTap::new(1);
-    // `run --detect`: and into the detector's queue, and publishes the detector's results in
-    // the drive's objects and as an EMCY (the detector thread's side played here: a result
-    // offered now and then, backlash, then ok, then backlash again).
-    let detect = DetectTap::new(1);
+    // The loop publishes every tick on the observation bus (`run --trace` and `--detect`
+    // read it on their own threads) ...
+    let (mut observer, obs) = drive_emu::observe::channel(1, 1 << 14);
+    // ... and applies the detector's results to the drive's objects and as an EMCY (the
+    // detector thread's side played here: a result offered now and then, backlash, then ok,
+    // then backlash again).
+    let detect = DetectResults::new(1);
     let result = |verdict: Verdict, analyses: u32| DetectResult {
         verdict: verdict_code(verdict),
         frequency_hz: 18.5,
@@ -189,8 +191,8 @@ fn runtime_tick_allocations(
         counted(|| {
             run.runtime.tick();
             run.runtime.stats.record_tick(3, 40);
-            tap.on_tick(&run.runtime);
-            detect.on_tick(&mut run.runtime);
+            observer.publish(&mut run.runtime);
+            detect.apply(&mut run.runtime);
             if k % 256 == 0 {
                 run.runtime.publish_stats();
             }
@@ -225,7 +227,10 @@ fn runtime_tick_allocations(
             "the SDO write reached the twin pinion: {preload}"
         );
     }
-    assert_eq!(tap.lost(), 0);
+    assert_eq!(
+        obs.board.ticks.load(std::sync::atomic::Ordering::Relaxed),
+        5000
+    );
     assert_eq!(
         allocs, 0,
         "{allocs} allocations in 5000 ticks of the real-time path"
@@ -449,10 +454,48 @@ fn the_tick_with_the_panel_open_and_five_clients_does_not_allocate() {
         json_stdout: false,
     };
     let dir = std::env::temp_dir().join(format!("drive-emu-alloc-panel-{}", std::process::id()));
-    let (panel, mut panel_loop) = panel::start_on(listener, None, dir, setup).unwrap();
+    // The observation bus with every reader on: the panel, the trace recorder, the detector
+    // thread (whose results the loop applies), and a status-line reader.
+    let (mut observer, obs) = drive_emu::observe::channel(1, 1 << 14);
+    let (panel, mut panel_loop) =
+        panel::start_on(listener, None, dir.clone(), setup, obs.clone()).unwrap();
+    let trace_path = dir.join("alloc-trace.csv");
+    let recorder =
+        drive_emu::observe::trace::Recorder::start(obs.clone(), vec![trace_path.clone()]).unwrap();
+    let results = std::sync::Arc::new(DetectResults::new(1));
+    let detector = drive_emu::monitor::Detector::start(
+        obs.clone(),
+        results.clone(),
+        vec![drive_emu::monitor::AxisFacts {
+            rotary: false,
+            kv_per_s: cfg.kv_per_s,
+            gap: None,
+        }],
+        drive_emu::monitor::DetectOptions {
+            history_s: 2.0,
+            interval_s: 0.5,
+        },
+    )
+    .unwrap();
+    let status_stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let status = {
+        let (obs, stop) = (obs.clone(), status_stop.clone());
+        std::thread::spawn(move || {
+            let mut seen = 0u64;
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                if let Some(s) = obs.latest(0) {
+                    seen = seen.max(s.t_us);
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            seen
+        })
+    };
     while run.now_us() < 2_000_000 {
         run.step();
+        observer.publish(&mut run.runtime);
         panel_loop.on_tick(&mut run.runtime);
+        results.apply(&mut run.runtime);
     }
     // Five clients, each reading its stream in a thread of its own.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -499,7 +542,9 @@ fn the_tick_with_the_panel_open_and_five_clients_does_not_allocate() {
         counted(|| {
             run.runtime.tick();
             run.runtime.stats.record_tick(3, 40);
+            observer.publish(&mut run.runtime);
             panel_loop.on_tick(&mut run.runtime);
+            results.apply(&mut run.runtime);
             if k % 256 == 0 {
                 run.runtime.publish_stats();
             }
@@ -512,8 +557,20 @@ fn the_tick_with_the_panel_open_and_five_clients_does_not_allocate() {
     let answer = poster.unwrap().join().unwrap();
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     let seen: Vec<usize> = clients.into_iter().map(|c| c.join().unwrap()).collect();
+    status_stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let status_t_us = status.join().unwrap();
+    let trace = recorder.finish().unwrap();
+    let (reports, detector_lost) = detector.finish().unwrap();
     panel.stop();
+    std::fs::remove_file(&trace_path).unwrap();
+    std::fs::remove_dir(&dir).ok();
     assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    // Every reader read the bus while the loop ran: the trace has every tick, the detector
+    // analysed, the status line saw the loop's time move.
+    let ticks = obs.board.ticks.load(std::sync::atomic::Ordering::Relaxed);
+    assert_eq!(trace.samples + trace.lost, ticks, "{trace:?}");
+    assert!(reports[0].is_some() && detector_lost == 0);
+    assert!(status_t_us > 2_000_000, "{status_t_us}");
     let backlash = run.runtime.axes[0].drive.param(AxisParam::Backlash);
     assert!(
         (backlash - 0.07e-3).abs() < 1e-9,
@@ -564,7 +621,8 @@ fn the_ethercat_cycle_with_the_panel_open_does_not_allocate() {
         json_stdout: false,
     };
     let dir = std::env::temp_dir().join(format!("drive-emu-alloc-ecat-{}", std::process::id()));
-    let (panel, mut panel_loop) = panel::start_on(listener, None, dir, setup).unwrap();
+    let (mut observer, obs) = drive_emu::observe::channel(1, 1 << 14);
+    let (panel, mut panel_loop) = panel::start_on(listener, None, dir, setup, obs).unwrap();
     let mut t_us = 0u64;
     let mut cycle = |seg: &mut drive_ethercat::Segment,
                      drives: &mut Vec<AxisDrive>,
@@ -580,6 +638,13 @@ fn the_ethercat_cycle_with_the_panel_open_does_not_allocate() {
         for d in drives.iter_mut() {
             d.advance(1000);
         }
+        observer.publish_axes(
+            t_us,
+            seg.slaves
+                .iter_mut()
+                .map(|s| s.node_mut())
+                .zip(drives.iter()),
+        );
         panel_loop.on_ethercat_cycle(seg, drives, faults, t_us);
         t_us += 1000;
     };

@@ -773,7 +773,9 @@ until = "1.4 s"
         json_stdout: false,
     };
     let dir = std::env::temp_dir().join(format!("drive-emu-panel-scn-{}", std::process::id()));
-    let (panel, mut panel_loop) = drive_emu::panel::start_on(listener, None, dir, setup).unwrap();
+    let (mut observer, obs) = drive_emu::observe::channel(1, 1 << 14);
+    let (panel, mut panel_loop) =
+        drive_emu::panel::start_on(listener, None, dir, setup, Arc::clone(&obs)).unwrap();
     let link = Arc::new(LiveLink::new());
     panel_loop.attach_scenario(Arc::clone(&link), s.run.master.master_id);
     let mut sse = stream(&format!("http://{}/api/stream", panel.addr));
@@ -781,12 +783,13 @@ until = "1.4 s"
     let stop = Arc::new(AtomicBool::new(false));
     let scenario_thread = {
         let (s, cfg, link, stop) = (s.clone(), cfg.clone(), link.clone(), stop.clone());
+        let obs = Arc::clone(&obs);
         std::thread::spawn(move || {
             let o = run_timeline(
                 &s,
                 &cfg,
                 &snapshot,
-                &link,
+                (&link, &obs),
                 &stop,
                 LiveEnd::for_scenario(&s, None),
             );
@@ -813,6 +816,7 @@ until = "1.4 s"
             master_bus.send(&f).unwrap();
         }
         rt.tick();
+        observer.publish(&mut rt);
         panel_loop.on_tick(&mut rt);
         while let Ok(Some(f)) = master_bus.recv() {
             master.handle(&f, rt.sim_time_us);

@@ -2,29 +2,32 @@
 //! off the loop thread, its result in the drive's objects (0x2102) and an EMCY warning 0xFF01
 //! when backlash is confirmed; and what it says of a run is what `analyze` says of the same
 //! run's trace. Offline (lock-step, the reference master on the in-process bus), the same loop
-//! hooks `run` uses.
+//! hook `run` uses: publish on the observation bus, then apply the detector's results.
 
 use drive_emu::analysis::detector::{analyze, AxisTrace, DetectorConfig, Verdict};
 use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::drive::objects::{DETECTOR_OFFSET, EMCY_BACKLASH};
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
-use drive_emu::monitor::{verdict_code, AxisFacts, DetectOptions, DetectTap, Detector};
+use drive_emu::monitor::{verdict_code, AxisFacts, DetectOptions, DetectResults, Detector};
+use drive_emu::observe::{ring::Cursor, Observation, Observer};
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::trace::TraceTap;
 use drive_emu::runtime::AxisSlot;
-use drive_emu::samples::SampleSource;
+use drive_emu::samples::{Sample, SampleSource};
 use drive_emu::session::OfflineRun;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-fn run(
-    backlash_mm: f64,
-) -> (
-    OfflineRun<AxisDrive>,
-    Arc<DetectTap>,
-    Detector,
-    Arc<TraceTap>,
-) {
+/// The loop's side: the bus's writer, the detector's results to apply, and (as `--trace`
+/// would) every tick the bus carried, read through a cursor of the test's own.
+struct Hook {
+    observer: Observer,
+    obs: Arc<Observation>,
+    results: Arc<DetectResults>,
+    cursor: Cursor,
+    trace: Vec<Sample>,
+}
+
+fn run(backlash_mm: f64) -> (OfflineRun<AxisDrive>, Hook, Detector) {
     let cfg = AxisConfig::from_preset("cnc1")
         .unwrap()
         .with_override("backlash_mm", &backlash_mm.to_string())
@@ -44,9 +47,11 @@ fn run(
         1000,
         Master::new(MasterConfig::default(), program),
     );
-    let tap = Arc::new(DetectTap::new(1));
+    let (observer, obs) = drive_emu::observe::channel(1, 1 << 16);
+    let results = Arc::new(DetectResults::new(1));
     let detector = Detector::start(
-        Arc::clone(&tap),
+        Arc::clone(&obs),
+        Arc::clone(&results),
         vec![AxisFacts {
             rotary: false,
             kv_per_s: cfg.kv_per_s,
@@ -61,40 +66,51 @@ fn run(
         },
     )
     .unwrap();
-    (run, tap, detector, Arc::new(TraceTap::new(1)))
+    let cursor = Cursor::at_end(&obs.rings[0]);
+    let hook = Hook {
+        observer,
+        obs,
+        results,
+        cursor,
+        trace: Vec::new(),
+    };
+    (run, hook, detector)
 }
 
-fn tick(run: &mut OfflineRun<AxisDrive>, tap: &DetectTap, trace: &TraceTap) {
+fn tick(run: &mut OfflineRun<AxisDrive>, h: &mut Hook) {
     run.master_send();
     run.runtime.tick();
-    tap.on_tick(&mut run.runtime);
-    trace.on_tick(&run.runtime);
+    h.observer.publish(&mut run.runtime);
+    h.results.apply(&mut run.runtime);
+    while let Some(s) = h.obs.next(0, &mut h.cursor) {
+        h.trace.push(s.sample);
+    }
     run.master_receive();
 }
 
 #[test]
 fn a_worn_drive_says_backlash_in_its_objects_and_an_emcy_and_agrees_with_analyze() {
-    let (mut run, tap, detector, trace) = run(0.05);
+    let (mut run, mut h, detector) = run(0.05);
     // 6 s of drive time: boot, enable, cruise.
     while run.now_us() < 6_000_000 {
-        tick(&mut run, &tap, &trace);
+        tick(&mut run, &mut h);
     }
     // The detector thread analyses as the samples come; the loop publishes what it says.
     let t0 = Instant::now();
-    while tap.published(0) != verdict_code(Verdict::Backlash) {
+    while h.results.published(0) != verdict_code(Verdict::Backlash) {
         assert!(
             t0.elapsed() < Duration::from_secs(60),
             "no backlash published (last {})",
-            tap.published(0)
+            h.results.published(0)
         );
         std::thread::sleep(Duration::from_millis(20));
         for _ in 0..20 {
-            tick(&mut run, &tap, &trace);
+            tick(&mut run, &mut h);
         }
     }
     // A few more ticks for the EMCY to go out and reach the master.
     for _ in 0..20 {
-        tick(&mut run, &tap, &trace);
+        tick(&mut run, &mut h);
     }
     let node = &run.runtime.axes[0].node;
     let base = run.runtime.axes[0].drive.objects.unwrap().base;
@@ -117,12 +133,9 @@ fn a_worn_drive_says_backlash_in_its_objects_and_an_emcy_and_agrees_with_analyze
     assert_eq!(e.error_register & 0x80, 0x80, "manufacturer-specific bit");
     assert_eq!(node.statusword() & 0x6F, 0x27, "still operation enabled");
     // Stop: the last analysis of the whole run against `analyze` of the run's trace.
-    let reports = detector.finish().unwrap();
+    let (reports, lost) = detector.finish().unwrap();
     let live = reports[0].as_ref().unwrap();
-    let mut samples = Vec::new();
-    while let Some(s) = trace.pop(0) {
-        samples.push(s);
-    }
+    let samples = std::mem::take(&mut h.trace);
     let offline = analyze(
         &AxisTrace::from_sample_log(&samples, SampleSource::Drive, false),
         &DetectorConfig::new(30.0),
@@ -137,7 +150,8 @@ fn a_worn_drive_says_backlash_in_its_objects_and_an_emcy_and_agrees_with_analyze
         offline.amplitude,
         samples.len()
     );
-    assert_eq!(tap.lost(), 0);
+    assert_eq!(lost, 0, "the detector thread read every tick");
+    assert_eq!(h.cursor.lost, 0);
     assert_eq!(live.verdict, offline.verdict);
     assert_eq!(live.frequency_hz, offline.frequency_hz);
     assert_eq!(live.amplitude, offline.amplitude);
@@ -155,22 +169,22 @@ fn a_worn_drive_says_backlash_in_its_objects_and_an_emcy_and_agrees_with_analyze
 
 #[test]
 fn a_healthy_drive_stays_ok_without_an_emcy() {
-    let (mut run, tap, detector, trace) = run(0.0);
+    let (mut run, mut h, detector) = run(0.0);
     while run.now_us() < 6_000_000 {
-        tick(&mut run, &tap, &trace);
+        tick(&mut run, &mut h);
     }
     let t0 = Instant::now();
-    while tap.published(0) == 0 {
+    while h.results.published(0) == 0 {
         assert!(t0.elapsed() < Duration::from_secs(60), "nothing published");
         std::thread::sleep(Duration::from_millis(20));
         for _ in 0..20 {
-            tick(&mut run, &tap, &trace);
+            tick(&mut run, &mut h);
         }
     }
-    assert_eq!(tap.published(0), verdict_code(Verdict::Ok));
+    assert_eq!(h.results.published(0), verdict_code(Verdict::Ok));
     assert!(!run.runtime.axes[0].node.error_active(EMCY_BACKLASH));
     assert!(run.master.emcys().iter().all(|e| e.code != EMCY_BACKLASH));
-    let live = detector.finish().unwrap();
+    let (live, _) = detector.finish().unwrap();
     let live = live[0].as_ref().unwrap();
     assert_eq!(live.verdict, Verdict::Ok);
     // No gap on a healthy axis: null in the JSON.

@@ -7,18 +7,18 @@ use drive_emu::analysis::spectrum::fundamental;
 use drive_emu::cli::analyze::trace_from_csv;
 use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP, MODE_PP};
+use drive_emu::observe::trace::Recorder;
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::trace::{node_sample, Recorder, TraceTap};
+use drive_emu::runtime::trace::node_sample;
 use drive_emu::runtime::AxisSlot;
 use drive_emu::samples::SampleSource;
 use drive_emu::session::OfflineRun;
-use std::sync::Arc;
 
 /// A CNC1 axis with `backlash_mm`: PP move, then 6 s of CSP cruise at 10 mm/s from the
 /// reference master, offline; `each_tick` sees the run after every tick.
 fn cruise(
     backlash_mm: f64,
-    mut each_tick: impl FnMut(&OfflineRun<AxisDrive>),
+    mut each_tick: impl FnMut(&mut OfflineRun<AxisDrive>),
 ) -> OfflineRun<AxisDrive> {
     let cfg = AxisConfig::from_preset("cnc1")
         .unwrap()
@@ -47,7 +47,7 @@ fn cruise(
     );
     while !run.master.finished() {
         run.step();
-        each_tick(&run);
+        each_tick(&mut run);
     }
     assert!(run.master.error().is_none(), "{:?}", run.master.error());
     run
@@ -59,10 +59,10 @@ fn traced_run(backlash_mm: f64, name: &str) -> (AxisTrace, Vec<f64>) {
     let dir = std::env::temp_dir().join(format!("drive-emu-rta-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(format!("{name}.csv"));
-    let tap = Arc::new(TraceTap::new(1));
-    let rec = Recorder::start(Arc::clone(&tap), vec![path.clone()]).unwrap();
-    let run = cruise(backlash_mm, |run| tap.on_tick(&run.runtime));
-    rec.finish(&tap).unwrap();
+    let (mut observer, obs) = drive_emu::observe::channel(1, 1 << 14);
+    let rec = Recorder::start(obs, vec![path.clone()]).unwrap();
+    let run = cruise(backlash_mm, |run| observer.publish(&mut run.runtime));
+    assert_eq!(rec.finish().unwrap().lost, 0);
     let tr = trace_from_csv(&path, false).unwrap();
     std::fs::remove_dir_all(&dir).ok();
     // The master's own view of the same run: speed from its TPDOs at constant set-point.
@@ -105,7 +105,7 @@ fn a_run_trace_shows_the_limit_cycle_to_the_detector() {
 
 #[test]
 fn a_live_scenario_detector_sees_the_drive_side_samples_right() {
-    // What LoopInjector publishes every tick, and run_timeline analyses.
+    // What the observation bus carries every tick, and run_timeline analyses.
     let mut samples = Vec::new();
     cruise(0.05, |run| {
         samples.push(node_sample(

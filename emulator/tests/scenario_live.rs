@@ -69,12 +69,15 @@ fn a_live_timeline_changes_the_running_drive_and_its_expectations_are_checked() 
         ],
     );
     let link = Arc::new(LiveLink::new());
+    // The observation bus the loop publishes into and the scenario thread reads.
+    let (mut observer, obs) = drive_emu::observe::channel(1, 1 << 14);
     let stop = Arc::new(AtomicBool::new(false));
     let scenario_thread = {
         let (s, cfg, link, stop) = (s.clone(), cfg.clone(), link.clone(), stop.clone());
+        let obs = Arc::clone(&obs);
         std::thread::spawn(move || {
             let end = LiveEnd::for_scenario(&s, None);
-            let o = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
+            let o = run_timeline(&s, &cfg, &snapshot, (&link, &obs), &stop, end);
             stop.store(true, Ordering::Relaxed);
             o
         })
@@ -91,6 +94,7 @@ fn a_live_timeline_changes_the_running_drive_and_its_expectations_are_checked() 
             master_bus.send(&f).unwrap();
         }
         rt.tick();
+        observer.publish(&mut rt);
         injector.on_tick(&link, &mut rt);
         while let Ok(Some(f)) = master_bus.recv() {
             master.handle(&f, rt.sim_time_us);
@@ -138,13 +142,16 @@ fn a_lockstep_live_scenario_whose_sync_stops_ends_by_itself_with_the_sync_loss_r
     let bus = FaultyBus::new(eps.pop().unwrap(), 1);
     let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
     let link = Arc::new(LiveLink::new());
+    // The observation bus the loop publishes into and the scenario thread reads.
+    let (mut observer, obs) = drive_emu::observe::channel(1, 1 << 14);
     let stop = Arc::new(AtomicBool::new(false));
     let scenario_thread = {
         let (s, cfg, link, stop) = (s.clone(), cfg.clone(), link.clone(), stop.clone());
+        let obs = Arc::clone(&obs);
         std::thread::spawn(move || {
             let end = LiveEnd::for_scenario(&s, None);
             assert_eq!(end, LiveEnd::EventsDone, "the file has no duration");
-            let o = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
+            let o = run_timeline(&s, &cfg, &snapshot, (&link, &obs), &stop, end);
             stop.store(true, Ordering::Relaxed);
             o
         })
@@ -159,7 +166,10 @@ fn a_lockstep_live_scenario_whose_sync_stops_ends_by_itself_with_the_sync_loss_r
                 sync_period_us: None,
                 free_run_after_us: Some(200_000),
             };
-            rt.run_lockstep_with(cfg, &stop, |rt| injector.on_tick(&link, rt));
+            rt.run_lockstep_with(cfg, &stop, |rt| {
+                observer.publish(rt);
+                injector.on_tick(&link, rt)
+            });
             rt
         })
     };
@@ -269,13 +279,16 @@ no_emcy = true
     let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
     rt.boot();
     let link = Arc::new(LiveLink::new());
+    // The observation bus the loop publishes into and the scenario thread reads.
+    let (mut observer, obs) = drive_emu::observe::channel(1, 1 << 14);
     let stop = Arc::new(AtomicBool::new(false));
     let scenario_thread = {
         let (s, cfg, link, stop) = (s.clone(), cfg.clone(), link.clone(), stop.clone());
+        let obs = Arc::clone(&obs);
         std::thread::spawn(move || {
             // --duration 1
             let end = LiveEnd::for_scenario(&s, Some(1_000_000));
-            let o = run_timeline(&s, &cfg, &snapshot, &link, &stop, end);
+            let o = run_timeline(&s, &cfg, &snapshot, (&link, &obs), &stop, end);
             stop.store(true, Ordering::Relaxed);
             o
         })
@@ -287,6 +300,7 @@ no_emcy = true
         clock.sleep_until(deadline);
         deadline += 1000;
         rt.tick();
+        observer.publish(&mut rt);
         injector.on_tick(&link, &mut rt);
     }
     let o = scenario_thread.join().unwrap();

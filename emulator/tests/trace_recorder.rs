@@ -1,15 +1,16 @@
-//! The live-run trace recorder (runtime/trace.rs) against an offline run of the reference
-//! master: every tick of every axis is written, and nothing stays in a buffer after `finish`.
+//! The live-run trace recorder (observe/trace.rs, a reader of the observation bus) against an
+//! offline run of the reference master: every tick of every axis is written, and nothing stays
+//! in a buffer after `finish`.
 //! (An integration test: the runtime layer itself does not know the master or the drive.)
 
 use drive_emu::drive::axis_drive::AxisDrive;
 use drive_emu::master::{Master, MasterConfig, Step, MODE_CSP};
+use drive_emu::observe::trace::Recorder;
 use drive_emu::presets::AxisConfig;
-use drive_emu::runtime::trace::{trace_paths, Recorder, TraceTap};
+use drive_emu::runtime::trace::trace_paths;
 use drive_emu::runtime::AxisSlot;
 use drive_emu::samples::csv::read_csv;
 use drive_emu::session::OfflineRun;
-use std::sync::Arc;
 
 #[test]
 fn the_recorder_writes_every_tick_of_every_axis_and_flushes_on_finish() {
@@ -34,17 +35,17 @@ fn the_recorder_writes_every_tick_of_every_axis_and_flushes_on_finish() {
     let dir = std::env::temp_dir().join(format!("drive-emu-trace-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let paths = trace_paths(&dir.join("t.csv"), &[5, 6]);
-    let tap = Arc::new(TraceTap::new(2));
-    let rec = Recorder::start(Arc::clone(&tap), paths.clone()).unwrap();
+    let (mut observer, obs) = drive_emu::observe::channel(2, 1 << 14);
+    let rec = Recorder::start(obs, paths.clone()).unwrap();
     let mut ticks = 0u64;
     let mut last_position = 0;
     while !run.master.finished() {
         run.step();
-        tap.on_tick(&run.runtime);
+        observer.publish(&mut run.runtime);
         ticks += 1;
         last_position = run.runtime.axes[0].node.position_actual();
     }
-    let summary = rec.finish(&tap).unwrap();
+    let summary = rec.finish().unwrap();
     assert_eq!(summary.samples, 2 * ticks);
     assert_eq!(summary.lost, 0);
     let cols = read_csv(&paths[0]).unwrap();

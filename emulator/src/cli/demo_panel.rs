@@ -42,13 +42,14 @@ fn program(v_uu: f64, leg_s: f64) -> Vec<Step> {
 }
 
 /// One tick of a drive on the in-process bus with the reference master beside it and the
-/// panel watching: the master's frames in, the drive's tick, the panel's fan-out, the
-/// drive's answers to the master. (The panel's test rig runs the same.)
+/// panel watching: the master's frames in, the drive's tick, the loop's hook (publish on the
+/// observation bus, the panel's injections), the drive's answers to the master. (The panel's
+/// test rig runs the same.)
 pub fn tick_with_master(
     master: &mut Master,
     master_bus: &mut InProcEndpoint,
     rt: &mut Runtime<FaultyBus<InProcEndpoint>, AxisDrive>,
-    panel_loop: &mut PanelLoop,
+    (observer, panel_loop): (&mut crate::observe::Observer, &mut PanelLoop),
 ) {
     master.poll(rt.sim_time_us);
     while let Some(f) = master.pop_tx() {
@@ -59,6 +60,7 @@ pub fn tick_with_master(
     if rt.stats.ticks.is_multiple_of(256) {
         rt.publish_stats();
     }
+    observer.publish(rt);
     panel_loop.on_tick(rt);
     while let Ok(Some(f)) = master_bus.recv() {
         master.handle(&f, rt.sim_time_us);
@@ -122,7 +124,8 @@ pub fn run(args: &PanelDemo) -> Result<()> {
         master_id: mcfg.master_id,
         json_stdout: false,
     };
-    let Some((panel, mut panel_loop)) = crate::panel::start(args.panel, setup)? else {
+    let (mut observer, obs) = crate::observe::channel(1, crate::observe::ring_capacity(TICK_HZ));
+    let Some((panel, mut panel_loop)) = crate::panel::start(args.panel, setup, obs)? else {
         bail!("demo --panel: no panel address");
     };
     let mut master = Master::new(mcfg, program(args.velocity_uu_s, args.cruise_s));
@@ -142,7 +145,12 @@ pub fn run(args: &PanelDemo) -> Result<()> {
     let start = Instant::now();
     let mut ticks: u32 = 0;
     while !stop.load(Ordering::Relaxed) && !master.finished() && master.error().is_none() {
-        tick_with_master(&mut master, &mut master_bus, &mut rt, &mut panel_loop);
+        tick_with_master(
+            &mut master,
+            &mut master_bus,
+            &mut rt,
+            (&mut observer, &mut panel_loop),
+        );
         // Paced on the wall clock: tick k is due at start + k periods (a late tick is not
         // made up for by skipping: the drive's time is the master's, not the wall's).
         ticks += 1;

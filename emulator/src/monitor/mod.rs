@@ -4,24 +4,25 @@
 //! ([`EMCY_BACKLASH`]) when backlash is confirmed, so a master's condition monitoring can be
 //! tested against it.
 //!
-//! Two halves, as the trace recorder ([`crate::runtime::trace`]):
-//! - the loop thread calls [`DetectTap::on_tick`] after every tick: it pushes each axis's
-//!   sample (its objects, [`node_sample`]) into a preallocated lock-free queue, and takes the
-//!   detector's latest result, if any, from another one and publishes it: the objects
-//!   ([`drive_protocol::Node::set_value`]) and the EMCY ([`drive_protocol::Node::raise_condition`]).
-//!   No allocation, lock or I/O; a full queue is a counted loss.
-//! - the [`Detector`] thread keeps the last [`DetectOptions::history_s`] of samples per axis
-//!   and every [`DetectOptions::interval_s`] of new ones runs [`analyze`] on them (k_v: the
-//!   drive's own, read each tick; the master's where it closes the loop itself, found by the
-//!   detector), and once more on what is left when the run stops ([`Detector::finish`]).
-//!   What it says for a run shorter than the history is what `drive-emu analyze` says of the
-//!   run's `--trace`: the same samples, the same code.
+//! Two halves:
+//! - the [`Detector`] thread reads each axis's ticks from the observation bus
+//!   ([`crate::observe`]), keeps the last [`DetectOptions::history_s`] of them in a [`Window`]
+//!   and every [`DetectOptions::interval_s`] of new ones runs [`analyze`] on it (k_v: the
+//!   drive's own, as each snapshot carries it; the master's where it closes the loop itself,
+//!   found by the detector), and once more on what is left when the run stops
+//!   ([`Detector::finish`]). What it says for a run shorter than the history is what
+//!   `drive-emu analyze` says of the run's `--trace`: the same samples, the same code.
+//! - the loop applies the detector's latest result, if any, as an injection
+//!   ([`DetectResults::apply`]): the objects ([`drive_protocol::Node::set_value`]) and the
+//!   EMCY ([`drive_protocol::Node::raise_condition`]). No allocation, lock or I/O.
+//!
+//! [`Window`] is the one live detector pipeline: the panel's stream keeps one per axis too.
 
 use crate::analysis::detector::{analyze, AxisTrace, DetectorConfig, DetectorReport, Verdict};
 use crate::bus::CanBus;
 use crate::drive::axis_drive::AxisDrive;
-use crate::drive::objects::{AxisParam, EMCY_BACKLASH};
-use crate::runtime::trace::node_sample;
+use crate::drive::objects::EMCY_BACKLASH;
+use crate::observe::{AxisSnapshot, Observation};
 use crate::runtime::Runtime;
 use crate::samples::{Sample, SampleSource};
 use crossbeam::queue::ArrayQueue;
@@ -31,8 +32,6 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-/// Samples a queue holds: 65 s at 1 kHz, far more than the detector thread ever lags.
-const QUEUE_SAMPLES: usize = 1 << 16;
 /// Results a queue holds (the loop takes them every tick).
 const QUEUE_RESULTS: usize = 8;
 
@@ -105,57 +104,42 @@ impl DetectResult {
     }
 }
 
-/// The loop thread's half: per axis a sample queue to the detector and a result queue back,
-/// sized once.
-pub struct DetectTap {
-    samples: Vec<ArrayQueue<Sample>>,
+/// The loop's half: per axis a queue of the detector's results, sized once, which the loop
+/// applies to the drive after each tick.
+pub struct DetectResults {
     results: Vec<ArrayQueue<DetectResult>>,
-    /// The drive's own k_v (f64 bits), published by the loop every tick.
-    kv_bits: Vec<AtomicU64>,
     /// Whether the backlash EMCY is up, per axis (the loop's own state).
     warned: Vec<AtomicBool>,
     /// The last verdict published, per axis.
     published: Vec<AtomicU8>,
-    lost: AtomicU64,
 }
 
-impl DetectTap {
+impl DetectResults {
     pub fn new(axes: usize) -> Self {
         Self {
-            samples: (0..axes).map(|_| ArrayQueue::new(QUEUE_SAMPLES)).collect(),
             results: (0..axes).map(|_| ArrayQueue::new(QUEUE_RESULTS)).collect(),
-            kv_bits: (0..axes).map(|_| AtomicU64::new(0)).collect(),
             warned: (0..axes).map(|_| AtomicBool::new(false)).collect(),
             published: (0..axes).map(|_| AtomicU8::new(0)).collect(),
-            lost: AtomicU64::new(0),
         }
     }
 
-    /// After every tick (loop thread): one sample per axis to the detector, its latest result
-    /// into the axis's objects and, with backlash confirmed, its EMCY warning (cleared when
-    /// the verdict is ok again). Real-time safe: no allocation, lock or I/O.
-    pub fn on_tick<B: CanBus>(&self, rt: &mut Runtime<B, AxisDrive>) {
-        let now = rt.sim_time_us;
+    /// After every tick (loop thread): each axis's latest result into its objects and, with
+    /// backlash confirmed, its EMCY warning (cleared when the verdict is ok again). Real-time
+    /// safe: no allocation, lock or I/O.
+    pub fn apply<B: CanBus>(&self, rt: &mut Runtime<B, AxisDrive>) {
         for (k, ax) in rt.axes.iter_mut().enumerate() {
-            if k >= self.samples.len() {
-                break;
-            }
-            self.on_axis(k, &mut ax.node, &ax.drive, now);
+            self.apply_axis(k, &mut ax.node, &ax.drive);
         }
     }
 
-    /// [`DetectTap::on_tick`] for axis `k` alone, its node and drive at `now`: for a loop
-    /// other than the CAN [`Runtime`] (the EtherCAT front end's). Real-time safe.
-    pub fn on_axis(&self, k: usize, node: &mut drive_protocol::Node, drive: &AxisDrive, now: u64) {
-        let Some(q) = self.samples.get(k) else {
+    /// [`DetectResults::apply`] for axis `k` alone, its node and drive: for a loop other than
+    /// the CAN [`Runtime`] (the EtherCAT front end's). Real-time safe.
+    pub fn apply_axis(&self, k: usize, node: &mut drive_protocol::Node, drive: &AxisDrive) {
+        let Some(q) = self.results.get(k) else {
             return;
         };
-        if q.push(node_sample(node, now)).is_err() {
-            self.lost.fetch_add(1, Ordering::Relaxed);
-        }
-        self.kv_bits[k].store(drive.param(AxisParam::Kv).to_bits(), Ordering::Relaxed);
         let mut latest = None;
-        while let Some(r) = self.results[k].pop() {
+        while let Some(r) = q.pop() {
             latest = Some(r);
         }
         let Some(r) = latest else {
@@ -180,28 +164,19 @@ impl DetectTap {
         }
     }
 
-    /// Hand the loop a result for axis `k`, to publish at its next tick (the detector
-    /// thread's side; a test may play it). A full queue drops the oldest result.
+    /// Hand the loop a result for axis `k`, to apply at its next tick (the detector thread's
+    /// side; a test may play it). A full queue drops the oldest result.
     pub fn offer(&self, k: usize, r: DetectResult) {
         if let Some(q) = self.results.get(k) {
             let _ = q.force_push(r);
         }
     }
 
-    /// Samples dropped because the detector thread fell behind.
-    pub fn lost(&self) -> u64 {
-        self.lost.load(Ordering::Relaxed)
-    }
-
-    /// The verdict code last published for axis `k` (0: none yet).
+    /// The verdict code last applied for axis `k` (0: none yet).
     pub fn published(&self, k: usize) -> u8 {
         self.published
             .get(k)
             .map_or(0, |p| p.load(Ordering::Relaxed))
-    }
-
-    fn kv(&self, k: usize) -> f64 {
-        f64::from_bits(self.kv_bits[k].load(Ordering::Relaxed))
     }
 }
 
@@ -217,90 +192,147 @@ pub struct AxisFacts {
     pub gap: Option<crate::analysis::gap::GapModel>,
 }
 
+/// The last seconds of one axis's ticks and the detector on them: the one live detector
+/// pipeline (the `--detect` thread and the panel's stream keep one per axis).
+pub struct Window {
+    samples: VecDeque<Sample>,
+    history_s: f64,
+    facts: AxisFacts,
+    /// The drive's k_v as the newest snapshot carried it, 1/s (0: none yet).
+    kv_per_s: f64,
+}
+
+impl Window {
+    /// A window of the last `history_s` seconds of drive time.
+    pub fn new(facts: AxisFacts, history_s: f64) -> Self {
+        Self {
+            samples: VecDeque::new(),
+            history_s,
+            facts,
+            kv_per_s: 0.0,
+        }
+    }
+
+    /// One tick: kept, and what is older than the window dropped.
+    pub fn push(&mut self, s: &AxisSnapshot) {
+        self.samples.push_back(s.sample);
+        self.kv_per_s = s.kv_per_s;
+        let newest = s.sample.t_s;
+        while self
+            .samples
+            .front()
+            .is_some_and(|f| newest - f.t_s > self.history_s)
+        {
+            self.samples.pop_front();
+        }
+    }
+
+    /// The ticks in the window, oldest first.
+    pub fn samples(&self) -> &VecDeque<Sample> {
+        &self.samples
+    }
+
+    /// The k_v the detector judges against: the drive's own as last published, else the
+    /// axis's from its configuration, 1/s.
+    pub fn kv_per_s(&self) -> f64 {
+        match self.kv_per_s {
+            kv if kv > 0.0 && kv.is_finite() => kv,
+            _ => self.facts.kv_per_s,
+        }
+    }
+
+    /// The detector's configuration for this axis now (k_v, gap model).
+    pub fn config(&self) -> DetectorConfig {
+        DetectorConfig {
+            gap: self.facts.gap,
+            ..DetectorConfig::new(self.kv_per_s())
+        }
+    }
+
+    /// The detector on the window (None: no ticks yet).
+    pub fn analyze(&self) -> Option<DetectorReport> {
+        if self.samples.is_empty() {
+            return None;
+        }
+        let samples: Vec<Sample> = self.samples.iter().copied().collect();
+        let tr = AxisTrace::from_sample_log(&samples, SampleSource::Drive, self.facts.rotary);
+        Some(analyze(&tr, &self.config()))
+    }
+}
+
 /// The detector thread.
 pub struct Detector {
     stop: Arc<AtomicBool>,
+    lost: Arc<AtomicU64>,
     thread: JoinHandle<Vec<Option<DetectorReport>>>,
 }
 
-/// One axis's samples in the detector thread.
+/// One axis in the detector thread.
 struct AxisHistory {
-    facts: AxisFacts,
-    samples: VecDeque<Sample>,
+    window: Window,
+    cursor: crate::observe::ring::Cursor,
     /// Drive time of the last analysis, s.
     analysed_at_s: f64,
     analyses: u32,
 }
 
 impl AxisHistory {
-    fn analyse(&mut self, tap: &DetectTap, k: usize) -> Option<DetectorReport> {
-        let samples: Vec<Sample> = self.samples.iter().copied().collect();
-        let last = samples.last()?;
-        self.analysed_at_s = last.t_s;
-        let kv = match tap.kv(k) {
-            kv if kv > 0.0 && kv.is_finite() => kv,
-            _ => self.facts.kv_per_s,
-        };
-        let tr = AxisTrace::from_sample_log(&samples, SampleSource::Drive, self.facts.rotary);
-        let cfg = DetectorConfig {
-            gap: self.facts.gap,
-            ..DetectorConfig::new(kv)
-        };
-        let rep = analyze(&tr, &cfg);
+    fn analyse(&mut self, results: &DetectResults, k: usize) -> Option<DetectorReport> {
+        let rep = self.window.analyze()?;
+        self.analysed_at_s = self.window.samples().back().map_or(0.0, |s| s.t_s);
         self.analyses += 1;
-        tap.offer(k, DetectResult::of(&rep, self.analyses));
+        results.offer(k, DetectResult::of(&rep, self.analyses));
         Some(rep)
+    }
+
+    /// Whether `interval_s` of new drive time came since the last analysis.
+    fn due(&self, interval_s: f64) -> bool {
+        let w = self.window.samples();
+        let newest = w.back().map_or(0.0, |s| s.t_s);
+        newest - self.analysed_at_s.max(w.front().map_or(newest, |s| s.t_s)) >= interval_s
     }
 }
 
 impl Detector {
-    /// Start the detector thread on `tap`'s samples, one entry of `axes` per axis.
+    /// Start the detector thread on the bus `obs` (from its next record), one entry of `axes`
+    /// per axis; its results go to the loop through `results`.
     pub fn start(
-        tap: Arc<DetectTap>,
+        obs: Arc<Observation>,
+        results: Arc<DetectResults>,
         axes: Vec<AxisFacts>,
         opts: DetectOptions,
     ) -> std::io::Result<Self> {
-        assert_eq!(tap.samples.len(), axes.len(), "one tap queue per axis");
+        assert_eq!(obs.rings.len(), axes.len(), "one entry per axis");
         let stop = Arc::new(AtomicBool::new(false));
+        let lost = Arc::new(AtomicU64::new(0));
+        let mut hist: Vec<AxisHistory> = axes
+            .into_iter()
+            .zip(obs.cursors_at_end())
+            .map(|(facts, cursor)| AxisHistory {
+                window: Window::new(facts, opts.history_s),
+                cursor,
+                analysed_at_s: f64::NEG_INFINITY,
+                analyses: 0,
+            })
+            .collect();
         let thread = {
-            let stop = Arc::clone(&stop);
+            let (stop, lost) = (Arc::clone(&stop), Arc::clone(&lost));
             std::thread::Builder::new()
                 .name("drive-emu-detect".into())
                 .spawn(move || {
-                    let mut hist: Vec<AxisHistory> = axes
-                        .into_iter()
-                        .map(|facts| AxisHistory {
-                            facts,
-                            samples: VecDeque::new(),
-                            analysed_at_s: f64::NEG_INFINITY,
-                            analyses: 0,
-                        })
-                        .collect();
                     loop {
-                        // Read the flag before draining: nothing pushed before `finish` is
-                        // left out of the last analysis.
+                        // Read the flag before reading the bus: nothing published before
+                        // `finish` is left out of the last analysis.
                         let last = stop.load(Ordering::Acquire);
                         for (k, h) in hist.iter_mut().enumerate() {
-                            while let Some(s) = tap.samples[k].pop() {
-                                h.samples.push_back(s);
+                            while let Some(s) = obs.next(k, &mut h.cursor) {
+                                h.window.push(&s);
                             }
-                            let newest = h.samples.back().map_or(0.0, |s| s.t_s);
-                            while h
-                                .samples
-                                .front()
-                                .is_some_and(|s| newest - s.t_s > opts.history_s)
-                            {
-                                h.samples.pop_front();
-                            }
-                            if !last
-                                && newest
-                                    - h.analysed_at_s
-                                        .max(h.samples.front().map_or(newest, |s| s.t_s))
-                                    >= opts.interval_s
-                            {
-                                h.analyse(&tap, k);
+                            if !last && h.due(opts.interval_s) {
+                                h.analyse(&results, k);
                             }
                         }
+                        lost.store(hist.iter().map(|h| h.cursor.lost).sum(), Ordering::Relaxed);
                         if last {
                             break;
                         }
@@ -308,19 +340,26 @@ impl Detector {
                     }
                     hist.iter_mut()
                         .enumerate()
-                        .map(|(k, h)| h.analyse(&tap, k))
+                        .map(|(k, h)| h.analyse(&results, k))
                         .collect()
                 })?
         };
-        Ok(Self { stop, thread })
+        Ok(Self { stop, lost, thread })
+    }
+
+    /// Ticks the detector thread missed so far (it fell more than the ring behind).
+    pub fn lost(&self) -> u64 {
+        self.lost.load(Ordering::Relaxed)
     }
 
     /// Call after the loop has stopped: the last analysis of each axis on every sample kept
-    /// (None: an axis without samples).
-    pub fn finish(self) -> std::io::Result<Vec<Option<DetectorReport>>> {
+    /// (None: an axis without samples), and the ticks the thread missed.
+    pub fn finish(self) -> std::io::Result<(Vec<Option<DetectorReport>>, u64)> {
         self.stop.store(true, Ordering::Release);
-        self.thread
+        let reports = self
+            .thread
             .join()
-            .map_err(|_| std::io::Error::other("the detector thread panicked"))
+            .map_err(|_| std::io::Error::other("the detector thread panicked"))?;
+        Ok((reports, self.lost.load(Ordering::Relaxed)))
     }
 }

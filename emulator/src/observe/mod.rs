@@ -1,6 +1,8 @@
-//! The tick's observation fan-out: after every tick the loop publishes one snapshot per axis
-//! into a preallocated lock-free ring ([`ring::SeqRing`]) that any number of readers (the
-//! panel's stream, its recorder and detector) follow at their own pace.
+//! The tick's observation bus: after every tick the loop publishes one snapshot per axis into
+//! a preallocated lock-free ring ([`ring::SeqRing`]) that any number of readers follow at
+//! their own pace: the trace recorder ([`trace`], `run --trace`), the detector thread
+//! (the monitor module, `run --detect`), a live scenario's thread, the terminal status line and
+//! the panel's stream (with its recordings and detector). None of them touches the runtime.
 //!
 //! The loop's half is the [`Observer`]: [`Observer::publish`] reads each axis's node (what a
 //! master reads: statusword, controlword, positions, velocity, following error, NMT and CiA 402
@@ -10,23 +12,28 @@
 //! never the loop a tick. The readers' half is [`Observation`] (the rings and the loop's
 //! statistics board) with a [`ring::Cursor`] each.
 //!
-//! The node events are drained here, once per tick, for every axis; a live scenario's
-//! injector on the same loop takes axis 0's from [`Observer::events`].
+//! The node events are drained here, once per tick, for every axis, and nowhere else: the
+//! EMCYs of a tick travel in its snapshot (a reader never steals another's events).
+//!
+//! A reader that falls more than the ring's capacity behind loses the oldest records and its
+//! [`ring::Cursor`] counts them; every reader reports that count when the run ends.
 
 pub mod ring;
+pub mod trace;
 
 use crate::bus::CanBus;
 use crate::drive::axis_drive::AxisDrive;
+use crate::drive::objects::AxisParam;
 use crate::runtime::trace::node_sample;
 use crate::runtime::{Runtime, SimulatedDrive};
 use crate::samples::Sample;
 use drive_protocol::NodeEvent;
 use ring::{Cursor, RingWriter, SeqRing};
-use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::Arc;
 
 /// Words per record.
-pub const WORDS: usize = 12;
+pub const WORDS: usize = 15;
 /// EMCY events a record carries per axis and tick; more in one tick are counted in
 /// [`AxisSnapshot::events_over`].
 pub const EVENTS_PER_TICK: usize = 4;
@@ -65,6 +72,14 @@ pub struct AxisSnapshot {
     pub events: [Option<EmcyEvent>; EVENTS_PER_TICK],
     /// EMCY events of this tick beyond [`EVENTS_PER_TICK`].
     pub events_over: u8,
+    /// The node's ID now (an LSS master may change it; 255: non-configured).
+    pub node_id: u8,
+    /// A rotary axis (positions in mdeg-like user units), else linear.
+    pub rotary: bool,
+    /// The drive's position loop gain k_v now, 1/s.
+    pub kv_per_s: f64,
+    /// The drive train's gap now, m (linear) or rad (rotary): 0 on a healthy axis.
+    pub gap_si: f64,
 }
 
 fn f(x: u64) -> f64 {
@@ -112,6 +127,9 @@ impl AxisSnapshot {
             self.current_a.to_bits(),
             event_bits(self.events[0]) | event_bits(self.events[1]) << 32,
             event_bits(self.events[2]) | event_bits(self.events[3]) << 32,
+            u64::from(self.node_id) | u64::from(self.rotary) << 8,
+            self.kv_per_s.to_bits(),
+            self.gap_si.to_bits(),
         ]
     }
 
@@ -144,6 +162,10 @@ impl AxisSnapshot {
                 event_of(w[11] >> 32),
             ],
             events_over: (w[1] >> 56) as u8,
+            node_id: w[12] as u8,
+            rotary: (w[12] >> 8) & 1 == 1,
+            kv_per_s: f(w[13]),
+            gap_si: f(w[14]),
         }
     }
 
@@ -164,6 +186,17 @@ pub struct LoopBoard {
     /// The heartbeat consumer's first entry (0x1016:1) of axis 0: the master's node ID in
     /// bits 16..23, 0 when unused.
     pub heartbeat_consumer_1016: AtomicU32,
+    /// The CAN loop's own counters, every tick (0 on EtherCAT): ticks run, overruns, SYNC
+    /// lock state and phase error, frames the kernel dropped, lock-step period in force.
+    pub loop_ticks: AtomicU64,
+    pub overruns: AtomicU64,
+    pub sync_lock: AtomicU64,
+    pub sync_phase_error_us: AtomicU64,
+    pub rx_overflows: AtomicU64,
+    pub lockstep_period_us: AtomicU64,
+    /// The bus's link (a CAN interface up), as the loop last saw it; true where there is no
+    /// link to lose.
+    pub link_up: AtomicBool,
 }
 
 /// The readers' half: one ring per axis and the board.
@@ -173,6 +206,29 @@ pub struct Observation {
 }
 
 impl Observation {
+    /// Capacity of each axis's ring, records.
+    pub fn capacity(&self) -> usize {
+        self.rings.first().map_or(0, |r| r.capacity())
+    }
+
+    /// The newest snapshot of `axis`, if one was published (for a reader that wants the state
+    /// now, not every tick: the status line).
+    pub fn latest(&self, axis: usize) -> Option<AxisSnapshot> {
+        let ring = self.rings.get(axis)?;
+        let mut w = [0u64; WORDS];
+        // A record overwritten while read: the next newest one is there (a few tries).
+        for _ in 0..4 {
+            let head = ring.written();
+            if head == 0 {
+                return None;
+            }
+            if ring.read(head - 1, &mut w).is_ok() {
+                return Some(AxisSnapshot::from_words(&w));
+            }
+        }
+        None
+    }
+
     /// A cursor per axis at the newest record (reads what comes from now on).
     pub fn cursors_at_end(&self) -> Vec<Cursor> {
         self.rings.iter().map(|r| Cursor::at_end(r)).collect()
@@ -207,12 +263,28 @@ pub fn ring_capacity(tick_hz: u32) -> usize {
     (tick_hz as usize).next_power_of_two().max(1024)
 }
 
+/// Capacity of each axis's ring in a live run, whose readers write files and run the
+/// detector: about [`RUN_RING_S`] seconds of ticks at `tick_hz` (a power of two, at least
+/// 1024), so a reader held up by a slow disk or a busy machine for seconds still loses nothing
+/// (128 bytes a record: 1 MiB per axis at 1 kHz).
+pub fn run_ring_capacity(tick_hz: u32) -> usize {
+    (RUN_RING_S * tick_hz as usize)
+        .next_power_of_two()
+        .max(1024)
+}
+
+/// Seconds of ticks a live run's rings hold.
+pub const RUN_RING_S: usize = 8;
+
 /// The fan-out for `n_axes` axes, each ring `capacity` records, allocated here once.
 pub fn channel(n_axes: usize, capacity: usize) -> (Observer, Arc<Observation>) {
     let (writers, rings): (Vec<_>, Vec<_>) = (0..n_axes).map(|_| SeqRing::new(capacity)).unzip();
     let shared = Arc::new(Observation {
         rings,
-        board: LoopBoard::default(),
+        board: LoopBoard {
+            link_up: AtomicBool::new(true),
+            ..LoopBoard::default()
+        },
     });
     (
         Observer {
@@ -230,7 +302,23 @@ impl Observer {
     /// axis. No allocation, lock, log or wait.
     pub fn publish<B: CanBus>(&mut self, rt: &mut Runtime<B, AxisDrive>) {
         let now = rt.sim_time_us;
+        let b = &self.shared.board;
+        let st = &rt.stats;
+        b.loop_ticks.store(st.ticks, Ordering::Relaxed);
+        b.overruns.store(st.overruns, Ordering::Relaxed);
+        b.sync_lock
+            .store(u64::from(st.sync_lock_state), Ordering::Relaxed);
+        b.sync_phase_error_us
+            .store(st.sync_phase_error_us, Ordering::Relaxed);
+        b.rx_overflows.store(st.rx_overflows, Ordering::Relaxed);
+        b.lockstep_period_us
+            .store(rt.lockstep_period_us, Ordering::Relaxed);
         self.publish_axes(now, rt.axes.iter_mut().map(|a| (&mut a.node, &a.drive)));
+    }
+
+    /// The bus's link as the loop sees it now (a CAN interface that went down).
+    pub fn set_link_up(&self, up: bool) {
+        self.shared.board.link_up.store(up, Ordering::Relaxed);
     }
 
     /// [`Observer::publish`] for any front end: the axes as (node, drive) pairs in axis order
@@ -259,6 +347,10 @@ impl Observer {
                 current_a: drive.servo.axis.motor.current(),
                 events: [None; EVENTS_PER_TICK],
                 events_over: 0,
+                node_id: node.node_id(),
+                rotary: drive_protocol::Drive::info(drive).rotary,
+                kv_per_s: drive.param(AxisParam::Kv),
+                gap_si: drive.param(AxisParam::Backlash),
             };
             let mut k = 0;
             for e in evs.iter() {
@@ -352,6 +444,10 @@ mod tests {
                 None,
             ],
             events_over: 3,
+            node_id: 127,
+            rotary: true,
+            kv_per_s: 31.5,
+            gap_si: 3e-5,
         };
         let back = AxisSnapshot::from_words(&s.to_words());
         assert_eq!(back, s);

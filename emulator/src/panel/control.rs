@@ -2,23 +2,25 @@
 //!
 //! A write is a JSON object with the keys of a scenario file's `[[event]]` action (`set` +
 //! `value`, `sensor` (+ `counts`), `can` + `share` / `ticks` / `cob_id` / `over`), without a
-//! trigger: the panel's is "now". It is checked by the scenario parser itself (the object
-//! becomes an `[[event]]` of a one-event scenario on axis 0's machine: the same keys, units
-//! family, lower bounds and reasons as in a file), and a parameter value also against the
-//! drive's own range (the scenario's `param_bounds`); only then does it become an
-//! [`Injection`] queued for the loop. Every injection the loop applied is kept with its time;
-//! [`Session::scenario_text`] writes them as a scenario file that `drive-emu scenario` and
+//! trigger: the panel's is "now". serde reads it straight into the scenario file reader's own
+//! event type ([`RawEvent`]), and the scenario's checks make its action
+//! ([`crate::scenario::action_of`]: the same keys, units family, lower bounds and reasons as in
+//! a file); a parameter value is also checked against the drive's own range (the scenario's
+//! `param_bounds`); only then does it become an [`Injection`] queued for the loop. Every
+//! injection the loop applied is kept with its time; [`Session::scenario_text`] writes them
+//! as a scenario file (each action's [`Action::file_lines`]) that `drive-emu scenario` and
 //! `run --scenario` replay.
 
 use super::{PanelAxis, PanelSetup};
 use crate::drive::axis_drive::AxisDrive;
 use crate::presets::AxisKind;
+use crate::scenario::file::RawEvent;
 use crate::scenario::inject::{param_bounds, Injection};
-use crate::scenario::timeline::{Action, Event};
+use crate::scenario::timeline::{Action, Event, Trigger};
 use crate::scenario::units::{AxisKind as KeyKind, PARAM_KEYS};
 use anyhow::Result;
-use serde_json::{json, Value};
-use std::path::Path;
+use serde::Deserialize;
+use serde_json::{json, Map, Value};
 
 /// Keys a panel write may carry (the actions of `[[event]]`).
 const ACTION_KEYS: &[&str] = &["set", "sensor", "can", "ethercat"];
@@ -69,7 +71,6 @@ pub struct ParamControl {
 pub struct Controls {
     pub params: Vec<ParamControl>,
     rotary: bool,
-    preset: String,
     /// The run's fieldbus: its faults are the only bus faults offered.
     bus: super::PanelBus,
 }
@@ -112,7 +113,6 @@ impl Controls {
         Ok(Controls {
             params,
             rotary,
-            preset: ax.preset.clone(),
             bus: setup.bus,
         })
     }
@@ -195,31 +195,39 @@ pub struct Checked {
     pub describe: String,
 }
 
-/// A JSON scalar as a TOML value.
-fn toml_value(key: &str, v: &Value) -> Result<toml::Value, Refused> {
-    match v {
-        Value::String(s) => Ok(toml::Value::String(s.clone())),
-        Value::Bool(b) => Ok(toml::Value::Boolean(*b)),
-        Value::Number(n) => {
-            if let Some(i) = n.as_i64() {
-                Ok(toml::Value::Integer(i))
-            } else {
-                n.as_f64()
-                    .filter(|x| x.is_finite())
-                    .map(toml::Value::Float)
-                    .ok_or_else(|| Refused::new(Some(key), "not a finite number"))
-            }
-        }
-        Value::Null | Value::Array(_) | Value::Object(_) => Err(Refused::new(
-            Some(key),
-            "must be a string, a number or a boolean",
-        )),
-    }
+/// A JSON value where the file reader's [`RawEvent`] takes a value with its place in the file
+/// (`toml::Spanned`, which serde reads as a struct of start, end and value): the same value,
+/// at place 0..0 (the panel's JSON has no lines).
+fn at_no_place(v: &Value) -> Value {
+    use serde_spanned::__unstable::{END_FIELD, START_FIELD, VALUE_FIELD};
+    let mut m = Map::new();
+    m.insert(START_FIELD.into(), json!(0));
+    m.insert(END_FIELD.into(), json!(0));
+    m.insert(VALUE_FIELD.into(), v.clone());
+    Value::Object(m)
 }
 
-/// Float keys the scenario file reads as floats (an integer given in JSON, `"value": 1`, is
-/// written as `1.0`, which TOML reads as a float).
-const FLOAT_KEYS: &[&str] = &["value", "share"];
+/// The write as the scenario's event type: each key read on its own first, so that a value of
+/// the wrong kind (a string for a number, an unknown name) names its key.
+fn raw_event(obj: &Map<String, Value>) -> Result<RawEvent, Refused> {
+    // From a borrowed value: the span struct's field names are read as borrowed strings.
+    let read = |m: Map<String, Value>| RawEvent::deserialize(&Value::Object(m));
+    let mut all = Map::new();
+    for (k, v) in obj {
+        if matches!(v, Value::Null | Value::Array(_) | Value::Object(_)) {
+            return Err(Refused::new(
+                Some(k),
+                "must be a string, a number or a boolean",
+            ));
+        }
+        let one = Map::from_iter([(k.clone(), at_no_place(v))]);
+        if let Err(e) = read(one.clone()) {
+            return Err(Refused::new(Some(k), e.to_string()));
+        }
+        all.extend(one);
+    }
+    read(all).map_err(|e| Refused::new(None, e.to_string()))
+}
 
 impl Controls {
     /// Check a write (a JSON object) as the scenario parser checks an event, and against the
@@ -261,19 +269,15 @@ impl Controls {
                 ));
             }
         }
-        let mut table = toml::Table::new();
-        for (k, v) in obj {
-            let mut tv = toml_value(k, v)?;
-            if FLOAT_KEYS.contains(&k.as_str()) {
-                if let toml::Value::Integer(i) = tv {
-                    tv = toml::Value::Float(i as f64);
-                }
-            }
-            table.insert(k.clone(), tv);
-        }
-        let lines = toml::to_string(&table)
-            .map_err(|e| Refused::new(None, format!("cannot write the event: {e}")))?;
-        let event = self.parse_event(&lines)?;
+        let raw = raw_event(obj)?;
+        let action = crate::scenario::action_of(&raw, self.rotary)
+            .map_err(|e| Refused::new((!e.key.is_empty()).then_some(e.key.as_str()), e.reason))?;
+        let event = Event {
+            id: None,
+            trigger: Trigger::At(0),
+            action,
+            line: 0,
+        };
         if let Action::Set { key, value } = &event.action {
             let c = self
                 .params
@@ -291,26 +295,10 @@ impl Controls {
             }
         }
         Ok(Checked {
-            toml_lines: lines,
+            toml_lines: event.action.file_lines(),
             describe: event.describe(),
             action: event.action,
         })
-    }
-
-    /// The event `lines` make, parsed as the one event of a scenario on axis 0's machine.
-    fn parse_event(&self, lines: &str) -> Result<Event, Refused> {
-        let text = format!(
-            "name = \"panel-write\"\n[machine]\npreset = {}\n[[event]]\nat = \"0 s\"\n{lines}",
-            toml::Value::String(self.preset.clone())
-        );
-        let mut s = crate::scenario::parse(&text, Path::new("panel")).map_err(|e| {
-            let key = e.key.rsplit('.').next().unwrap_or(&e.key).to_string();
-            Refused::new(
-                (!key.is_empty() && key != "event[0]").then_some(key.as_str()),
-                e.reason,
-            )
-        })?;
-        s.events.pop().ok_or_else(|| Refused::new(None, "no event"))
     }
 
     pub fn rotary(&self) -> bool {
@@ -364,7 +352,11 @@ impl Session {
             .unwrap_or(0);
         out += &format!("duration = \"{} us\"\n\n", end_us.max(last + 1000));
         out += "[machine]\n";
-        out += &format!("preset = {}\n", toml::Value::String(axis.preset.clone()));
+        // A JSON string is a TOML basic string (the same escapes).
+        out += &format!(
+            "preset = {}\n",
+            serde_json::Value::String(axis.preset.clone())
+        );
         for (k, v) in &axis.overrides {
             out += &format!("{k} = {v}\n");
         }
@@ -460,7 +452,7 @@ mod tests {
             ),
             (
                 json!({"set": "backlash_deg", "value": 0.1}),
-                "preset",
+                "set",
                 "linear axis",
             ),
             (
@@ -651,7 +643,7 @@ mod tests {
         let mut axis = st.axes[0].clone();
         axis.overrides = vec![("backlash_mm".into(), "0.01".into())];
         let text = s.scenario_text(&axis, 0x22, 5_000_000);
-        let sc = crate::scenario::parse(&text, Path::new("session.toml")).unwrap();
+        let sc = crate::scenario::parse(&text, std::path::Path::new("session.toml")).unwrap();
         assert_eq!(sc.run.duration_us, Some(5_000_000));
         assert_eq!(sc.run.master.master_id, 0x22);
         assert_eq!(sc.run.master.node_id, 5);

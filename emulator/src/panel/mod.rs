@@ -2,8 +2,9 @@
 //! assets inside the binary) that shows every axis live and injects wear and faults into
 //! axis 0 through the path live scenarios use. docs/panel.md describes the stream and the API.
 //!
-//! Threads: the loop publishes into the observation fan-out ([`crate::observe`]) and applies
-//! the panel's queued injections ([`PanelLoop::on_tick`]); it never waits for the panel. The
+//! Threads: the loop publishes into the observation bus ([`crate::observe`], whose reader the
+//! panel is) and applies the panel's queued injections ([`PanelLoop::on_tick`]); it never
+//! waits for the panel. The
 //! panel has two threads of its own: the HTTP server (a single-threaded tokio runtime, axum)
 //! and the collector ([`stream`]), which follows the fan-out, builds the stream's messages
 //! once for every client, runs the spectrum and the detector, writes recordings and logs the
@@ -30,7 +31,7 @@ pub mod stream;
 use crate::bus::fault::FaultyBus;
 use crate::bus::CanBus;
 use crate::drive::axis_drive::AxisDrive;
-use crate::observe::{self, Observer};
+use crate::observe::Observation;
 use crate::presets::AxisConfig;
 use crate::runtime::Runtime;
 use crate::scenario::live::{LiveLink, LoopInjector};
@@ -173,10 +174,9 @@ pub struct Panel {
     pub addr: SocketAddr,
 }
 
-/// The loop's half of the panel: the fan-out's writer and the injector of the panel's (and a
-/// live scenario's) injections. Called once per tick; real-time safe.
+/// The loop's half of the panel: the injector of the panel's (and a live scenario's)
+/// injections. Called once per tick, after the loop published the tick; real-time safe.
 pub struct PanelLoop {
-    observer: Observer,
     injector: LoopInjector,
     link: Arc<LiveLink>,
     scenario: Option<Arc<LiveLink>>,
@@ -187,18 +187,16 @@ pub struct PanelLoop {
 
 impl PanelLoop {
     /// A live scenario on the same loop: its injections go through this injector (one list of
-    /// CAN rules for both), and it gets axis 0's EMCYs from the fan-out, which drains the
-    /// node's events.
+    /// CAN rules for both).
     pub fn attach_scenario(&mut self, link: Arc<LiveLink>, master_id: u8) {
         self.scenario = Some(link);
         self.injector.set_master_id(master_id);
         self.master_fixed = true;
     }
 
-    /// After every tick: publish the snapshot, then apply the scenario's and the panel's
-    /// injections to axis 0.
+    /// After every tick (once the observation bus has it): apply the scenario's and the
+    /// panel's injections to axis 0.
     pub fn on_tick<B: CanBus>(&mut self, rt: &mut Runtime<FaultyBus<B>, AxisDrive>) {
-        self.observer.publish(rt);
         if !self.master_fixed && self.ticks.is_multiple_of(256) {
             // The master a heartbeat-loss fault silences: the one the drive consumes.
             let hb = rt.axes[0].node.object_raw(0x1016, 1).unwrap_or(0);
@@ -209,8 +207,7 @@ impl PanelLoop {
         }
         self.ticks += 1;
         if let Some(link) = &self.scenario {
-            self.injector
-                .on_tick_with(link, rt, self.observer.events(0));
+            self.injector.on_tick(link, rt);
         }
         self.link.now_us.store(rt.sim_time_us, Ordering::Relaxed);
         self.injector.apply_queued(&self.link, rt);
@@ -218,10 +215,9 @@ impl PanelLoop {
 }
 
 impl PanelLoop {
-    /// After every drive cycle of `run --ethercat` at simulated time `now_us`: publish every
-    /// slave's snapshot (its node beside its drive), then apply the scenario's and the panel's
-    /// injections to the first slave, its drive and the port's faults. Real-time safe, as
-    /// [`PanelLoop::on_tick`].
+    /// After every drive cycle of `run --ethercat` at simulated time `now_us` (once the
+    /// observation bus has it): apply the scenario's and the panel's injections to the first
+    /// slave, its drive and the port's faults. Real-time safe, as [`PanelLoop::on_tick`].
     pub fn on_ethercat_cycle(
         &mut self,
         seg: &mut drive_ethercat::Segment,
@@ -229,26 +225,13 @@ impl PanelLoop {
         faults: &mut crate::bus::ethercat::EcatFaults,
         now_us: u64,
     ) {
-        self.observer.publish_axes(
-            now_us,
-            seg.slaves
-                .iter_mut()
-                .map(|s| s.node_mut())
-                .zip(drives.iter()),
-        );
         self.ticks += 1;
         let (Some(slave), Some(drive)) = (seg.slaves.first_mut(), drives.first_mut()) else {
             return;
         };
         if let Some(link) = &self.scenario {
-            self.injector.on_ethercat_cycle_with(
-                link,
-                now_us,
-                slave,
-                drive,
-                faults,
-                self.observer.events(0),
-            );
+            self.injector
+                .on_ethercat_cycle(link, now_us, slave, drive, faults);
         }
         self.link.now_us.store(now_us, Ordering::Relaxed);
         self.injector
@@ -272,11 +255,12 @@ pub struct RunContext<'a> {
 
 /// `run --panel`: the panel of a live run (`drive-emu run`, `scenario --iface`), started when
 /// the options ask for it, with the machine's axes; a live scenario's injections (`link`,
-/// `injector`) move into the panel's loop half. Says where it listens on stderr.
+/// `injector`) move into the panel's loop half; it reads the run's observation bus `obs`.
+/// Says where it listens on stderr.
 pub fn start_for_run(
     args: &PanelArgs,
     run: RunContext<'_>,
-    link: &Arc<LiveLink>,
+    (link, obs): (&Arc<LiveLink>, &Arc<Observation>),
     injector: &mut Option<LoopInjector>,
 ) -> Result<Option<(Panel, PanelLoop)>> {
     if args.panel.is_none() {
@@ -332,7 +316,7 @@ pub fn start_for_run(
         }),
         json_stdout: json,
     };
-    let started = start(args, setup)?;
+    let started = start(args, setup, Arc::clone(obs))?;
     if let Some((panel, mut panel_loop)) = started {
         if let (Some(s), Some(_)) = (scenario, injector.take()) {
             panel_loop.attach_scenario(Arc::clone(link), s.run.master.master_id);
@@ -352,9 +336,13 @@ pub fn start_for_run(
 }
 
 /// Start the panel when `args.panel` asks for it: the address checked and bound (an error here
-/// comes before the loop starts), the fan-out allocated, the server and the collector started.
-/// Returns the panel and the loop's half.
-pub fn start(args: &PanelArgs, setup: PanelSetup) -> Result<Option<(Panel, PanelLoop)>> {
+/// comes before the loop starts), the server and the collector (a reader of `obs`, one ring
+/// per axis of `setup`) started. Returns the panel and the loop's half.
+pub fn start(
+    args: &PanelArgs,
+    setup: PanelSetup,
+    obs: Arc<Observation>,
+) -> Result<Option<(Panel, PanelLoop)>> {
     let Some(addr) = &args.panel else {
         return Ok(None);
     };
@@ -366,7 +354,7 @@ pub fn start(args: &PanelArgs, setup: PanelSetup) -> Result<Option<(Panel, Panel
         Some(d) => record::RecordDir::named(d)?,
         None => record::RecordDir::private_in(&std::env::temp_dir())?,
     };
-    start_with(listener, tok, dir, setup).map(Some)
+    start_with(listener, tok, dir, setup, obs).map(Some)
 }
 
 /// Start the panel on a bound listener (tests bind port 0), recordings in `record_dir` (as
@@ -376,12 +364,14 @@ pub fn start_on(
     token: Option<String>,
     record_dir: PathBuf,
     setup: PanelSetup,
+    obs: Arc<Observation>,
 ) -> Result<(Panel, PanelLoop)> {
     start_with(
         listener,
         token,
         record::RecordDir::named(&record_dir)?,
         setup,
+        obs,
     )
 }
 
@@ -390,13 +380,19 @@ fn start_with(
     token: Option<String>,
     record_dir: record::RecordDir,
     setup: PanelSetup,
+    observation: Arc<Observation>,
 ) -> Result<(Panel, PanelLoop)> {
     if setup.axes.is_empty() {
         bail!("the panel needs at least one axis");
     }
+    if observation.rings.len() != setup.axes.len() {
+        bail!(
+            "the panel has {} axes, the observation bus {}",
+            setup.axes.len(),
+            observation.rings.len()
+        );
+    }
     let addr = listener.local_addr()?;
-    let (observer, observation) =
-        observe::channel(setup.axes.len(), observe::ring_capacity(setup.tick_hz));
     let link = Arc::new(LiveLink::new());
     let controls = control::Controls::new(&setup)?;
     let shared = Arc::new(server::Shared::new(
@@ -418,7 +414,6 @@ fn start_with(
             addr,
         },
         PanelLoop {
-            observer,
             injector,
             link,
             scenario: None,

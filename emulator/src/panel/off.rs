@@ -130,7 +130,7 @@ pub struct RunContext<'a> {
 pub fn start_for_run(
     args: &PanelArgs,
     _run: RunContext<'_>,
-    _link: &Arc<LiveLink>,
+    _bus: (&Arc<LiveLink>, &Arc<crate::observe::Observation>),
     _injector: &mut Option<LoopInjector>,
 ) -> Result<Option<(Panel, PanelLoop)>> {
     check_args(args)?;
@@ -138,7 +138,11 @@ pub fn start_for_run(
 }
 
 /// `demo --panel`: [`NOT_BUILT`]; without `--panel`, nothing.
-pub fn start(args: &PanelArgs, _setup: PanelSetup) -> Result<Option<(Panel, PanelLoop)>> {
+pub fn start(
+    args: &PanelArgs,
+    _setup: PanelSetup,
+    _obs: Arc<crate::observe::Observation>,
+) -> Result<Option<(Panel, PanelLoop)>> {
     check_args(args)?;
     Ok(None)
 }

@@ -14,6 +14,7 @@
 //! one that reaches its cap stops writing and says so.
 
 use crate::bus::CanBus;
+use crate::runtime::trace::CsvSink;
 use crate::samples::Sample;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -197,7 +198,8 @@ impl Budget {
 pub struct Recording {
     pub number: u32,
     pub started_us: u64,
-    csv: Vec<BufWriter<File>>,
+    /// The same writer and layout as `run --trace`'s files.
+    csv: Vec<CsvSink<File>>,
     pub csv_names: Vec<String>,
     pub samples: u64,
     /// Ticks missed because the collector fell behind the fan-out.
@@ -207,8 +209,6 @@ pub struct Recording {
     /// Why there is no capture, when there is none.
     pub capture_note: Option<String>,
     budget: Arc<Budget>,
-    /// One CSV row, formatted before it is counted against the cap (whole rows only).
-    row: Vec<u8>,
 }
 
 struct Capture {
@@ -283,13 +283,7 @@ pub fn start(
     };
     for n in node_ids {
         let name = format!("rec-{number}-node{n}.csv");
-        let made = create(dir, &name).and_then(|mut w| {
-            let header = format!("{}\n", Sample::CSV_HEADER);
-            if budget.take(header.len()) {
-                w.write_all(header.as_bytes())?;
-            }
-            Ok(w)
-        });
+        let made = create_new(&dir.join(&name)).and_then(|f| CsvSink::new(f, |n| budget.take(n)));
         match made {
             Ok(w) => {
                 csv.push(w);
@@ -347,7 +341,6 @@ pub fn start(
         capture_name,
         capture_note,
         budget,
-        row: Vec::with_capacity(256),
     })
 }
 
@@ -447,11 +440,8 @@ impl Recording {
     /// One tick of axis `axis` (collector thread); nothing once the recording is at its cap.
     pub fn write(&mut self, axis: usize, s: &Sample) {
         if let Some(w) = self.csv.get_mut(axis) {
-            self.row.clear();
-            if s.write_csv_row(&mut self.row).is_ok()
-                && self.budget.take(self.row.len())
-                && w.write_all(&self.row).is_ok()
-            {
+            let budget = &self.budget;
+            if let Ok(true) = w.write(s, |n| budget.take(n)) {
                 self.samples += 1;
             }
         }

@@ -76,8 +76,6 @@ pub struct Shared {
     next_client: AtomicU64,
     pub stop: AtomicBool,
     pub shutdown_tx: watch::Sender<bool>,
-    /// Axis 0's k_v for the detector, 1/s (f64 bits): follows `kv_per_s` set on the panel.
-    pub kv0_bits: AtomicU64,
     pub messages_sent: AtomicU64,
     pub refused: AtomicU64,
 }
@@ -91,7 +89,6 @@ impl Shared {
         link: Arc<LiveLink>,
         record_dir: record::RecordDir,
     ) -> Self {
-        let kv = setup.axes[0].config.kv_per_s;
         Shared {
             auth,
             setup,
@@ -111,7 +108,6 @@ impl Shared {
             next_client: AtomicU64::new(1),
             stop: AtomicBool::new(false),
             shutdown_tx: watch::channel(false).0,
-            kv0_bits: AtomicU64::new(kv.to_bits()),
             messages_sent: AtomicU64::new(0),
             refused: AtomicU64::new(0),
         }
@@ -575,11 +571,6 @@ async fn inject(State(sh): State<Arc<Shared>>, body: Result<Bytes, BytesRejectio
         });
         index
     };
-    if let crate::scenario::timeline::Action::Set { key, value } = &checked.action {
-        if key.key == "kv_per_s" {
-            sh.kv0_bits.store(value.to_bits(), Ordering::Relaxed);
-        }
-    }
     // The collector records when the loop applied it; wait a little for that.
     let start = Instant::now();
     let applied = loop {

@@ -9,16 +9,13 @@
 
 pub use super::rate::{decimation, stream_rate_hz, MAX_STREAM_HZ, PERIOD_MS};
 use super::server::Shared;
-use crate::analysis::detector::{analyze, AxisTrace, DetectorConfig};
 use crate::analysis::spectrum::SpectrumAnalyzer;
 use crate::master::{emcy_name, mode_short, nmt_name, state_name};
+use crate::monitor::{AxisFacts, Window};
 use crate::observe::{ring::Cursor, AxisSnapshot};
 use crate::presets::AxisKind;
-use crate::samples::{Sample, SampleSource};
 use serde_json::{json, Value};
-use std::collections::VecDeque;
 use std::io::Write;
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -82,11 +79,11 @@ struct AxisFollow {
     /// Ticks since the last one the stream took.
     phase: u32,
     last: Option<AxisSnapshot>,
-    /// The last seconds, every tick, for the spectrum and the detector.
-    recent: VecDeque<Sample>,
+    /// The last seconds, every tick, for the spectrum and the detector (the same pipeline as
+    /// `run --detect`'s).
+    recent: Window,
     spectrum: SpectrumAnalyzer,
     speeds: Vec<f64>,
-    rotary: bool,
     /// `cursor.lost` already counted into a recording.
     lost_seen: u64,
 }
@@ -119,7 +116,6 @@ struct Collector {
     sh: Arc<Shared>,
     axes: Vec<AxisFollow>,
     decimation: u32,
-    recent_len: usize,
     next_analysis: usize,
     json_stdout: bool,
 }
@@ -127,7 +123,6 @@ struct Collector {
 /// Start the collector thread.
 pub fn spawn(sh: Arc<Shared>) -> anyhow::Result<std::thread::JoinHandle<()>> {
     let tick_hz = sh.setup.tick_hz.max(1);
-    let recent_len = (DETECTOR_WINDOW_S * f64::from(tick_hz)) as usize;
     let spectrum_len = {
         let n = (SPECTRUM_WINDOW_S * f64::from(tick_hz)) as usize;
         (1usize << (usize::BITS - 1 - n.max(8).leading_zeros())).max(8)
@@ -142,10 +137,19 @@ pub fn spawn(sh: Arc<Shared>) -> anyhow::Result<std::thread::JoinHandle<()>> {
             columns: Columns::default(),
             phase: 0,
             last: None,
-            recent: VecDeque::with_capacity(recent_len),
+            recent: Window::new(
+                AxisFacts {
+                    rotary: a.config.kind == AxisKind::Rotary,
+                    kv_per_s: a.config.kv_per_s,
+                    gap: crate::analysis::gap::GapModel::for_axis(
+                        &a.config,
+                        crate::analysis::gap::CurrentUnit::Permille,
+                    ),
+                },
+                DETECTOR_WINDOW_S,
+            ),
             spectrum: SpectrumAnalyzer::new(spectrum_len),
             speeds: vec![0.0; spectrum_len],
-            rotary: a.config.kind == AxisKind::Rotary,
             lost_seen: 0,
         })
         .collect();
@@ -154,7 +158,6 @@ pub fn spawn(sh: Arc<Shared>) -> anyhow::Result<std::thread::JoinHandle<()>> {
         sh,
         axes,
         decimation: decimation(tick_hz),
-        recent_len,
         next_analysis: 0,
     };
     Ok(std::thread::Builder::new()
@@ -200,10 +203,7 @@ impl Collector {
                 if let Some(r) = rec.as_mut().and_then(|r| r.active.as_mut()) {
                     r.write(i, &s.sample);
                 }
-                if ax.recent.len() == self.recent_len {
-                    ax.recent.pop_front();
-                }
-                ax.recent.push_back(s.sample);
+                ax.recent.push(&s);
                 if ax.phase == 0 {
                     ax.columns.push(&s);
                 }
@@ -336,31 +336,23 @@ impl Collector {
 
     fn analysis(&mut self, i: usize) -> Option<Value> {
         let sh = Arc::clone(&self.sh);
-        let kv = if i == 0 {
-            f64::from_bits(sh.kv0_bits.load(Ordering::Relaxed))
-        } else {
-            sh.setup.axes[i].config.kv_per_s
-        };
         let ax = &mut self.axes[i];
         let len = ax.spectrum.len();
-        if ax.recent.len() < len {
+        let recent = ax.recent.samples();
+        if recent.len() < len {
             return None;
         }
         let rate = f64::from(sh.setup.tick_hz);
         for (d, s) in ax
             .speeds
             .iter_mut()
-            .zip(ax.recent.iter().skip(ax.recent.len() - len))
+            .zip(recent.iter().skip(recent.len() - len))
         {
             *d = f64::from(s.velocity_uu_s);
         }
-        let cfg = DetectorConfig {
-            gap: crate::analysis::gap::GapModel::for_axis(
-                &sh.setup.axes[i].config,
-                crate::analysis::gap::CurrentUnit::Permille,
-            ),
-            ..DetectorConfig::new(kv)
-        };
+        // k_v as the drive has it now (an injected one included), and the axis's gap model
+        let cfg = ax.recent.config();
+        let kv = cfg.kv_per_s;
         let band = cfg.band_hz();
         let peak = ax.spectrum.fundamental(&ax.speeds, rate, band);
         let res = rate / len as f64;
@@ -370,14 +362,13 @@ impl Collector {
             .iter()
             .map(|a| r(*a, 3))
             .collect();
-        let samples: Vec<Sample> = ax.recent.iter().copied().collect();
-        let trace = AxisTrace::from_sample_log(&samples, SampleSource::Drive, ax.rotary);
-        let d = analyze(&trace, &cfg);
+        let d = ax.recent.analyze()?;
+        let recent = ax.recent.samples();
         Some(json!({
             "type": "spectrum",
             "axis": i,
             "node_id": sh.setup.axes[i].node_id,
-            "t_s": ax.recent.back().map_or(0.0, |s| r(s.t_s, 6)),
+            "t_s": recent.back().map_or(0.0, |s| r(s.t_s, 6)),
             "window_s": r(len as f64 / rate, 3),
             "signal": "velocity_uu_s",
             "resolution_hz": r(res, 5),

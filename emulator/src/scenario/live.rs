@@ -2,16 +2,19 @@
 //!
 //! Two threads share a [`LiveLink`] of preallocated lock-free queues:
 //! - the loop thread calls [`LoopInjector::on_tick`] after every tick: it applies pending
-//!   injections (parameter values, encoder faults, CAN fault rules) to the drive and the bus,
-//!   and publishes the drive's actual values and new EMCYs. Nothing there allocates, locks or
-//!   logs;
+//!   injections (parameter values, encoder faults, CAN fault rules) to the drive and the bus.
+//!   Nothing there allocates, locks or logs;
 //! - the scenario thread ([`run_timeline`]) follows the loop's simulated time, decides which
-//!   events are due, runs ramps and load profiles, and turns them into injections. It records
-//!   what the drive reported and, at the end, runs the detector and checks the expectations.
+//!   events are due, runs ramps and load profiles, and turns them into injections. It reads
+//!   what the drive reported (actual values and EMCYs of axis 0) from the observation bus
+//!   ([`crate::observe`]), as every other reader does, and at the end runs the detector and
+//!   checks the expectations.
 //!
 //! The motion comes from whatever controller is on the bus; the scenario's motion program is
 //! not used live.
 
+/// Where it was (its home is the scenario module now, used by the offline runner too).
+pub use super::check_bus;
 use super::expect::{check_all, ExpectResult, RunRecord};
 use super::inject::{Injection, Injector};
 use super::runner::detector_config;
@@ -22,39 +25,30 @@ use crate::analysis::detector::{analyze, AxisTrace, DetectorReport};
 use crate::bus::fault::FaultyBus;
 use crate::bus::CanBus;
 use crate::drive::axis_drive::AxisDrive;
+use crate::observe::ring::Cursor;
 use crate::presets::{AxisConfig, AxisKind};
-use crate::runtime::trace::node_sample;
 use crate::runtime::Runtime;
 use crate::samples::{Sample, SampleSource};
 use crossbeam::queue::ArrayQueue;
-use drive_protocol::{Cia402State, NodeEvent};
+use drive_protocol::Cia402State;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
 /// The queues between the loop and the scenario thread, sized once.
 pub struct LiveLink {
     pub injections: ArrayQueue<Injection>,
-    /// One sample per tick: the drive's actual values as a master would read them.
-    pub samples: ArrayQueue<Sample>,
-    /// (simulated time us, EMCY code).
-    pub emcys: ArrayQueue<(u64, u16)>,
     /// (event index, simulated time us at which the loop applied it).
     pub applied: ArrayQueue<(u32, u64)>,
     /// The loop's simulated time, us.
     pub now_us: AtomicU64,
-    /// Samples lost because the scenario thread fell behind.
-    pub samples_lost: AtomicU64,
 }
 
 impl LiveLink {
     pub fn new() -> Self {
         Self {
             injections: ArrayQueue::new(1024),
-            samples: ArrayQueue::new(1 << 16),
-            emcys: ArrayQueue::new(256),
             applied: ArrayQueue::new(256),
             now_us: AtomicU64::new(0),
-            samples_lost: AtomicU64::new(0),
         }
     }
 }
@@ -66,7 +60,8 @@ impl Default for LiveLink {
 }
 
 /// The loop thread's half: applies queued injections (owning the CAN rules in force, at most
-/// 16) and drains axis 0's node events.
+/// 16). It reads nothing from the drive: what the drive reports reaches the scenario thread
+/// through the observation bus.
 pub struct LoopInjector {
     injector: Injector<16>,
 }
@@ -79,41 +74,15 @@ impl LoopInjector {
         }
     }
 
-    /// After every tick: apply injections to axis 0 and publish its actual values and the EMCYs
-    /// its node raised (drained from the node here).
+    /// After every tick: the loop's time into `link`, and the injections queued there
+    /// applied to axis 0 and the bus.
     pub fn on_tick<B: CanBus>(
         &mut self,
         link: &LiveLink,
         rt: &mut Runtime<FaultyBus<B>, AxisDrive>,
     ) {
-        let mut events = heapless::Vec::<NodeEvent, { drive_protocol::EVENT_QUEUE }>::new();
-        while let Some(e) = rt.axes[0].node.poll_event() {
-            let _ = events.push(e);
-        }
-        self.on_tick_with(link, rt, &events);
-    }
-
-    /// [`LoopInjector::on_tick`] when someone else drains the node's events (the observation
-    /// fan-out, `observe::Observer`): `events` are axis 0's of this tick.
-    pub fn on_tick_with<B: CanBus>(
-        &mut self,
-        link: &LiveLink,
-        rt: &mut Runtime<FaultyBus<B>, AxisDrive>,
-        events: &[NodeEvent],
-    ) {
-        let now = rt.sim_time_us;
-        link.now_us.store(now, Ordering::Relaxed);
+        link.now_us.store(rt.sim_time_us, Ordering::Relaxed);
         self.apply_queued(link, rt);
-        let sample = node_sample(&rt.axes[0].node, now);
-        if link.samples.push(sample).is_err() {
-            link.samples_lost.fetch_add(1, Ordering::Relaxed);
-        }
-        // Every error the node raises, repeats included (the 0x1003 history saturates at 8).
-        for e in events {
-            if let NodeEvent::EmcyRaised { code } = *e {
-                let _ = link.emcys.push((now, code));
-            }
-        }
     }
 
     /// Apply the injections queued in `link` to axis 0 and the bus (each `Mark` answered with
@@ -136,9 +105,9 @@ impl LoopInjector {
         self.injector.expire(now, &mut rt.bus);
     }
 
-    /// After every drive cycle of `run --ethercat` at simulated time `now_us`: apply the
-    /// queued injections to the first slave, its drive and the port's faults, and publish its
-    /// actual values and the EMCYs its node raised (drained here).
+    /// After every drive cycle of `run --ethercat` at simulated time `now_us`: the time into
+    /// `link`, and the queued injections applied to the first slave, its drive and the port's
+    /// faults.
     pub fn on_ethercat_cycle(
         &mut self,
         link: &LiveLink,
@@ -147,35 +116,8 @@ impl LoopInjector {
         drive: &mut AxisDrive,
         faults: &mut crate::bus::ethercat::EcatFaults,
     ) {
-        let mut events = heapless::Vec::<NodeEvent, { drive_protocol::EVENT_QUEUE }>::new();
-        while let Some(e) = slave.node_mut().poll_event() {
-            let _ = events.push(e);
-        }
-        self.on_ethercat_cycle_with(link, now_us, slave, drive, faults, &events);
-    }
-
-    /// [`LoopInjector::on_ethercat_cycle`] when someone else drains the node's events (the
-    /// panel's observation fan-out): `events` are the first slave's of this cycle.
-    pub fn on_ethercat_cycle_with(
-        &mut self,
-        link: &LiveLink,
-        now_us: u64,
-        slave: &mut drive_ethercat::slave::Slave,
-        drive: &mut AxisDrive,
-        faults: &mut crate::bus::ethercat::EcatFaults,
-        events: &[NodeEvent],
-    ) {
         link.now_us.store(now_us, Ordering::Relaxed);
         self.apply_queued_ethercat(link, now_us, slave, drive, faults);
-        let sample = node_sample(slave.node(), now_us);
-        if link.samples.push(sample).is_err() {
-            link.samples_lost.fetch_add(1, Ordering::Relaxed);
-        }
-        for e in events {
-            if let NodeEvent::EmcyRaised { code } = *e {
-                let _ = link.emcys.push((now_us, code));
-            }
-        }
     }
 
     /// [`LoopInjector::apply_queued`] on EtherCAT: the injections queued in `link` applied to
@@ -203,28 +145,6 @@ impl LoopInjector {
     }
 }
 
-/// Refuse a scenario whose bus faults are not of the bus `on` ("can", "ethercat"; the
-/// offline runner's simulated bus is CAN): the file, the event's line and why.
-pub fn check_bus(s: &Scenario, on: &str) -> anyhow::Result<()> {
-    for e in &s.events {
-        if let Some(bus) = e.action.bus().filter(|b| *b != on) {
-            anyhow::bail!(
-                "{}: line {}: `{bus}` fault ({}) on {}: {}",
-                s.name,
-                e.line,
-                e.describe(),
-                if on == "can" { "a CAN bus" } else { "EtherCAT" },
-                if bus == "ethercat" {
-                    "EtherCAT faults need `drive-emu run --ethercat IFACE --scenario FILE`"
-                } else {
-                    "CAN faults need a CAN bus (`drive-emu run --scenario` or `drive-emu scenario`)"
-                }
-            );
-        }
-    }
-    Ok(())
-}
-
 /// What a live scenario run found.
 #[derive(Debug)]
 pub struct LiveOutcome {
@@ -238,7 +158,10 @@ pub struct LiveOutcome {
     pub not_fired: Vec<(usize, String)>,
     /// Why the run ended, for people.
     pub end_reason: String,
+    /// Ticks the scenario thread missed (it fell more than the observation ring behind).
     pub samples_lost: u64,
+    /// EMCYs of ticks that raised more than a snapshot carries (counted, not recorded).
+    pub emcys_lost: u64,
 }
 
 impl LiveOutcome {
@@ -358,6 +281,10 @@ struct LiveTimeline {
     emcys: Vec<(u64, u16)>,
     /// EMCY codes received since the last pass (triggers).
     new_codes: Vec<u16>,
+    /// Axis 0 on the observation bus.
+    cursor: Cursor,
+    /// EMCYs of ticks with more than the snapshot carries (counted, not seen).
+    emcys_over: u64,
     /// Per event: when the scenario thread fired it, and when the loop applied it.
     fired_us: Vec<Option<u64>>,
     applied_us: Vec<Option<u64>>,
@@ -367,17 +294,20 @@ struct LiveTimeline {
 }
 
 impl LiveTimeline {
-    /// Take what the loop published: samples, applied events, EMCYs.
-    fn drain(&mut self, link: &LiveLink) {
-        while let Some(smp) = link.samples.pop() {
-            self.samples.push(smp);
+    /// Take what the loop published: axis 0's ticks and EMCYs from the bus, the events it
+    /// applied from the link.
+    fn drain(&mut self, link: &LiveLink, obs: &crate::observe::Observation) {
+        self.new_codes.clear();
+        while let Some(snap) = obs.next(0, &mut self.cursor) {
+            self.samples.push(snap.sample);
+            // Every error the node raised, repeats included (the 0x1003 history saturates).
+            for e in snap.emcys().filter(|e| e.raised) {
+                self.emcys.push((snap.t_us, e.code));
+                self.new_codes.push(e.code);
+            }
+            self.emcys_over += u64::from(snap.events_over);
         }
         self.drain_applied(link);
-        self.new_codes.clear();
-        while let Some((t, code)) = link.emcys.pop() {
-            self.emcys.push((t, code));
-            self.new_codes.push(code);
-        }
     }
 
     fn drain_applied(&mut self, link: &LiveLink) {
@@ -479,13 +409,14 @@ impl LiveTimeline {
     }
 }
 
-/// The scenario thread: follow the loop's time until `end` (or `stop`), inject the timeline,
-/// record, and check the expectations.
+/// The scenario thread: follow the loop's time until `end` (or `stop`), inject the timeline
+/// through `link`, record axis 0 from the observation bus `obs` (from its next record), and
+/// check the expectations.
 pub fn run_timeline(
     s: &Scenario,
     cfg: &AxisConfig,
     drive_before_start: &AxisDrive,
-    link: &LiveLink,
+    (link, obs): (&LiveLink, &crate::observe::Observation),
     stop: &AtomicBool,
     end: LiveEnd,
 ) -> LiveOutcome {
@@ -498,6 +429,8 @@ pub fn run_timeline(
         samples: Vec::new(),
         emcys: Vec::new(),
         new_codes: Vec::new(),
+        cursor: Cursor::at_end(&obs.rings[0]),
+        emcys_over: 0,
         fired_us: vec![None; n_events],
         applied_us: vec![None; n_events],
         busy_until_us: 0,
@@ -512,7 +445,7 @@ pub fn run_timeline(
     let end_reason = loop {
         std::thread::sleep(Duration::from_millis(1));
         let now = link.now_us.load(Ordering::Relaxed);
-        lt.drain(link);
+        lt.drain(link, obs);
         lt.fire_due(now, &inject);
         lt.drive_params(now, &inject);
         if let Some(why) = lt.end_reason(now, end, stop, s) {
@@ -521,7 +454,7 @@ pub fn run_timeline(
     };
     // What the loop applied in the last moments (it keeps ticking until told to stop).
     std::thread::sleep(Duration::from_millis(5));
-    lt.drain_applied(link);
+    lt.drain(link, obs);
     conclude(s, cfg, link, lt, end_reason)
 }
 
@@ -540,6 +473,8 @@ fn conclude(
         emcys,
         fired_us,
         applied_us,
+        cursor,
+        emcys_over,
         ..
     } = lt;
     let rotary = cfg.kind == AxisKind::Rotary;
@@ -593,7 +528,8 @@ fn conclude(
         fired,
         not_fired,
         end_reason,
-        samples_lost: link.samples_lost.load(Ordering::Relaxed),
+        samples_lost: cursor.lost,
+        emcys_lost: emcys_over,
     }
 }
 

@@ -291,6 +291,35 @@ pub fn parse(src: &str, file: &Path) -> Result<Scenario, ScenarioError> {
     validate::validate(raw, src, file)
 }
 
+/// Refuse a scenario whose bus faults are not of the bus `on` ("can", "ethercat"; the
+/// offline runner's simulated bus is CAN): the file, the event's line and why.
+pub fn check_bus(s: &Scenario, on: &str) -> anyhow::Result<()> {
+    for e in &s.events {
+        if let Some(bus) = e.action.bus().filter(|b| *b != on) {
+            anyhow::bail!(
+                "{}: line {}: `{bus}` fault ({}) on {}: {}",
+                s.name,
+                e.line,
+                e.describe(),
+                if on == "can" { "a CAN bus" } else { "EtherCAT" },
+                if bus == "ethercat" {
+                    "EtherCAT faults need `drive-emu run --ethercat IFACE --scenario FILE`"
+                } else {
+                    "CAN faults need a CAN bus (`drive-emu run --scenario` or `drive-emu scenario`)"
+                }
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The action of an `[[event]]` given outside a file (the live panel's JSON deserialised into
+/// the file reader's own [`file::RawEvent`]), checked as in a file, on a `rotary` or linear
+/// axis; the error names the key at fault.
+pub fn action_of(raw: &file::RawEvent, rotary: bool) -> Result<timeline::Action, ScenarioError> {
+    validate::action_of(raw, rotary)
+}
+
 /// Read and parse a scenario file (at most [`MAX_FILE_BYTES`]; a longer one, or an endless
 /// one such as `/dev/zero`, is refused after reading one byte beyond the cap).
 pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {

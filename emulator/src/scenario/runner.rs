@@ -571,7 +571,7 @@ fn conclude(
 /// Run every preset of a scenario.
 pub fn run(s: &Scenario, opts: &RunOptions) -> anyhow::Result<Outcome> {
     // the simulated bus here is CAN
-    super::live::check_bus(s, "can")?;
+    super::check_bus(s, "can")?;
     let wall = Instant::now();
     let mut runs = Vec::new();
     for cfg in &s.machine.configs {

@@ -80,6 +80,127 @@ pub enum Action {
 }
 
 impl Action {
+    /// The action as a scenario file's `[[event]]` keys, one `key = value` line each, which the
+    /// file reader reads back into this action (the live panel's saved session writes its
+    /// injections so).
+    pub fn file_lines(&self) -> String {
+        use super::file::{ProfileShape as Shape, SensorKind as S};
+        use crate::bus::ethercat::EcatFault as F;
+        let text = |s: &str| format!("\"{s}\"");
+        let time = |us: u64| format!("\"{us} us\"");
+        // Debug of a finite f64 is a TOML float (0.05, 1.0, 1e-7).
+        let num = |x: f64| format!("{x:?}");
+        let mut kv: Vec<(&str, String)> = Vec::new();
+        match self {
+            Action::Set { key, value } => {
+                kv.push(("set", text(key.key)));
+                kv.push(("value", num(*value)));
+            }
+            Action::Ramp {
+                key,
+                from,
+                to,
+                over_us,
+            } => {
+                kv.push(("ramp", text(key.key)));
+                kv.extend(from.map(|f| ("from", num(f))));
+                kv.push(("to", num(*to)));
+                kv.push(("over", time(*over_us)));
+            }
+            Action::Profile {
+                key,
+                shape,
+                mean,
+                amplitude,
+                frequency_hz,
+                over_us,
+            } => {
+                kv.push(("profile", text(key.key)));
+                let shape = match shape {
+                    Shape::Sine => "sine",
+                    Shape::Teeth => "teeth",
+                };
+                kv.push(("shape", text(shape)));
+                kv.push(("mean", num(*mean)));
+                kv.push(("amplitude", num(*amplitude)));
+                kv.push(("frequency_hz", num(*frequency_hz)));
+                kv.extend(over_us.map(|o| ("over", time(o))));
+            }
+            Action::Sensor { kind, counts } => {
+                let (name, glitch) = match kind {
+                    S::MotorEncoderLoss => ("motor_encoder_loss", false),
+                    S::DirectEncoderLoss => ("direct_encoder_loss", false),
+                    S::MotorEncoderGlitch => ("motor_encoder_glitch", true),
+                    S::DirectEncoderGlitch => ("direct_encoder_glitch", true),
+                    S::Restore => ("restore", false),
+                };
+                kv.push(("sensor", text(name)));
+                if glitch {
+                    kv.push(("counts", counts.to_string()));
+                }
+            }
+            Action::Can { fault, over_us } => {
+                let cob = |c: &Option<u32>| c.map(|c| ("cob_id", text(&format!("{c:#05X}"))));
+                match fault {
+                    CanFault::Drop { share, cob_id } => {
+                        kv.push(("can", text("drop")));
+                        kv.push(("share", num(*share)));
+                        kv.extend(cob(cob_id));
+                    }
+                    CanFault::Delay {
+                        share,
+                        ticks,
+                        cob_id,
+                    } => {
+                        kv.push(("can", text("delay")));
+                        kv.push(("share", num(*share)));
+                        kv.push(("ticks", ticks.to_string()));
+                        kv.extend(cob(cob_id));
+                    }
+                    CanFault::SyncLoss => kv.push(("can", text("sync_loss"))),
+                    CanFault::HeartbeatLoss => kv.push(("can", text("heartbeat_loss"))),
+                }
+                kv.extend(over_us.map(|o| ("over", time(o))));
+            }
+            Action::CanRestore => kv.push(("can", text("restore"))),
+            Action::Ethercat { fault, over_us } => {
+                let frames_or_share = |kv: &mut Vec<(&str, String)>, frames: u32, share: f64| {
+                    if frames > 0 {
+                        kv.push(("frames", frames.to_string()));
+                    } else {
+                        kv.push(("share", num(share)));
+                    }
+                };
+                match *fault {
+                    F::Lost { frames, share } => {
+                        kv.push(("ethercat", text("lost")));
+                        frames_or_share(&mut kv, frames, share);
+                    }
+                    F::Corrupt { frames, share } => {
+                        kv.push(("ethercat", text("corrupt")));
+                        frames_or_share(&mut kv, frames, share);
+                    }
+                    F::Late { hold_us } => {
+                        kv.push(("ethercat", text("late")));
+                        kv.push(("hold", time(hold_us)));
+                    }
+                    F::LinkDown => kv.push(("ethercat", text("link_down"))),
+                    F::BadWkc { share } => {
+                        kv.push(("ethercat", text("bad_wkc")));
+                        kv.push(("share", num(share)));
+                    }
+                    F::OutOfOp { al_code } => {
+                        kv.push(("ethercat", text("out_of_op")));
+                        kv.push(("al_code", text(&format!("{al_code:#06X}"))));
+                    }
+                }
+                kv.extend(over_us.map(|o| ("over", time(o))));
+            }
+            Action::EthercatRestore => kv.push(("ethercat", text("restore"))),
+        }
+        kv.iter().map(|(k, v)| format!("{k} = {v}\n")).collect()
+    }
+
     /// A CAN fault (the CAN bus's), or an EtherCAT one (the EtherCAT port's).
     pub fn bus(&self) -> Option<&'static str> {
         match self {

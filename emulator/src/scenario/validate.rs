@@ -530,6 +530,54 @@ fn event_trigger(ctx: &Ctx, e: &RawEvent, span: &Range<usize>) -> R<Trigger> {
     })
 }
 
+/// An event's action from outside a file (the live panel's JSON, read into the same
+/// [`RawEvent`] as a file's `[[event]]`): the same keys, checks and reasons, on an axis that is
+/// `rotary` or linear. No trigger (the caller's is "now"); an error names the key, with no
+/// line (there is none).
+pub(super) fn action_of(raw: &RawEvent, rotary: bool) -> R<Action> {
+    let ctx = Ctx {
+        src: "",
+        file: Path::new("panel"),
+        breaks: Vec::new(),
+        units: None,
+        fastest: None,
+        tick_us: 1000,
+    };
+    let action = event_action(&ctx, raw, &(0..0))?;
+    if let Action::Set { key, .. } | Action::Ramp { key, .. } | Action::Profile { key, .. } =
+        &action
+    {
+        if key.axis != AxisKind::Any && (key.axis == AxisKind::Rotary) != rotary {
+            let name = [
+                ("set", &raw.set),
+                ("ramp", &raw.ramp),
+                ("profile", &raw.profile),
+            ]
+            .into_iter()
+            .find_map(|(n, v)| v.as_ref().map(|_| n));
+            return Err(ctx.err(
+                0..0,
+                name,
+                format!(
+                    "`{}` is a {} key: this is a {}",
+                    key.key,
+                    if rotary {
+                        "linear (mm)"
+                    } else {
+                        "rotary (deg)"
+                    },
+                    if rotary {
+                        "rotary axis (deg)"
+                    } else {
+                        "linear axis (mm)"
+                    }
+                ),
+            ));
+        }
+    }
+    Ok(action)
+}
+
 /// The keys an event gives for its action (besides the action's own name).
 fn event_action_keys(e: &RawEvent) -> Vec<(&'static str, Range<usize>)> {
     let mut present: Vec<(&'static str, Range<usize>)> = Vec::new();

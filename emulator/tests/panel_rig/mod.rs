@@ -151,8 +151,10 @@ impl Rig {
             std::process::id(),
             listener.local_addr().unwrap().port()
         ));
+        let (mut observer, obs) =
+            drive_emu::observe::channel(1, drive_emu::observe::ring_capacity(1000));
         let (panel, mut panel_loop): (Panel, PanelLoop) =
-            panel::start_on(listener, o.token.clone(), record_dir.clone(), setup).unwrap();
+            panel::start_on(listener, o.token.clone(), record_dir.clone(), setup, obs).unwrap();
         let base = format!("http://{}", panel.addr);
         let (cmd, rx) = mpsc::channel::<Cmd>();
         let stop = Arc::new(AtomicBool::new(false));
@@ -163,7 +165,12 @@ impl Rig {
             let sleep = o.sleep_per_tick;
             std::thread::spawn(move || {
                 let mut step = |rt: &mut Runtime<FaultyBus<InProcEndpoint>, AxisDrive>| {
-                    tick_with_master(&mut master, &mut master_bus, rt, &mut panel_loop);
+                    tick_with_master(
+                        &mut master,
+                        &mut master_bus,
+                        rt,
+                        (&mut observer, &mut panel_loop),
+                    );
                     sim_time_us.store(rt.sim_time_us, Ordering::Relaxed);
                     if !sleep.is_zero() {
                         std::thread::sleep(sleep);
