@@ -46,8 +46,7 @@ const PENDING: &[(&str, &str)] = &[
 ];
 
 /// File circles not broken yet, as the test prints them. A ratchet like [`PENDING`].
-const PENDING_CIRCLES: &[&str] = &[
-];
+const PENDING_CIRCLES: &[&str] = &[];
 
 fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

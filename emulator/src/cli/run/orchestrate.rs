@@ -48,7 +48,7 @@ fn open_transport(args: &RunArgs) -> Result<LiveTransport> {
         ))
     }
     #[cfg(not(feature = "socketcan"))]
-    bail!(
+    anyhow::bail!(
         "cannot open CAN interface {}: this drive-emu was built without SocketCAN (cargo \
          feature `socketcan`); serve the bus with --socketcand ADDR:PORT instead \
          (docs/socketcand.md)",
