@@ -288,7 +288,7 @@ impl WindowSpectra {
 /// Limits: a line is resolved to about 1/T as with the FFT; samples must come often enough
 /// for the band (a mean rate of at least 2.5 times its top frequency, which is cut there), and
 /// a gap longer than half the period of a frequency leaves that frequency badly constrained
-/// (the windows are cut at such gaps, [`super::windows::WindowOptions::max_gap_s`]); a sample
+/// (the windows are cut at such gaps, `WindowOptions::max_gap_s` of the windows module); a sample
 /// placed at a wrong time (a value answered late and stamped at the next SYNC) is taken as
 /// measured when stamped.
 pub fn uneven_band_spectrum(t: &[f64], y: &[f64], band: (f64, f64)) -> BandSpectrum {

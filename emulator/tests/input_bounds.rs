@@ -185,7 +185,7 @@ fn a_parameter_the_model_cannot_resolve_is_an_error_not_a_nan() {
             "--duration",
             "0.1",
         ],
-        &["physics_step_us", "below the finest step of 1 us"],
+        &["physics_step_us", "must be within 1 ..= 10000 us"],
     );
 }
 

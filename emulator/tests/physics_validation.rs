@@ -21,14 +21,18 @@ fn all_presets_load() {
 fn negative_mass_is_rejected() {
     let e = err("carriage_mass_kg", "-5");
     assert_eq!(e.key, "carriage_mass_kg");
-    assert!(e.reason.contains("> 0"), "{e}");
+    // the registry's range for the key, with its unit
+    assert!(
+        e.reason.contains("must be within 0.1 ..= 1000000 kg"),
+        "{e}"
+    );
 }
 
 #[test]
 fn zero_pitch_is_rejected() {
     let e = err("pitch_mm", "0");
     assert_eq!(e.key, "pitch_mm");
-    assert!(e.reason.contains("> 0"), "{e}");
+    assert!(e.reason.contains("must be within 0.1 ..= 1000 mm"), "{e}");
 }
 
 #[test]

@@ -246,7 +246,11 @@ fn nonsense_preset_overrides_are_rejected_with_key_and_limit() {
         ("speed_ti_ms", "0", "must be > 0"),
         ("speed_kp_nms_per_rad", "1e6", "stable discrete speed loop"),
         ("stiffness_n_per_um", "1e-30", "must be >="),
-        ("carriage_mass_kg", "-1", "must be > 0"),
+        (
+            "carriage_mass_kg",
+            "-1",
+            "must be within 0.1 ..= 1000000 kg",
+        ),
     ] {
         let e = cnc1.with_override(key, value).unwrap_err();
         assert_eq!(e.key, key, "{key}={value}: {e:?}");

@@ -156,9 +156,7 @@ fn eds_from_says_how_the_si_units_are_applied() {
         .unwrap_or_else(|| panic!("no user-unit note in:\n{stderr}"));
     assert!(
         note.contains("= 0.001 mm of the simulated axis")
-            && note.contains(
-                "0x60A8 SI unit position = 0xFA010000 (1e-6 m): applied, 1 uu is that unit"
-            )
+            && note.contains("0x60A8 SI unit position = 0xFA010000 (1e-6 m): applied, 1 uu = 1 um")
             && note.contains("0x60A9 SI unit velocity = 0xFD010300 (1e-3 m/s): applied"),
         "{note}"
     );

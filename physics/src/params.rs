@@ -9,7 +9,11 @@
 
 use std::f64::consts::PI;
 
-use crate::presets::{MAX_BACKLASH_M, MAX_BACKLASH_RAD};
+/// Largest backlash a configuration (and the drive's 0x2000) accepts: 10 mm on a linear
+/// axis, 0.1 rad (5.7 deg) on a rotary one; worn machines show 0.01-0.1 mm.
+pub const MAX_BACKLASH_M: f64 = 0.01;
+/// The same on a rotary axis, rad.
+pub const MAX_BACKLASH_RAD: f64 = 0.1;
 
 /// Axis parameters the master may read and write while the axis runs, in SI units.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

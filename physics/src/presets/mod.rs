@@ -187,10 +187,8 @@ fn positive(key: &str, v: f64) -> Result<f64, ConfigError> {
     }
 }
 
-/// Largest backlash a configuration (and the drive's 0x2000) accepts: 10 mm on a linear
-/// axis, 0.1 rad (5.7 deg) on a rotary one; worn machines show 0.01-0.1 mm.
-pub const MAX_BACKLASH_M: f64 = 0.01;
-pub const MAX_BACKLASH_RAD: f64 = 0.1;
+// The largest backlash a configuration accepts, kept with the registry (crate::params).
+pub use crate::params::{MAX_BACKLASH_M, MAX_BACKLASH_RAD};
 
 /// Largest twin-pinion preload a configuration (and the drive's 0x200E) accepts, % of each
 /// motor's rated torque (real drives bias 5-30 %).
