@@ -705,6 +705,30 @@ fn object_lists_against_the_sections() {
         "the 1 numbered entries are read",
     );
     assert!(!f.warnings.iter().any(|w| w.reason.contains("not named in")));
+    // no SupportedObjects and an entry numbered 699185165023 (the eds fuzz target's
+    // out-of-memory input): the list is read up to 65535 entries, the missing ones said once,
+    // the entry beyond ignored with its line; bounded in time and memory
+    let text = eds(
+        &[0x2000],
+        "[2000]\nParameterName=k\nDataType=0x0005\nAccessType=rw\n",
+    )
+    .replace(
+        "[OptionalObjects]\nSupportedObjects=1\n",
+        "[OptionalObjects]\n699185165023=0x2000\n70000=0x2000\n65535=0x2000\n",
+    );
+    let f = warned(
+        &text,
+        line_of(&text, "[OptionalObjects]"),
+        "SupportedObjects=65535 but 65533 entries are missing (the first: 2)",
+    );
+    assert!(f.object(0x2000).is_some());
+    let beyond = f
+        .warnings
+        .iter()
+        .filter(|w| w.reason.contains("entry beyond SupportedObjects=65535"))
+        .count();
+    assert!(beyond >= 2, "{:?}", f.warnings);
+    assert!(f.warnings.len() < 50, "{} warnings", f.warnings.len());
 }
 
 #[test]

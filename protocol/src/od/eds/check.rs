@@ -50,7 +50,10 @@ pub(super) fn check_lists(cx: &mut Ctx, objects: &[(u16, usize)]) -> Result<(), 
                     .filter(numbered)
                     .filter_map(|e| e.key.parse::<usize>().ok())
                     .max()
-                    .unwrap_or(0);
+                    .unwrap_or(0)
+                    // as SupportedObjects at most: an entry numbered beyond is ignored, said
+                    // below (a number like 699185165023 once made this loop run for ever)
+                    .min(65_535);
                 notes.push((
                     s.line,
                     Some("SupportedObjects"),
@@ -60,13 +63,15 @@ pub(super) fn check_lists(cx: &mut Ctx, objects: &[(u16, usize)]) -> Result<(), 
             }
         };
         let mut dups = Vec::new();
+        // missing entries are said once (how many, the first), not one note each: a count of
+        // 65535 with no entries would otherwise be 65535 warnings
+        let (mut missing, mut first_missing) = (0usize, 0usize);
         for i in 1..=n {
             let Some(e) = s.get(&i.to_string()) else {
-                notes.push((
-                    s.line,
-                    None,
-                    format!("SupportedObjects={n} but entry {i} is missing; the entries present are read"),
-                ));
+                missing += 1;
+                if first_missing == 0 {
+                    first_missing = i;
+                }
                 continue;
             };
             let index = match parse_plain_uint(e.value) {
@@ -99,6 +104,19 @@ pub(super) fn check_lists(cx: &mut Ctx, objects: &[(u16, usize)]) -> Result<(), 
             } else {
                 listed.insert(index, (si, e.line));
             }
+        }
+        match missing {
+            0 => {}
+            1 => notes.push((
+                s.line,
+                None,
+                format!("SupportedObjects={n} but entry {first_missing} is missing; the entries present are read"),
+            )),
+            _ => notes.push((
+                s.line,
+                None,
+                format!("SupportedObjects={n} but {missing} entries are missing (the first: {first_missing}); the entries present are read"),
+            )),
         }
         for e in s.entries.iter().filter(|e| {
             !e.key.eq_ignore_ascii_case("SupportedObjects")
