@@ -27,6 +27,19 @@ pub(super) const OBJECT_KEYS: &[&str] = &[
     "storagelocation",
 ];
 
+/// What a list's missing entries are said as: once, however many.
+fn missing_entries(n: usize, missing: usize, first: usize) -> Option<String> {
+    match missing {
+        0 => None,
+        1 => Some(format!(
+            "SupportedObjects={n} but entry {first} is missing; the entries present are read"
+        )),
+        _ => Some(format!(
+            "SupportedObjects={n} but {missing} entries are missing (the first: {first}); the entries present are read"
+        )),
+    }
+}
+
 /// The object lists against the object sections. Python canopen reads every object section
 /// and ignores the lists, so a list that does not match the sections is read past with a
 /// warning: an entry without its section, a missing entry number, a missing count.
@@ -105,18 +118,8 @@ pub(super) fn check_lists(cx: &mut Ctx, objects: &[(u16, usize)]) -> Result<(), 
                 listed.insert(index, (si, e.line));
             }
         }
-        match missing {
-            0 => {}
-            1 => notes.push((
-                s.line,
-                None,
-                format!("SupportedObjects={n} but entry {first_missing} is missing; the entries present are read"),
-            )),
-            _ => notes.push((
-                s.line,
-                None,
-                format!("SupportedObjects={n} but {missing} entries are missing (the first: {first_missing}); the entries present are read"),
-            )),
+        if let Some(why) = missing_entries(n, missing, first_missing) {
+            notes.push((s.line, None, why));
         }
         for e in s.entries.iter().filter(|e| {
             !e.key.eq_ignore_ascii_case("SupportedObjects")
