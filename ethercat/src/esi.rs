@@ -216,18 +216,7 @@ fn err(doc: &roxmltree::Document<'_>, node: roxmltree::Node<'_, '_>, why: String
     }
 }
 
-fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
-    node.children()
-        .find(|c| c.is_element() && c.tag_name().name() == name)
-}
-
-fn children<'a, 'i: 'a>(
-    node: roxmltree::Node<'a, 'i>,
-    name: &'a str,
-) -> impl Iterator<Item = roxmltree::Node<'a, 'i>> + 'a {
-    node.children()
-        .filter(move |c| c.is_element() && c.tag_name().name() == name)
-}
+use crate::esi_od::{child, children};
 
 pub use crate::esi_od::number;
 

@@ -95,12 +95,17 @@ fn base_type(name: &str) -> Option<(DataType, usize)> {
     Some((d, 0))
 }
 
-fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
+/// The first child element named `name`.
+pub(crate) fn child<'a, 'i>(
+    node: roxmltree::Node<'a, 'i>,
+    name: &str,
+) -> Option<roxmltree::Node<'a, 'i>> {
     node.children()
         .find(|c| c.is_element() && c.tag_name().name() == name)
 }
 
-fn children<'a, 'i: 'a>(
+/// The child elements named `name`.
+pub(crate) fn children<'a, 'i: 'a>(
     node: roxmltree::Node<'a, 'i>,
     name: &'a str,
 ) -> impl Iterator<Item = roxmltree::Node<'a, 'i>> + 'a {
