@@ -135,8 +135,14 @@ fn commands(text: &str) -> Vec<(usize, String, Found)> {
             pending = None;
             continue;
         }
+        // a line of a shell block: fenced, or an indented code block (four spaces or a tab)
+        // whose line starts a command or continues one with `\`: checked whole
+        let in_block = match &fence {
+            Some(lang) => matches!(lang.as_str(), "" | "sh" | "bash" | "console" | "shell"),
+            None => is_indented_command(raw) || pending.is_some(),
+        };
         match &fence {
-            Some(lang) if matches!(lang.as_str(), "" | "sh" | "bash" | "console" | "shell") => {
+            _ if in_block => {
                 let (start, mut joined) = pending.take().unwrap_or((i + 1, String::new()));
                 joined.push_str(raw.trim_end().trim_end_matches('\\'));
                 joined.push(' ');
@@ -147,18 +153,6 @@ fn commands(text: &str) -> Vec<(usize, String, Found)> {
                 }
             }
             Some(_) => {}
-            // an indented code block (four spaces or a tab) whose line starts a command, or
-            // continues one with `\`: checked whole, as a fenced block is
-            None if is_indented_command(raw) || pending.is_some() => {
-                let (start, mut joined) = pending.take().unwrap_or((i + 1, String::new()));
-                joined.push_str(raw.trim_end().trim_end_matches('\\'));
-                joined.push(' ');
-                if raw.trim_end().ends_with('\\') {
-                    pending = Some((start, joined));
-                } else if let Some(args) = command_args(&joined) {
-                    out.push((start, args, Found::Block));
-                }
-            }
             None => {
                 // inline code spans: `drive-emu SUBCOMMAND ...`
                 for (k, span) in raw.split('`').enumerate() {
