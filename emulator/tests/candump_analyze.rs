@@ -567,3 +567,94 @@ fn the_column_format_decodes_like_the_log_format_and_skips_other_frames() {
     assert_eq!(b.stats.frames, a.stats.frames);
     assert_eq!(b.stats.node_frames, a.stats.node_frames);
 }
+
+/// The worn run's log as a drive behind its master would give it (lock-step on a busy host):
+/// now and then the drive stalls for 8..32 SYNC periods, and when it runs again it answers
+/// every SYNC it missed, in order, right after the SYNC that ends the stall. Only stretches
+/// without SDO traffic stall (a remap between a SYNC and its late answer would change what
+/// the answer means). Returns the log and the number of answers that came late.
+fn with_stalls(log: &str) -> (String, usize) {
+    let lines: Vec<&str> = log.lines().collect();
+    let id = |l: &str| {
+        u32::from_str_radix(l.split(' ').nth(2).unwrap().split('#').next().unwrap(), 16).unwrap()
+    };
+    let syncs: Vec<usize> = (0..lines.len())
+        .filter(|&i| id(lines[i]) == 0x080)
+        .collect();
+    let n = u32::from(NODE);
+    let answer = |i: usize| [0x180 + n, 0x280 + n, 0x380 + n, 0x480 + n].contains(&id(lines[i]));
+    let sdo = |i: usize| [0x600 + n, 0x580 + n].contains(&id(lines[i]));
+    // For each line of an answer that is moved: the SYNC (index into `syncs`) it goes after.
+    let mut moved_to = vec![None; lines.len()];
+    let mut late = 0;
+    let (mut k, mut stall) = (200, 0usize);
+    while k + 40 < syncs.len() {
+        let d = 8 + (stall * 7) % 25;
+        let (from, to) = (syncs[k], syncs[k + d]);
+        if !(from..to).any(sdo) {
+            for (i, m) in moved_to.iter_mut().enumerate().take(to).skip(from) {
+                if answer(i) {
+                    *m = Some(k + d);
+                }
+            }
+            late += d;
+            stall += 1;
+        }
+        k += d + 40;
+    }
+    let mut out = String::new();
+    for (i, l) in lines.iter().enumerate() {
+        if moved_to[i].is_some() {
+            continue;
+        }
+        out.push_str(l);
+        out.push('\n');
+        if let Ok(s) = syncs.binary_search(&i) {
+            let ts = l.split(' ').next().unwrap();
+            for (j, m) in moved_to.iter().enumerate() {
+                if *m == Some(s) {
+                    let rest = lines[j].split_once(' ').unwrap().1;
+                    out.push_str(&format!("{ts} {rest}\n"));
+                }
+            }
+        }
+    }
+    (out, late)
+}
+
+#[test]
+fn a_drive_that_falls_behind_and_catches_up_decodes_to_what_the_master_received() {
+    let l = worn();
+    let (log, late) = with_stalls(&l.log);
+    assert!(late > 100, "{late} answers late");
+    let a = candump::decode(&l.log, "on-time.log", &opts()).unwrap();
+    let b = candump::decode(&log, "behind.log", &opts()).unwrap();
+    eprintln!("{}", b.summary());
+    assert!(
+        b.stats.answers_late >= late / 2,
+        "{} late",
+        b.stats.answers_late
+    );
+    // Each SYNC's row holds what answered it: the same as on time.
+    assert_eq!(a.rows.len(), b.rows.len());
+    let differ: Vec<usize> = (0..a.rows.len())
+        .filter(|&k| {
+            (
+                a.rows[k].position_uu,
+                a.rows[k].velocity_uu_s,
+                a.answered[k],
+            ) != (
+                b.rows[k].position_uu,
+                b.rows[k].velocity_uu_s,
+                b.answered[k],
+            )
+        })
+        .collect();
+    assert!(
+        differ.is_empty(),
+        "{} of {} rows differ, the first at {:?}",
+        differ.len(),
+        a.rows.len(),
+        differ.first()
+    );
+}

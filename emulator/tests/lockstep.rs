@@ -406,3 +406,105 @@ fn the_time_per_sync_is_the_period_the_master_configured() {
         4000
     );
 }
+
+/// A bus whose frames all arrived while the drive was stalled: the first read finds the whole
+/// queue, each frame kernel-stamped 1 ms after the one before, from the moment the stall
+/// began; the read then finds the wall clock a second later than that. What the drive sends
+/// is kept with the number of frames it had read by then.
+struct StalledQueue {
+    queue: std::collections::VecDeque<CanFrame>,
+    first_stamp_ns: Option<i128>,
+    read: usize,
+    stamp_ns: Option<i128>,
+    sent: Vec<(usize, CanFrame)>,
+    stop: Arc<AtomicBool>,
+}
+
+impl CanBus for StalledQueue {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), drive_emu::bus::SendError> {
+        self.sent.push((self.read, *frame));
+        Ok(())
+    }
+    fn recv(&mut self) -> Result<Option<CanFrame>, drive_emu::bus::RecvError> {
+        let first = *self.first_stamp_ns.get_or_insert_with(|| {
+            let t = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .unwrap()
+                .as_nanos() as i128;
+            // The drive was stalled this long while the frames queued.
+            std::thread::sleep(std::time::Duration::from_secs(1));
+            t
+        });
+        let Some(f) = self.queue.pop_front() else {
+            self.stop.store(true, Ordering::Relaxed);
+            return Ok(None);
+        };
+        self.stamp_ns = Some(first + self.read as i128 * 1_000_000);
+        self.read += 1;
+        Ok(Some(f))
+    }
+    fn wait_readable(&mut self, _timeout_us: u64) {}
+    fn last_rx_stamp_ns(&self) -> Option<i128> {
+        self.stamp_ns
+    }
+}
+
+/// A drive behind its master on a busy host reads a backlog longer than one batch
+/// (`MAX_RX_PER_TICK`): the master's heartbeats in it arrived on time, by their stamps, so
+/// the heartbeat consumer must not fault while the backlog is read (it once took the wall
+/// clock after each batch: EMCY 0x8130 with the next heartbeat still in the queue).
+#[test]
+fn a_backlog_longer_than_a_batch_is_timed_by_its_stamps_not_the_wall_clock() {
+    use drive_emu::runtime::MAX_RX_PER_TICK;
+    const MASTER: u32 = 0x7F;
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut queue = std::collections::VecDeque::new();
+    // 0x1016:1 = master 0x7F, 150 ms (expedited download, 4 bytes).
+    let consumer = (MASTER << 16) | 150;
+    let b = consumer.to_le_bytes();
+    queue.push_back(CanFrame::new(
+        0x600 + u32::from(NODE),
+        &[0x23, 0x16, 0x10, 0x01, b[0], b[1], b[2], b[3]],
+    ));
+    // 900 ms of traffic, 1 ms apart: a SYNC each, the master's heartbeat every 50 ms.
+    for i in 0..900 {
+        if i % 50 == 0 {
+            queue.push_back(CanFrame::new(0x700 + MASTER, &[0x05]));
+        } else {
+            queue.push_back(CanFrame::new(0x80, &[]));
+        }
+    }
+    let total = queue.len();
+    assert!(total > 3 * MAX_RX_PER_TICK, "a backlog of several batches");
+    let bus = StalledQueue {
+        queue,
+        first_stamp_ns: None,
+        read: 0,
+        stamp_ns: None,
+        sent: Vec::new(),
+        stop: Arc::clone(&stop),
+    };
+    let mut rt = Runtime::new(bus, vec![axis()], 1000);
+    rt.boot();
+    rt.finish_boots();
+    rt.run_lockstep(1000, &stop, |_| {});
+    let sdo_ok = rt
+        .bus
+        .sent
+        .iter()
+        .any(|(_, f)| f.id == 0x580 + u32::from(NODE) && f.data[0] == 0x60);
+    assert!(sdo_ok, "0x1016 written");
+    let emcy = u32::from(NODE) + 0x80;
+    let heartbeat_emcy: Vec<usize> = rt
+        .bus
+        .sent
+        .iter()
+        .filter(|(_, f)| f.id == emcy && f.data[..2] == [0x30, 0x81])
+        .map(|(read, _)| *read)
+        .collect();
+    assert!(
+        heartbeat_emcy.iter().all(|&read| read == total),
+        "EMCY 0x8130 after {heartbeat_emcy:?} of {total} frames read: the heartbeat was \
+         taken for missed while it was still in the queue"
+    );
+}

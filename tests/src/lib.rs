@@ -472,10 +472,19 @@ pub enum SdoError {
 pub const SDO_TIMEOUT: Duration = Duration::from_secs(5);
 
 fn sdo_request(sock: &CanSocket, node: u8, req: SdoRequest) -> Result<SdoResponse, SdoError> {
+    sdo_request_within(sock, node, req, SDO_TIMEOUT)
+}
+
+fn sdo_request_within(
+    sock: &CanSocket,
+    node: u8,
+    req: SdoRequest,
+    timeout: Duration,
+) -> Result<SdoResponse, SdoError> {
     let tx = cob::SDO_RX as u16 + u16::from(node);
     let rx = cob::SDO_TX + u32::from(node);
     send(sock, tx, &req.emit());
-    let ans = recv_matching(sock, SDO_TIMEOUT, |f| {
+    let ans = recv_matching(sock, timeout, |f| {
         let (id, d) = id_data(f);
         let Ok(d) = <[u8; 8]>::try_from(d.as_slice()) else {
             return false;
@@ -495,8 +504,20 @@ fn sdo_request(sock: &CanSocket, node: u8, req: SdoRequest) -> Result<SdoRespons
 
 /// SDO upload (expedited or segmented) of `index:sub` from `node`.
 pub fn sdo_upload(sock: &CanSocket, node: u8, index: u16, sub: u8) -> Result<Vec<u8>, SdoError> {
+    sdo_upload_within(sock, node, index, sub, SDO_TIMEOUT)
+}
+
+/// [`sdo_upload`] that waits up to `first` for the answer to its first request: a drive still
+/// working through a backlog (a flood it was sent, on a busy host) answers in bus order.
+pub fn sdo_upload_within(
+    sock: &CanSocket,
+    node: u8,
+    index: u16,
+    sub: u8,
+    first: Duration,
+) -> Result<Vec<u8>, SdoError> {
     let mux = Mux::new(index, sub);
-    let total = match sdo_request(sock, node, SdoRequest::InitiateUpload { mux })? {
+    let total = match sdo_request_within(sock, node, SdoRequest::InitiateUpload { mux }, first)? {
         SdoResponse::InitiateUpload {
             data: data @ Initiate::Expedited { .. },
             ..

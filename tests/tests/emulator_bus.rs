@@ -14,7 +14,8 @@ use std::time::{Duration, Instant};
 use e2e::socketcan::{CanFrame, EmbeddedFrame, ExtendedId, Socket, StandardId};
 use e2e::{
     drive_emu_bin, frame, id_data, iface, nmt, open_bus, recv_matching, sdo_barrier, sdo_download,
-    sdo_u32, sdo_upload, send, temp_file, wait_bootup, Emu, Peer, SdoError, PEER_TIMEOUT,
+    sdo_u32, sdo_upload, sdo_upload_within, send, temp_file, wait_bootup, Emu, Peer, SdoError,
+    PEER_TIMEOUT,
 };
 
 const DEVICE_TYPE: u32 = 0x0002_0192;
@@ -272,14 +273,15 @@ impl Rng {
 /// download the server takes every frame but an abort for a sub-block segment (CiA 301: they
 /// carry no command specifier), so, as a master that lost track does, abort first. Then the
 /// node must answer at the first try (an abort of a stale transfer counts) and give the right
-/// value within three.
+/// value within three. The first answer may take a while: the drive handles its receive queue
+/// in bus order, and on a busy host the flood may still be in it (no request is resent).
 fn sdo_answers_after(sock: &e2e::socketcan::CanSocket, node: u8) {
     send(
         sock,
         0x600 + u16::from(node),
         &[0x80, 0, 0, 0, 0x00, 0x00, 0x00, 0x08], // abort, 0x08000000 general error
     );
-    let first = sdo_upload(sock, node, 0x1000, 0);
+    let first = sdo_upload_within(sock, node, 0x1000, 0, PEER_TIMEOUT);
     assert_ne!(
         first,
         Err(SdoError::Timeout),

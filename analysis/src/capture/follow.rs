@@ -16,8 +16,12 @@ const GAP_PERIODS: f64 = 1.5;
 const PERIOD_AGREEMENT: f64 = 0.10;
 /// An answer is taken for a SYNC at most this many SYNCs back.
 const MAX_BEHIND: usize = 32;
-/// After this many answers in a row that came after a later SYNC, the drive is taken to have
-/// lost an answer, not to be behind.
+/// After this many answers in a row that came exactly one SYNC late, the drive is taken to have
+/// lost an answer (every later one then stays one behind), not to be behind: a drive working
+/// through a backlog answers late by a count that changes from one answer to the next (a
+/// stall, then a burst of answers catching up), or stays further behind. Giving up a SYNC
+/// that was answered late costs its row and doubles the next, so only the lost answer's
+/// signature does it; a lost answer not recognised costs a shift of one period.
 const RESYNC_AFTER: usize = 8;
 
 /// Put an actual value decoded from a TPDO into a row.
@@ -395,8 +399,9 @@ struct Decoder<'a> {
     answer_past_sync: bool,
     /// The oldest SYNC not answered yet.
     next_unanswered: usize,
-    /// Answers in a row that came after a later SYNC.
+    /// Answers in a row that came the same number of SYNCs late, and that number.
     behind_in_a_row: usize,
+    behind_by: usize,
     last_t_us: Option<i64>,
     other_ids: BTreeMap<u32, usize>,
 }
@@ -430,6 +435,7 @@ impl<'a> Decoder<'a> {
             answer_past_sync: false,
             next_unanswered: 0,
             behind_in_a_row: 0,
+            behind_by: 0,
             last_t_us: None,
             other_ids: BTreeMap::new(),
         }
@@ -563,8 +569,8 @@ impl<'a> Decoder<'a> {
     /// The row a frame of synchronous TPDO `k` answers: the row of the answer being filled if
     /// it does not hold TPDO `k` yet, else a new answer for the oldest SYNC not answered (at
     /// most [`MAX_BEHIND`] SYNCs back). A drive that lost an answer would leave every later
-    /// one a SYNC behind: after [`RESYNC_AFTER`] answers in a row that came after a later
-    /// SYNC, the oldest unanswered SYNC is given up.
+    /// one a SYNC behind: after [`RESYNC_AFTER`] answers in a row that came exactly one SYNC
+    /// late, the oldest unanswered SYNC is given up.
     fn answer_row(&mut self, k: usize) -> Option<usize> {
         let latest = self.rows.len().checked_sub(1)?;
         let bit = 1u8 << k;
@@ -582,8 +588,14 @@ impl<'a> Decoder<'a> {
             .max(latest.saturating_sub(MAX_BEHIND))
             .min(latest);
         if j < latest {
-            self.behind_in_a_row += 1;
-            if self.behind_in_a_row > RESYNC_AFTER {
+            let by = latest - j;
+            if by == self.behind_by {
+                self.behind_in_a_row += 1;
+            } else {
+                self.behind_in_a_row = 1;
+                self.behind_by = by;
+            }
+            if by == 1 && self.behind_in_a_row > RESYNC_AFTER {
                 j = latest;
                 self.behind_in_a_row = 0;
             } else {
@@ -591,6 +603,7 @@ impl<'a> Decoder<'a> {
             }
         } else {
             self.behind_in_a_row = 0;
+            self.behind_by = 0;
         }
         self.next_unanswered = j + 1;
         self.answer = Some((j, bit));

@@ -503,9 +503,15 @@ impl<B: CanBus, D: SimulatedDrive> Runtime<B, D> {
                     self.lockstep_tick(&mut hook);
                 }
             }
-            // After the answers: the clock read for the free run and the communication timers.
+            // After the answers: the clock read for the free run and the communication timers,
+            // once the socket is drained. A batch cut at MAX_RX_PER_TICK leaves frames queued
+            // that arrived before now (a drive behind its master on a busy host): the time
+            // stays at the last frame's arrival, or a heartbeat still in the queue would be
+            // taken for a missed one (EMCY 0x8130) and a set-point for a lost SYNC.
             wakes += 1;
-            self.read_comm_clock(wakes.is_multiple_of(256));
+            if frames < MAX_RX_PER_TICK {
+                self.read_comm_clock(wakes.is_multiple_of(256));
+            }
             // SYNC stopped: after the grace time the drive's clock runs on the wall's.
             if let (Some(limit), Some(last)) = (cfg.free_run_after_us, last_sync) {
                 let since_us = self.clocks().comm_us.saturating_sub(last);
