@@ -90,10 +90,41 @@ fn every_object_of_every_vendor_file_is_served_with_its_size() {
     }
 }
 
+/// Defaults of a vendor's file the drive refuses to take back, each with its reason (issue 33;
+/// SOURCES.md): (file name prefix, index, sub-index, abort code, why).
+const KNOWN_REFUSALS: [(&str, u16, u8, u32, &str); 3] = [
+    (
+        "sevcon-gen4",
+        0x1005,
+        0,
+        0x0609_0030,
+        "0x40000080 makes the device the SYNC producer (bit 30; a Gen4 is its vehicle's \
+         master): the drive consumes SYNC only and refuses to produce it \
+         (protocol/src/cia301/sync.rs)",
+    ),
+    (
+        "sevcon-gen4",
+        0x1014,
+        0,
+        0x0609_0030,
+        "an EMCY COB-ID of 0 (SEVCON's default; CAN-ID 0 is NMT's) is not a COB-ID CiA 301 \
+         allows: refused (protocol/src/cia301/cob_id.rs); the drive keeps $NODEID+0x80",
+    ),
+    (
+        "sevcon-gen4",
+        0x6060,
+        0,
+        0x0609_0030,
+        "4, profile torque, the Gen4's own mode: the drive runs PP, PV, HM, IP, CSP, CSV and \
+         CST, not profile torque",
+    ),
+];
+
 /// Writing a rw object's own default is accepted (what `load_configuration` and a concise
 /// DCF do for every object they carry), PDO parameters included while the PDO is invalid.
 #[test]
 fn rw_objects_accept_their_default() {
+    let (mut failed, mut refused) = (Vec::new(), Vec::new());
     for path in vendor_files() {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let f = load(&path);
@@ -123,6 +154,17 @@ fn rw_objects_accept_their_default() {
                     // (a concise DCF invalidates the PDO first)
                     continue;
                 }
+                if let Some((.., why)) =
+                    KNOWN_REFUSALS.iter().find(|(file, index, sub, abort, _)| {
+                        name.starts_with(file)
+                            && *index == o.index
+                            && *sub == s.sub
+                            && r == Err(*abort)
+                    })
+                {
+                    refused.push(format!("{where_}: {why}"));
+                    continue;
+                }
                 if pdo_param && s.sub == 0 && r == Err(0x0604_0041) {
                     // a default mapping the file itself gets wrong (SCHUNK's scanned RPDO2 maps
                     // read-only objects): refused as CiA 301 says, and the build said so
@@ -134,9 +176,23 @@ fn rw_objects_accept_their_default() {
                     );
                     continue;
                 }
-                assert_eq!(r, Ok(()), "{where_}: writing its default {bytes:02x?}");
+                if r != Ok(()) {
+                    failed.push(format!(
+                        "{where_}: writing its default {bytes:02x?}: {r:x?}"
+                    ));
+                }
             }
         }
+    }
+    assert!(failed.is_empty(), "{}", failed.join("\n"));
+    // each known refusal still happens (else it leaves the list)
+    for (file, index, sub, abort, _) in KNOWN_REFUSALS {
+        assert!(
+            refused
+                .iter()
+                .any(|r| r.starts_with(file) && r.contains(&format!(": {index:04X}sub{sub}:"))),
+            "{file} {index:04X}sub{sub} is no longer refused with {abort:#010x}: {refused:?}"
+        );
     }
 }
 
@@ -182,13 +238,62 @@ fn set_profile(b: &mut Bench, index: u16, want: u32) {
 }
 
 /// Vendor files whose drive this check does not see move enough (issue 33;
-/// tests/eds/vendors/SOURCES.md). The Elmo files move since their 0x608F = 1 increment per
-/// revolution is a placeholder the drive fills with its encoder's count
-/// (protocol/src/od/placeholders.rs). The Nanotec N5 files make 1 uu one motor revolution
-/// (0x608F 2000, 0x6092 1 per revolution): in the 300 ticks below the drive turns about 15
-/// revolutions towards the 500 uu target (its motor's top speed, 3000 rev/min, after the
-/// ramp), which is 15 uu where the check asks for 100: the check's distance, not the drive.
-pub const MOVE_PENDING: [&str; 2] = ["nanotec-n5-2-2.dcf", "nanotec-n5-2-2.eds"];
+/// tests/eds/vendors/SOURCES.md): none now. The Elmo files move since their 0x608F = 1
+/// increment per revolution is a placeholder the drive fills with its encoder's count
+/// (protocol/src/od/placeholders.rs); the Nanotec N5 files, whose factor group makes 1 uu one
+/// motor revolution, since the move is asked in their own units (`Profile`).
+pub const MOVE_PENDING: [&str; 0] = [];
+
+/// A value of the dictionary as served, where the file has the object.
+fn served(b: &mut Bench, index: u16, sub: u8) -> Option<u32> {
+    b.node.od().get(index, sub)?;
+    Some(b.r32(index, sub))
+}
+
+/// The move a master of that drive asks, in the file's own user units: where a user unit is
+/// small (100 or more to a motor revolution, or no factor group), 500 uu at 5000 uu/s and
+/// 50 000 uu/s², at least 100 uu in 0.3 s; where it is coarse (the Nanotec N5 files: 1 uu =
+/// one motor revolution, 0x6092:1 = 1 per revolution), 20 revolutions at 30 rev/s (1800
+/// rev/min, below the simulated motor's 3000) and 300 rev/s², at least 2 revolutions in 0.3
+/// s (the ramp alone turns 1.5), each rounded up to whole user units.
+struct Profile {
+    target_uu: i32,
+    velocity_uu_s: u32,
+    acceleration_uu_s2: u32,
+    moved_uu: i32,
+}
+
+fn profile_in_file_units(b: &mut Bench) -> Profile {
+    let small = Profile {
+        target_uu: 500,
+        velocity_uu_s: 5000,
+        acceleration_uu_s2: 50_000,
+        moved_uu: 100,
+    };
+    let (Some(f1), Some(f2)) = (served(b, 0x6092, 1), served(b, 0x6092, 2)) else {
+        return small;
+    };
+    let (g1, g2) = match (served(b, 0x6091, 1), served(b, 0x6091, 2)) {
+        (Some(g1), Some(g2)) => (g1, g2),
+        _ => (1, 1),
+    };
+    if f1 == 0 || f2 == 0 || g1 == 0 || g2 == 0 {
+        return small;
+    }
+    // user units per motor revolution: feed per shaft revolution, shaft revolutions per motor
+    // revolution
+    let uu_per_rev = (f1 as f64 / f2 as f64) * (g2 as f64 / g1 as f64);
+    if uu_per_rev >= 100.0 {
+        return small;
+    }
+    let uu = |revs: f64| (revs * uu_per_rev).ceil().max(1.0);
+    Profile {
+        target_uu: uu(20.0) as i32,
+        velocity_uu_s: uu(30.0) as u32,
+        acceleration_uu_s2: uu(300.0) as u32,
+        moved_uu: uu(2.0) as i32,
+    }
+}
 
 /// The drive behind a vendor dictionary enables and moves in a mode the file lists.
 #[test]
@@ -225,13 +330,14 @@ fn a_vendor_drive_enables_and_moves() {
             "{name}"
         );
         let p0 = b.node.position_actual();
+        let pr = profile_in_file_units(&mut b);
         match mode {
             // as a master does: its own profile (some files ship 0 as the profile velocity)
             1 => {
-                set_profile(&mut b, 0x6081, 5000);
-                set_profile(&mut b, 0x6083, 50_000);
-                set_profile(&mut b, 0x6084, 50_000);
-                b.w32(0x607A, 0, (p0 + 500) as u32).unwrap();
+                set_profile(&mut b, 0x6081, pr.velocity_uu_s);
+                set_profile(&mut b, 0x6083, pr.acceleration_uu_s2);
+                set_profile(&mut b, 0x6084, pr.acceleration_uu_s2);
+                b.w32(0x607A, 0, (p0 + pr.target_uu) as u32).unwrap();
                 b.cw(0x1F);
             }
             3 => {
@@ -248,9 +354,10 @@ fn a_vendor_drive_enables_and_moves() {
         }
         b.ticks(300);
         assert!(
-            b.node.position_actual() > p0 + 100,
-            "{name}: moved {} in mode {mode}",
-            b.node.position_actual() - p0
+            b.node.position_actual() > p0 + pr.moved_uu,
+            "{name}: moved {} uu in mode {mode}, {} asked",
+            b.node.position_actual() - p0,
+            pr.moved_uu
         );
     }
 }

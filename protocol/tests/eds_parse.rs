@@ -439,12 +439,87 @@ fn strings_octets_and_domains() {
     assert_eq!(f.sub(0x2000, 0).unwrap().default, None);
     for (v, why) in [
         ("abc", "odd number of hex digits"),
-        ("0x01", "no 0x prefix"),
+        // `0x` and digits is read (with a warning, below); `0x` and a non-digit is not
+        ("0x0g", "no 0x prefix"),
         ("0 1", "odd digit before a space"),
     ] {
         let e = fails(&eds(&[0x2000], &var("0x000A", v)));
         assert!(e.reason.contains(why), "{v}: {e}");
     }
+}
+
+/// OCTET_STRING and DOMAIN values written as numbers with 0x (issue 33: SEVCON's Gen4 EDS
+/// and DCFs, Ingenia's EVE files; python canopen 2.4.1 drops such a value, Lely's dcfchk does
+/// not check it): read as their hex digits in pairs in the order written, a DCF's
+/// ParameterValue too, each with a warning naming line, section and key and the bytes read;
+/// the export writes them back as CiA 306 does (digit pairs, no 0x), which reads back to the
+/// same dictionary without a warning.
+#[test]
+fn octet_strings_written_with_0x_read_with_a_warning_and_export_as_digit_pairs() {
+    let body = "[2100]\nParameterName=System FIFO\nDataType=0x000F\nAccessType=rw\n\
+                DefaultValue=0x000400000000002c00002401\nParameterValue=0x0\n\n\
+                [2101]\nParameterName=Key\nDataType=0x000A\nAccessType=rw\nDefaultValue=0X0a0B\n";
+    let text = eds(&[0x2100, 0x2101], body);
+    let f = ok(&text);
+    let at = |section: &str, key: &str| {
+        f.warnings
+            .iter()
+            .find(|w| {
+                w.section.as_deref() == Some(section)
+                    && w.key.as_deref() == Some(key)
+                    && w.reason.contains("written as a number with 0x")
+            })
+            .unwrap_or_else(|| panic!("no 0x warning at [{section}] {key}: {:?}", f.warnings))
+    };
+    let w = at("2100", "DefaultValue");
+    assert_eq!(w.line, line_in(&text, "[2100]", "DefaultValue"));
+    assert!(
+        w.reason
+            .contains("read as the 12 bytes 00 04 00 00 00 00 00 2c .."),
+        "{w}"
+    );
+    assert!(
+        w.reason
+            .contains("CiA 306 writes octet strings as hex digit pairs without 0x"),
+        "{w}"
+    );
+    let w = at("2100", "ParameterValue");
+    assert_eq!(w.line, line_in(&text, "[2100]", "ParameterValue"));
+    assert!(w.reason.contains("read as the 1 byte 00 "), "{w}");
+    assert!(at("2101", "DefaultValue")
+        .reason
+        .contains("the 2 bytes 0a 0b"));
+    let s = f.sub(0x2100, 0).unwrap();
+    assert_eq!(s.parameter_value, Some(ValueExpr::Octets(vec![0])));
+    assert_eq!(
+        default_of(&f, 0x2100, 0),
+        [0, 4, 0, 0, 0, 0, 0, 0x2c, 0, 0, 0x24, 1]
+    );
+    assert_eq!(default_of(&f, 0x2101, 0), [0x0a, 0x0b]);
+    // the export writes digit pairs without 0x, and they read back the same, unwarned
+    let (od, _) = ObjectDictionary::from_eds(&f, &common::info()).unwrap();
+    let out = drive_protocol::od::eds::export(&od, &EdsMeta::default(), &mut |_| None);
+    let again = ok(&out);
+    assert!(
+        !again.warnings.iter().any(|w| w.reason.contains("0x")
+            && (w.section.as_deref() == Some("2100") || w.section.as_deref() == Some("2101"))),
+        "{:?}",
+        again.warnings
+    );
+    for (index, bytes) in [(0x2100u16, "000400000000002C00002401"), (0x2101, "0A0B")] {
+        let sec = format!("[{index:04X}]");
+        let line = line_in(&out, &sec, "DefaultValue");
+        assert_eq!(
+            out.lines().nth(line - 1),
+            Some(format!("DefaultValue={bytes}").as_str()),
+            "{out}"
+        );
+    }
+    let (od2, _) = ObjectDictionary::from_eds(&again, &common::info()).unwrap();
+    assert_eq!(
+        drive_protocol::od::eds::objects_json(&od2),
+        drive_protocol::od::eds::objects_json(&od)
+    );
 }
 
 #[test]

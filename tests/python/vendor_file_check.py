@@ -11,10 +11,15 @@ serving it (one drive-emu process per file, this one python process for all):
   fast_scan() finds the drive by the file's identity, configure_node_id() gives it the node-ID
   and it boots there ("lss": "fastscan" / "not offered" / what failed);
 - BaseNode402 enables the drive in profile position (where 0x6502 offers it) and a move of one
-  motor revolution at one revolution per second in the file's units (its factor group, and
+  motor revolution at one revolution per second in the file's units (where a revolution is
+  fewer than 30 user units, as the Nanotec N5 files' 1 uu = 1 revolution: two seconds at as
+  many revolutions per second as make 30 uu/s) (its factor group, and
   its SI unit velocity 0x60A9 where that names revolutions per time or 0x60A8's unit per time)
   ends with bit 10 set within the position window ("pp": "reached" / "not reached" / "not
   offered"), its speed 0x606C peaking within 20 % of the speed asked ("pp_speed_ok");
+- where 0x6502 offers no PP but profile velocity (SEVCON's Gen4): BaseNode402 enables the
+  drive in PV at one motor revolution per second (4000 uu/s without a factor group) and
+  0x606C comes within 20 % of it ("pv": "ran" / "failed" / "not offered");
 - where 0x6502 offers cyclic synchronous velocity: a CSV move at one revolution per second
   runs at that speed (0x606C within 20 %) and the position advances ("csv": "ran" / "not
   offered" / what failed).
@@ -27,6 +32,7 @@ Prints one JSON line per file: {"file", "uploads", "bad_sizes", "identity_ok",
 """
 import argparse
 import json
+import math
 import struct
 import sys
 import threading
@@ -38,6 +44,9 @@ from canopen import lss
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 
 FACTOR_GROUP = ((0x608F, 1), (0x608F, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2))
+# the least speed in position user units per second of the PP and CSV moves, so that the
+# speed shows in whole user units where one is a motor revolution (the Nanotec N5 files)
+COARSE_UU_PER_S = 30
 # increments per motor revolution below which 0x608F is a placeholder (the drive runs with its
 # encoder's count: protocol/src/od/placeholders.rs)
 MIN_INCREMENTS_PER_REV = 4
@@ -200,13 +209,13 @@ def pp_move(network, node_id, path, factor_before=None):
     network.add_node(node)
     od = node.object_dictionary
     need = [0x6040, 0x6041, 0x6060, 0x6061, 0x6064, 0x607A, 0x6081]
-    if any(od.get(i) is None for i in need) or od.get(0x6502) is None:
-        network.nodes.pop(node_id, None)
-        return {"pp": "not offered"}
     node.sdo.RESPONSE_TIMEOUT = 5.0
-    if not sdo_u32(node, 0x6502, 0) & 1:
+    if (any(od.get(i) is None for i in need) or od.get(0x6502) is None
+            or not sdo_u32(node, 0x6502, 0) & 1):
+        out = {"pp": "not offered"}
+        out.update(pv_move(node, od))
         network.nodes.pop(node_id, None)
-        return {"pp": "not offered"}
+        return out
     # one motor revolution in user units, from the factor group as served
     def served(index, sub, fallback):
         return sdo_u32(node, index, sub) if od.get(index) is not None else fallback
@@ -224,9 +233,16 @@ def pp_move(network, node_id, path, factor_before=None):
         uu_per_motor_rev = (feed / feed_r) / (gm / gs)
     else:
         uu_per_motor_rev = 4000
-    delta = max(10, int(uu_per_motor_rev))
-    # one motor revolution per second, ten per second squared, in the velocity unit served
-    vel = velocity_per_rev_per_s(node, od, enc, uu_per_motor_rev)
+    # the move a user of that drive asks: one motor revolution at one revolution per second
+    # where a revolution is many user units; where it is few (the Nanotec N5 files: 1 uu = one
+    # revolution), as many revolutions per second as make 30 uu/s, for two seconds, so that
+    # the speed is seen in whole user units (measured over 1 s: 30 +- 1 uu)
+    revs_per_s = max(1, math.ceil(COARSE_UU_PER_S / uu_per_motor_rev))
+    move_s, span_s = (1, 0.3) if revs_per_s == 1 else (2, 1.0)
+    delta = max(10, int(uu_per_motor_rev * revs_per_s * move_s))
+    # revs_per_s motor revolutions per second, ten times that per second squared, in the
+    # velocity unit served
+    vel = velocity_per_rev_per_s(node, od, enc, uu_per_motor_rev) * revs_per_s
     node.setup_402_state_machine(read_pdos=False)
     node.nmt.state = "OPERATIONAL"
     node.state = "SWITCH ON DISABLED"
@@ -267,7 +283,7 @@ def pp_move(network, node_id, path, factor_before=None):
         track.append((time.monotonic(), struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]))
     # the speed it moved at, in the velocity unit: the position's fastest 0.3 s (the cruise
     # lasts 0.9 s; 0x606C of a coarse encoder jitters by an increment per sample)
-    speed = round(fastest(track, 0.3) * vel / uu_per_motor_rev)
+    speed = round(fastest(track, span_s) * vel / (uu_per_motor_rev * revs_per_s))
     measure = len(track) > 2
     end = struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]
     inside = abs(end - target) <= window
@@ -276,10 +292,54 @@ def pp_move(network, node_id, path, factor_before=None):
            "pp_speed_asked": asked, "pp_speed": speed if measure else None,
            "pp_speed_ok": (None if not measure or not asked
                            else 0.8 * asked <= speed <= 1.2 * asked)}
-    out.update(csv_move(node, od, vel, uu_per_motor_rev))
+    out.update(csv_move(node, od, vel, uu_per_motor_rev * revs_per_s))
     node.nmt.state = "PRE-OPERATIONAL"
     network.nodes.pop(node_id, None)
     return out
+
+
+def pv_move(node, od):
+    """Profile velocity, where the drive offers no PP but PV (0x6502 bit 2; SEVCON's Gen4, a
+    traction controller with PV and torque only): BaseNode402 enables it in PV and asks a
+    velocity in the file's units (one motor revolution per second where the factor group says
+    what one is, else 4000 uu/s); 0x606C, averaged over 0.4 s once it first comes within
+    20 % (the ramp), within 20 % of it ("pv": "ran" / "failed" / "not offered")."""
+    need = [0x6040, 0x6041, 0x6060, 0x6061, 0x606C, 0x60FF, 0x6502]
+    if any(od.get(i) is None for i in need) or not sdo_u32(node, 0x6502, 0) & (1 << 2):
+        return {"pv": "not offered"}
+    enc, feed = (sdo_u32(node, i, 1) if od.get(i) is not None else 0 for i in (0x608F, 0x6092))
+    uu_per_rev = 4000
+    if enc and feed and od.get(0x6091) is not None:
+        gm, gs = sdo_u32(node, 0x6091, 1), sdo_u32(node, 0x6091, 2)
+        feed_r = sdo_u32(node, 0x6092, 2)
+        if gm and gs and feed_r:
+            uu_per_rev = (feed / feed_r) / (gm / gs)
+    want = max(1, round(velocity_per_rev_per_s(node, od, enc, uu_per_rev)))
+    node.setup_402_state_machine(read_pdos=False)
+    node.nmt.state = "OPERATIONAL"
+    node.state = "SWITCH ON DISABLED"
+    node.op_mode = "PROFILED VELOCITY"
+    node.state = "OPERATION ENABLED"
+    var = od.get(0x6083)
+    if var is not None and "w" in var.access_type:
+        node.sdo.download(0x6083, 0, struct.pack("<I", min(want * 10, var.max or want * 10)))
+    node.sdo.download(0x60FF, 0, struct.pack("<i", want))
+
+    def actual():
+        return struct.unpack("<i", node.sdo.upload(0x606C, 0)[:4].ljust(4, b"\0"))[0]
+    # the ramp: until 0x606C first comes within 20 % (10 s at most), then 0.4 s of samples
+    deadline = time.monotonic() + 10.0
+    while time.monotonic() < deadline and not 0.8 * want <= actual() <= 1.2 * want:
+        pass
+    samples = []
+    deadline = time.monotonic() + 0.4
+    while time.monotonic() < deadline:
+        samples.append(actual())
+    node.sdo.download(0x60FF, 0, struct.pack("<i", 0))
+    node.nmt.state = "PRE-OPERATIONAL"
+    speed = round(sum(samples) / len(samples)) if samples else 0
+    ok = 0.8 * want <= speed <= 1.2 * want
+    return {"pv": "ran" if ok else "failed", "pv_speed_asked": want, "pv_speed": speed}
 
 
 def fastest(track, span_s):
@@ -296,9 +356,9 @@ def fastest(track, span_s):
 
 
 def csv_move(node, od, vel, uu_per_rev):
-    """Cyclic synchronous velocity (where 0x6502 offers it, bit 8): 0x60FF = one motor
-    revolution per second in the velocity unit served for half a second; 0x606C within 20 %
-    and the position advanced."""
+    """Cyclic synchronous velocity (where 0x6502 offers it, bit 8): 0x60FF = `vel` (the PP
+    move's speed: `uu_per_rev` position user units per second) for 0.8 s; the speed over the
+    last 0.4 s within 20 % and the position advanced."""
     if od.get(0x60FF) is None or od.get(0x606C) is None or not sdo_u32(node, 0x6502, 0) & (1 << 8):
         return {"csv": "not offered"}
     want = round(vel)

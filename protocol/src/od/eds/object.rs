@@ -89,6 +89,7 @@ pub(super) fn value_key(
         v = ValueExpr::Integer(c);
     }
     let (line, name, k, text) = (e.line, s.name, e.key, e.value);
+    notes.extend(v.prefix_note(text, dtype));
     if !dtype.variable() && text.contains(';') {
         notes.push(format!(
             "'{}': a ';' comment without a space before it; the number before it is read (python canopen reads such a value as text and fails)",
@@ -187,6 +188,7 @@ pub(super) fn read_attrs(
     let access = access_of(cx, si, dtype, code)?;
     let (pdo_mapping, obj_flags) = flags_of(cx, si);
     let (low, high) = limits_of(cx, si, dtype)?;
+    let high = unsigned_high_of_signed(cx, si, dtype, &low, high);
     let default = value_key(cx, si, "DefaultValue", dtype)?;
     let parameter_value = value_key(cx, si, "ParameterValue", dtype)?;
     let (upload_file, download_file) = files_of(cx, si, dtype);
@@ -347,6 +349,47 @@ fn files_of(cx: &mut Ctx, si: usize, dtype: DataType) -> (Option<String>, Option
         download_file = None;
     }
     (upload_file, download_file)
+}
+
+/// A signed type's HighLimit written as the all-ones pattern of an unsigned one (SEVCON's Gen4
+/// files: INTEGER32 with `LowLimit=0`, `HighLimit=0xFFFFFFFF`): its two's complement (-1)
+/// falls below LowLimit, where it means "no upper limit"; read as the type's maximum, with a
+/// warning (python canopen reads -1 and checks no order; Lely's dcfchk refuses a limit beyond
+/// the type). Any other HighLimit is returned as it is.
+fn unsigned_high_of_signed(
+    cx: &mut Ctx,
+    si: usize,
+    dtype: DataType,
+    low: &Option<ValueExpr>,
+    high: Option<ValueExpr>,
+) -> Option<ValueExpr> {
+    let (Some(ValueExpr::Hex(u)), Some(l), Some((_, max))) = (&high, low, dtype.range()) else {
+        return high;
+    };
+    let bits = (dtype.size() * 8) as u32;
+    let pattern = i128::try_from(*u).unwrap_or(i128::MAX);
+    let h = ValueExpr::Hex(*u);
+    let crossed = [1u8, 127].into_iter().all(
+        |id| matches!((numeric(l, dtype, id), numeric(&h, dtype, id)), (Some(a), Some(b)) if a > b),
+    );
+    if !dtype.signed() || pattern <= max || pattern >= 1i128 << bits || !crossed {
+        return high;
+    }
+    let s = &cx.sections[si];
+    let (line, name) = (s.get("HighLimit").map_or(s.line, |e| e.line), s.name);
+    cx.warn(
+        line,
+        Some(name),
+        Some("HighLimit"),
+        format!(
+            "0x{u:X} on type {} is {} as two's complement, below LowLimit: read as no upper \
+             limit, the type's maximum {max} (python canopen reads {}, Lely's dcfchk refuses it)",
+            dtype.name(),
+            pattern - (1i128 << bits),
+            pattern - (1i128 << bits),
+        ),
+    );
+    Some(ValueExpr::Integer(max))
 }
 
 /// LowLimit above HighLimit is an error (a warning when only at one of the node IDs 1 and

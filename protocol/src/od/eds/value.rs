@@ -1,5 +1,6 @@
 //! EDS values: numbers, `$NODEID` expressions, octet strings, and [`ValueExpr`] turned into wire bytes.
 
+use super::lex::clip;
 use super::{DataType, MAX_VALUE_BYTES};
 
 /// A value as the file writes it, before it is turned into wire bytes for a type and a node
@@ -42,8 +43,45 @@ impl ValueExpr {
             DataType::VisibleString | DataType::UnicodeString => {
                 Ok(Some(ValueExpr::Text(t.to_string())))
             }
-            DataType::OctetString | DataType::Domain => parse_octets(t).map(Some),
+            DataType::OctetString | DataType::Domain => match hex_prefixed_digits(t) {
+                Some(digits) => Ok(Some(octets_of_prefixed(digits))),
+                None => parse_octets(t).map(Some),
+            },
             _ => parse_number(strip_hash_comment(t)).map(Some),
+        }
+    }
+
+    /// What a reader of the file should hear about a value of type `dtype` written as `text`
+    /// (already read as `self`), or `None`: an OCTET_STRING or DOMAIN written as a number with
+    /// a `0x` prefix (SEVCON's DVT and Ingenia's tools write `0x0`, `0x0000`,
+    /// `0x000400000000002c00002401`), and a VISIBLE_STRING that looks like one (read as its
+    /// text, as CiA 306 and python canopen read it).
+    pub(super) fn prefix_note(&self, text: &str, dtype: DataType) -> Option<String> {
+        let t = text.trim();
+        hex_prefixed_digits(t)?;
+        match (self, dtype) {
+            (ValueExpr::Octets(b), DataType::OctetString | DataType::Domain) => Some(format!(
+                "{} value '{}' is written as a number with 0x: read as {} (its hex digits as \
+                 pairs in the order written{}; python canopen 2.4.1 drops such a value, Lely's \
+                 dcfchk does not check it); CiA 306 writes octet strings as hex digit pairs \
+                 without 0x",
+                dtype.name(),
+                clip(t),
+                bytes_text(b),
+                if (t.len() - 2) % 2 == 1 {
+                    ", an odd count with a 0 before the first digit as in a number"
+                } else {
+                    ""
+                }
+            )),
+            (ValueExpr::Text(s), DataType::VisibleString) => Some(format!(
+                "VISIBLE_STRING value '{}' looks like a number with 0x: read as the text of {} \
+                 characters, as CiA 306 and python canopen read a string (the device serves \
+                 those characters)",
+                clip(t),
+                s.chars().count()
+            )),
+            _ => None,
         }
     }
 
@@ -182,6 +220,50 @@ pub(super) fn strip_hash_comment(t: &str) -> &str {
         }
     }
     t
+}
+
+/// The hex digits after a `0x` / `0X` prefix, where there is at least one and nothing else.
+fn hex_prefixed_digits(t: &str) -> Option<&str> {
+    let d = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X"))?;
+    (!d.is_empty() && d.bytes().all(|b| b.is_ascii_hexdigit())).then_some(d)
+}
+
+/// The bytes of an octet string written as a number with `0x`: its digits as pairs in the
+/// order written (SEVCON's DCFs dump a domain upload so: `0x4681` is the bytes 46 81, the
+/// fault code 0x4681 as the device sends it), an odd count read with a 0 before the first
+/// digit, as a number would be (`0x0` is one byte 00).
+fn octets_of_prefixed(digits: &str) -> ValueExpr {
+    let d = digits.as_bytes();
+    let mut out = Vec::with_capacity(d.len() / 2 + 1);
+    let (first, rest) = if d.len() % 2 == 1 {
+        (Some(d[0]), &d[1..])
+    } else {
+        (None, d)
+    };
+    let v = |c: u8| (c as char).to_digit(16).unwrap_or(0) as u8;
+    if let Some(c) = first {
+        out.push(v(c));
+    }
+    for p in rest.chunks_exact(2) {
+        out.push(v(p[0]) << 4 | v(p[1]));
+    }
+    ValueExpr::Octets(out)
+}
+
+/// `the 2 bytes 00 00`, the first 8 bytes and `..` beyond.
+fn bytes_text(b: &[u8]) -> String {
+    let mut s = format!(
+        "the {} byte{}",
+        b.len(),
+        if b.len() == 1 { "" } else { "s" }
+    );
+    for x in b.iter().take(8) {
+        s.push_str(&format!(" {x:02x}"));
+    }
+    if b.len() > 8 {
+        s.push_str(" ..");
+    }
+    s
 }
 
 pub(super) fn parse_octets(t: &str) -> Result<ValueExpr, String> {
@@ -387,5 +469,48 @@ mod tests {
         ] {
             assert!(parse_number(strip_hash_comment(bad)).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn octets_written_with_0x() {
+        let p = |t: &str| ValueExpr::parse(t, DataType::Domain).unwrap().unwrap();
+        assert_eq!(p("0x0"), ValueExpr::Octets(vec![0]));
+        assert_eq!(p("0x0000"), ValueExpr::Octets(vec![0, 0]));
+        assert_eq!(p("0X123"), ValueExpr::Octets(vec![0x01, 0x23]));
+        assert_eq!(
+            p("0x000400000000002c00002401"),
+            ValueExpr::Octets(vec![0, 4, 0, 0, 0, 0, 0, 0x2c, 0, 0, 0x24, 1])
+        );
+        for bad in ["0x", "0x0g", "0x 00"] {
+            assert!(
+                ValueExpr::parse(bad, DataType::OctetString).is_err(),
+                "{bad}"
+            );
+        }
+        let v = p("0x0000");
+        let note = v.prefix_note("0x0000", DataType::Domain).unwrap();
+        assert!(note.contains("read as the 2 bytes 00 00 ("), "{note}");
+        // written as CiA 306 says: no note
+        assert_eq!(p("0000").prefix_note("0000", DataType::Domain), None);
+        let long = p("0x000102030405060708");
+        let note = long
+            .prefix_note("0x000102030405060708", DataType::Domain)
+            .unwrap();
+        assert!(
+            note.contains("the 9 bytes 00 01 02 03 04 05 06 07 .."),
+            "{note}"
+        );
+        let s = ValueExpr::parse("0x0000", DataType::VisibleString)
+            .unwrap()
+            .unwrap();
+        assert_eq!(s, ValueExpr::Text("0x0000".into()));
+        assert!(s
+            .prefix_note("0x0000", DataType::VisibleString)
+            .unwrap()
+            .contains("the text of 6 characters"));
+        assert_eq!(
+            ValueExpr::Text("drive".into()).prefix_note("drive", DataType::VisibleString),
+            None
+        );
     }
 }
