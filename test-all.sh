@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Run the whole test suite:
 #   1. host tests (protocol, emulator): cargo nextest run --workspace --exclude e2e
-#   1a. the emulator without SocketCAN: its library, binary and the bus tests built and run with
+#   1a. runtime and emulator without SocketCAN: libraries, binary and bus tests built and run with
 #      --no-default-features (the cargo feature `socketcan` off, as where there is no SocketCAN:
 #      portability; the rest of the suite is the same code either way)
 #   1b. every `cargo fuzz` target (`cargo fuzz list`) built once, each run for a bounded time
@@ -49,7 +49,7 @@ cargo nextest run --workspace --exclude e2e --no-fail-fast || host_rc=$?
 host_time=$(secs "$t")
 
 # ---- 1a. the emulator with the SocketCAN feature off (builds and passes without it)
-nosc=(-p drive-emu --no-default-features --features panel --lib --bins --test socketcand_bus
+nosc=(-p drive-runtime -p drive-emu --no-default-features --features drive-emu/panel --lib --bins --test socketcand_bus
     --test socketcand_run --test cli_validation --test layering)
 banner "host tests without SocketCAN: cargo nextest run ${nosc[*]}"
 t=$(now); nosc_rc=0

@@ -1,47 +1,24 @@
-//! The simulated CNC axis behind a CiA 402 drive, and everything that runs it.
+//! The drive-emu binary's library: the command line (`cli`) and the live panel (`panel`), over
+//! the runtime crate `drive-runtime` (docs/decisions/0019-runtime-and-binary-crates.md).
 //!
-//! Data path (one tick): bus -> protocol node -> control cascade -> axis physics -> encoders ->
-//! node -> bus. `axis` and `control` know nothing of CANopen; `runtime` holds no domain logic.
+//! Everything below the command line and the panel (clocks, buses, the loop, the drive
+//! adapter, observe, the master, analysis, monitor, session, scenario, study, the typed API)
+//! is `drive-runtime`'s, and the physics' and the analysis' modules are their crates':
+//! re-exported here under the names the emulator has always used, so `drive_emu::bus::...`,
+//! `drive_emu::api::...` and, inside `cli` and `panel`, `crate::runtime::...` name the same
+//! items as before the cut.
 //!
-//! Modules, bottom layer first: a module imports only modules before it in this list
-//! (`tests/layering.rs`, docs/decisions/0006-emulator-layers.md).
+//! Layers, bottom first: the runtime's modules (their order is drive-runtime's lib.rs), then
+//! `panel`, then `cli`; a module imports only modules below it (`tests/layering.rs`,
+//! docs/decisions/0006-emulator-layers.md).
 
-// What measures without running a drive (file content in messages, the bounded input-file
-// reader, trace samples, and above the runtime the detector's and the report's modules) is its
-// own crate, `drive-analysis`: re-exported here under the names the emulator has always used.
-// `analysis` stays a module of the emulator: it re-exports the crate's detector, spectra and
-// capture decoding and holds what runs drives (experiments, the ballbar, line contours).
-pub use drive_analysis::{infile, quote, report, samples};
-
-pub mod time;
-
-pub mod bus;
-
-// The physics (axis, servo cascade, presets) is its own crate, `drive-physics`: re-exported
-// here under the names the emulator's modules and users have always used.
-pub use drive_physics::{axis, control, presets};
-
-pub mod runtime;
-
-pub mod drive;
-
-pub mod observe;
-
-pub mod master;
-
-pub mod analysis;
-
-pub mod monitor;
-
-pub mod session;
-
-pub mod scenario;
+// crate drive-runtime (and, through it, drive-analysis and drive-physics), re-exported:
+pub use drive_runtime::{analysis, drive, master, monitor, observe, runtime};
+pub use drive_runtime::{api, report, scenario, session, study};
+pub use drive_runtime::{axis, control, presets};
+pub use drive_runtime::{bus, infile, quote, samples, time};
 
 #[cfg_attr(not(feature = "panel"), path = "panel/off.rs")]
 pub mod panel;
-
-pub mod study;
-
-pub mod api;
 
 pub mod cli;

@@ -1,6 +1,7 @@
-//! The emulator's module layering (docs/decisions/0006-emulator-layers.md): every top-level
-//! module of `emulator/src` has a place in [`LAYERS`], bottom first, and imports only modules
-//! below it. Imports are read from the source text: `crate::X` anywhere (code, tests, doc
+//! The emulator's module layering (docs/decisions/0006-emulator-layers.md, 0019): every
+//! top-level module of `runtime/src` (crate drive-runtime) has a place in [`RUNTIME_LAYERS`],
+//! every one of `emulator/src` (crate drive-emu, the binary) in [`LAYERS`], bottom first, and
+//! imports only modules below it. Imports are read from the source text: `crate::X` anywhere (code, tests, doc
 //! links), `crate::{X, ...}` groups, and `super::` chains that climb to the crate root. A module
 //! that imports one above it (or itself from below: a cycle) fails this test, and so does a new
 //! top-level module that is not placed in the order.
@@ -8,9 +9,10 @@
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-/// The layer order, bottom first. A module may import only modules before it in this list.
-/// Written once here and in docs/decisions/0006-emulator-layers.md.
-const LAYERS: &[&str] = &[
+/// The runtime crate's layer order (runtime/src, with what its lib.rs re-exports), bottom
+/// first. A module may import only modules before it in this list. Written once here and in
+/// docs/decisions/0006-emulator-layers.md.
+const RUNTIME_LAYERS: &[&str] = &[
     // crate drive-analysis, re-exported (lib.rs `pub use drive_analysis::{...}`):
     "quote",  // file content rendered in messages: control characters escaped, capped
     "infile", // the bounded reader of every input file: regular files only, size cap
@@ -31,10 +33,47 @@ const LAYERS: &[&str] = &[
     "report",   // report files and plots (crate drive-analysis, re-exported)
     "session",  // runtime + master on one bus: offline runs
     "scenario", // scenario files, timelines, expectations, runner
-    "panel",    // the live panel of `run --panel`: server, stream, injections, recording
     "study",    // parameter studies and figures
     "api",      // the typed requests under the command line and the Python module
-    "cli",      // the command line
+];
+
+/// The binary crate's own modules (emulator/src), above all of [`RUNTIME_LAYERS`], which its
+/// lib.rs re-exports (`pub use drive_runtime::{...}`) under the names they always had.
+const BINARY_LAYERS: &[&str] = &[
+    "panel", // the live panel of `run --panel`: server, stream, injections, recording
+    "cli",   // the command line
+];
+
+/// The binary crate's layer order, bottom first: [`RUNTIME_LAYERS`], then [`BINARY_LAYERS`].
+const LAYERS: &[&str] = &concat_layers();
+
+const fn concat_layers() -> [&'static str; RUNTIME_LAYERS.len() + BINARY_LAYERS.len()] {
+    let mut out = [""; RUNTIME_LAYERS.len() + BINARY_LAYERS.len()];
+    let mut i = 0;
+    while i < out.len() {
+        out[i] = if i < RUNTIME_LAYERS.len() {
+            RUNTIME_LAYERS[i]
+        } else {
+            BINARY_LAYERS[i - RUNTIME_LAYERS.len()]
+        };
+        i += 1;
+    }
+    out
+}
+
+/// What the runtime crate must never name: the binary crate, its command line or panel, the
+/// argument parser, the panel's HTTP stack (the Python module's wheel links the runtime).
+const RUNTIME_FORBIDDEN: &[&str] = &[
+    "drive_emu::",
+    "crate::cli",
+    "crate::panel",
+    "super::cli",
+    "super::panel",
+    "clap::",
+    "axum",
+    "tokio",
+    "hyper::",
+    "hyper_util",
 ];
 
 /// The physics crate's modules (physics/src), bottom first: the same rule inside it.
@@ -56,8 +95,9 @@ const ANALYSIS_LAYERS: &[&str] = &[
     "report",     // report files and plots
 ];
 
-/// The emulator's modules that are the analysis crate's, re-exported (lib.rs or
-/// `analysis/mod.rs`), as paths under emulator/src that must not exist (no copies).
+/// The emulator's modules that are the analysis crate's, re-exported (runtime's lib.rs or
+/// `analysis/mod.rs`), as paths under runtime/src (and emulator/src) that must not exist (no
+/// copies).
 const ANALYSIS_REEXPORTED: &[&str] = &[
     "quote.rs",
     "infile.rs",
@@ -79,9 +119,12 @@ const CRATES: &[(&str, &[&str])] = &[
     ("analysis", &["protocol", "physics"]),
     ("fmu", &["physics"]),
     ("ethercat", &["protocol"]),
+    ("runtime", &["protocol", "physics", "analysis", "ethercat"]),
     (
         "emulator",
-        &["protocol", "physics", "analysis", "fmu", "ethercat"],
+        &[
+            "protocol", "physics", "analysis", "fmu", "ethercat", "runtime",
+        ],
     ),
 ];
 
@@ -264,6 +307,55 @@ fn every_emulator_module_imports_only_modules_below_it() {
 }
 
 #[test]
+fn every_runtime_module_imports_only_modules_below_it() {
+    let src = workspace().join("runtime/src");
+    let bad = violations_in(&src, RUNTIME_LAYERS);
+    assert!(
+        bad.is_empty(),
+        "runtime layering broken:\n{}",
+        bad.join("\n")
+    );
+}
+
+/// The runtime crate is everything below the command line and the panel: it has no `cli` or
+/// `panel` module, names none (nor the binary crate, clap or the panel's HTTP stack), and its
+/// dependency tree holds no clap, axum, tokio, hyper or drive-emu.
+#[test]
+fn the_runtime_crate_names_no_cli_or_panel_and_links_no_clap_or_http_server() {
+    let src = workspace().join("runtime/src");
+    for m in BINARY_LAYERS {
+        for p in [src.join(m), src.join(format!("{m}.rs"))] {
+            assert!(!p.exists(), "{} exists", p.display());
+        }
+    }
+    let lib = std::fs::read_to_string(src.join("lib.rs")).unwrap();
+    let declared = declared_modules(&lib);
+    for m in BINARY_LAYERS {
+        assert!(!declared.contains(m), "runtime/src/lib.rs declares `{m}`");
+    }
+    let named = naming(&src, RUNTIME_FORBIDDEN);
+    assert!(named.is_empty(), "{}", named.join("\n"));
+    // The check sees a use of the command line from below.
+    let dir = scratch(
+        "runtime-forbidden",
+        &[("study/mod.rs", "use crate::cli::sweep::SweepArgs;\n")],
+    );
+    assert_eq!(naming(&dir, RUNTIME_FORBIDDEN).len(), 1);
+    std::fs::remove_dir_all(&dir).ok();
+
+    let tree = normal_tree("drive-runtime");
+    assert!(
+        tree.contains("drive-runtime") && tree.contains("drive-protocol"),
+        "{tree:?}"
+    );
+    for name in ["clap", "axum", "tokio", "hyper", "hyper-util", "drive-emu"] {
+        assert!(!tree.contains(name), "drive-runtime links {name}");
+    }
+    // The same query finds clap where it is: under the binary.
+    assert!(normal_tree("drive-emu").contains("clap"));
+}
+
+#[test]
 fn every_physics_module_imports_only_modules_below_it_and_nothing_of_a_bus_or_a_clock() {
     let src = workspace().join("physics/src");
     let bad = violations_in(&src, PHYSICS_LAYERS);
@@ -384,7 +476,7 @@ fn every_crate_depends_only_on_the_crates_below_it() {
     // Every member of the workspace with a library is placed.
     let ws = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
     for m in [
-        "protocol", "physics", "analysis", "fmu", "ethercat", "emulator",
+        "protocol", "physics", "analysis", "fmu", "ethercat", "runtime", "emulator",
     ] {
         assert!(
             ws.contains(&format!("\"{m}\"")),
@@ -397,39 +489,66 @@ fn every_crate_depends_only_on_the_crates_below_it() {
     );
 }
 
-#[test]
-fn every_module_of_lib_rs_has_a_layer_and_every_layer_is_a_module() {
-    let lib =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("src/lib.rs")).unwrap();
-    let declared: BTreeSet<&str> = lib
-        .lines()
+/// The modules a lib.rs declares (`pub mod x;`, `mod x;`).
+fn declared_modules(lib: &str) -> BTreeSet<&str> {
+    lib.lines()
         .filter_map(|l| l.trim().strip_prefix("pub mod "))
         .chain(lib.lines().filter_map(|l| l.trim().strip_prefix("mod ")))
         .map(|l| l.trim_end_matches(';'))
+        .collect()
+}
+
+#[test]
+fn every_module_of_lib_rs_has_a_layer_and_every_layer_is_a_module() {
+    let root = workspace();
+    // drive-runtime: its own modules and the physics' and analysis' re-exported.
+    let lib = std::fs::read_to_string(root.join("runtime/src/lib.rs")).unwrap();
+    let declared: BTreeSet<&str> = declared_modules(&lib)
+        .into_iter()
         .chain(reexported(&lib, "drive_physics"))
         .chain(reexported(&lib, "drive_analysis"))
         .collect();
-    let layers: BTreeSet<&str> = LAYERS.iter().copied().collect();
-    assert_eq!(declared, layers);
-    // The physics' modules are the crate's, re-exported, not copies.
-    for m in PHYSICS_LAYERS.iter().filter(|m| **m != "params") {
-        assert!(
-            !Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("src")
-                .join(m)
-                .exists(),
-            "emulator/src/{m} exists beside the physics crate's"
-        );
+    let layers: BTreeSet<&str> = RUNTIME_LAYERS.iter().copied().collect();
+    assert_eq!(declared, layers, "runtime/src/lib.rs");
+    // drive-emu: its own modules (panel, cli) and every one of the runtime's re-exported under
+    // its old name, so every `drive_emu::` path still names the same item.
+    let lib = std::fs::read_to_string(root.join("emulator/src/lib.rs")).unwrap();
+    let own = declared_modules(&lib);
+    assert_eq!(
+        own,
+        BINARY_LAYERS.iter().copied().collect::<BTreeSet<_>>(),
+        "emulator/src/lib.rs declares"
+    );
+    let via_runtime: BTreeSet<&str> = reexported(&lib, "drive_runtime").into_iter().collect();
+    assert_eq!(via_runtime, layers, "emulator/src/lib.rs re-exports");
+    // The runtime's modules are re-exported by the binary, not copied; the physics' and the
+    // analysis' are theirs, in neither.
+    let physics = PHYSICS_LAYERS.iter().filter(|m| **m != "params");
+    let runtime_modules = RUNTIME_LAYERS.iter();
+    for krate in ["runtime", "emulator"] {
+        let src = root.join(krate).join("src");
+        for m in physics.clone() {
+            assert!(
+                !src.join(m).exists(),
+                "{krate}/src/{m} exists beside the physics crate's"
+            );
+        }
+        for p in ANALYSIS_REEXPORTED {
+            assert!(
+                !src.join(p).exists(),
+                "{krate}/src/{p} exists beside the analysis crate's"
+            );
+        }
     }
-    // The analysis crate's modules are re-exported, not copied.
-    for p in ANALYSIS_REEXPORTED {
-        assert!(
-            !Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("src")
-                .join(p)
-                .exists(),
-            "emulator/src/{p} exists beside the analysis crate's"
-        );
+    let src = root.join("emulator/src");
+    for m in runtime_modules {
+        for p in [src.join(m), src.join(format!("{m}.rs"))] {
+            assert!(
+                !p.exists(),
+                "{} exists beside the runtime crate's",
+                p.display()
+            );
+        }
     }
 }
 
@@ -502,16 +621,13 @@ fn the_check_catches_an_upward_import_a_cycle_and_an_unplaced_module() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// `cargo install --path emulator` builds the binary and what it needs, nothing of the Python
-/// module (pyo3, maturin) or of the benchmarks (criterion, divan): those live in their own
-/// crate (python/drive-emu) or in dev-dependencies.
-#[test]
-fn installing_the_binary_builds_no_python_or_benchmark_crates() {
+/// The package names in `package`'s normal and build dependency tree (itself included).
+fn normal_tree(package: &str) -> BTreeSet<String> {
     let out = std::process::Command::new(env!("CARGO"))
         .args([
             "tree",
             "-p",
-            "drive-emu",
+            package,
             "-e",
             "normal,build",
             "--prefix",
@@ -521,13 +637,24 @@ fn installing_the_binary_builds_no_python_or_benchmark_crates() {
         .current_dir(workspace())
         .output()
         .expect("run cargo tree");
-    let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let crates: BTreeSet<&str> = text.lines().filter_map(|l| l.split(' ').next()).collect();
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.split(' ').next())
+        .map(str::to_string)
+        .collect()
+}
+
+/// `cargo install --path emulator` builds the binary and what it needs, nothing of the Python
+/// module (pyo3, maturin) or of the benchmarks (criterion, divan): those live in their own
+/// crate (python/drive-emu) or in dev-dependencies.
+#[test]
+fn installing_the_binary_builds_no_python_or_benchmark_crates() {
+    let crates = normal_tree("drive-emu");
     assert!(
         crates.contains("clap") && crates.contains("drive-protocol"),
         "{crates:?}"

@@ -1,7 +1,9 @@
 //! Issue 29: the Python module's wheel links only what it uses. Its crate (`drive-emu-python`)
-//! depends on the emulator without the live panel and SocketCAN (`default-features = false`),
-//! so no HTTP server (axum, tokio, hyper) and no SocketCAN is in its dependency tree; and it
-//! calls the typed API (`drive_emu::api`), never the command line (no clap, no argv).
+//! depends on the runtime crate (`drive-runtime`, decision 0019), not on the binary's
+//! (`drive-emu`: the command line and the live panel), and without SocketCAN
+//! (`default-features = false`), so no HTTP server (axum, tokio, hyper), no argument parser
+//! (clap) and no SocketCAN is in its dependency tree; and it calls the typed API
+//! (`drive_runtime::api`), never the command line (no clap, no argv).
 //!
 //! `cargo tree --locked --offline`: the lock file as committed, nothing fetched (CI has built
 //! the workspace before the tests run, so every package is in cargo's cache).
@@ -9,8 +11,17 @@
 use std::path::Path;
 use std::process::Command;
 
-/// The crates of the panel's HTTP server and of SocketCAN.
-const NOT_IN_THE_WHEEL: &[&str] = &["axum", "tokio", "hyper", "hyper-util", "socketcan"];
+/// The crates of the panel's HTTP server, of SocketCAN, of the command line, and the binary's
+/// crate itself.
+const NOT_IN_THE_WHEEL: &[&str] = &[
+    "axum",
+    "tokio",
+    "hyper",
+    "hyper-util",
+    "socketcan",
+    "clap",
+    "drive-emu",
+];
 
 fn workspace() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap()
@@ -50,8 +61,8 @@ fn normal_tree(package: &str, args: &[&str]) -> Vec<String> {
 #[test]
 fn the_python_module_links_no_panel_server_and_no_socketcan() {
     let wheel = normal_tree("drive-emu-python", &[]);
-    // the tree is the module's: the emulator's library and PyO3 are in it
-    for needed in ["drive-emu", "pyo3", "numpy", "drive-protocol"] {
+    // the tree is the module's: the runtime crate and PyO3 are in it
+    for needed in ["drive-runtime", "pyo3", "numpy", "drive-protocol"] {
         assert!(
             wheel.iter().any(|p| p == needed),
             "{needed} missing: {wheel:?}"
@@ -63,7 +74,7 @@ fn the_python_module_links_no_panel_server_and_no_socketcan() {
             "{name} is in the Python module's dependency tree"
         );
     }
-    // The same query sees them where they are: the emulator with its default features.
+    // The same query sees them where they are: the binary's crate with its default features.
     let full = normal_tree("drive-emu", &[]);
     for name in NOT_IN_THE_WHEEL {
         assert!(
@@ -73,25 +84,32 @@ fn the_python_module_links_no_panel_server_and_no_socketcan() {
     }
 }
 
-/// The module's source builds requests of the typed API and parses no command line; its
-/// manifest names no clap.
+/// The module's source builds requests of the typed API and parses no command line (nor names
+/// the binary's crate, `drive_emu::`); its manifest names no clap and no drive-emu.
 fn python_source_is_free_of_the_cli() -> bool {
     let dir = workspace().join("python/drive-emu");
     let src = std::fs::read_to_string(dir.join("src/lib.rs")).unwrap();
-    for cli in ["drive_emu::cli", "clap::", "argv", "try_get_matches"] {
+    for cli in ["drive_emu::", "clap::", "argv", "try_get_matches"] {
         assert!(
             !src.contains(cli),
             "python/drive-emu/src/lib.rs uses `{cli}`"
         );
     }
     assert!(
-        src.contains("drive_emu::api"),
+        src.contains("drive_runtime::api"),
         "the module calls the typed API"
     );
     let manifest = std::fs::read_to_string(dir.join("Cargo.toml")).unwrap();
     assert!(
         !manifest.lines().any(|l| l.trim_start().starts_with("clap")),
         "python/drive-emu/Cargo.toml depends on clap"
+    );
+    assert!(
+        !manifest
+            .lines()
+            .any(|l| l.trim_start().starts_with("drive-emu ")
+                || l.trim_start().starts_with("drive-emu=")),
+        "python/drive-emu/Cargo.toml depends on the binary's crate"
     );
     true
 }

@@ -1,5 +1,5 @@
 //! `drive_emu._native`: the Python binding of the emulator's library (PyO3). Thin on purpose:
-//! every function builds a request of the typed API (`drive_emu::api`: the code under
+//! every function builds a request of the typed API (`drive_runtime::api`: the code under
 //! `drive-emu sim`, `analyze` and `eds`) or calls the study code `sweep` and `presets` run,
 //! and hands back JSON text (parsed by `python/drive_emu/__init__.py`) and numpy arrays. No
 //! command line is parsed here.
@@ -21,12 +21,12 @@ use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyRuntimeError, PyValueEr
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use drive_emu::analysis::{RunError, Trace};
-use drive_emu::api::analyze::write_report;
-use drive_emu::api::eds::Real32Notation;
-use drive_emu::api::{AnalyzeInput, AnalyzeRequest, ApiError, EdsRequest, SimRequest};
-use drive_emu::presets::{preset_names, AxisConfig, AxisKind};
-use drive_emu::study::{
+use drive_runtime::analysis::{RunError, Trace};
+use drive_runtime::api::analyze::write_report;
+use drive_runtime::api::eds::Real32Notation;
+use drive_runtime::api::{AnalyzeInput, AnalyzeRequest, ApiError, EdsRequest, SimRequest};
+use drive_runtime::presets::{preset_names, AxisConfig, AxisKind};
+use drive_runtime::study::{
     backlash_key, default_velocity, measure_until, own_backlash, run_parallel, CaseRow,
     CASE_DURATION_S,
 };
@@ -140,13 +140,12 @@ fn python_names(text: &str) -> String {
 /// `OSError` (`FileNotFoundError` when missing), anything else the caller gave a `ValueError`.
 fn to_py_err(e: ApiError) -> PyErr {
     let text = python_names(&format!("{e:#}"));
-    // The bounded reader's errors (drive_emu::infile) say what the file is, not an io::Error.
+    // The bounded reader's errors (drive_runtime::infile) say what the file is, not an io::Error.
     if let Some(input) = e.input_error() {
         return match &input.problem {
-            drive_emu::infile::Problem::NotFound => PyFileNotFoundError::new_err(text),
-            drive_emu::infile::Problem::Io(_) | drive_emu::infile::Problem::NotRegular(_) => {
-                PyOSError::new_err(text)
-            }
+            drive_runtime::infile::Problem::NotFound => PyFileNotFoundError::new_err(text),
+            drive_runtime::infile::Problem::Io(_)
+            | drive_runtime::infile::Problem::NotRegular(_) => PyOSError::new_err(text),
             _ => PyValueError::new_err(text),
         };
     }
@@ -291,7 +290,7 @@ fn presets() -> PyResult<String> {
             o.insert("unit".into(), if rotary { "deg" } else { "mm" }.into());
             o.insert(
                 "user_unit".into(),
-                drive_emu::report::user_unit(rotary).into(),
+                drive_runtime::report::user_unit(rotary).into(),
             );
         }
         all.push(v);
@@ -316,7 +315,7 @@ fn eds(
         other => {
             return Err(PyValueError::new_err(format!(
                 "invalid value {} for real32: possible values bits, decimal",
-                drive_emu::quote::text(&format!("'{other}'"))
+                drive_runtime::quote::text(&format!("'{other}'"))
             )))
         }
     };
@@ -464,12 +463,12 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add(
         "DEFAULT_SWEEP_DURATION_S",
-        drive_emu::study::DEFAULT_DURATION_S,
+        drive_runtime::study::DEFAULT_DURATION_S,
     )?;
-    m.add("MAX_SWEEP_CASES", drive_emu::study::MAX_SWEEP_CASES)?;
+    m.add("MAX_SWEEP_CASES", drive_runtime::study::MAX_SWEEP_CASES)?;
     m.add(
         "DEFAULT_MAX_MEMORY_MB",
-        drive_emu::api::sim::DEFAULT_MAX_MEMORY_MB,
+        drive_runtime::api::sim::DEFAULT_MAX_MEMORY_MB,
     )?;
     m.add_function(wrap_pyfunction!(sim, m)?)?;
     m.add_function(wrap_pyfunction!(trace_columns, m)?)?;
