@@ -78,10 +78,29 @@ fn a_live_request_runs_its_scenario_with_a_master_on_the_bus_and_reports_what_ha
     assert_eq!(run.bus_label(), "in-process");
     assert_eq!(run.machine().axes[0].node_id, 5, "--node's default");
     // The reference master on the other end: enable in CSP, then hold; it follows the drive's
-    // simulated time as the observation bus has it.
+    // simulated time as the observation bus has it. The test thread is paced by a busy
+    // machine, not by a real-time loop: the drive's SYNC and heartbeat supervision are turned
+    // off first (0x1006 = 0, 0x1016:1 = 0), so that a late SYNC from this thread is not a
+    // fault of the drive's.
     let mut master = Master::new(
-        MasterConfig::default(),
+        MasterConfig {
+            sync_period_us: 10_000,
+            heartbeat_ms: 200,
+            ..MasterConfig::default()
+        },
         vec![
+            Step::WriteSdo {
+                index: 0x1006,
+                sub: 0,
+                value: 0,
+                len: 4,
+            },
+            Step::WriteSdo {
+                index: 0x1016,
+                sub: 1,
+                value: 0,
+                len: 4,
+            },
             Step::Enable { mode: MODE_CSP },
             Step::Dwell { duration_s: 60.0 },
         ],
