@@ -295,6 +295,8 @@ impl LiveRequest {
         let (machine, axes) = setup::live_axes(&self)?;
         let req = self;
         let (bus, socketcand, label) = parts::open_bus(req.bus, req.scenario.as_ref())?;
+        // The bus is the runtime's now (an in-process endpoint moved into it); the request
+        // keeps only its name, which nothing after this point reads.
         let req = LiveRequest {
             bus: LiveBusSpec::SocketCan(label.clone()),
             ..req
