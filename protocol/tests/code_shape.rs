@@ -40,11 +40,7 @@ const SOURCE_DIRS: &[&str] = &[
 /// written (issue 29), shrinking as they are split. A ratchet: an entry that is no longer long
 /// (or gone) fails the test until it is removed here; a new long function is not added here
 /// but split, or given its `long-fn:` reason (at most [`MAX_LONG_FNS`]).
-const PENDING: &[(&str, &str)] = &[
-    ("runtime/src/scenario/expect.rs", "check"),
-    ("runtime/src/master/mod.rs", "run_step"),
-    ("runtime/src/study/figures.rs", "fig_outer_loop"),
-];
+const PENDING: &[(&str, &str)] = &[];
 
 /// File circles not broken yet, as the test prints them. A ratchet like [`PENDING`].
 const PENDING_CIRCLES: &[&str] = &[];

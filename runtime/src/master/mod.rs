@@ -600,139 +600,18 @@ impl Master {
         now_us - self.step.started_us > self.cfg.step_timeout_us
     }
 
-    /// Advance program step `i`. Long (about 160 lines) on purpose: one `match` arm per
-    /// [`Step`] kind, each arm that step's own short stage sequence, read top to bottom as
-    /// the master does it; splitting by arm would only move each arm into a function called
-    /// once.
+    /// Advance program step `i`: one `match` arm per [`Step`] kind; the two with a stage
+    /// sequence of their own in a function each ([`Self::step_enable`],
+    /// [`Self::step_move_to`]).
     fn run_step(&mut self, now_us: u64, i: usize, step: &Step) {
-        let sw = self.latest.statusword;
         match *step {
-            Step::Enable { mode } | Step::SetMode { mode } => {
-                let enable = matches!(step, Step::Enable { .. });
-                match self.step.stage {
-                    Stage::Start => {
-                        if let Some(true) = self.sdo_step(now_us, 0x6060, 0, mode as u8 as u32, 1) {
-                            self.mode = mode;
-                            self.step.stage = Stage::WaitModeDisplay;
-                        }
-                    }
-                    Stage::WaitModeDisplay
-                        if self.latest.mode_display == mode && self.have_actual =>
-                    {
-                        // Start from where the axis is, so enabling never jumps.
-                        self.target_uu = f64::from(self.latest.position_uu);
-                        self.velocity_uu_s = 0.0;
-                        self.step.stage = if enable {
-                            Stage::SwitchOn
-                        } else {
-                            Stage::Reached
-                        };
-                    }
-                    Stage::SwitchOn => {
-                        // Fault reset first if needed, then shutdown, switch on, enable.
-                        let state = Cia402State::from_statusword(sw);
-                        self.controlword = match state {
-                            Some(Cia402State::Fault) => {
-                                if self.controlword & 0x80 != 0 {
-                                    0x00
-                                } else {
-                                    0x80
-                                }
-                            }
-                            Some(Cia402State::SwitchOnDisabled) => 0x06,
-                            Some(Cia402State::ReadyToSwitchOn) => 0x07,
-                            Some(Cia402State::SwitchedOn) => 0x0F,
-                            Some(Cia402State::OperationEnabled) => {
-                                self.step.stage = Stage::Reached;
-                                0x0F
-                            }
-                            _ => self.controlword,
-                        };
-                        if state != Some(Cia402State::OperationEnabled) {
-                            self.target_uu = f64::from(self.latest.position_uu);
-                        }
-                    }
-                    Stage::Reached => {
-                        self.say(
-                            now_us,
-                            format!("drive in {} in {}", state_name(sw), mode_short(self.mode)),
-                        );
-                        self.next_step(now_us, i);
-                        return;
-                    }
-                    _ => {}
-                }
-                if self.timed_out(now_us) {
-                    self.fail(
-                        now_us,
-                        format!(
-                            "{step} not reached: statusword {sw:#06X} ({}), mode display {}",
-                            state_name(sw),
-                            mode_short(self.latest.mode_display)
-                        ),
-                    );
-                }
-            }
+            Step::Enable { mode } => self.step_enable(now_us, i, step, mode, true),
+            Step::SetMode { mode } => self.step_enable(now_us, i, step, mode, false),
             Step::MoveTo {
                 target_uu,
                 velocity_uu_s,
                 accel_uu_s2,
-            } => {
-                let sdo = [
-                    (0x6081, velocity_uu_s),
-                    (0x6083, accel_uu_s2),
-                    (0x6084, accel_uu_s2),
-                ];
-                match self.step.stage {
-                    Stage::Start | Stage::PpParameter(_) => {
-                        let k = match self.step.stage {
-                            Stage::PpParameter(k) => k,
-                            _ => 0,
-                        };
-                        let (idx, v) = sdo[k];
-                        if let Some(true) = self.sdo_step(now_us, idx, 0, v, 4) {
-                            self.step.sdo_sent = false;
-                            self.step.stage = if k + 1 < sdo.len() {
-                                Stage::PpParameter(k + 1)
-                            } else {
-                                Stage::PpNewSetpoint
-                            };
-                        }
-                    }
-                    Stage::PpNewSetpoint => {
-                        self.target_uu = f64::from(target_uu);
-                        self.controlword = 0x0F | 0x10; // new set-point
-                        self.step.stage = Stage::PpWaitAcknowledge;
-                    }
-                    Stage::PpWaitAcknowledge if sw & 0x1000 != 0 => {
-                        self.controlword = 0x0F; // acknowledge seen: clear bit 4
-                        self.step.stage = Stage::PpWaitTarget;
-                    }
-                    Stage::PpWaitTarget if sw & 0x1000 == 0 && sw & 0x0400 != 0 => {
-                        self.say(now_us, format!("PP move to {target_uu} uu: target reached"));
-                        self.next_step(now_us, i);
-                        return;
-                    }
-                    _ => {}
-                }
-                if self.timed_out(now_us) {
-                    // Where the axis stood: a worn axis hunts around the target, wider than
-                    // the drive's position window 0x6067, and never sets bit 10.
-                    let at = self.samples.last().map_or(String::new(), |s| {
-                        format!(
-                            " in {:.1} s: position {} uu, {} uu off, statusword {:#06X}",
-                            self.cfg.step_timeout_us as f64 * 1e-6,
-                            s.position_uu,
-                            i64::from(s.position_uu) - i64::from(target_uu),
-                            s.statusword
-                        )
-                    });
-                    self.fail(
-                        now_us,
-                        format!("PP move to {target_uu} uu: target not reached{at}"),
-                    );
-                }
-            }
+            } => self.step_move_to(now_us, i, target_uu, velocity_uu_s, accel_uu_s2),
             Step::Cruise { duration_s, .. } | Step::Dwell { duration_s } => {
                 if self.step.stage == Stage::Start {
                     self.step.stage = Stage::Running;
@@ -771,6 +650,141 @@ impl Master {
                 self.velocity_uu_s = 0.0;
                 self.next_step(now_us, i);
             }
+        }
+    }
+
+    /// `enable` / `set_mode` (`enable` false): the mode written and seen in its display, then
+    /// (enable) fault reset, shutdown, switch on, enable operation; a timeout fails the step.
+    fn step_enable(&mut self, now_us: u64, i: usize, step: &Step, mode: i8, enable: bool) {
+        let sw = self.latest.statusword;
+        match self.step.stage {
+            Stage::Start => {
+                if let Some(true) = self.sdo_step(now_us, 0x6060, 0, mode as u8 as u32, 1) {
+                    self.mode = mode;
+                    self.step.stage = Stage::WaitModeDisplay;
+                }
+            }
+            Stage::WaitModeDisplay if self.latest.mode_display == mode && self.have_actual => {
+                // Start from where the axis is, so enabling never jumps.
+                self.target_uu = f64::from(self.latest.position_uu);
+                self.velocity_uu_s = 0.0;
+                self.step.stage = if enable {
+                    Stage::SwitchOn
+                } else {
+                    Stage::Reached
+                };
+            }
+            Stage::SwitchOn => {
+                // Fault reset first if needed, then shutdown, switch on, enable.
+                let state = Cia402State::from_statusword(sw);
+                self.controlword = match state {
+                    Some(Cia402State::Fault) => {
+                        if self.controlword & 0x80 != 0 {
+                            0x00
+                        } else {
+                            0x80
+                        }
+                    }
+                    Some(Cia402State::SwitchOnDisabled) => 0x06,
+                    Some(Cia402State::ReadyToSwitchOn) => 0x07,
+                    Some(Cia402State::SwitchedOn) => 0x0F,
+                    Some(Cia402State::OperationEnabled) => {
+                        self.step.stage = Stage::Reached;
+                        0x0F
+                    }
+                    _ => self.controlword,
+                };
+                if state != Some(Cia402State::OperationEnabled) {
+                    self.target_uu = f64::from(self.latest.position_uu);
+                }
+            }
+            Stage::Reached => {
+                self.say(
+                    now_us,
+                    format!("drive in {} in {}", state_name(sw), mode_short(self.mode)),
+                );
+                self.next_step(now_us, i);
+                return;
+            }
+            _ => {}
+        }
+        if self.timed_out(now_us) {
+            self.fail(
+                now_us,
+                format!(
+                    "{step} not reached: statusword {sw:#06X} ({}), mode display {}",
+                    state_name(sw),
+                    mode_short(self.latest.mode_display)
+                ),
+            );
+        }
+    }
+
+    /// `move_to`: the profile parameters written by SDO (0x6081, 0x6083, 0x6084), the new
+    /// set-point handshake (bit 4, acknowledge bit 12), then target reached (bit 10); a
+    /// timeout fails the step with where the axis stood.
+    fn step_move_to(
+        &mut self,
+        now_us: u64,
+        i: usize,
+        target_uu: i32,
+        velocity_uu_s: u32,
+        accel_uu_s2: u32,
+    ) {
+        let sw = self.latest.statusword;
+        let sdo = [
+            (0x6081, velocity_uu_s),
+            (0x6083, accel_uu_s2),
+            (0x6084, accel_uu_s2),
+        ];
+        match self.step.stage {
+            Stage::Start | Stage::PpParameter(_) => {
+                let k = match self.step.stage {
+                    Stage::PpParameter(k) => k,
+                    _ => 0,
+                };
+                let (idx, v) = sdo[k];
+                if let Some(true) = self.sdo_step(now_us, idx, 0, v, 4) {
+                    self.step.sdo_sent = false;
+                    self.step.stage = if k + 1 < sdo.len() {
+                        Stage::PpParameter(k + 1)
+                    } else {
+                        Stage::PpNewSetpoint
+                    };
+                }
+            }
+            Stage::PpNewSetpoint => {
+                self.target_uu = f64::from(target_uu);
+                self.controlword = 0x0F | 0x10; // new set-point
+                self.step.stage = Stage::PpWaitAcknowledge;
+            }
+            Stage::PpWaitAcknowledge if sw & 0x1000 != 0 => {
+                self.controlword = 0x0F; // acknowledge seen: clear bit 4
+                self.step.stage = Stage::PpWaitTarget;
+            }
+            Stage::PpWaitTarget if sw & 0x1000 == 0 && sw & 0x0400 != 0 => {
+                self.say(now_us, format!("PP move to {target_uu} uu: target reached"));
+                self.next_step(now_us, i);
+                return;
+            }
+            _ => {}
+        }
+        if self.timed_out(now_us) {
+            // Where the axis stood: a worn axis hunts around the target, wider than
+            // the drive's position window 0x6067, and never sets bit 10.
+            let at = self.samples.last().map_or(String::new(), |s| {
+                format!(
+                    " in {:.1} s: position {} uu, {} uu off, statusword {:#06X}",
+                    self.cfg.step_timeout_us as f64 * 1e-6,
+                    s.position_uu,
+                    i64::from(s.position_uu) - i64::from(target_uu),
+                    s.statusword
+                )
+            });
+            self.fail(
+                now_us,
+                format!("PP move to {target_uu} uu: target not reached{at}"),
+            );
         }
     }
 

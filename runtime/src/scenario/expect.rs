@@ -163,50 +163,15 @@ impl Expectation {
         }
     }
 
-    /// Evaluate against a run record. Long (about 180 lines) on purpose: one `match` arm per
-    /// expectation kind, each the complete check and message for that kind.
+    /// Evaluate against a run record: one `match` arm per expectation kind, the longer checks
+    /// in functions of their own (`check_emcy`, `check_state`, ...).
     pub fn check(&self, rec: &RunRecord) -> (bool, String) {
         match self {
             Expectation::Emcy {
                 code,
                 within_us,
                 after,
-            } => {
-                let t0 = match after {
-                    Some(id) => match rec.events.get(id) {
-                        Some(t) => *t,
-                        None => return (false, format!("event `{id}` never fired")),
-                    },
-                    None => 0,
-                };
-                let hit = rec.emcys.iter().find(|(t, c)| *c == *code && *t >= t0);
-                match (hit, within_us) {
-                    (None, _) => (
-                        false,
-                        format!(
-                            "no EMCY {code:#06X} after {} s; seen: {}",
-                            secs(t0),
-                            list_emcys(rec)
-                        ),
-                    ),
-                    (Some((t, _)), Some(w)) if t - t0 > *w => (
-                        false,
-                        format!(
-                            "EMCY {code:#06X} came {} s after, later than {} s",
-                            secs(t - t0),
-                            secs(*w)
-                        ),
-                    ),
-                    (Some((t, _)), _) => (
-                        true,
-                        format!(
-                            "EMCY {code:#06X} at {:.3} s ({:.3} s after)",
-                            secs(*t),
-                            secs(t - t0)
-                        ),
-                    ),
-                }
-            }
+            } => check_emcy(rec, code, within_us, after),
             Expectation::NoEmcy { from_us, until_us } => {
                 let bad: Vec<_> = rec
                     .emcys
@@ -219,92 +184,17 @@ impl Expectation {
                     (false, format!("EMCY seen: {}", list_emcys(rec)))
                 }
             }
-            Expectation::State { state, at_us } => {
-                let at = at_us.map_or(f64::INFINITY, secs);
-                // samples are in time order: the last one by then, in O(log n)
-                let n = rec.samples.partition_point(|s| s.t_s <= at + 1e-9);
-                let s = n.checked_sub(1).map(|i| &rec.samples[i]);
-                match s {
-                    None => (false, "no sample recorded by then".into()),
-                    Some(s) => {
-                        let got = Cia402State::from_statusword(s.statusword);
-                        (
-                            got == Some(*state),
-                            format!(
-                                "statusword {:#06X} ({}) at {:.3} s",
-                                s.statusword,
-                                state_name(s.statusword),
-                                s.t_s
-                            ),
-                        )
-                    }
-                }
-            }
+            Expectation::State { state, at_us } => check_state(rec, state, at_us),
             Expectation::FollowingError {
                 max_uu,
                 from_us,
                 until_us,
-            } => {
-                let from = secs(*from_us);
-                let until = until_us.map_or(f64::INFINITY, secs);
-                let worst = rec
-                    .samples
-                    .iter()
-                    .filter(|s| s.t_s >= from && s.t_s <= until)
-                    .filter(|s| {
-                        Cia402State::from_statusword(s.statusword)
-                            == Some(Cia402State::OperationEnabled)
-                    })
-                    .map(|s| (s.following_error_uu.unsigned_abs(), s.t_s))
-                    .max_by_key(|x| x.0);
-                match worst {
-                    None => (
-                        false,
-                        "no sample in OPERATION ENABLED in the interval".into(),
-                    ),
-                    Some((e, t)) => (
-                        f64::from(e) <= *max_uu,
-                        format!("max |following error| {e} uu at {t:.3} s"),
-                    ),
-                }
-            }
+            } => check_following_error(rec, max_uu, from_us, until_us),
             Expectation::Verdict {
                 verdict,
                 by_us,
                 not_before_us,
-            } => {
-                let Some(d) = &rec.detector else {
-                    return (false, "the detector did not run".into());
-                };
-                let mut ok = d.verdict == *verdict;
-                let mut detail = format!(
-                    "verdict {} (amplitude {:.2} {}, severity {:.2}); first suspected {}, first backlash {}",
-                    d.verdict.as_str(),
-                    d.amplitude,
-                    crate::report::unit_text(&d.position_unit),
-                    d.severity,
-                    fmt_t(d.first_suspected_s),
-                    fmt_t(d.first_backlash_s)
-                );
-                let first = match verdict {
-                    Verdict::Inconclusive | Verdict::Ok => None,
-                    Verdict::BacklashSuspected => d.first_suspected_s,
-                    Verdict::Backlash => d.first_backlash_s,
-                };
-                if let Some(b) = by_us {
-                    if !first.is_some_and(|f| f <= secs(*b)) {
-                        ok = false;
-                        detail += &format!("; not confirmed by {} s", secs(*b));
-                    }
-                }
-                if let Some(nb) = not_before_us {
-                    if d.first_suspected_s.is_some_and(|f| f < secs(*nb)) {
-                        ok = false;
-                        detail += &format!("; flagged before {} s", secs(*nb));
-                    }
-                }
-                (ok, detail)
-            }
+            } => check_verdict(rec, verdict, by_us, not_before_us),
             Expectation::FrequencyHz { hz, tolerance_pct } => match rec.detector.as_ref() {
                 Some(d) => match d.frequency_hz.or(d.dominant_hz) {
                     Some(f) => (
@@ -345,6 +235,145 @@ impl Expectation {
             }
         }
     }
+}
+
+/// `[[expect]] emcy`: the EMCY `code` after event `after` (or the start), within
+/// `within_us` when given.
+fn check_emcy(
+    rec: &RunRecord,
+    code: &u16,
+    within_us: &Option<u64>,
+    after: &Option<String>,
+) -> (bool, String) {
+    let t0 = match after {
+        Some(id) => match rec.events.get(id) {
+            Some(t) => *t,
+            None => return (false, format!("event `{id}` never fired")),
+        },
+        None => 0,
+    };
+    let hit = rec.emcys.iter().find(|(t, c)| *c == *code && *t >= t0);
+    match (hit, within_us) {
+        (None, _) => (
+            false,
+            format!(
+                "no EMCY {code:#06X} after {} s; seen: {}",
+                secs(t0),
+                list_emcys(rec)
+            ),
+        ),
+        (Some((t, _)), Some(w)) if t - t0 > *w => (
+            false,
+            format!(
+                "EMCY {code:#06X} came {} s after, later than {} s",
+                secs(t - t0),
+                secs(*w)
+            ),
+        ),
+        (Some((t, _)), _) => (
+            true,
+            format!(
+                "EMCY {code:#06X} at {:.3} s ({:.3} s after)",
+                secs(*t),
+                secs(t - t0)
+            ),
+        ),
+    }
+}
+
+/// `[[expect]] state`: the CiA 402 state of the last sample by `at_us` (the end: `None`).
+fn check_state(rec: &RunRecord, state: &Cia402State, at_us: &Option<u64>) -> (bool, String) {
+    let at = at_us.map_or(f64::INFINITY, secs);
+    // samples are in time order: the last one by then, in O(log n)
+    let n = rec.samples.partition_point(|s| s.t_s <= at + 1e-9);
+    let s = n.checked_sub(1).map(|i| &rec.samples[i]);
+    match s {
+        None => (false, "no sample recorded by then".into()),
+        Some(s) => {
+            let got = Cia402State::from_statusword(s.statusword);
+            (
+                got == Some(*state),
+                format!(
+                    "statusword {:#06X} ({}) at {:.3} s",
+                    s.statusword,
+                    state_name(s.statusword),
+                    s.t_s
+                ),
+            )
+        }
+    }
+}
+
+/// `[[expect]] following_error`: the largest |following error| in OPERATION ENABLED within
+/// the interval.
+fn check_following_error(
+    rec: &RunRecord,
+    max_uu: &f64,
+    from_us: &u64,
+    until_us: &Option<u64>,
+) -> (bool, String) {
+    let from = secs(*from_us);
+    let until = until_us.map_or(f64::INFINITY, secs);
+    let worst = rec
+        .samples
+        .iter()
+        .filter(|s| s.t_s >= from && s.t_s <= until)
+        .filter(|s| {
+            Cia402State::from_statusword(s.statusword) == Some(Cia402State::OperationEnabled)
+        })
+        .map(|s| (s.following_error_uu.unsigned_abs(), s.t_s))
+        .max_by_key(|x| x.0);
+    match worst {
+        None => (
+            false,
+            "no sample in OPERATION ENABLED in the interval".into(),
+        ),
+        Some((e, t)) => (
+            f64::from(e) <= *max_uu,
+            format!("max |following error| {e} uu at {t:.3} s"),
+        ),
+    }
+}
+
+/// `[[expect]] verdict`: the detector's verdict, confirmed by `by_us`, nothing flagged before
+/// `not_before_us`.
+fn check_verdict(
+    rec: &RunRecord,
+    verdict: &Verdict,
+    by_us: &Option<u64>,
+    not_before_us: &Option<u64>,
+) -> (bool, String) {
+    let Some(d) = &rec.detector else {
+        return (false, "the detector did not run".into());
+    };
+    let mut ok = d.verdict == *verdict;
+    let mut detail = format!(
+        "verdict {} (amplitude {:.2} {}, severity {:.2}); first suspected {}, first backlash {}",
+        d.verdict.as_str(),
+        d.amplitude,
+        crate::report::unit_text(&d.position_unit),
+        d.severity,
+        fmt_t(d.first_suspected_s),
+        fmt_t(d.first_backlash_s)
+    );
+    let first = match verdict {
+        Verdict::Inconclusive | Verdict::Ok => None,
+        Verdict::BacklashSuspected => d.first_suspected_s,
+        Verdict::Backlash => d.first_backlash_s,
+    };
+    if let Some(b) = by_us {
+        if !first.is_some_and(|f| f <= secs(*b)) {
+            ok = false;
+            detail += &format!("; not confirmed by {} s", secs(*b));
+        }
+    }
+    if let Some(nb) = not_before_us {
+        if d.first_suspected_s.is_some_and(|f| f < secs(*nb)) {
+            ok = false;
+            detail += &format!("; flagged before {} s", secs(*nb));
+        }
+    }
+    (ok, detail)
 }
 
 fn fmt_t(t: Option<f64>) -> String {

@@ -638,111 +638,134 @@ pub fn fig_outer_loop(dir: &Path) -> anyhow::Result<(PathBuf, FigOuterLoop)> {
         let root = BitMapBackend::new(&png, (W + 400, H)).into_drawing_area();
         root.fill(&WHITE)?;
         let (left, right) = root.split_horizontally((W + 400) / 2);
-        let kmax = 70.0;
-        let mut c = ChartBuilder::on(&left)
-            .caption(
-                "The CNC's position loop over the bus (CSV, 0x60E4, SYNC 1 ms)",
-                ("sans-serif", 20),
-            )
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(50)
-            .build_cartesian_2d(0.0..kmax, 0.0..kmax)?;
-        c.configure_mesh()
-            .x_desc("the master's k_v, 1/s")
-            .y_desc("f, Hz")
-            .draw()?;
-        for (k, label, col) in [
-            (1.0, "f = k_v", BLACK),
-            (0.6, "f = 0.6 k_v", RGBColor(0, 130, 0)),
-            (0.25, "f = k_v / 4", RGBColor(140, 140, 140)),
-        ] {
-            c.draw_series(LineSeries::new(
-                [(0.0, 0.0), (kmax, k * kmax)],
-                col.stroke_width(if k == 0.6 { 2 } else { 1 }),
-            ))?
-            .label(label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
-        }
-        for (name, col) in names.iter().zip(colors) {
-            let pts: Vec<(f64, f64)> = d
-                .law
-                .iter()
-                .filter(|r| &r.case.preset == name && r.limit_cycle)
-                .filter_map(|r| r.fundamental_hz.map(|f| (r.case.kv_per_s, f)))
-                .collect();
-            c.draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.filled())))?
-                .label(name.clone())
-                .legend(move |(x, y)| Circle::new((x + 10, y), 4, col.filled()));
-        }
-        c.configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE)
-            .position(SeriesLabelPosition::UpperLeft)
-            .draw()?;
-        let f0_of = |name: &str| {
-            d.breaks
-                .iter()
-                .find(|b| b.preset == name)
-                .map_or(f64::NAN, |b| b.f0_hz)
-        };
-        let xmax = d
-            .sync
-            .iter()
-            .map(|r| f64::from(r.case.sync_period_us) * 1e-6 * f0_of(&r.case.preset))
-            .filter(|x| x.is_finite())
-            .fold(0.0f64, f64::max)
-            .max(0.05)
-            * 1.05;
-        let mut c = ChartBuilder::on(&right)
-            .caption(
-                "Where the bus cycle matters (each preset at its own k_v)",
-                ("sans-serif", 20),
-            )
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(50)
-            .build_cartesian_2d(0.0..xmax, 0.0..0.8)?;
-        c.configure_mesh()
-            .x_desc("SYNC period / limit-cycle period at 1 ms (T_sync f0)")
-            .y_desc("f / k_v")
-            .draw()?;
-        let band = RGBColor(90, 90, 90);
-        for y in [0.5, 0.7] {
-            c.draw_series(DashedLineSeries::new(
-                [(0.0, y), (xmax, y)],
-                6,
-                4,
-                band.stroke_width(1),
-            ))?;
-        }
-        c.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label("dashed: 0.6 +- 0.1 (the law held)")
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], band));
-        for (name, col) in names.iter().zip(colors) {
-            let f0 = f0_of(name);
-            let pts: Vec<(f64, f64)> = d
-                .sync
-                .iter()
-                .filter(|r| &r.case.preset == name && r.limit_cycle)
-                .filter_map(|r| {
-                    r.f_over_kv
-                        .map(|x| (f64::from(r.case.sync_period_us) * 1e-6 * f0, x))
-                })
-                .collect();
-            c.draw_series(LineSeries::new(pts.clone(), col.stroke_width(2)))?
-                .label(format!("{name}: 1..16 ms"))
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
-            c.draw_series(pts.iter().map(|&p| Circle::new(p, 3, col.filled())))?;
-        }
-        c.configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE)
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()?;
+        draw_outer_loop_law(&left, &d, &names, colors)?;
+        draw_outer_loop_sync(&right, &d, &names, colors)?;
         root.present()?;
         Ok(())
     };
     draw().map_err(plot_err)?;
     Ok((png, d))
+}
+
+/// The master-loop figure's left panel: f against the master's k_v, with the lines k_v,
+/// 0.6 k_v and k_v / 4.
+fn draw_outer_loop_law(
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    d: &FigOuterLoop,
+    names: &[String],
+    colors: [RGBColor; 5],
+) -> Result<(), DynErr> {
+    let kmax = 70.0;
+    let mut c = ChartBuilder::on(area)
+        .caption(
+            "The CNC's position loop over the bus (CSV, 0x60E4, SYNC 1 ms)",
+            ("sans-serif", 20),
+        )
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..kmax, 0.0..kmax)?;
+    c.configure_mesh()
+        .x_desc("the master's k_v, 1/s")
+        .y_desc("f, Hz")
+        .draw()?;
+    for (k, label, col) in [
+        (1.0, "f = k_v", BLACK),
+        (0.6, "f = 0.6 k_v", RGBColor(0, 130, 0)),
+        (0.25, "f = k_v / 4", RGBColor(140, 140, 140)),
+    ] {
+        c.draw_series(LineSeries::new(
+            [(0.0, 0.0), (kmax, k * kmax)],
+            col.stroke_width(if k == 0.6 { 2 } else { 1 }),
+        ))?
+        .label(label)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+    }
+    for (name, col) in names.iter().zip(colors) {
+        let pts: Vec<(f64, f64)> = d
+            .law
+            .iter()
+            .filter(|r| &r.case.preset == name && r.limit_cycle)
+            .filter_map(|r| r.fundamental_hz.map(|f| (r.case.kv_per_s, f)))
+            .collect();
+        c.draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.filled())))?
+            .label(name.clone())
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, col.filled()));
+    }
+    c.configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE)
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()?;
+    Ok(())
+}
+
+/// The master-loop figure's right panel: f / k_v against T_sync f0, the 0.6 +- 0.1 band.
+fn draw_outer_loop_sync(
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    d: &FigOuterLoop,
+    names: &[String],
+    colors: [RGBColor; 5],
+) -> Result<(), DynErr> {
+    let f0_of = |name: &str| {
+        d.breaks
+            .iter()
+            .find(|b| b.preset == name)
+            .map_or(f64::NAN, |b| b.f0_hz)
+    };
+    let xmax = d
+        .sync
+        .iter()
+        .map(|r| f64::from(r.case.sync_period_us) * 1e-6 * f0_of(&r.case.preset))
+        .filter(|x| x.is_finite())
+        .fold(0.0f64, f64::max)
+        .max(0.05)
+        * 1.05;
+    let mut c = ChartBuilder::on(area)
+        .caption(
+            "Where the bus cycle matters (each preset at its own k_v)",
+            ("sans-serif", 20),
+        )
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..xmax, 0.0..0.8)?;
+    c.configure_mesh()
+        .x_desc("SYNC period / limit-cycle period at 1 ms (T_sync f0)")
+        .y_desc("f / k_v")
+        .draw()?;
+    let band = RGBColor(90, 90, 90);
+    for y in [0.5, 0.7] {
+        c.draw_series(DashedLineSeries::new(
+            [(0.0, y), (xmax, y)],
+            6,
+            4,
+            band.stroke_width(1),
+        ))?;
+    }
+    c.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+        .label("dashed: 0.6 +- 0.1 (the law held)")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], band));
+    for (name, col) in names.iter().zip(colors) {
+        let f0 = f0_of(name);
+        let pts: Vec<(f64, f64)> = d
+            .sync
+            .iter()
+            .filter(|r| &r.case.preset == name && r.limit_cycle)
+            .filter_map(|r| {
+                r.f_over_kv
+                    .map(|x| (f64::from(r.case.sync_period_us) * 1e-6 * f0, x))
+            })
+            .collect();
+        c.draw_series(LineSeries::new(pts.clone(), col.stroke_width(2)))?
+            .label(format!("{name}: 1..16 ms"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+        c.draw_series(pts.iter().map(|&p| Circle::new(p, 3, col.filled())))?;
+    }
+    c.configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
+    Ok(())
 }

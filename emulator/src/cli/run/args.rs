@@ -1,10 +1,11 @@
 //! `drive-emu run`'s arguments: the options, their checks, and the machine they describe.
 
-use crate::drive::machine::{self, AxisEntry, MachineFile};
-use anyhow::{bail, Result};
+use crate::api::live::{LiveBusSpec, LiveRequest, LssMemory};
+use crate::drive::machine::MachineFile;
+use crate::scenario::Scenario;
+use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
-use std::sync::Arc;
 
 #[derive(Args, Debug, Clone)]
 pub struct RunArgs {
@@ -19,7 +20,7 @@ pub struct RunArgs {
     pub socketcand: Option<String>,
     /// Node ID of the (single) drive, 1..=127; 255: non-configured, as a drive out of the box:
     /// silent but for LSS (CiA 305) until a master gives it a node-ID. Ignored with --config.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = crate::api::live::DEFAULT_NODE_ID)]
     pub node: u8,
     /// Serve LSS (CiA 305) even where the vendor's EDS says LSS_Supported=0 or omits it (so
     /// that --node 255 starts non-configured with that file).
@@ -66,7 +67,7 @@ pub struct RunArgs {
     #[arg(long = "no-quirk", value_name = "NAME")]
     pub no_quirk: Vec<String>,
     /// Loop rate, Hz (250..8000).
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = crate::api::live::DEFAULT_TICK_HZ)]
     pub tick_hz: u32,
     /// Lock-step: simulated time advances by --sync-period-us at each SYNC received, not by
     /// the wall clock.
@@ -78,7 +79,7 @@ pub struct RunArgs {
     #[arg(long, value_name = "US", value_parser = clap::value_parser!(u64).range(100..=1_000_000))]
     pub sync_period_us: Option<u64>,
     /// SCHED_FIFO priority for the loop thread (needs CAP_SYS_NICE); 0 = normal scheduling.
-    #[arg(long, default_value_t = 80)]
+    #[arg(long, default_value_t = crate::api::live::DEFAULT_RT_PRIORITY)]
     pub rt_priority: i32,
     /// Pin the loop thread to this CPU.
     #[arg(long)]
@@ -150,67 +151,11 @@ pub struct RunArgs {
     pub detect: bool,
     /// With --detect: seconds of the drive's own samples each analysis covers (the most
     /// recent).
-    #[arg(long, value_name = "S", default_value_t = 60.0, value_parser = positive_seconds)]
+    #[arg(long, value_name = "S", default_value_t = crate::api::live::DEFAULT_DETECT_HISTORY_S, value_parser = positive_seconds)]
     pub detect_history: f64,
 }
 
-/// Default boot delay, ms: within the 100 ms - seconds real drives take, and long enough that
-/// a python master's `nmt.state = 'RESET'` followed by `wait_for_bootup()` sees the boot-up
-/// even when the master's host stalls for tens of ms (user-mode Linux, a loaded CI machine).
-pub const DEFAULT_BOOT_DELAY_MS: u64 = 200;
-
-/// Longest `--duration` accepted, s (about 31 years: beyond it the number is a typo).
-pub const MAX_DURATION_S: f64 = 1e9;
-
-/// Longest `--sync-period-us` accepted: CiA 301 0x1006 is in us; a SYNC slower than 1 s is
-/// no longer a control cycle.
-pub const MAX_SYNC_PERIOD_US: u64 = 1_000_000;
-
-/// Check the numeric flags that the machine file does not cover.
-pub fn validate_args(args: &RunArgs) -> Result<()> {
-    if let Some(d) = args.duration {
-        if !(d.is_finite() && d > 0.0 && d <= MAX_DURATION_S) {
-            bail!(
-                "--duration {d}: must be a number of seconds > 0 and <= {MAX_DURATION_S:e} (omit \
-                 it to run until Ctrl-C / SIGTERM)"
-            );
-        }
-    }
-    if !(0..=99).contains(&args.rt_priority) {
-        bail!(
-            "--rt-priority {}: must be 0..=99 (SCHED_FIFO priorities; 0 = normal scheduling)",
-            args.rt_priority
-        );
-    }
-    if let Some(cpu) = args.cpu {
-        let n = std::thread::available_parallelism().map_or(1, |n| n.get());
-        if cpu >= n {
-            bail!("--cpu {cpu}: this machine has CPUs 0..={}", n - 1);
-        }
-    }
-    if let (true, Some(p)) = (args.lockstep, &args.lss_store) {
-        // The store is written between ticks, and lock-step runs no tick without SYNC (a
-        // master configuring by LSS sends none): the answer would never come.
-        bail!(
-            "--lss-store {} and --lockstep: not together (in lock-step the loop stands still \
-             without SYNC, and the store is answered from the loop); without --lss-store a \
-             store configuration is kept in memory",
-            p.display()
-        );
-    }
-    if let (true, Some(p)) = (args.lockstep, args.sync_period_us) {
-        let tick_us = 1_000_000 / u64::from(args.tick_hz.max(1));
-        if p == 0 || p > MAX_SYNC_PERIOD_US || !p.is_multiple_of(tick_us) {
-            bail!(
-                "--sync-period-us {p}: must be a whole multiple of the tick period ({tick_us} us \
-                 at --tick-hz {}) between {tick_us} and {MAX_SYNC_PERIOD_US} us: each SYNC \
-                 advances simulated time by whole ticks",
-                args.tick_hz
-            );
-        }
-    }
-    Ok(())
-}
+pub use crate::api::live::{DEFAULT_BOOT_DELAY_MS, MAX_DURATION_S, MAX_SYNC_PERIOD_US};
 
 /// An object index as a user writes it: 0x4000, 4000h or 16384.
 pub fn parse_index(s: &str) -> Result<u16, String> {
@@ -235,67 +180,7 @@ pub fn parse_index(s: &str) -> Result<u16, String> {
 /// Its errors are usage errors (exit status 2: docs/getting-started.md), or 4 where a file
 /// cannot be read.
 pub fn machine_from_args(args: &RunArgs) -> Result<MachineFile> {
-    machine_from_args_inner(args).map_err(crate::cli::exit::usage)
-}
-
-fn machine_from_args_inner(args: &RunArgs) -> Result<MachineFile> {
-    let quirk_profile = crate::drive::quirk_profile::QuirkProfile::from_args(
-        args.profile.as_deref(),
-        &args.quirk,
-        &args.no_quirk,
-    )?;
-    if let Some(path) = &args.config {
-        if quirk_profile.is_some() {
-            bail!(
-                "--profile / --quirk / --no-quirk with --config {}: set `profile =` and `quirks \
-                 = {{...}}` per [[axis]] in the machine file",
-                path.display()
-            );
-        }
-        let mut m = machine::load(path)?;
-        for a in &mut m.axes {
-            a.worn |= args.worn;
-        }
-        return Ok(m);
-    }
-    // Said as the user wrote it (machine::validate would name the machine file's key).
-    if !(1..=127).contains(&args.node) && args.node != 255 {
-        bail!(
-            "--node {}: outside 1..=127 (255: non-configured, a drive out of the box that \
-             answers LSS only)",
-            args.node
-        );
-    }
-    let mut set = std::collections::BTreeMap::new();
-    for s in &args.set {
-        let Some((k, v)) = s.split_once('=') else {
-            bail!("--set {s}: an override must be written key=value");
-        };
-        let value = toml::from_str::<toml::Table>(&format!("v = {v}"))
-            .ok()
-            .and_then(|mut t| t.remove("v"))
-            .unwrap_or_else(|| toml::Value::String(v.to_string()));
-        set.insert(k.trim().to_string(), value);
-    }
-    let m = MachineFile {
-        tick_hz: args.tick_hz,
-        axes: vec![AxisEntry {
-            node_id: args.node,
-            name: None,
-            preset: args.preset.clone(),
-            set,
-            worn: args.worn,
-            eds: args.eds.clone(),
-            objects_base: args.objects_base,
-            profile: args.profile.clone(),
-            quirks: None,
-            quirk_profile: quirk_profile.map(Arc::new),
-        }],
-        ballbar: None,
-        contour: None,
-    };
-    machine::validate(&m)?;
-    Ok(m)
+    crate::api::live::setup::machine_of(&args.request_base()).map_err(crate::cli::api_error)
 }
 
 /// `--duration`: a positive number of seconds.
@@ -308,6 +193,64 @@ pub fn positive_seconds(s: &str) -> Result<f64, String> {
 }
 
 impl RunArgs {
+    /// The typed request these options describe (the scenario read by the caller), with the
+    /// LSS store file read (`--lss-store`). The checks are the request's
+    /// ([`LiveRequest::check`]), at its start.
+    pub fn request(&self, scenario: Option<Scenario>) -> Result<LiveRequest> {
+        let lss_memory = match &self.lss_store {
+            Some(path) => Some(LssMemory {
+                path: path.clone(),
+                stored: crate::cli::lss_store::load(path)?.map(|s| drive_protocol::LssStore {
+                    node_id: s.node_id,
+                    bit_timing_index: s.bit_timing_index,
+                }),
+                bit_timing_text: crate::cli::lss_store::bit_timing_text,
+            }),
+            None => None,
+        };
+        Ok(LiveRequest {
+            scenario,
+            lss_memory,
+            ..self.request_base()
+        })
+    }
+
+    /// The request of these options without a scenario or an LSS store (what `run
+    /// --ethercat` and `drive-emu esi` share).
+    pub fn request_base(&self) -> LiveRequest {
+        LiveRequest {
+            bus: match &self.socketcand {
+                Some(addr) => LiveBusSpec::Socketcand(addr.clone()),
+                None => LiveBusSpec::SocketCan(self.iface.clone()),
+            },
+            node_id: self.node,
+            force_lss: self.force_lss,
+            preset: self.preset.clone(),
+            sets: self.set.clone(),
+            worn: self.worn,
+            machine_file: self.config.clone(),
+            eds: self.eds.clone(),
+            objects_base: self.objects_base,
+            profile: self.profile.clone(),
+            quirks: self.quirk.clone(),
+            no_quirks: self.no_quirk.clone(),
+            tick_hz: self.tick_hz,
+            lockstep: self.lockstep,
+            sync_period_us: self.sync_period_us,
+            rt_priority: self.rt_priority,
+            cpu: self.cpu,
+            lock_memory: !self.no_mlock,
+            duration_s: self.duration,
+            scenario: None,
+            trace: self.trace.clone(),
+            boot_delay_ms: self.boot_delay_ms,
+            lss_memory: None,
+            detect: self.detect,
+            detect_history_s: self.detect_history,
+            stop_on_signal: true,
+        }
+    }
+
     /// What the bus is, for people: the interface, or `socketcand ADDR:PORT`.
     pub fn bus_label(&self) -> String {
         match &self.socketcand {

@@ -1,12 +1,14 @@
 //! `run --ethercat IFACE`: the run's axes as EtherCAT slaves on a raw Ethernet port, with the
 //! same observation bus, readers, scenario and panel as on CAN.
 
-use super::args::{machine_from_args, validate_args, RunArgs};
-use super::axes::{axis_setup, scenario_machine, LssOptions};
-use super::orchestrate::{
+use super::args::{machine_from_args, RunArgs};
+use super::{outcome_json, print_outcome, scenario_status};
+use crate::api::live::parts::{
     gap_models, join_scenario, realtime_request, spawn_scenario, start_readers, stop_flag,
 };
-use super::{outcome_json, print_outcome, scenario_status, LiveRun};
+use crate::api::live::setup::{axis_setup, scenario_machine, LssOptions};
+use crate::api::live::LiveRequest;
+use crate::cli::api_error;
 use crate::drive::axis_drive::AxisDrive;
 use crate::drive::machine::{self, MachineFile};
 use crate::runtime::realtime::{self};
@@ -31,7 +33,7 @@ fn ethercat_slaves_for(
     scenario: Option<&Scenario>,
 ) -> Result<(MachineFile, Vec<drive_ethercat::Slave>, Vec<AxisDrive>)> {
     let mut machine = match scenario {
-        Some(s) => scenario_machine(args, s)?,
+        Some(s) => scenario_machine(&args.request_base(), s).map_err(api_error)?,
         None => machine_from_args(args)?,
     };
     machine::validate(&machine)?;
@@ -48,7 +50,7 @@ fn ethercat_slaves_for(
             None => e.run_config()?,
         };
         // no boot delay: an EtherCAT slave's mailbox is there from PRE-OP on
-        let (config, mut drive) = axis_setup(cfg, e, 0, &lss)?;
+        let (config, mut drive) = axis_setup(cfg, e, 0, &lss).map_err(api_error)?;
         let slave = match &esi {
             Some((path, dev)) => {
                 drive_ethercat::Slave::with_esi(config, &mut drive, dev).map_err(|err| {
@@ -89,7 +91,12 @@ pub(super) fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     let scenario = ethercat_scenario(args)?;
     let (machine, slaves, mut drives) = ethercat_slaves_for(args, scenario.as_ref())?;
     let mut sock = crate::bus::ethercat::PacketSocket::open(iface)?;
-    let stop = stop_flag(args, scenario.as_ref())?;
+    // the API's request of these options: the readers, stop flag and scenario thread are CAN's
+    let req = LiveRequest {
+        scenario: scenario.clone(),
+        ..args.request_base()
+    };
+    let stop = stop_flag(&req)?;
     let period_us = 1_000_000 / u64::from(machine.tick_hz);
     announce_ethercat(args, iface, &machine, scenario.as_ref());
     // The observation bus, as on CAN: published after each drive cycle
@@ -99,7 +106,7 @@ pub(super) fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     );
     // --trace, --detect: the same readers as on CAN
     let readers = start_readers(
-        args,
+        &req,
         &obs,
         slaves.iter().map(|s| s.node().node_id()).zip(drives.iter()),
         gap_models(&machine, scenario.as_ref()),
@@ -124,14 +131,14 @@ pub(super) fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     let (panel, mut panel_loop) =
         crate::panel::start_for_run(&args.panel, context, (&link, &obs), &mut injector)?.unzip();
     let scenario_thread = match &scenario {
-        Some(s) => Some(spawn_scenario(args, s, (&link, &obs), &stop)?),
+        Some(s) => Some(spawn_scenario(&req, s, (&link, &obs), &stop).map_err(api_error)?),
         None => None,
     };
     let mut faults =
         crate::bus::ethercat::EcatFaults::new(scenario.as_ref().map_or(1, |s| s.run.seed));
     let mut seg = drive_ethercat::Segment::new(slaves);
     // The loop runs on this thread: real-time scheduling, CPU and locked memory as on CAN.
-    let report = realtime::apply(&realtime_request(args));
+    let report = realtime::apply(&realtime_request(&req));
     for w in &report.warnings {
         eprintln!("drive-emu: warning: {w}");
     }
@@ -179,7 +186,7 @@ pub(super) fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
     ethercat_summary(
         &stats,
         &faults,
-        (detector, outcome),
+        (detector.detector, outcome),
         (iface, scenario.as_ref()),
         args,
     )
@@ -188,7 +195,7 @@ pub(super) fn run_ethercat(args: &RunArgs, iface: &str) -> Result<()> {
 /// `run --ethercat`'s options and scenario, checked before anything opens: the scenario read
 /// and its bus faults EtherCAT's.
 fn ethercat_scenario(args: &RunArgs) -> Result<Option<Scenario>> {
-    validate_args(args)?;
+    args.request_base().check().map_err(api_error)?;
     crate::panel::check_args(&args.panel)?;
     let scenario = match &args.scenario {
         Some(path) => Some(crate::scenario::load(path).map_err(crate::cli::exit::scenario_file)?),
@@ -282,9 +289,11 @@ fn ethercat_summary(
                 serde_json::json!({ "node_id": node_id, "report": rep }))
                 .collect::<Vec<_>>()});
         if let (Some(o), Some(s)) = (outcome, &scenario) {
-            let run = LiveRun {
+            let run = crate::api::live::LiveOutcome {
                 stats: Default::default(),
+                trace: None,
                 detector: Vec::new(),
+                detector_lost: 0,
                 lockstep_period_us: None,
                 free_run_ticks: 0,
                 scenario: Some(o),

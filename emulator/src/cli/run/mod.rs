@@ -1,30 +1,28 @@
-//! `drive-emu run`: the drive(s) on a real or virtual CAN bus, at a fixed rate.
+//! `drive-emu run`: the drive(s) on a real or virtual CAN bus, at a fixed rate. The run on CAN
+//! is the typed API's [`LiveRequest`](crate::api::live::LiveRequest); this module converts the
+//! options into it and attaches what only the command line has.
 //!
-//! - [`args`]: the options and their checks, the machine they describe;
-//! - [`axes`]: each axis's node and drive;
-//! - [`orchestrate`]: the live run on CAN (bus, observation bus and readers, threads, loop);
-//! - [`status`]: the terminal status line, the ready line, the LSS store service;
-//! - [`ethercat`]: the run on EtherCAT.
+//! - [`args`]: the options, the request they describe;
+//! - [`status`]: the terminal status line, the ready line, the LSS store service, the panel,
+//!   attached to the API's run ([`run_live`]);
+//! - [`ethercat`]: the run on EtherCAT (its own path, on the API's parts).
 
 mod args;
-mod axes;
 mod ethercat;
-mod orchestrate;
 mod status;
 
-use crate::bus::fault::FaultyBus;
-use crate::bus::live::LiveTransport;
+pub use crate::api::live::parts::inconclusive_text;
+pub use crate::api::live::setup::{build_axes, LssOptions};
 use crate::scenario::live::LiveOutcome;
 use crate::scenario::Scenario;
 use anyhow::{bail, Result};
 pub use args::{
-    machine_from_args, parse_index, positive_seconds, validate_args, RunArgs,
-    DEFAULT_BOOT_DELAY_MS, MAX_DURATION_S, MAX_SYNC_PERIOD_US,
+    machine_from_args, parse_index, positive_seconds, RunArgs, DEFAULT_BOOT_DELAY_MS,
+    MAX_DURATION_S, MAX_SYNC_PERIOD_US,
 };
-pub use axes::{build_axes, LssOptions};
 pub use ethercat::ethercat_slaves;
 use ethercat::run_ethercat;
-pub use orchestrate::run_live;
+pub use status::run_live;
 
 pub fn run(args: &RunArgs) -> Result<()> {
     if let (Some(p), None) = (&args.esi, &args.ethercat) {
@@ -72,19 +70,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     Ok(())
 }
 
-/// What `run_live` found: the loop's statistics and, with a scenario, its outcome.
-pub struct LiveRun {
-    pub stats: crate::runtime::stats::StatsSummary,
-    /// With --detect: per axis, its node ID and the detector's last analysis.
-    pub detector: Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>,
-    /// Lock-step: simulated time per SYNC in force at the end, us.
-    pub lockstep_period_us: Option<u64>,
-    /// Lock-step: ticks run on the drive's own clock while SYNC was missing.
-    pub free_run_ticks: u64,
-    pub scenario: Option<LiveOutcome>,
-}
-
-fn outcome_json_stats(run: &LiveRun) -> serde_json::Value {
+fn outcome_json_stats(run: &crate::api::live::LiveOutcome) -> serde_json::Value {
     let mut v = serde_json::json!({
         "stats": run.stats,
         "lockstep_sync_period_us": run.lockstep_period_us,
@@ -101,7 +87,7 @@ fn outcome_json_stats(run: &LiveRun) -> serde_json::Value {
 }
 
 /// The JSON document of `run --scenario --json` and `scenario --iface --json`.
-pub fn outcome_json(run: &LiveRun, s: &Scenario) -> serde_json::Value {
+pub fn outcome_json(run: &crate::api::live::LiveOutcome, s: &Scenario) -> serde_json::Value {
     let mut v = outcome_json_stats(run);
     if let Some(o) = &run.scenario {
         v["scenario"] = serde_json::json!({
@@ -173,21 +159,6 @@ pub fn print_outcome(o: &LiveOutcome) {
             o.emcys_lost
         );
     }
-}
-
-/// The live bus: the interface or socketcand server behind the scenario's fault injector.
-type LiveBus = FaultyBus<LiveTransport>;
-
-/// An inconclusive detector result for people: its first reason, which
-/// [`DetectorReport::mark_inconclusive`](crate::analysis::detector::DetectorReport::mark_inconclusive)
-/// words as the verdict, its kind and why (no amplitude or frequency: nothing was measured).
-pub(crate) fn inconclusive_text(d: &crate::analysis::detector::DetectorReport) -> String {
-    d.reasons.first().cloned().unwrap_or_else(|| {
-        format!(
-            "inconclusive ({})",
-            d.inconclusive.map_or("", |i| i.as_str())
-        )
-    })
 }
 
 /// The exit status of a live scenario: it did not finish, or an expectation failed.

@@ -1,15 +1,17 @@
-//! The terminal status line and the ready line of a live run (the watch thread), read from the
-//! observation bus, and the LSS store service between the loop and the watch thread.
+//! What the command line attaches to the API's live run ([`run_live`]): the terminal status
+//! line and the ready line (the watch thread), read from the observation bus, the LSS store
+//! service between the loop and the watch thread, and the panel.
 
 use super::args::RunArgs;
-use super::LiveBus;
+use crate::api::live::{Attach, LiveBus, LiveOutcome, LiveRun, TickHook};
 use crate::drive::axis_drive::AxisDrive;
-use crate::drive::machine::{self, MachineFile};
+use crate::drive::machine;
 use crate::observe::{AxisSnapshot, Observation};
-use crate::runtime::{Lockstep, Runtime};
+use crate::runtime::Runtime;
+use crate::scenario::Scenario;
 use anyhow::Result;
 use std::io::{IsTerminal, Write};
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use std::sync::Arc;
 
 /// The LSS store service of one axis between the loop and the watch thread: plain atomics,
@@ -29,15 +31,76 @@ fn wear(a: &AxisSnapshot) -> Option<String> {
     machine::wear_text(a.gap_si, a.rotary)
 }
 
-/// The watch thread's side of the run: the LSS store service and whether every node booted;
-/// what it shows (status line, ready line) it reads from the observation bus.
+/// Run the drive(s) on the bus as `drive-emu run` does: the options as the API's request
+/// (with a scenario, its timeline injected into axis 0), the panel and the LSS store service
+/// attached, the status line and the ready line until the run stops, its outcome.
+pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveOutcome> {
+    crate::panel::check_args(&args.panel)?;
+    let req = args.request(scenario.cloned())?;
+    let mut panel = None;
+    let mut status = None;
+    let run = req
+        .start_with(|at: Attach<'_>| {
+            // The live panel (--panel): bound before the loop starts; it takes the scenario's
+            // injections into its own injector.
+            let context = crate::panel::RunContext {
+                bus: crate::panel::PanelBus::Can,
+                iface: at.socketcand.is_none().then_some(args.iface.as_str()),
+                node: args.node,
+                lockstep: args.lockstep,
+                json: args.json,
+                machine: at.machine,
+                scenario: at.scenario,
+            };
+            let (p, panel_loop) =
+                crate::panel::start_for_run(&args.panel, context, (at.link, at.obs), at.injector)?
+                    .unzip();
+            panel = p;
+            let st = Arc::new(Status::new(Arc::clone(at.obs)));
+            status = Some(Arc::clone(&st));
+            Ok(Some(Box::new(CliHook {
+                panel: panel_loop,
+                status: st,
+            })))
+        })
+        .map_err(crate::cli::api_error)?;
+    let watched = match &status {
+        Some(st) => watch(args, &run, st),
+        None => Ok(()),
+    };
+    run.stop();
+    if std::io::stderr().is_terminal() {
+        eprintln!();
+    }
+    let outcome = run.wait();
+    if let Some(p) = panel {
+        p.stop();
+    }
+    watched?;
+    outcome.map_err(crate::cli::api_error)
+}
+
+/// The command line's part of the loop's hook, after every tick: the panel's injections, the
+/// LSS store exchange. No allocation, lock or I/O.
+struct CliHook {
+    panel: Option<crate::panel::PanelLoop>,
+    status: Arc<Status>,
+}
+
+impl TickHook for CliHook {
+    fn on_tick(&mut self, rt: &mut Runtime<LiveBus, AxisDrive>) {
+        if let Some(p) = self.panel.as_mut() {
+            p.on_tick(rt);
+        }
+        self.status.lss_exchange(rt);
+    }
+}
+
+/// The watch thread's side of the run: the LSS store service; what it shows (status line,
+/// ready line) it reads from the observation bus.
 pub(super) struct Status {
     axes: Vec<LssSlot>,
     obs: Arc<Observation>,
-    /// Each axis's wear at power-on, for the ready line (in lock-step no tick has run then).
-    wear_at_boot: Vec<Option<String>>,
-    /// Every node has sent its boot-up (power-on boot delay over).
-    pub(super) booted: AtomicBool,
 }
 
 /// The loop line of the status block, as the observation bus's board has it.
@@ -139,12 +202,10 @@ impl Status {
         }
     }
 
-    pub(super) fn new(obs: Arc<Observation>, wear_at_boot: Vec<Option<String>>) -> Self {
+    pub(super) fn new(obs: Arc<Observation>) -> Self {
         Self {
             axes: (0..obs.rings.len()).map(|_| LssSlot::default()).collect(),
             obs,
-            wear_at_boot,
-            booted: AtomicBool::new(false),
         }
     }
 
@@ -228,23 +289,18 @@ fn redraw(
 
 /// Until the run stops: the ready line on stdout once booted (`--ready`), the status line on
 /// stderr (a terminal only, so stdout stays clean for --json and pipes).
-pub(super) fn watch(
-    args: &RunArgs,
-    (label, socketcand): (&str, Option<std::net::SocketAddr>),
-    (machine, lockstep): (&MachineFile, Option<&Lockstep>),
-    status: &Status,
-    stop: &AtomicBool,
-    loop_thread: &std::thread::JoinHandle<Runtime<LiveBus, AxisDrive>>,
-) -> Result<()> {
+fn watch(args: &RunArgs, run: &LiveRun, status: &Status) -> Result<()> {
+    let (label, socketcand) = (run.bus_label(), run.socketcand_addr());
+    let (machine, lockstep) = (run.machine(), run.lockstep());
     let tty = std::io::stderr().is_terminal();
     let mut ready_sent = !args.ready;
     let mut drawn = 0;
     let mut drawn_at = std::time::Instant::now();
-    while !stop.load(Ordering::Relaxed) && !loop_thread.is_finished() {
+    while !run.stop_flag().load(Ordering::Relaxed) && !run.is_finished() {
         // LSS store configuration: the master waits for the answer (python canopen 0.5 s).
         status.lss_service(args.lss_store.as_deref());
         let published = status.obs.board.ticks.load(Ordering::Acquire) > 0;
-        if !ready_sent && status.booted.load(Ordering::Acquire) {
+        if !ready_sent && run.booted() {
             ready_sent = true;
             let line = serde_json::json!({
                 "event": "ready",
@@ -253,7 +309,7 @@ pub(super) fn watch(
                     "host": a.ip().to_string(), "port": a.port(),
                     "channel": crate::bus::socketcand::CHANNEL,
                 })),
-                "nodes": machine.axes.iter().zip(&status.wear_at_boot).map(|(a, w)| serde_json::json!({
+                "nodes": machine.axes.iter().zip(run.wear_at_boot()).map(|(a, w)| serde_json::json!({
                     "node_id": a.node_id, "preset": a.preset,
                     // the wear the axis runs with (null: healthy, no gap)
                     "worn": w,
@@ -276,11 +332,7 @@ pub(super) fn watch(
         // answered well within a master's wait (python canopen: 0.5 s), and this thread wakes
         // 20 times a second beside the loop, not 200 (one CPU under user-mode Linux).
         std::thread::sleep(std::time::Duration::from_millis(
-            if ready_sent && status.booted.load(Ordering::Acquire) {
-                50
-            } else {
-                5
-            },
+            if ready_sent && run.booted() { 50 } else { 5 },
         ));
         // Nothing to show before the loop's first tick has published the axes; redrawn every
         // 200 ms.
@@ -439,7 +491,7 @@ mod tests {
         let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
         rt.boot();
         let (mut observer, obs) = crate::observe::channel(1, 1024);
-        let status = Status::new(Arc::clone(&obs), vec![None]);
+        let status = Status::new(Arc::clone(&obs));
         assert_eq!(status.obs.latest(0), None, "nothing published yet");
         for _ in 0..3 {
             rt.tick();
@@ -478,7 +530,7 @@ mod tests {
         node.boot(0);
         let bus = InProcBus::endpoints(1, 16).remove(0);
         let mut rt = Runtime::new(bus, vec![AxisSlot { node, drive }], 1000);
-        let status = Status::new(crate::observe::channel(1, 1024).1, vec![None]);
+        let status = Status::new(crate::observe::channel(1, 1024).1);
         let lss = |rt: &mut Runtime<InProcEndpoint, AxisDrive>, d: [u8; 8]| {
             let ax = &mut rt.axes[0];
             ax.node.handle(&CanFrame::new(0x7E5, &d), 0, &mut ax.drive);

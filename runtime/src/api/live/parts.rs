@@ -1,199 +1,107 @@
-//! A live run on CAN: the bus, the observation bus and its readers (trace, detector), the
-//! scenario thread, the loop thread with its hook (publish, apply the injections), the summary.
+//! The pieces of a live run: the bus, the stop flag, the observation bus's readers (trace,
+//! detector), the scenario thread, the loop thread with its hook (publish, apply the
+//! injections), the summary. [`super::LiveRequest::start_with`] puts them together on CAN;
+//! `run --ethercat` (the command line) uses the same readers, stop flag and scenario thread.
 
-use super::args::{validate_args, RunArgs};
-use super::axes::live_axes;
-use super::status::{watch, Status};
-use super::{inconclusive_text, LiveBus, LiveRun};
+use super::{LiveBus, LiveBusSpec, LiveCan, LiveOutcome, LiveRequest, TickHook};
+use crate::api::ApiError;
 use crate::bus::fault::FaultyBus;
 use crate::bus::live::LiveTransport;
 use crate::bus::socketcand::SocketcandBus;
 use crate::drive::axis_drive::AxisDrive;
-use crate::drive::machine::{self, MachineFile};
+use crate::drive::machine::MachineFile;
 use crate::monitor::{AxisFacts, DetectOptions, DetectResults, Detector};
-use crate::observe::trace::Recorder;
+use crate::observe::trace::{Recorder, TraceSummary};
 use crate::observe::{Observation, Observer};
 use crate::presets::AxisConfig;
 use crate::runtime::realtime::{self, RealtimeRequest};
 use crate::runtime::trace::trace_paths;
 use crate::runtime::{Lockstep, Runtime};
-use crate::scenario::live::{run_timeline, LiveEnd, LiveLink, LiveOutcome, LoopInjector};
+use crate::scenario::live::{
+    run_timeline, LiveEnd, LiveLink, LiveOutcome as ScenarioOutcome, LoopInjector,
+};
 use crate::scenario::Scenario;
 use crate::time::MonotonicClock;
 use anyhow::{Context, Result};
-use std::io::IsTerminal;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-/// The bus the options ask for: the SocketCAN interface, or the socketcand server (said on
-/// stderr with the address it got).
-fn open_transport(args: &RunArgs) -> Result<LiveTransport> {
-    if let Some(addr) = &args.socketcand {
-        let bus = SocketcandBus::bind(addr)?;
-        let a = bus.local_addr();
-        eprintln!(
-            "drive-emu: socketcand on {a}, bus {}: python-can Bus(interface=\"socketcand\", \
-             host=\"{}\", port={}, channel=\"{}\")",
-            crate::bus::socketcand::CHANNEL,
-            a.ip(),
-            a.port(),
-            crate::bus::socketcand::CHANNEL
-        );
-        return Ok(LiveTransport::Socketcand(bus));
-    }
+/// The bus the request asks for: the SocketCAN interface, the socketcand server (said on
+/// stderr with the address it got), or the in-process endpoint.
+fn open_transport(bus: LiveBusSpec) -> Result<LiveCan> {
+    let iface = match bus {
+        LiveBusSpec::InProcess(end) => return Ok(LiveCan::InProcess(end)),
+        LiveBusSpec::Socketcand(addr) => {
+            let bus = SocketcandBus::bind(&addr)?;
+            let a = bus.local_addr();
+            eprintln!(
+                "drive-emu: socketcand on {a}, bus {}: python-can Bus(interface=\"socketcand\", \
+                 host=\"{}\", port={}, channel=\"{}\")",
+                crate::bus::socketcand::CHANNEL,
+                a.ip(),
+                a.port(),
+                crate::bus::socketcand::CHANNEL
+            );
+            return Ok(LiveCan::Transport(LiveTransport::Socketcand(bus)));
+        }
+        LiveBusSpec::SocketCan(iface) => iface,
+    };
     #[cfg(feature = "socketcan")]
     {
-        Ok(LiveTransport::SocketCan(
-            crate::bus::socketcan::SocketCanBus::open(&args.iface)?,
-        ))
+        Ok(LiveCan::Transport(LiveTransport::SocketCan(
+            crate::bus::socketcan::SocketCanBus::open(&iface)?,
+        )))
     }
     #[cfg(not(feature = "socketcan"))]
     anyhow::bail!(
-        "cannot open CAN interface {}: this drive-emu was built without SocketCAN (cargo \
+        "cannot open CAN interface {iface}: this drive-emu was built without SocketCAN (cargo \
          feature `socketcan`); serve the bus with --socketcand ADDR:PORT instead \
-         (docs/socketcand.md)",
-        args.iface
+         (docs/socketcand.md)"
     )
-}
-
-/// Run the drive(s) on the bus; with a scenario, inject its timeline into axis 0 and return
-/// what it found. The steps: the checks, the machine and its axes, the bus, the stop flag,
-/// the observation bus and its readers (trace, detector), the panel, the scenario thread, the
-/// loop thread, the status line until the run stops, the readers' end, the summary.
-pub fn run_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<LiveRun> {
-    check_live(args, scenario)?;
-    let (machine, axes) = live_axes(args, scenario)?;
-    let (bus, socketcand, label) = open_bus(args, scenario)?;
-    let rt = Runtime::new(bus, axes, 1_000_000 / u64::from(machine.tick_hz));
-    let stop = stop_flag(args, scenario)?;
-    // The observation bus: the loop publishes every tick into it; the trace recorder, the
-    // detector, the scenario thread, the status line and the panel read it.
-    let (observer, obs) = crate::observe::channel(
-        rt.axes.len(),
-        crate::observe::run_ring_capacity(machine.tick_hz),
-    );
-    let lockstep = lockstep_of(args, scenario);
-    let readers = start_readers(
-        args,
-        &obs,
-        rt.axes.iter().map(|a| (a.node.node_id(), &a.drive)),
-        gap_models(&machine, scenario),
-    )?;
-    announce(args, &label, &machine, lockstep.as_ref(), scenario);
-    // The scenario thread follows the loop's time and feeds it injections.
-    let link = Arc::new(LiveLink::new());
-    let mut injector = scenario.map(|s| LoopInjector::new(s.run.master.master_id));
-    // The live panel (--panel): bound before the loop starts; it takes the scenario's
-    // injections into its own injector.
-    let context = crate::panel::RunContext {
-        bus: crate::panel::PanelBus::Can,
-        iface: socketcand.is_none().then_some(args.iface.as_str()),
-        node: args.node,
-        lockstep: args.lockstep,
-        json: args.json,
-        machine: &machine,
-        scenario,
-    };
-    let (panel, panel_loop) =
-        crate::panel::start_for_run(&args.panel, context, (&link, &obs), &mut injector)?.unzip();
-    let scenario_thread = match scenario {
-        Some(s) => Some(spawn_scenario(args, s, (&link, &obs), &stop)?),
-        None => None,
-    };
-    let wear_at_boot = rt.axes.iter().map(|a| {
-        use drive_protocol::Drive as _;
-        let gap = a.drive.param(crate::drive::objects::AxisParam::Backlash);
-        machine::wear_text(gap, a.drive.info().rotary)
-    });
-    let status = Arc::new(Status::new(Arc::clone(&obs), wear_at_boot.collect()));
-    let loop_thread = spawn_loop(LoopParts {
-        rt,
-        request: realtime_request(args),
-        lockstep,
-        stop: Arc::clone(&stop),
-        observer,
-        injections: LoopInjections {
-            status: Arc::clone(&status),
-            link,
-            injector,
-            panel: panel_loop,
-            detect: readers.detect.clone(),
-        },
-    })?;
-    let bus_of = (label.as_str(), socketcand);
-    let shown = (&machine, lockstep.as_ref());
-    watch(args, bus_of, shown, &status, &stop, &loop_thread)?;
-    stop.store(true, Ordering::Relaxed);
-    let joined = loop_thread.join();
-    if std::io::stderr().is_terminal() {
-        eprintln!();
-    }
-    // The trace is flushed whatever happened to the loop.
-    let detector = readers.finish()?;
-    if let Some(p) = panel {
-        p.stop();
-    }
-    let rt = joined.map_err(|_| anyhow::anyhow!("the loop thread panicked"))?;
-    let scenario = join_scenario(scenario_thread)?;
-    Ok(live_summary(&rt, lockstep.is_some(), detector, scenario))
-}
-
-/// A live run's options and scenario, checked before anything opens: its bus faults must be
-/// CAN's, the panel's options, and the timeline's values within what axis 0's drive accepts
-/// (the live loop would drop a refused one silently).
-fn check_live(args: &RunArgs, scenario: Option<&Scenario>) -> Result<()> {
-    validate_args(args)?;
-    if let Some(s) = scenario {
-        crate::scenario::check_bus(s, "can").map_err(crate::cli::exit::usage)?;
-    }
-    crate::panel::check_args(&args.panel)?;
-    if let Some((s, cfg)) = scenario.and_then(|s| Some((s, s.machine.configs.first()?))) {
-        crate::scenario::inject::check_ranges(s, cfg).map_err(crate::cli::exit::scenario_file)?;
-    }
-    Ok(())
 }
 
 /// The live bus (the interface or socketcand server behind the scenario's fault injector),
 /// the socketcand server's address, and the bus's name for people.
-fn open_bus(
-    args: &RunArgs,
+pub(super) fn open_bus(
+    bus: LiveBusSpec,
     scenario: Option<&Scenario>,
-) -> Result<(LiveBus, Option<std::net::SocketAddr>, String)> {
-    let transport = open_transport(args)?;
+) -> Result<(LiveBus, Option<std::net::SocketAddr>, String), ApiError> {
+    let name = bus.label();
+    let transport = open_transport(bus).map_err(ApiError::Failed)?;
     let socketcand = transport.socketcand().map(SocketcandBus::local_addr);
     let label = match socketcand {
         Some(a) => format!("socketcand {a}"),
-        None => args.iface.clone(),
+        None => name,
     };
     let seed = scenario.map_or(1, |s| s.run.seed);
     Ok((FaultyBus::new(transport, seed), socketcand, label))
 }
 
 /// The loop thread's scheduling: SCHED_FIFO priority, CPU, locked memory.
-pub(super) fn realtime_request(args: &RunArgs) -> RealtimeRequest {
+pub fn realtime_request(req: &LiveRequest) -> RealtimeRequest {
     RealtimeRequest {
-        fifo_priority: (args.rt_priority > 0).then_some(args.rt_priority),
-        cpu: args.cpu,
-        lock_memory: !args.no_mlock,
+        fifo_priority: (req.rt_priority > 0).then_some(req.rt_priority),
+        cpu: req.cpu,
+        lock_memory: req.lock_memory,
     }
 }
 
 /// `--lockstep`: simulated time per SYNC; with a scenario, a SYNC missing for a second hands
 /// the clock to the wall (a live scenario must end).
-fn lockstep_of(args: &RunArgs, scenario: Option<&Scenario>) -> Option<Lockstep> {
-    args.lockstep.then_some(Lockstep {
-        sync_period_us: args.sync_period_us,
-        free_run_after_us: scenario.map(|_| {
-            args.sync_period_us
+pub(super) fn lockstep_of(req: &LiveRequest) -> Option<Lockstep> {
+    req.lockstep.then_some(Lockstep {
+        sync_period_us: req.sync_period_us,
+        free_run_after_us: req.scenario.as_ref().map(|_| {
+            req.sync_period_us
                 .map_or(1_000_000, |p| (10 * p).max(1_000_000))
         }),
     })
 }
 
 /// The scenario thread's outcome, once it ended.
-pub(super) fn join_scenario(
-    t: Option<std::thread::JoinHandle<LiveOutcome>>,
-) -> Result<Option<LiveOutcome>> {
+pub fn join_scenario(
+    t: Option<std::thread::JoinHandle<ScenarioOutcome>>,
+) -> Result<Option<ScenarioOutcome>> {
     t.map(|t| {
         t.join()
             .map_err(|_| anyhow::anyhow!("the scenario thread panicked"))
@@ -202,12 +110,12 @@ pub(super) fn join_scenario(
 }
 
 /// What the loop did, said on stderr, and the run's result.
-fn live_summary(
+pub(super) fn live_summary(
     rt: &Runtime<LiveBus, AxisDrive>,
     lockstep: bool,
-    detector: Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>,
-    scenario: Option<LiveOutcome>,
-) -> LiveRun {
+    readers: ReadersEnd,
+    scenario: Option<ScenarioOutcome>,
+) -> LiveOutcome {
     let summary = rt.stats.summary();
     eprintln!("drive-emu: stopped. {}", summary.text(lockstep));
     if let Some(server) = rt.bus.inner().socketcand() {
@@ -224,9 +132,11 @@ fn live_summary(
             rt.lockstep_free_ticks
         );
     }
-    LiveRun {
+    LiveOutcome {
         stats: summary,
-        detector,
+        trace: readers.trace,
+        detector: readers.detector,
+        detector_lost: readers.detector_lost,
         lockstep_period_us,
         free_run_ticks: rt.lockstep_free_ticks,
         scenario,
@@ -235,29 +145,29 @@ fn live_summary(
 
 /// The readers of the observation bus a live run starts before its loop (`--trace`,
 /// `--detect`), the same on CAN and on EtherCAT, and the detector's way back to the loop.
-pub(super) struct Readers {
+pub struct Readers {
     recorder: Option<Recorder>,
-    pub(super) detect: Option<Arc<DetectResults>>,
+    pub detect: Option<Arc<DetectResults>>,
     detector: Option<Detector>,
     node_ids: Vec<u8>,
 }
 
 /// Start the readers the options ask for, one axis per (node ID, drive) of `axes`: the trace
 /// files are created here, before the loop starts (a bad path loses nothing).
-pub(super) fn start_readers<'a>(
-    args: &RunArgs,
+pub fn start_readers<'a>(
+    req: &LiveRequest,
     obs: &Arc<Observation>,
     axes: impl Iterator<Item = (u8, &'a AxisDrive)>,
     gap: Vec<Option<crate::analysis::gap::GapModel>>,
 ) -> Result<Readers> {
     let (node_ids, drives): (Vec<u8>, Vec<&AxisDrive>) = axes.unzip();
-    let recorder = start_trace(args, obs, &node_ids)?;
-    let detect = args
+    let recorder = start_trace(req, obs, &node_ids)?;
+    let detect = req
         .detect
         .then(|| Arc::new(DetectResults::new(node_ids.len())));
     let detector = match &detect {
         Some(results) => Some(start_detector(
-            args,
+            req,
             (obs, results),
             drives.into_iter(),
             gap,
@@ -272,33 +182,48 @@ pub(super) fn start_readers<'a>(
     })
 }
 
+/// What the readers found once they ended.
+pub struct ReadersEnd {
+    /// `--trace`: the files, samples written, ticks lost.
+    pub trace: Option<TraceSummary>,
+    /// `--detect`: per axis, its node ID and the last analysis.
+    pub detector: Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>,
+    /// `--detect`: ticks the detector lost.
+    pub detector_lost: u64,
+}
+
 impl Readers {
     /// After the loop has stopped: the trace flushed and closed, the detector's last analysis
     /// (per axis, its node ID and report), each said on stderr.
-    pub(super) fn finish(
-        self,
-    ) -> Result<Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>> {
-        if let Some(rec) = self.recorder {
-            finish_trace(rec)?;
-        }
-        match self.detector {
-            Some(d) => finish_detector(d, &self.node_ids),
-            None => Ok(Vec::new()),
-        }
+    pub fn finish(self) -> Result<ReadersEnd> {
+        let trace = match self.recorder {
+            Some(rec) => Some(finish_trace(rec)?),
+            None => None,
+        };
+        let (detector, detector_lost) = match self.detector {
+            Some(d) => finish_detector(d, &self.node_ids)?,
+            None => (Vec::new(), 0),
+        };
+        Ok(ReadersEnd {
+            trace,
+            detector,
+            detector_lost,
+        })
     }
 }
 
-/// Set on Ctrl-C / SIGTERM, and (without a scenario) after `--duration` of wall time; with a
-/// scenario, `--duration` is the scenario's end and its thread sets the flag.
-pub(super) fn stop_flag(args: &RunArgs, scenario: Option<&Scenario>) -> Result<Arc<AtomicBool>> {
+/// Set on Ctrl-C / SIGTERM (with `stop_on_signal`), and (without a scenario) after
+/// `--duration` of wall time; with a scenario, `--duration` is the scenario's end and its
+/// thread sets the flag.
+pub fn stop_flag(req: &LiveRequest) -> Result<Arc<AtomicBool>> {
     let stop = Arc::new(AtomicBool::new(false));
-    {
+    if req.stop_on_signal {
         let stop = Arc::clone(&stop);
         ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed))
             .context("cannot install the Ctrl-C / SIGTERM handler")?;
     }
     // Without a scenario, --duration is wall time; with one, the scenario's end.
-    if let (Some(d), None) = (args.duration, scenario) {
+    if let (Some(d), None) = (req.duration_s, &req.scenario) {
         let stop = Arc::clone(&stop);
         std::thread::spawn(move || {
             std::thread::sleep(std::time::Duration::from_secs_f64(d));
@@ -309,12 +234,11 @@ pub(super) fn stop_flag(args: &RunArgs, scenario: Option<&Scenario>) -> Result<A
 }
 
 /// What runs where, on stderr: axes, interface, rate, lock-step, scenario; the user unit.
-fn announce(
-    args: &RunArgs,
+pub(super) fn announce(
+    req: &LiveRequest,
     label: &str,
     machine: &MachineFile,
     lockstep: Option<&Lockstep>,
-    scenario: Option<&Scenario>,
 ) {
     eprintln!(
         "drive-emu: {} {} on {} at {} Hz{}: {}{}",
@@ -326,7 +250,7 @@ fn announce(
         },
         label,
         machine.tick_hz,
-        match (lockstep, args.sync_period_us) {
+        match (lockstep, req.sync_period_us) {
             (None, _) => String::new(),
             (Some(_), Some(p)) => format!(" (lock-step: {p} us per SYNC)"),
             (Some(_), None) => {
@@ -339,7 +263,9 @@ fn announce(
             .map(|a| format!("node {} = {}", a.node_id, a.preset))
             .collect::<Vec<_>>()
             .join(", "),
-        scenario.map_or(String::new(), |s| format!("; scenario {}", s.name)),
+        req.scenario
+            .as_ref()
+            .map_or(String::new(), |s| format!("; scenario {}", s.name)),
     );
     eprintln!(
         "drive-emu: positions in user units (uu): {}",
@@ -363,15 +289,17 @@ fn announce(
 
 /// Start the scenario thread: it follows the loop's time through `link`, and sets `stop` when
 /// the scenario ends.
-pub(super) fn spawn_scenario(
-    args: &RunArgs,
+pub fn spawn_scenario(
+    req: &LiveRequest,
     s: &Scenario,
     (link, obs): (&Arc<LiveLink>, &Arc<Observation>),
     stop: &Arc<AtomicBool>,
-) -> Result<std::thread::JoinHandle<LiveOutcome>> {
-    let end = LiveEnd::for_scenario(s, args.duration.map(|d| (d * 1e6) as u64));
+) -> Result<std::thread::JoinHandle<ScenarioOutcome>, ApiError> {
+    let end = LiveEnd::for_scenario(s, req.duration_s.map(|d| (d * 1e6) as u64));
     eprintln!("drive-emu: scenario {} ends {}", s.name, end.describe(s));
-    let (s, snapshot) = (s.clone(), AxisDrive::from_config(&s.machine.configs[0])?);
+    let snapshot = AxisDrive::from_config(&s.machine.configs[0])
+        .map_err(|e| ApiError::Invalid(anyhow::anyhow!("{e}")))?;
+    let s = s.clone();
     let (link, obs, stop) = (Arc::clone(link), Arc::clone(obs), Arc::clone(stop));
     Ok(std::thread::spawn(move || {
         let cfg = s.machine.configs[0].clone();
@@ -382,50 +310,55 @@ pub(super) fn spawn_scenario(
 }
 
 /// What the loop thread owns.
-struct LoopParts {
-    rt: Runtime<LiveBus, AxisDrive>,
-    request: RealtimeRequest,
-    lockstep: Option<Lockstep>,
-    stop: Arc<AtomicBool>,
+pub(super) struct LoopParts {
+    pub(super) rt: Runtime<LiveBus, AxisDrive>,
+    pub(super) request: RealtimeRequest,
+    pub(super) lockstep: Option<Lockstep>,
+    pub(super) stop: Arc<AtomicBool>,
+    /// Set once every node has sent its boot-up.
+    pub(super) booted: Arc<AtomicBool>,
     /// The observation bus's writer: every tick published, the node events drained.
-    observer: Observer,
-    injections: LoopInjections,
+    pub(super) observer: Observer,
+    pub(super) injections: LoopInjections,
 }
 
-/// Everything the loop applies to the drives after a tick: the panel's and a live scenario's
-/// injections, the detector's results (`--detect`), the LSS store service.
-struct LoopInjections {
-    status: Arc<Status>,
-    link: Arc<LiveLink>,
-    injector: Option<LoopInjector>,
-    panel: Option<crate::panel::PanelLoop>,
-    detect: Option<Arc<DetectResults>>,
+/// Everything the loop applies to the drives after a tick: a live scenario's injections
+/// (unless the caller's hook took them: the panel), the caller's hook (the panel, the LSS
+/// store service), the detector's results (`--detect`).
+pub(super) struct LoopInjections {
+    pub(super) link: Arc<LiveLink>,
+    pub(super) injector: Option<LoopInjector>,
+    pub(super) hook: Option<Box<dyn TickHook>>,
+    pub(super) detect: Option<Arc<DetectResults>>,
 }
 
 impl LoopInjections {
     /// After every tick, once it is published: no allocation, lock or I/O.
     fn apply(&mut self, rt: &mut Runtime<LiveBus, AxisDrive>) {
-        if let Some(p) = self.panel.as_mut() {
-            p.on_tick(rt);
-        } else if let Some(inj) = self.injector.as_mut() {
+        if let Some(inj) = self.injector.as_mut() {
             inj.on_tick(&self.link, rt);
+        }
+        if let Some(h) = self.hook.as_mut() {
+            h.on_tick(rt);
         }
         if let Some(d) = &self.detect {
             d.apply(rt);
         }
-        self.status.lss_exchange(rt);
     }
 }
 
 /// Start the loop thread: real-time setup, boot (the delay on the wall clock), then the loop
 /// (lock-step or real-time) whose hook, after every tick until `stop`, is publish (the
 /// observation bus) plus apply the injections. It hands the runtime back for the summary.
-fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBus, AxisDrive>>> {
+pub(super) fn spawn_loop(
+    parts: LoopParts,
+) -> Result<std::thread::JoinHandle<Runtime<LiveBus, AxisDrive>>> {
     let LoopParts {
         mut rt,
         request,
         lockstep,
         stop,
+        booted,
         mut observer,
         mut injections,
     } = parts;
@@ -445,7 +378,7 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
                 std::thread::sleep(std::time::Duration::from_micros(d));
                 rt.finish_boots();
             }
-            injections.status.booted.store(true, Ordering::Release);
+            booted.store(true, Ordering::Release);
             let hook = |rt: &mut Runtime<LiveBus, AxisDrive>| {
                 observer.publish(rt);
                 observer.set_link_up(rt.bus.inner().link_up());
@@ -461,10 +394,14 @@ fn spawn_loop(parts: LoopParts) -> Result<std::thread::JoinHandle<Runtime<LiveBu
 
 /// The detector's last analysis per axis (`--detect`), said on stderr: verdict, frequency,
 /// amplitude, the k_v judged against.
+#[allow(clippy::type_complexity)]
 fn finish_detector(
     d: Detector,
     node_ids: &[u8],
-) -> Result<Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>> {
+) -> Result<(
+    Vec<(u8, Option<crate::analysis::detector::DetectorReport>)>,
+    u64,
+)> {
     let (reports, lost) = d.finish().context("the detector")?;
     for (n, rep) in node_ids.iter().zip(&reports) {
         match rep {
@@ -494,7 +431,7 @@ fn finish_detector(
              observation ring behind)"
         );
     }
-    Ok(node_ids.iter().copied().zip(reports).collect())
+    Ok((node_ids.iter().copied().zip(reports).collect(), lost))
 }
 
 /// Per axis, the mechanics of the gap estimate (`--detect`): the scenario's machine, or each
@@ -502,7 +439,7 @@ fn finish_detector(
 /// The detector thread of `--detect`, a reader of the bus `obs` whose results go to the loop
 /// through `results`, with each drive's facts: the same for the drives on CAN and on EtherCAT.
 fn start_detector<'a>(
-    args: &RunArgs,
+    req: &LiveRequest,
     (obs, results): (&Arc<Observation>, &Arc<DetectResults>),
     drives: impl Iterator<Item = &'a AxisDrive>,
     gap: Vec<Option<crate::analysis::gap::GapModel>>,
@@ -516,7 +453,7 @@ fn start_detector<'a>(
         })
         .collect();
     let opts = DetectOptions {
-        history_s: args.detect_history,
+        history_s: req.detect_history_s,
         ..DetectOptions::default()
     };
     Ok(Detector::start(
@@ -527,7 +464,7 @@ fn start_detector<'a>(
     )?)
 }
 
-pub(super) fn gap_models(
+pub fn gap_models(
     machine: &MachineFile,
     scenario: Option<&Scenario>,
 ) -> Vec<Option<crate::analysis::gap::GapModel>> {
@@ -549,11 +486,11 @@ pub(super) fn gap_models(
 /// same for the drives on CAN and on EtherCAT. The files are created here, before the loop
 /// starts: a bad path loses nothing.
 fn start_trace(
-    args: &RunArgs,
+    req: &LiveRequest,
     obs: &Arc<Observation>,
     node_ids: &[u8],
 ) -> Result<Option<Recorder>> {
-    let Some(path) = &args.trace else {
+    let Some(path) = &req.trace else {
         return Ok(None);
     };
     Ok(Some(Recorder::start(
@@ -563,7 +500,7 @@ fn start_trace(
 }
 
 /// Read the rest and close the trace files, and say what they hold.
-fn finish_trace(rec: Recorder) -> Result<()> {
+fn finish_trace(rec: Recorder) -> Result<TraceSummary> {
     let t = rec.finish().context("writing the trace")?;
     eprintln!(
         "drive-emu: trace: {} samples in {}{}",
@@ -583,5 +520,17 @@ fn finish_trace(rec: Recorder) -> Result<()> {
             String::new()
         }
     );
-    Ok(())
+    Ok(t)
+}
+
+/// An inconclusive detector result for people: its first reason, which
+/// [`DetectorReport::mark_inconclusive`](crate::analysis::detector::DetectorReport::mark_inconclusive)
+/// words as the verdict, its kind and why (no amplitude or frequency: nothing was measured).
+pub fn inconclusive_text(d: &crate::analysis::detector::DetectorReport) -> String {
+    d.reasons.first().cloned().unwrap_or_else(|| {
+        format!(
+            "inconclusive ({})",
+            d.inconclusive.map_or("", |i| i.as_str())
+        )
+    })
 }
