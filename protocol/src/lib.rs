@@ -45,4 +45,5 @@ pub use node::{
     Clocks, ConfigError, FrameEvent, LssConfig, LssStore, Node, NodeConfig, DEFAULT_LSS_BIT_TIMING,
     TX_QUEUE,
 };
+pub use node::{CoreOutput, DriveCore};
 pub use quirks::Quirks;

@@ -29,7 +29,32 @@ impl Node {
     /// TPDO timer does not expire); the boot-up after a reset and the end of an EMCY inhibit
     /// time are clamped to `u64::MAX`. Nothing overflows, in an overflow-checked build too.
     pub fn poll_at(&self) -> Option<u64> {
-        let c = &self.core;
+        earliest(self.can.sdo.deadline_us(), self.core.poll_at())
+    }
+
+    /// The communication deadlines of [`Node::poll_at`] alone (on the communication clock):
+    /// when [`Node::poll_comm`] has something to do. Right after `poll_comm(comm)` or
+    /// `poll_with(clocks)` it is `None` or later than the communication time (the contract
+    /// of [`Node::poll_at`]).
+    pub fn poll_at_comm(&self) -> Option<u64> {
+        earliest(self.can.sdo.deadline_us(), self.core.poll_at_comm())
+    }
+}
+
+/// The earlier of two deadlines.
+fn earliest(a: Option<u64>, b: Option<u64>) -> Option<u64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, None) => a,
+        (None, b) => b,
+    }
+}
+
+impl DriveCore {
+    /// [`Node::poll_at`] for the drive core alone (no SDO server): when
+    /// [`DriveCore::poll`] has something to do.
+    pub fn poll_at(&self) -> Option<u64> {
+        let c = self;
         let mut at = self.poll_at_comm();
         let mut take = |t: Option<u64>| {
             if let Some(t) = t {
@@ -47,16 +72,13 @@ impl Node {
         at
     }
 
-    /// The communication deadlines of [`Node::poll_at`] alone (on the communication clock):
-    /// when [`Node::poll_comm`] has something to do. Right after `poll_comm(comm)` or
-    /// `poll_with(clocks)` it is `None` or later than the communication time (the contract
-    /// of [`Node::poll_at`]).
+    /// [`Node::poll_at_comm`] for the drive core alone (no SDO server).
     pub fn poll_at_comm(&self) -> Option<u64> {
-        let c = &self.core;
-        let mut at = self.sdo.deadline_us();
+        let c = self;
+        let mut at = None;
         let mut take = |t: Option<u64>| {
             if let Some(t) = t {
-                at = Some(at.map_or(t, |a| a.min(t)));
+                at = Some(at.map_or(t, |a: u64| a.min(t)));
             }
         };
         if c.nmt == NmtState::Initialising {

@@ -3,12 +3,12 @@
 //!
 //! Each service module registers its objects (an index range and one function) when the
 //! node is built ([`WriteHooks::standard`]); an SDO download and an RPDO value go through the
-//! same [`Core::write_stored`](super::Core::write_stored): the dictionary's type and limits
+//! same [`DriveCore::write_stored`](super::DriveCore::write_stored): the dictionary's type and limits
 //! first, then the hook of the object's range, if any. A hook refuses (a CiA 301 abort
 //! code), lets the value be stored, or applies it itself. The table is a fixed-size array:
 //! filling it does not allocate, and a lookup is a scan of a dozen ranges.
 
-use super::Core;
+use super::DriveCore;
 
 /// Ranges a node's table holds at most (a registration beyond it is a bug in this crate,
 /// caught by every test that builds a node).
@@ -49,7 +49,7 @@ pub(crate) enum Verdict {
 }
 
 /// A service's check-and-apply function for the objects it registered.
-pub(crate) type Hook = fn(&mut Core, &ObjectWrite) -> Result<Verdict, u32>;
+pub(crate) type Hook = fn(&mut DriveCore, &ObjectWrite) -> Result<Verdict, u32>;
 
 #[derive(Clone, Copy)]
 struct Range {
@@ -152,7 +152,7 @@ mod tests {
     #[test]
     #[should_panic(expected = "overlaps")]
     fn an_overlapping_registration_is_a_bug() {
-        fn keep(_: &mut Core, _: &ObjectWrite) -> Result<Verdict, u32> {
+        fn keep(_: &mut DriveCore, _: &ObjectWrite) -> Result<Verdict, u32> {
             Ok(Verdict::Store)
         }
         let mut t = WriteHooks::new();
