@@ -11,7 +11,7 @@
 
 pub(crate) mod access;
 mod cycle;
-mod deadlines;
+pub(crate) mod deadlines;
 mod drive_core;
 mod frames;
 pub(crate) mod writes;
@@ -474,6 +474,8 @@ impl DriveCore {
         let qs = QuirkState::new(&quirks, &od);
         let fe_window_zero_off = od.device.following_error_window_zero_off;
         let si_rows = si_unit_rows(&od);
+        let mut hooks = WriteHooks::standard();
+        hooks.index_rows(&od);
         let mut core = DriveCore {
             node_id,
             info,
@@ -501,7 +503,7 @@ impl DriveCore {
             quirks,
             qs,
             cw_latch: ControlwordLatch::default(),
-            hooks: WriteHooks::standard(),
+            hooks,
             boot_due_us: None,
             boot_keeps_app: false,
             events: Deque::new(),

@@ -165,7 +165,7 @@ impl DriveCore {
     /// checks it and applies its side effects; the value is stored unless the hook applied
     /// it itself. A refused write changes nothing.
     pub(crate) fn write_stored(&mut self, w: &ObjectWrite) -> Result<(), u32> {
-        if let Some(hook) = self.hooks.find(w.index) {
+        if let Some(hook) = self.hooks.for_row(w.row, w.index) {
             if hook(self, w)? == Verdict::Applied {
                 return Ok(());
             }
