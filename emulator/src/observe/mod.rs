@@ -313,7 +313,7 @@ impl Observer {
         b.rx_overflows.store(st.rx_overflows, Ordering::Relaxed);
         b.lockstep_period_us
             .store(rt.lockstep_period_us, Ordering::Relaxed);
-        self.publish_axes(now, rt.axes.iter_mut().map(|a| (a.node.core_mut(), &a.drive)));
+        self.publish_axes(now, rt.axes.iter_mut().map(|a| (&mut *a.node, &a.drive)));
     }
 
     /// The bus's link as the loop sees it now (a CAN interface that went down).
