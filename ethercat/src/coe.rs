@@ -3,12 +3,12 @@
 //! and download: expedited, normal and segmented; complete access, bit 4 of the command,
 //! sub-index 0 carried as 16 bits), SDO information (object list, object description, entry
 //! description, fragmented to the mailbox size) and the emergency message. Every object
-//! access goes through the drive core's own rules ([`Node::read_object`] /
-//! [`Node::write_object`]): the same dictionary and the same abort codes as on CAN.
+//! access goes through the drive core's own rules ([`DriveCore::read_object`] /
+//! [`DriveCore::write_object`]): the same dictionary and the same abort codes as on CAN.
 
 use drive_protocol::od::{Access, Backing, ObjType};
 use drive_protocol::wire::sdo::abort;
-use drive_protocol::{Drive, Node};
+use drive_protocol::{Drive, DriveCore};
 
 use crate::al::AlState;
 use crate::mailbox::{Mailbox, Message, HEADER, SIZE, TYPE_COE};
@@ -160,7 +160,7 @@ impl Coe {
     pub fn handle(
         &mut self,
         body: &[u8],
-        node: &mut Node,
+        node: &mut DriveCore,
         drive: &mut impl Drive,
         state: AlState,
         mbx: &mut Mailbox,
@@ -181,7 +181,7 @@ impl Coe {
     fn sdo(
         &mut self,
         req: &[u8],
-        node: &mut Node,
+        node: &mut DriveCore,
         drive: &mut impl Drive,
         state: AlState,
         mbx: &mut Mailbox,
@@ -277,7 +277,7 @@ impl Coe {
         sub: u8,
         complete: bool,
         size: usize,
-        node: &mut Node,
+        node: &mut DriveCore,
         drive: &mut impl Drive,
     ) -> Result<(), u32> {
         let data = core::mem::take(&mut self.buf);
@@ -297,7 +297,7 @@ impl Coe {
         index: u16,
         sub: u8,
         data: &[u8],
-        node: &mut Node,
+        node: &mut DriveCore,
         drive: &mut impl Drive,
     ) -> Result<(), u32> {
         // snapshot: sub 0 and every readable sub-index, each at its place in `undo`
@@ -337,7 +337,7 @@ impl Coe {
         index: u16,
         sub: u8,
         data: &[u8],
-        node: &mut Node,
+        node: &mut DriveCore,
         drive: &mut impl Drive,
     ) -> Result<(), u32> {
         if sub > 1 {
@@ -392,7 +392,7 @@ impl Coe {
         index: u16,
         sub: u8,
         complete: bool,
-        node: &mut Node,
+        node: &mut DriveCore,
         drive: &mut impl Drive,
     ) -> Result<usize, u32> {
         if !complete {
@@ -435,7 +435,7 @@ impl Coe {
         index: u16,
         sub: u8,
         complete: bool,
-        node: &mut Node,
+        node: &mut DriveCore,
         drive: &mut impl Drive,
         mbx: &mut Mailbox,
     ) {
@@ -468,7 +468,13 @@ impl Coe {
         }
     }
 
-    fn segment(&mut self, req: &[u8], node: &mut Node, drive: &mut impl Drive, mbx: &mut Mailbox) {
+    fn segment(
+        &mut self,
+        req: &[u8],
+        node: &mut DriveCore,
+        drive: &mut impl Drive,
+        mbx: &mut Mailbox,
+    ) {
         let cmd = req[0];
         let toggle = cmd & 0x10 != 0;
         match (cmd >> 5, self.transfer) {
@@ -582,7 +588,7 @@ impl Coe {
 
     /// The indices of list `t` (1 all, 2 RxPDO-mappable, 3 TxPDO-mappable, 4 backup, 5
     /// settings), in order, through `f(position, index)`; returns the count.
-    fn list_indices(node: &Node, t: u16, mut f: impl FnMut(usize, u16)) -> usize {
+    fn list_indices(node: &DriveCore, t: u16, mut f: impl FnMut(usize, u16)) -> usize {
         let od = node.od();
         let mut n = 0;
         let mut last = None;
@@ -609,7 +615,7 @@ impl Coe {
         n
     }
 
-    fn info(&mut self, req: &[u8], node: &mut Node, mbx: &mut Mailbox) {
+    fn info(&mut self, req: &[u8], node: &mut DriveCore, mbx: &mut Mailbox) {
         if req.len() < 4 {
             return Self::info_error(mbx, abort::COMMAND);
         }
@@ -705,7 +711,7 @@ impl Coe {
     }
 
     /// Send the next fragment of an object list in progress when the queue has room.
-    pub fn pump(&mut self, node: &Node, mbx: &mut Mailbox) {
+    pub fn pump(&mut self, node: &DriveCore, mbx: &mut Mailbox) {
         while let Some(mut l) = self.list {
             if mbx.out.is_full() {
                 return;

@@ -4,7 +4,7 @@
 //! transition against the sync managers the master configured. The images sit in the ESC
 //! RAM where the FMMUs map them into the master's logical process image.
 
-use drive_protocol::Node;
+use drive_protocol::DriveCore;
 
 use crate::al::code;
 use crate::esc::Esc;
@@ -17,7 +17,7 @@ pub const SM_OUTPUTS: usize = 2;
 pub const SM_INPUTS: usize = 3;
 /// Bytes of process data one direction may carry: the ESC RAM between the outputs' buffer
 /// (SM2, 0x1100) and the inputs' (SM3, 0x1180). One PDO may be as long (the drive core's
-/// mapping limit on this front end, [`Node::set_pdo_max_len`]); the PDOs of an assignment
+/// mapping limit on this front end, [`DriveCore::set_pdo_max_len`]); the PDOs of an assignment
 /// together too (a longer assignment is refused at SAFE-OP, AL status 0x001D / 0x001E).
 pub const MAX_IMAGE: usize = 128;
 
@@ -43,7 +43,7 @@ pub struct Layout {
 
 /// Resolve the assignment object `assign` (0x1C12 / 0x1C13): each listed mapping must
 /// exist and compile. Err: the CiA 301 abort code of the first bad one.
-pub fn resolve(node: &Node, assign: u16) -> Result<Layout, u32> {
+pub fn resolve(node: &DriveCore, assign: u16) -> Result<Layout, u32> {
     let count = node.object_raw(assign, 0).unwrap_or(0) as usize;
     let mut l = Layout::default();
     for s in 1..=count.min(MAX_ASSIGNED) {
@@ -73,7 +73,7 @@ pub struct ProcessData {
 impl ProcessData {
     /// The PRE-OP -> SAFE-OP check: the assignment resolves and the process-data sync
     /// managers match it (enabled, right direction and mode, the image's length).
-    pub fn configure(node: &Node, esc: &Esc) -> Result<ProcessData, u16> {
+    pub fn configure(node: &DriveCore, esc: &Esc) -> Result<ProcessData, u16> {
         let outputs = resolve(node, 0x1C12)
             .ok()
             .filter(|l| l.len <= MAX_IMAGE)
@@ -103,7 +103,7 @@ impl ProcessData {
 
     /// Apply the outputs in SM2 to the drive core (each RxPDO with the RPDO rules).
     /// Returns false if a value was refused.
-    pub fn apply_outputs(&self, node: &mut Node, esc: &Esc) -> bool {
+    pub fn apply_outputs(&self, node: &mut DriveCore, esc: &Esc) -> bool {
         let start = esc.sm(SM_OUTPUTS).start;
         let mut ok = true;
         for p in &self.outputs.pdos {
@@ -116,7 +116,7 @@ impl ProcessData {
     }
 
     /// Write the inputs (each TxPDO's image) into SM3.
-    pub fn write_inputs(&self, node: &Node, esc: &mut Esc) {
+    pub fn write_inputs(&self, node: &DriveCore, esc: &mut Esc) {
         let start = esc.sm(SM_INPUTS).start;
         for p in &self.inputs.pdos {
             let mut buf = [0u8; MAX_IMAGE];

@@ -1,10 +1,10 @@
-//! One EtherCAT slave: the ESC ([`crate::esc`]) in front of one drive-core [`Node`] (built
+//! One EtherCAT slave: the ESC ([`crate::esc`]) in front of one [`DriveCore`] (built
 //! as the emulator builds it, plus the CoE communication objects 0x1C00, 0x1C12, 0x1C13,
 //! 0x1C32, 0x1C33). Frames reach it datagram by datagram ([`Slave::execute`]); the drive
 //! runs one cycle per [`Slave::cycle`], with the [`Drive`] passed in as the node takes it.
 
 use drive_protocol::od::{Access, DataType, DefaultValue, Entry, ObjType, ObjectDictionary};
-use drive_protocol::{Clocks, ConfigError, Drive, Node, NodeConfig};
+use drive_protocol::{Clocks, ConfigError, CoreOutput, Drive, DriveCore, NodeConfig};
 
 use crate::al::{code, Al, AlState, Checks};
 use crate::coe::{self, Coe};
@@ -469,7 +469,7 @@ fn assign_esi(od: &mut ObjectDictionary, c: &SiiConfig) -> Result<(), crate::esi
 /// One slave.
 #[derive(Clone, Debug)]
 pub struct Slave {
-    node: Node,
+    node: DriveCore,
     esc: Esc,
     sii: Vec<u16>,
     al: Al,
@@ -501,7 +501,7 @@ pub struct Slave {
 }
 
 struct Transition<'a> {
-    node: &'a Node,
+    node: &'a DriveCore,
     esc: &'a mut Esc,
     pd: &'a mut Option<ProcessData>,
     mbx: &'a mut Mailbox,
@@ -608,11 +608,11 @@ impl Slave {
         if let Some(e) = &esi {
             assign_esi(&mut cfg.od, e).map_err(SlaveError::Esi)?;
         }
-        let mut node = Node::new(cfg).map_err(SlaveError::Node)?;
+        let mut node = DriveCore::new(cfg).map_err(SlaveError::Node)?;
         // a PDO is not one CAN frame here: a mapping may fill a sync manager's buffer
         node.set_pdo_max_len(pdo::MAX_IMAGE);
         node.boot(0);
-        while node.pop_tx().is_some() {}
+        while node.take_output().is_some() {}
         // EtherCAT has no COB-IDs: every PDO is "not valid" on CAN, which is also what lets a
         // master change a mapping in PRE-OP (CiA 301's dynamic mapping procedure)
         let mut maps = Vec::new();
@@ -752,11 +752,11 @@ impl Slave {
     }
 
     /// The drive core.
-    pub fn node(&self) -> &Node {
+    pub fn node(&self) -> &DriveCore {
         &self.node
     }
     /// The drive core, mutable (the application's own objects, faults).
-    pub fn node_mut(&mut self) -> &mut Node {
+    pub fn node_mut(&mut self) -> &mut DriveCore {
         &mut self.node
     }
     /// A frame with a bad frame check sequence came in (see [`Esc::count_rx_error`]).
@@ -1024,7 +1024,7 @@ impl Slave {
 
     /// One drive cycle at `clocks` (the communication clock in us is the frames' clock):
     /// in OP the outputs go to the drive core (each RxPDO with the RPDO rules), the drive
-    /// runs its cycle ([`Node::cycle`]), in SAFE-OP and OP the inputs are written; the
+    /// runs its cycle ([`DriveCore::cycle`]), in SAFE-OP and OP the inputs are written; the
     /// drive's EMCYs become CoE emergencies; the SM watchdog takes an OP slave whose outputs
     /// stopped down to SAFE-OP with AL status code 0x001B, and the drive reacts as 0x6007
     /// says (EMCY 0x8250 held until OP again; 1: fault, 2: disable voltage, 3: quick stop).
@@ -1050,11 +1050,12 @@ impl Slave {
         if let (AlState::SafeOp | AlState::Op, Some(pd)) = (self.al.state, &self.pd) {
             pd.write_inputs(&self.node, &mut self.esc);
         }
-        let emcy_cob = self.node.object_raw(0x1014, 0).unwrap_or(0) & 0x7FF;
         let mailbox_up = !matches!(self.al.state, AlState::Init | AlState::Boot);
-        while let Some(f) = self.node.pop_tx() {
-            if mailbox_up && f.id == emcy_cob && !f.rtr {
-                coe::emergency(&mut self.mbx, f.payload());
+        // the core's EMCYs become CoE emergencies; its heartbeats and CAN-only frames have no
+        // place on EtherCAT
+        while let Some(o) = self.node.take_output() {
+            if let (true, CoreOutput::Emcy(d)) = (mailbox_up, o) {
+                coe::emergency(&mut self.mbx, &d);
             }
         }
         self.mailbox_out();

@@ -41,8 +41,10 @@ pub use drive::{Drive, DriveCommand, DriveInfo, Feedback, Setpoint};
 pub use event::{NodeEvent, SdoDirection, SdoTransfer, EVENT_QUEUE};
 pub use frame::CanFrame;
 pub use node::access::EMCY_RPDO_TIMEOUT;
+pub use node::deadlines::{Timer, Timers};
 pub use node::{
     Clocks, ConfigError, FrameEvent, LssConfig, LssStore, Node, NodeConfig, DEFAULT_LSS_BIT_TIMING,
     TX_QUEUE,
 };
+pub use node::{CoreOutput, DriveCore};
 pub use quirks::Quirks;

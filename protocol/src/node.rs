@@ -11,7 +11,7 @@
 
 pub(crate) mod access;
 mod cycle;
-mod deadlines;
+pub(crate) mod deadlines;
 mod drive_core;
 mod frames;
 pub(crate) mod writes;
@@ -277,10 +277,47 @@ fn push(tx: &mut Deque<CanFrame, TX_QUEUE>, overflows: &mut u32, f: CanFrame) {
     }
 }
 
-/// Everything but the SDO server (so the server can borrow it as its object access). The
-/// fields the services' write hooks ([`writes`]) work on are visible to the crate.
+/// Queue an output of the drive core; a full queue drops it and counts.
+fn emit(out: &mut Deque<CoreOutput, TX_QUEUE>, dropped: &mut u32, o: CoreOutput) {
+    if out.push_back(o).is_err() {
+        *dropped = dropped.wrapping_add(1);
+    }
+}
+
+/// What the drive core has to send, in order, for its front end to put on its bus
+/// ([`DriveCore::take_output`]; the CAN front end drains it after every call into its transmit
+/// queue). Nothing here knows a COB-ID but [`CoreOutput::CanOnly`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CoreOutput {
+    /// The boot-up message is due (the core entered pre-operational after a reset).
+    Bootup,
+    /// The heartbeat producer (0x1017) is due; `state` is the NMT state it reports.
+    Heartbeat {
+        /// NMT state byte (0x04 stopped, 0x05 operational, 0x7F pre-operational).
+        state: u8,
+    },
+    /// An emergency the EMCY bookkeeping (0x1001, 0x1003, the inhibit time 0x1015) lets go:
+    /// error code (LE), error register, five manufacturer bytes. CAN sends it on 0x1014's
+    /// COB-ID, EtherCAT as a CoE emergency.
+    Emcy([u8; 8]),
+    /// A frame only a CAN front end sends, built by the PDO engine (a TPDO, on its 0x18xx
+    /// COB-ID) or a vendor switch (a delayed SDO answer, an extra heartbeat); another front
+    /// end drops it.
+    CanOnly(CanFrame),
+}
+
+/// The fieldbus-independent drive core: the object dictionary and its values, the SDO
+/// server's semantics by index ([`DriveCore::read_object`] / [`DriveCore::write_object`]: the
+/// rules, not the frames), the PDO mapping engine, the CiA 402 state machine and modes, the
+/// vendor switches, the supervisions (heartbeat consumer, SYNC, the vendor's watchdog), the
+/// EMCY bookkeeping and the services' write hooks (docs/decisions/0018). What it has to send
+/// it queues as [`CoreOutput`]s. The CAN front end ([`Node`]) and the EtherCAT slave
+/// (`drive-ethercat`) are built around one. The fields the services' write hooks
+/// ([`writes`]) work on are visible to the crate.
 #[derive(Clone, Debug)]
-pub(crate) struct Core {
+pub struct DriveCore {
+    /// The node-ID the dictionary's `$NODEID` values resolve with (255: none yet, LSS);
+    /// the CAN front end's LSS slave sets it at an NMT reset.
     node_id: u8,
     info: DriveInfo,
     pub(crate) od: ObjectDictionary,
@@ -296,8 +333,10 @@ pub(crate) struct Core {
     pub(crate) hb_lost: bool,
     emcy: Emcy,
     cia: Cia402,
-    tx: Deque<CanFrame, TX_QUEUE>,
-    tx_overflows: u32,
+    /// What the core has to send, for the front end ([`DriveCore::take_output`]).
+    out: Deque<CoreOutput, TX_QUEUE>,
+    /// Outputs dropped because `out` was full (or a vendor-delayed SDO answer dropped).
+    out_dropped: u32,
     /// Synchronous TPDOs not sent because the 0x1007 window had closed.
     sync_window_missed: u32,
     pending_sync: Option<u64>,
@@ -315,7 +354,7 @@ pub(crate) struct Core {
     qs: QuirkState,
     /// Controlword edges written between ticks (and the hold time's view of it).
     pub(crate) cw_latch: ControlwordLatch,
-    /// The services' write rules, by object index (filled in [`Node::new`]).
+    /// The services' write rules, by object index (filled in [`DriveCore::new`]).
     hooks: WriteHooks,
     /// While initialising after a reset: when the boot-up is due.
     boot_due_us: Option<u64>,
@@ -324,7 +363,19 @@ pub(crate) struct Core {
     boot_keeps_app: bool,
     events: Deque<NodeEvent, EVENT_QUEUE>,
     events_dropped: u32,
-    /// LSS slave (CiA 305); `node_id` is its active node-ID (0xFF: non-configured).
+    /// CiA 402 and NMT state as last reported in an event.
+    seen_cia: State,
+    seen_nmt: NmtState,
+}
+
+/// The CANopen-over-CAN front end around a [`DriveCore`]: the SDO server's frame state, the
+/// transmit queue (the core's outputs framed on their COB-IDs), the LSS slave.
+#[derive(Clone, Debug)]
+struct CanFrontEnd {
+    sdo: SdoServer,
+    tx: Deque<CanFrame, TX_QUEUE>,
+    tx_overflows: u32,
+    /// LSS slave (CiA 305); the core's node-ID is its active node-ID (0xFF: non-configured).
     lss: Option<LssSlave>,
     /// Store configuration is written by the application ([`LssConfig::store_external`]).
     lss_store_external: bool,
@@ -332,20 +383,33 @@ pub(crate) struct Core {
     lss_store: Option<LssStore>,
     /// The last activate bit timing (table index, switch delay ms), not yet taken.
     lss_bit_timing_activated: Option<(u8, u16)>,
-    /// CiA 402 and NMT state as last reported in an event.
-    seen_cia: State,
-    seen_nmt: NmtState,
 }
 
-/// A CiA 301 + CiA 402 servo-drive node.
+/// A CiA 301 + CiA 402 servo-drive node on CAN: a [`DriveCore`] and the CAN front end
+/// around it (COB-IDs and the Rx table, NMT / SYNC / EMCY / heartbeat frames, the SDO
+/// server's frames, LSS, the transmit queue). The core's methods are the node's too
+/// (`Deref`); the node's own (`handle`, `poll`, `pop_tx`, `poll_at`, ...) add the CAN side.
 #[derive(Clone, Debug)]
 pub struct Node {
-    sdo: SdoServer,
-    core: Core,
+    core: DriveCore,
+    can: CanFrontEnd,
+}
+
+impl core::ops::Deref for Node {
+    type Target = DriveCore;
+    fn deref(&self) -> &DriveCore {
+        &self.core
+    }
+}
+
+impl core::ops::DerefMut for Node {
+    fn deref_mut(&mut self) -> &mut DriveCore {
+        &mut self.core
+    }
 }
 
 struct Access<'a, D: Drive> {
-    core: &'a mut Core,
+    core: &'a mut DriveCore,
     drive: &'a mut D,
 }
 
@@ -357,10 +421,16 @@ fn lookup(od: &ObjectDictionary, index: u16, sub: u8) -> Result<(usize, &Entry),
     }
 }
 
-impl Node {
-    /// Build a node (state: initialising; call [`Node::boot`]). Every allocation the node
-    /// will ever make happens here.
-    pub fn new(cfg: NodeConfig) -> Result<Node, ConfigError> {
+impl DriveCore {
+    /// Build a drive core for a front end other than CAN (state: initialising; call
+    /// [`DriveCore::boot`]): `cfg`'s node ID must be 1..=127 (it resolves the dictionary's
+    /// `$NODEID` values); its LSS and SDO time-out are the CAN front end's and not used.
+    /// Every allocation the core will ever make happens here.
+    pub fn new(cfg: NodeConfig) -> Result<DriveCore, ConfigError> {
+        DriveCore::build(cfg, false)
+    }
+
+    fn build(cfg: NodeConfig, may_be_unconfigured: bool) -> Result<DriveCore, ConfigError> {
         let NodeConfig {
             node_id,
             info,
@@ -368,11 +438,11 @@ impl Node {
             boot_delay_us,
             reset_node_boot_delay_us,
             reset_communication_boot_delay_us,
-            sdo_timeout_us,
-            lss,
+            sdo_timeout_us: _,
+            lss: _,
             quirks,
         } = cfg;
-        let unconfigured = node_id == UNCONFIGURED_NODE_ID && lss.is_some();
+        let unconfigured = node_id == UNCONFIGURED_NODE_ID && may_be_unconfigured;
         if !(1..=127).contains(&node_id) && !unconfigured {
             return Err(ConfigError::InvalidNodeId(node_id));
         }
@@ -399,36 +469,14 @@ impl Node {
             .count();
         let store = Store::new(&od, node_id);
         let saved = store.clone();
-        let mut sdo = SdoServer::with_capacity(store.max_capacity());
-        sdo.timeout_us = sdo_timeout_us;
         let mut pdo = PdoEngine::new(&od);
         pdo.rules = quirks.pdo_rules();
         let qs = QuirkState::new(&quirks, &od);
-        let lss_slave = match lss {
-            Some(l) => {
-                let identity = LssIdentity {
-                    vendor_id: store.u32(idx(0x1018, 1)),
-                    product_code: store.u32(idx(0x1018, 2)),
-                    revision_number: store.u32(idx(0x1018, 3)),
-                    serial_number: store.u32(R_SERIAL),
-                };
-                let id = (node_id != UNCONFIGURED_NODE_ID).then_some(node_id);
-                Some(
-                    LssSlave::new(identity, id, l.bit_timing_index).map_err(|e| match e {
-                        crate::cia305::LssConfigError::UnsupportedBitTiming(i) => {
-                            ConfigError::InvalidBitTiming(i)
-                        }
-                        crate::cia305::LssConfigError::InvalidNodeId(n) => {
-                            ConfigError::InvalidNodeId(n)
-                        }
-                    })?,
-                )
-            }
-            None => None,
-        };
         let fe_window_zero_off = od.device.following_error_window_zero_off;
         let si_rows = si_unit_rows(&od);
-        let mut core = Core {
+        let mut hooks = WriteHooks::standard();
+        hooks.index_rows(&od);
+        let mut core = DriveCore {
             node_id,
             info,
             od,
@@ -443,8 +491,8 @@ impl Node {
             hb_lost: false,
             emcy: Emcy::with_history(history_len),
             cia: Cia402::new(factor, quirks.cia402()).with_device(fe_window_zero_off, si_rows),
-            tx: Deque::new(),
-            tx_overflows: 0,
+            out: Deque::new(),
+            out_dropped: 0,
             sync_window_missed: 0,
             pending_sync: None,
             now_us: 0,
@@ -455,124 +503,89 @@ impl Node {
             quirks,
             qs,
             cw_latch: ControlwordLatch::default(),
-            hooks: WriteHooks::standard(),
+            hooks,
             boot_due_us: None,
             boot_keeps_app: false,
             events: Deque::new(),
             events_dropped: 0,
-            lss: lss_slave,
-            lss_store_external: lss.is_some_and(|l| l.store_external),
-            lss_store: None,
-            lss_bit_timing_activated: None,
             seen_cia: State::NotReadyToSwitchOn,
             seen_nmt: NmtState::Initialising,
         };
         core.seen_cia = core.cia.state;
         core.refresh_all();
-        Ok(Node { sdo, core })
+        Ok(core)
     }
 
-    /// Power-on: queue the boot-up message and enter pre-operational, after the boot delay
-    /// ([`NodeConfig::boot_delay_us`]) if there is one.
+    /// Power-on: the boot-up ([`CoreOutput::Bootup`]) and pre-operational, after the boot
+    /// delay ([`NodeConfig::boot_delay_us`]) if there is one.
     pub fn boot(&mut self, now_us: u64) {
         self.boot_with(Clocks::same(now_us));
     }
 
-    /// [`Node::boot`] with two clocks (the boot delay runs on the communication clock).
+    /// [`DriveCore::boot`] with two clocks (the boot delay runs on the communication clock).
     pub fn boot_with(&mut self, clocks: Clocks) {
-        self.core.now_us = clocks.app_us;
-        self.core.comm_us = clocks.comm_us;
-        self.core
-            .start_boot(clocks.comm_us, false, self.core.boot_delay_us);
-        self.core.observe();
+        self.now_us = clocks.app_us;
+        self.comm_us = clocks.comm_us;
+        self.start_boot(clocks.comm_us, false, self.boot_delay_us);
+        self.observe();
     }
 
     /// Delay between power-on and the boot-up message, microseconds.
     pub fn boot_delay_us(&self) -> u64 {
-        self.core.boot_delay_us
+        self.boot_delay_us
     }
 
     /// Whether a boot is pending (initialising, the boot delay not over).
     pub fn boot_pending(&self) -> bool {
-        self.core.nmt == NmtState::Initialising && self.core.boot_due_us.is_some()
+        self.nmt == NmtState::Initialising && self.boot_due_us.is_some()
     }
 
     /// Complete a pending boot now (a lock-step runtime whose simulated time stands still
     /// while the master waits for the boot-up lets the delay pass on the wall clock).
     pub fn finish_boot(&mut self, now_us: u64) {
         if self.boot_pending() {
-            self.core.now_us = now_us;
-            self.core.comm_us = now_us;
-            self.core.boot(now_us);
-            self.core.observe();
+            self.now_us = now_us;
+            self.comm_us = now_us;
+            self.boot_now(now_us);
+            self.observe();
         }
     }
 
     /// The next event (state change, EMCY raised or cleared, SYNC, finished SDO transfer),
     /// oldest first. Events beyond [`EVENT_QUEUE`] unread are dropped and counted in
-    /// [`Node::events_dropped`].
+    /// [`DriveCore::events_dropped`].
     pub fn poll_event(&mut self) -> Option<NodeEvent> {
-        self.core.events.pop_front()
+        self.events.pop_front()
     }
 
     /// Events dropped because the event queue was full.
     pub fn events_dropped(&self) -> u32 {
-        self.core.events_dropped
+        self.events_dropped
     }
 
-    /// A store configuration to write (once per request, with [`LssConfig::store_external`]);
-    /// then call [`Node::lss_store_done`].
-    pub fn take_lss_store(&mut self) -> Option<LssStore> {
-        self.core.lss_store.take()
-    }
-
-    /// The outcome of the store handed out by [`Node::take_lss_store`]: the LSS answer is
-    /// queued (error 0, or 2 when `stored` is false).
-    pub fn lss_store_done(&mut self, stored: bool) {
-        if let Some(f) = self.core.lss.as_mut().and_then(|l| l.store_done(stored)) {
-            self.core.push(f);
-        }
-    }
-
-    /// The last LSS activate bit timing not yet taken: (CiA 301 table index, switch delay
-    /// ms). A real drive switches its CAN controller; the emulator can only report it.
-    pub fn take_lss_bit_timing_activation(&mut self) -> Option<(u8, u16)> {
-        self.core.lss_bit_timing_activated.take()
-    }
-
-    /// LSS state (waiting or configuration); `None` without LSS.
-    pub fn lss_state(&self) -> Option<LssState> {
-        self.core.lss.as_ref().map(|l| l.state())
-    }
-
-    /// The LSS slave's pending node-ID (active after the next NMT reset communication).
-    pub fn lss_pending_node_id(&self) -> Option<u8> {
-        self.core.lss.as_ref().and_then(|l| l.pending_node_id())
-    }
-
-    /// The next frame to send.
-    pub fn pop_tx(&mut self) -> Option<CanFrame> {
-        self.core.tx.pop_front()
+    /// The next thing the core has to send, oldest first (a [`Node`] takes them itself).
+    pub fn take_output(&mut self) -> Option<CoreOutput> {
+        self.out.pop_front()
     }
 
     /// The application reports a condition of its own that is not a fault (a warning: a
     /// condition monitor's finding, e.g. backlash confirmed): EMCY `code` (manufacturer-specific
     /// 0xFF00..=0xFFFF, say) with `info` in its five manufacturer bytes, sent once, held in
-    /// 0x1001 and 0x1003 until [`Node::clear_condition`]; the CiA 402 state does not change.
-    /// No allocation (real-time safe).
+    /// 0x1001 and 0x1003 until [`DriveCore::clear_condition`]; the CiA 402 state does not
+    /// change. No allocation (real-time safe).
     pub fn raise_condition(&mut self, code: u16, info: [u8; 5]) {
-        self.core.raise_emcy(code, info, Cause::Condition);
+        self.raise_emcy(code, info, Cause::Condition);
     }
 
-    /// The condition of [`Node::raise_condition`] is gone: its error clears (EMCY 0x0000 when
-    /// it was the last one).
+    /// The condition of [`DriveCore::raise_condition`] is gone: its error clears (EMCY 0x0000
+    /// when it was the last one).
     pub fn clear_condition(&mut self, code: u16) {
-        self.core.clear_emcy(code, Cause::Condition);
+        self.clear_emcy(code, Cause::Condition);
     }
 
     /// Whether error `code` is active (EMCY sent, in 0x1001 / 0x1003).
     pub fn error_active(&self, code: u16) -> bool {
-        self.core.emcy.is_active(code)
+        self.emcy.is_active(code)
     }
 
     /// Set a stored object's value (raw form: signed sign-extended, REAL as bits) from the
@@ -580,23 +593,23 @@ impl Node {
     /// and TPDOs. No allocation: fit for the real-time path. A `slot` of another dictionary
     /// is the caller's bug (it panics on an out-of-range slot).
     pub fn set_value(&mut self, slot: Slot, raw: u64) {
-        self.core.store.set(slot.get(), raw);
+        self.store.set(slot.get(), raw);
     }
 
     /// A stored object's value (raw form), `None` for a slot a handler keeps.
     pub fn value(&self, slot: Slot) -> Option<u64> {
-        match self.core.od.entry(slot).backing {
-            Backing::Stored => Some(self.core.store.raw(slot.get())),
+        match self.od.entry(slot).backing {
+            Backing::Stored => Some(self.store.raw(slot.get())),
             Backing::Handler(_) => None,
         }
     }
 
-    /// The node's object dictionary.
+    /// The object dictionary.
     pub fn od(&self) -> &ObjectDictionary {
-        &self.core.od
+        &self.od
     }
 
-    /// The EDS (CiA 306) of this node: every visible object; the objects a handler keeps
+    /// The EDS (CiA 306) of this drive: every visible object; the objects a handler keeps
     /// have the value the drive answers to an SDO read as their DefaultValue.
     pub fn export_eds(&self, drive: &mut impl Drive, meta: &crate::od::eds::EdsMeta) -> String {
         let mut buf = [0u8; 8];
@@ -607,60 +620,57 @@ impl Node {
                 .map(|n| e.decode(&buf[..n])),
             _ => None,
         };
-        crate::od::eds::export(&self.core.od, meta, &mut value_of)
+        crate::od::eds::export(&self.od, meta, &mut value_of)
     }
 
     // ----- read-only accessors -----
     /// Node ID, 1..=127, or 255 while non-configured (LSS).
     pub fn node_id(&self) -> u8 {
-        self.core.node_id
+        self.node_id
     }
     /// NMT state (what the heartbeat reports).
     pub fn nmt_state(&self) -> NmtState {
-        self.core.nmt
+        self.nmt
     }
     /// CiA 402 device state (decoded from statusword 0x6041).
     pub fn cia402_state(&self) -> State {
-        self.core.cia.state
+        self.cia.state
     }
     /// Mode of operation display (0x6061).
     pub fn mode(&self) -> i8 {
-        self.core.cia.mode_display
+        self.cia.mode_display
     }
     /// Statusword 0x6041 as of the last tick.
     pub fn statusword(&self) -> u16 {
-        self.core.cia.statusword
+        self.cia.statusword
     }
     /// Position actual value 0x6064, user units.
     pub fn position_actual(&self) -> i32 {
-        self.core.cia.position_actual_uu
+        self.cia.position_actual_uu
     }
     /// Following error, user units.
     pub fn following_error(&self) -> f64 {
-        self.core.cia.following_error_uu
+        self.cia.following_error_uu
     }
-    /// Frames dropped because the TX queue was full.
+    /// Outputs dropped because the output queue was full (a [`Node`] adds its transmit
+    /// queue's).
     pub fn tx_overflows(&self) -> u32 {
-        self.core.tx_overflows
+        self.out_dropped
     }
     /// Synchronous TPDOs not sent because the synchronous window (0x1007) had closed.
     pub fn sync_window_missed(&self) -> u32 {
-        self.core.sync_window_missed
+        self.sync_window_missed
     }
     /// The synchronous window length 0x1007, us (0: none). A runtime that hands frames over
     /// late needs to tell [`Node::handle_late`] how late only when it is non-zero.
     #[inline]
     pub fn sync_window_us(&self) -> u32 {
-        self.core.store.u32(R_1007)
-    }
-    /// Frames waiting in the TX queue.
-    pub fn tx_pending(&self) -> usize {
-        self.core.tx.len()
+        self.store.u32(R_1007)
     }
     /// Raw value of a stored object (diagnostics and tests), if it exists; truncated to 32
-    /// bits (see [`Node::value`] for 64-bit objects).
+    /// bits (see [`DriveCore::value`] for 64-bit objects).
     pub fn object_raw(&self, index: u16, sub: u8) -> Option<u32> {
-        match self.core.od.find(index, sub) {
+        match self.od.find(index, sub) {
             Lookup::Found(slot) => self.value(slot).map(|v| v as u32),
             _ => None,
         }
@@ -668,14 +678,175 @@ impl Node {
     /// The interpolation time period 0x60C2 written by the master (value x 10^index s), us;
     /// `None` while it is 0 (the default: not set) or the dictionary has no 0x60C2.
     pub fn interpolation_period_us(&self) -> Option<u64> {
-        if !matches!(self.core.od.find(0x60C2, 1), Lookup::Found(_)) {
+        if !matches!(self.od.find(0x60C2, 1), Lookup::Found(_)) {
             return None;
         }
-        Some(interpolation_period_us(&self.core.store)).filter(|&p| p > 0)
+        Some(interpolation_period_us(&self.store)).filter(|&p| p > 0)
     }
     /// Whether a CiA 402 state has the drive's power stage on.
     pub fn is_enabled(&self) -> bool {
-        self.core.cia.state.enabled()
+        self.cia.state.enabled()
+    }
+}
+
+impl Node {
+    /// Build a node (state: initialising; call [`Node::boot`]). Every allocation the node
+    /// will ever make happens here.
+    pub fn new(cfg: NodeConfig) -> Result<Node, ConfigError> {
+        let (lss, sdo_timeout_us) = (cfg.lss, cfg.sdo_timeout_us);
+        let core = DriveCore::build(cfg, lss.is_some())?;
+        let lss_slave = match lss {
+            Some(l) => {
+                let store = &core.store;
+                let identity = LssIdentity {
+                    vendor_id: store.u32(idx(0x1018, 1)),
+                    product_code: store.u32(idx(0x1018, 2)),
+                    revision_number: store.u32(idx(0x1018, 3)),
+                    serial_number: store.u32(R_SERIAL),
+                };
+                let id = (core.node_id != UNCONFIGURED_NODE_ID).then_some(core.node_id);
+                Some(
+                    LssSlave::new(identity, id, l.bit_timing_index).map_err(|e| match e {
+                        crate::cia305::LssConfigError::UnsupportedBitTiming(i) => {
+                            ConfigError::InvalidBitTiming(i)
+                        }
+                        crate::cia305::LssConfigError::InvalidNodeId(n) => {
+                            ConfigError::InvalidNodeId(n)
+                        }
+                    })?,
+                )
+            }
+            None => None,
+        };
+        let mut sdo = SdoServer::with_capacity(core.store.max_capacity());
+        sdo.timeout_us = sdo_timeout_us;
+        let can = CanFrontEnd {
+            sdo,
+            tx: Deque::new(),
+            tx_overflows: 0,
+            lss: lss_slave,
+            lss_store_external: lss.is_some_and(|l| l.store_external),
+            lss_store: None,
+            lss_bit_timing_activated: None,
+        };
+        Ok(Node { core, can })
+    }
+
+    /// The drive core inside the node.
+    pub fn core(&self) -> &DriveCore {
+        &self.core
+    }
+
+    /// The drive core inside the node, to change (what it sends goes out with the node's
+    /// next call).
+    pub fn core_mut(&mut self) -> &mut DriveCore {
+        &mut self.core
+    }
+
+    /// Power-on: queue the boot-up message and enter pre-operational, after the boot delay
+    /// ([`NodeConfig::boot_delay_us`]) if there is one.
+    pub fn boot(&mut self, now_us: u64) {
+        self.boot_with(Clocks::same(now_us));
+    }
+
+    /// [`Node::boot`] with two clocks (the boot delay runs on the communication clock).
+    pub fn boot_with(&mut self, clocks: Clocks) {
+        self.core.boot_with(clocks);
+        self.flush();
+    }
+
+    /// Complete a pending boot now (a lock-step runtime whose simulated time stands still
+    /// while the master waits for the boot-up lets the delay pass on the wall clock).
+    pub fn finish_boot(&mut self, now_us: u64) {
+        self.core.finish_boot(now_us);
+        self.flush();
+    }
+
+    /// The core's outputs, framed on their COB-IDs, into the transmit queue (in order: every
+    /// frame the front end queues itself comes after what the core queued before it).
+    fn flush(&mut self) {
+        let c = &mut self.core;
+        while let Some(o) = c.out.pop_front() {
+            let f = match o {
+                CoreOutput::Bootup => {
+                    CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &Heartbeat::BOOTUP.emit())
+                }
+                CoreOutput::Heartbeat { state } => CanFrame::new(
+                    cob::HEARTBEAT + c.node_id as u32,
+                    &Heartbeat { state }.emit(),
+                ),
+                CoreOutput::Emcy(d) => CanFrame::new(c.store.u32(R_1014) & 0x7FF, &d),
+                CoreOutput::CanOnly(f) => f,
+            };
+            push(&mut self.can.tx, &mut self.can.tx_overflows, f);
+        }
+    }
+
+    /// Queue a frame of the front end's own (after the core's outputs so far).
+    fn send(&mut self, f: CanFrame) {
+        self.flush();
+        push(&mut self.can.tx, &mut self.can.tx_overflows, f);
+    }
+
+    /// A store configuration to write (once per request, with [`LssConfig::store_external`]);
+    /// then call [`Node::lss_store_done`].
+    pub fn take_lss_store(&mut self) -> Option<LssStore> {
+        self.can.lss_store.take()
+    }
+
+    /// The outcome of the store handed out by [`Node::take_lss_store`]: the LSS answer is
+    /// queued (error 0, or 2 when `stored` is false).
+    pub fn lss_store_done(&mut self, stored: bool) {
+        if let Some(f) = self.can.lss.as_mut().and_then(|l| l.store_done(stored)) {
+            self.send(f);
+        }
+    }
+
+    /// The last LSS activate bit timing not yet taken: (CiA 301 table index, switch delay
+    /// ms). A real drive switches its CAN controller; the emulator can only report it.
+    pub fn take_lss_bit_timing_activation(&mut self) -> Option<(u8, u16)> {
+        self.can.lss_bit_timing_activated.take()
+    }
+
+    /// LSS state (waiting or configuration); `None` without LSS.
+    pub fn lss_state(&self) -> Option<LssState> {
+        self.can.lss.as_ref().map(|l| l.state())
+    }
+
+    /// The LSS slave's pending node-ID (active after the next NMT reset communication).
+    pub fn lss_pending_node_id(&self) -> Option<u8> {
+        self.can.lss.as_ref().and_then(|l| l.pending_node_id())
+    }
+
+    /// The next frame to send.
+    pub fn pop_tx(&mut self) -> Option<CanFrame> {
+        self.flush();
+        self.can.tx.pop_front()
+    }
+
+    /// Frames dropped because the TX queue was full.
+    pub fn tx_overflows(&self) -> u32 {
+        self.can.tx_overflows.wrapping_add(self.core.out_dropped)
+    }
+
+    /// Frames waiting in the TX queue.
+    pub fn tx_pending(&self) -> usize {
+        self.can.tx.len() + self.core.out.len()
+    }
+
+    /// An NMT reset: the LSS slave's node-ID for the reset (pending at reset communication,
+    /// stored at reset node) becomes the core's.
+    fn take_lss_node_id(&mut self, reset_node: bool) {
+        let Some(lss) = self.can.lss.as_mut() else {
+            return;
+        };
+        if reset_node {
+            lss.reset_node();
+            self.can.lss_store = None;
+        } else {
+            lss.reset_communication();
+        }
+        self.core.node_id = lss.active_node_id().unwrap_or(UNCONFIGURED_NODE_ID);
     }
 }
 

@@ -10,7 +10,7 @@
 use crate::cia301::cob_id;
 use crate::cia301::sdo::abort;
 use crate::node::writes::{ObjectWrite, Verdict, WriteHooks};
-use crate::node::Core;
+use crate::node::DriveCore;
 use crate::od::{idx, Store};
 use crate::wire::emcy::EmcyFrame;
 use heapless::{Deque, Vec};
@@ -258,7 +258,7 @@ pub(crate) fn register_writes(t: &mut WriteHooks) {
 
 /// 0x1003 sub 0: writing 0 clears the history (sub 0 and every entry); any other value is
 /// refused (CiA 301 7.5.2.5).
-fn write_history(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+fn write_history(c: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
     if w.sub != 0 {
         return Ok(Verdict::Store);
     }
@@ -273,7 +273,7 @@ fn write_history(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
 
 /// 0x1014: bit 31 set (EMCY not valid) takes any CAN-ID; bit 30 is reserved; a valid COB-ID
 /// must be an 11-bit CAN-ID outside the restricted ranges.
-fn write_cob_id(_: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+fn write_cob_id(_: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
     let valid = w.raw & 0x8000_0000 == 0;
     if w.raw & 0x4000_0000 != 0 || !cob_id::acceptable(w.raw as u32, valid) {
         return Err(abort::VALUE_RANGE);

@@ -6,7 +6,7 @@
 use crate::cia301::emcy::Cause;
 use crate::cia301::sdo::abort;
 use crate::node::writes::{ObjectWrite, Verdict, WriteHooks};
-use crate::node::Core;
+use crate::node::DriveCore;
 use crate::od::idx;
 
 /// Producer: sends the NMT state every 0x1017 ms.
@@ -144,7 +144,7 @@ pub(crate) fn register_writes(t: &mut WriteHooks) {
 /// 0x1016:1..=4: an entry that monitors a node another entry monitors with a time is refused
 /// (CiA 301 7.5.2.32); the consumer restarts that entry (it waits for a first heartbeat
 /// again): a loss it reported is over, the fault it caused stays until the fault reset.
-fn write_consumer(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+fn write_consumer(c: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
     let Some(i) = (w.sub as usize).checked_sub(1).filter(|&i| i < 4) else {
         return Ok(Verdict::Store);
     };
@@ -165,7 +165,7 @@ fn write_consumer(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
 }
 
 /// 0x1017: the producer restarts its period with the new time.
-fn write_producer(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+fn write_producer(c: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
     c.hb.restart(c.comm_us, w.raw as u16);
     Ok(Verdict::Store)
 }

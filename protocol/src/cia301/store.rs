@@ -5,7 +5,7 @@
 
 use crate::cia301::sdo::abort;
 use crate::node::writes::{ObjectWrite, Verdict, WriteHooks};
-use crate::node::Core;
+use crate::node::DriveCore;
 
 /// "save" as the UNSIGNED32 a master writes (ASCII, little-endian).
 pub const SAVE: u64 = 0x6576_6173;
@@ -17,7 +17,7 @@ pub(crate) fn register_writes(t: &mut WriteHooks) {
     t.register(0x1010, 0x1011, write_store_restore);
 }
 
-fn write_store_restore(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+fn write_store_restore(c: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
     match (w.index, w.sub) {
         (0x1010, 1) => {
             if w.raw != SAVE {

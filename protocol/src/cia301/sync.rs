@@ -4,7 +4,7 @@
 use crate::cia301::cob_id;
 use crate::cia301::sdo::abort;
 use crate::node::writes::{ObjectWrite, Verdict, WriteHooks};
-use crate::node::Core;
+use crate::node::DriveCore;
 use crate::od::idx;
 
 /// Manufacturer-chosen EMCY code for SYNC loss: 0x8100 "communication, generic" (CiA 301
@@ -91,7 +91,7 @@ pub(crate) fn register_writes(t: &mut WriteHooks) {
 
 /// 0x1005: bit 30 set (this node produces SYNC) is refused, as is a COB-ID that is not an
 /// 11-bit CAN-ID outside the restricted ranges; bit 31 is "don't care".
-fn write_cob_id(_: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+fn write_cob_id(_: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
     if w.raw & 0x4000_0000 != 0 || !cob_id::acceptable(w.raw as u32, true) {
         return Err(abort::VALUE_RANGE);
     }
@@ -100,7 +100,7 @@ fn write_cob_id(_: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
 
 /// 0x1019: only while the communication cycle period 0x1006 is 0 (CiA 301 7.5.2.22); 1 is
 /// not an overflow value.
-fn write_overflow(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+fn write_overflow(c: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
     if c.store.u32(idx(0x1006, 0)) != 0 {
         return Err(abort::DEVICE_STATE);
     }

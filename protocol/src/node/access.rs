@@ -4,7 +4,7 @@
 //! own path (the SDO server's object access, the PDO engine's mapping and the RPDO checks,
 //! the SYNC and the tick); none copies a rule. None allocates: fit for the real-time path.
 
-use super::{Access, Node};
+use super::{Access, DriveCore};
 use crate::cia301::emcy::Cause;
 use crate::cia301::pdo::layout::{self, Param};
 use crate::cia301::pdo::{compile, mapping, Direction, Pdo};
@@ -15,10 +15,10 @@ use crate::node::Clocks;
 use crate::od::Store;
 
 /// EMCY of a front end whose master's process data stopped (CiA 301 0x8250, RPDO timeout):
-/// [`Node::connection_lost`] on EtherCAT's SM watchdog.
+/// [`DriveCore::connection_lost`] on EtherCAT's SM watchdog.
 pub const EMCY_RPDO_TIMEOUT: u16 = 0x8250;
 
-impl Node {
+impl DriveCore {
     /// Read object (`index`, `sub`) into `out` as an SDO upload does (the entry must exist
     /// and be readable; a value the drive keeps comes from [`Drive::read_object`]). Returns
     /// its length, or the CiA 301 abort code. A value longer than `out` is refused with
@@ -30,15 +30,12 @@ impl Node {
         out: &mut [u8],
         drive: &mut impl Drive,
     ) -> Result<usize, u32> {
-        let (_, e) = super::lookup(&self.core.od, index, sub)?;
+        let (_, e) = super::lookup(&self.od, index, sub)?;
         let size = e.dtype.size();
         if size > out.len() {
             return Err(abort::OUT_OF_MEMORY);
         }
-        let mut acc = Access {
-            core: &mut self.core,
-            drive,
-        };
+        let mut acc = Access { core: self, drive };
         let n = acc.read(index, sub, out)?;
         // a variable-length value exactly as long as `out` may have been cut: say so
         if size == 0 && n == out.len() && self.stored_len(index, sub) > n {
@@ -49,9 +46,9 @@ impl Node {
 
     /// The stored length of a variable-length value (0 for a value the drive keeps).
     fn stored_len(&self, index: u16, sub: u8) -> usize {
-        match self.core.od.get(index, sub) {
+        match self.od.get(index, sub) {
             Some((slot, e)) if e.backing == crate::od::Backing::Stored => {
-                self.core.store.stored_len(slot.get())
+                self.store.stored_len(slot.get())
             }
             _ => 0,
         }
@@ -68,12 +65,9 @@ impl Node {
         data: &[u8],
         drive: &mut impl Drive,
     ) -> Result<(), u32> {
-        let mut acc = Access {
-            core: &mut self.core,
-            drive,
-        };
+        let mut acc = Access { core: self, drive };
         let r = acc.write(index, sub, data);
-        self.core.observe();
+        self.observe();
         r
     }
 
@@ -86,39 +80,36 @@ impl Node {
         size: Option<usize>,
         drive: &mut impl Drive,
     ) -> Result<(), u32> {
-        let mut acc = Access {
-            core: &mut self.core,
-            drive,
-        };
+        let mut acc = Access { core: self, drive };
         acc.check_write(index, sub, size)
     }
 
     /// The mapping `mapping_index` (0x1600.. RPDO, 0x1A00.. TPDO) compiled from the values the
     /// dictionary holds now, with the PDO engine's rules (mappable, size, at most
-    /// [`Node::pdo_max_len`] bytes).
+    /// [`DriveCore::pdo_max_len`] bytes).
     fn compiled(&self, mapping_index: u16, dir: Direction) -> Result<(Pdo, usize), u32> {
         let param = match Param::of(mapping_index) {
             Some(p) if p.mapping && p.dir == dir => p,
             _ => return Err(abort::NOT_MAPPABLE),
         };
         let list = match dir {
-            Direction::Rx => &self.core.pdo.rpdo,
-            Direction::Tx => &self.core.pdo.tpdo,
+            Direction::Rx => &self.pdo.rpdo,
+            Direction::Tx => &self.pdo.tpdo,
         };
         let (k, pdo) = list
             .iter()
             .enumerate()
             .find(|(_, p)| p.number == param.number)
             .ok_or(abort::NO_OBJECT)?;
-        let store: &Store = &self.core.store;
+        let store: &Store = &self.store;
         let count = pdo.slots.count.map_or(0, |s| store.u32(s as usize)) as usize;
         let (map, n, len) = compile(
-            &self.core.od,
+            &self.od,
             store,
             &pdo.slots,
             count,
             dir == Direction::Tx,
-            self.core.pdo.max_len,
+            self.pdo.max_len,
         )?;
         let mut p = *pdo;
         p.map = map;
@@ -148,12 +139,12 @@ impl Node {
         if out.len() < len {
             return Err(abort::OUT_OF_MEMORY);
         }
-        Ok(mapping::pack(&p, &self.core.store, &mut out[..len]))
+        Ok(mapping::pack(&p, &self.store, &mut out[..len]))
     }
 
     /// Bytes a PDO mapping may carry (8, one CAN frame, unless the front end set more).
     pub fn pdo_max_len(&self) -> usize {
-        self.core.pdo.max_len
+        self.pdo.max_len
     }
 
     /// Let a PDO mapping carry up to `bytes` (at most 255; at least 8): for a front end whose
@@ -162,7 +153,7 @@ impl Node {
     /// longer than 8 bytes is never sent or received as a CAN frame (it is cut to the values
     /// that fit), so set this only where the PDOs are not valid on CAN.
     pub fn set_pdo_max_len(&mut self, bytes: usize) {
-        let c = &mut self.core;
+        let c = self;
         c.pdo.max_len = bytes.clamp(mapping::CAN_MAX_LEN, usize::from(u8::MAX));
         c.pdo.refresh_all(&c.od, &c.store);
     }
@@ -178,7 +169,7 @@ impl Node {
         if data.len() < p.len as usize {
             return Err(abort::TOO_SHORT);
         }
-        let c = &mut self.core;
+        let c = self;
         let map = &p.map[..p.n as usize];
         let ok = mapping::unpack(map, &data[..p.len as usize], |row, raw| {
             c.rpdo_value(row, raw)
@@ -192,7 +183,13 @@ impl Node {
     /// recovered), then timers, the CiA 402 state machine and mode, and exactly one
     /// `drive.command(..)`. No CAN PDO is sent or applied (the front end moves the images).
     pub fn cycle(&mut self, clocks: Clocks, drive: &mut impl Drive) {
-        let c = &mut self.core;
+        self.cycle_sync(clocks);
+        self.poll_with(clocks, drive);
+    }
+
+    /// The SYNC half of [`DriveCore::cycle`]: the cycle's time as a SYNC's.
+    pub(super) fn cycle_sync(&mut self, clocks: Clocks) {
+        let c = self;
         c.now_us = clocks.app_us;
         c.comm_us = clocks.comm_us;
         if c.nmt != crate::NmtState::Initialising {
@@ -204,16 +201,15 @@ impl Node {
             c.qs.watchdog_sync(clocks.app_us, watched);
             c.pending_sync = Some(clocks.app_us);
         }
-        self.poll_with(clocks, drive);
     }
 
     /// The front end lost its master's process data (EtherCAT: the SM watchdog took the slave
     /// out of OP): EMCY `code` raised and held as a condition until
-    /// [`Node::connection_restored`], and the CiA 402 reaction 0x6007 (abort connection
+    /// [`DriveCore::connection_restored`], and the CiA 402 reaction 0x6007 (abort connection
     /// option code: 0 none, 1 fault, 2 disable voltage, 3 quick stop), as a lost heartbeat
     /// or SYNC on CAN. Returns true when the reaction is a fault.
     pub fn connection_lost(&mut self, code: u16) -> bool {
-        let c = &mut self.core;
+        let c = self;
         c.raise_emcy(code, [0; 5], Cause::Condition);
         let fault = c.cia.comm_loss(&c.store, code);
         c.observe();
@@ -221,10 +217,10 @@ impl Node {
     }
 
     /// The front end's process data is back (EtherCAT: OP again): the condition EMCY `code`
-    /// of [`Node::connection_lost`] is cleared (a fault it led to stays until the master's
+    /// of [`DriveCore::connection_lost`] is cleared (a fault it led to stays until the master's
     /// fault reset, controlword bit 7).
     pub fn connection_restored(&mut self, code: u16) {
-        let c = &mut self.core;
+        let c = self;
         c.clear_emcy(code, Cause::Condition);
         c.observe();
     }
@@ -232,10 +228,10 @@ impl Node {
     /// PDO numbers (0-based: 0x1600 + n / 0x1A00 + n) the dictionary has, RPDOs then TPDOs,
     /// through `f(dir_is_tx, mapping_index)`.
     pub fn for_each_pdo_mapping(&self, mut f: impl FnMut(bool, u16)) {
-        for p in &self.core.pdo.rpdo {
+        for p in &self.pdo.rpdo {
             f(false, layout::bases(Direction::Rx).1 + p.number);
         }
-        for p in &self.core.pdo.tpdo {
+        for p in &self.pdo.tpdo {
             f(true, layout::bases(Direction::Tx).1 + p.number);
         }
     }

@@ -1,6 +1,7 @@
 //! The node's timers and the drive cycle: the communication timers (SDO time-out, boot
 //! delay, heartbeats, event-driven TPDOs, EMCY inhibit) and one CiA 402 tick with its SYNC
-//! supervision.
+//! supervision. The SDO time-out is the CAN front end's ([`Node`]); the rest is the drive
+//! core's ([`DriveCore::poll_with`]).
 
 use super::*;
 
@@ -12,11 +13,9 @@ impl Node {
 
     /// [`Node::poll`] with two clocks ([`Clocks`]).
     pub fn poll_with(&mut self, clocks: Clocks, drive: &mut impl Drive) {
-        self.poll_timers_and_drive(clocks, drive);
-        if let Some(t) = self.sdo.take_finished() {
-            self.core.event(NodeEvent::SdoTransfer(t));
-        }
-        self.core.observe();
+        self.sdo_timer(clocks.comm_us);
+        self.core.timers_and_drive(clocks, drive);
+        self.finish_call();
     }
 
     /// The communication timers alone, at `comm_us` on the communication clock: SDO
@@ -24,72 +23,109 @@ impl Node {
     /// TPDOs, EMCYs held by their inhibit time. No CiA 402 cycle, no command to the drive: a
     /// lock-step runtime calls it between SYNCs, when [`Node::poll_at_comm`] says.
     pub fn poll_comm(&mut self, comm_us: u64, drive: &mut impl Drive) {
-        self.core.comm_us = comm_us;
-        self.comm_timers_before(comm_us);
-        if self.core.nmt != NmtState::Initialising {
-            self.core.comm_timers_after(comm_us);
-        }
         let _ = drive;
-        if let Some(t) = self.sdo.take_finished() {
+        self.sdo_timer(comm_us);
+        self.core.comm_timers(comm_us);
+        self.finish_call();
+    }
+
+    /// Advance the drive one cycle at `clocks`, as [`DriveCore::cycle`] (a SYNC's time and
+    /// the tick, no CAN PDO), with the CAN front end's timers and transmit queue.
+    pub fn cycle(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+        self.core.cycle_sync(clocks);
+        self.poll_with(clocks, drive);
+    }
+
+    /// The SDO server's time-out: its abort frames.
+    fn sdo_timer(&mut self, comm_us: u64) {
+        let mut outv: heapless::Vec<[u8; 8], 2> = heapless::Vec::new();
+        self.can.sdo.poll(comm_us, &mut |f| {
+            let _ = outv.push(f);
+        });
+        let tx_cob = cob::SDO_TX + self.core.node_id as u32;
+        for f in outv {
+            self.send(CanFrame::new(tx_cob, &f));
+        }
+    }
+
+    /// After a call: a finished SDO transfer and state changes as events, the core's outputs
+    /// into the transmit queue.
+    fn finish_call(&mut self) {
+        if let Some(t) = self.can.sdo.take_finished() {
             self.core.event(NodeEvent::SdoTransfer(t));
         }
         self.core.observe();
+        self.flush();
+    }
+}
+
+impl DriveCore {
+    /// Timers, the CiA 402 state machine and mode, and exactly one `drive.command(..)`; what
+    /// is to be sent goes to [`DriveCore::take_output`].
+    pub fn poll(&mut self, now_us: u64, drive: &mut impl Drive) {
+        self.poll_with(Clocks::same(now_us), drive);
     }
 
-    /// SDO time-out, the boot after its delay, the heartbeat producer and consumer.
+    /// [`DriveCore::poll`] with two clocks ([`Clocks`]).
+    pub fn poll_with(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+        self.timers_and_drive(clocks, drive);
+        self.observe();
+    }
+
+    /// The communication timers of [`Node::poll_comm`] but the SDO time-out.
+    fn comm_timers(&mut self, comm_us: u64) {
+        self.comm_us = comm_us;
+        self.comm_timers_before(comm_us);
+        if self.nmt != NmtState::Initialising {
+            self.comm_timers_after(comm_us);
+        }
+    }
+
+    /// The boot after its delay, the heartbeat producer and consumer.
     fn comm_timers_before(&mut self, comm_us: u64) {
+        if self.nmt == NmtState::Initialising && self.boot_due_us.is_some_and(|due| comm_us >= due)
         {
-            let mut outv: heapless::Vec<[u8; 8], 2> = heapless::Vec::new();
-            self.sdo.poll(comm_us, &mut |f| {
-                let _ = outv.push(f);
-            });
-            let tx_cob = cob::SDO_TX + self.core.node_id as u32;
-            for f in outv {
-                self.core.push(CanFrame::new(tx_cob, &f));
-            }
+            self.boot_now(comm_us);
         }
-        let c = &mut self.core;
-        if c.nmt == NmtState::Initialising && c.boot_due_us.is_some_and(|due| comm_us >= due) {
-            c.boot(comm_us);
-        }
-        if c.nmt == NmtState::Initialising {
+        if self.nmt == NmtState::Initialising {
             return;
         }
         // the vendor switches' heartbeats and delayed SDO answers
-        let (qs, quirks, tx, overflows) = (&mut c.qs, &c.quirks, &mut c.tx, &mut c.tx_overflows);
-        if qs.poll_comm(quirks, comm_us, c.node_id, c.nmt as u8, &mut |f| {
-            push(tx, overflows, f)
+        let (qs, quirks) = (&mut self.qs, &self.quirks);
+        let (out, dropped) = (&mut self.out, &mut self.out_dropped);
+        if qs.poll_comm(quirks, comm_us, self.node_id, self.nmt as u8, &mut |f| {
+            emit(out, dropped, CoreOutput::CanOnly(f))
         }) {
-            c.hb.restart(comm_us, c.store.u32(R_1017) as u16);
+            self.hb.restart(comm_us, self.store.u32(R_1017) as u16);
         }
-        if c.qs.not_ready() {
+        if self.qs.not_ready() {
             return;
         }
         // heartbeat producer
-        if c.hb.due(comm_us, c.store.u32(R_1017) as u16) {
-            let hb = Heartbeat { state: c.nmt as u8 };
-            let f = CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &hb.emit());
-            c.push(f);
+        if self.hb.due(comm_us, self.store.u32(R_1017) as u16) {
+            self.emit(CoreOutput::Heartbeat {
+                state: self.nmt as u8,
+            });
         }
         // heartbeat consumer: every producer whose time is up (one EMCY, for the first)
         let mut lost = None;
-        while let Some(n) = c.hbc.poll(comm_us) {
+        while let Some(n) = self.hbc.poll(comm_us) {
             lost.get_or_insert(n);
         }
         if let Some(n) = lost {
-            c.hb_lost = true;
-            c.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
-            c.cia.comm_loss(&c.store, EMCY_HEARTBEAT);
+            self.hb_lost = true;
+            self.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
+            self.cia.comm_loss(&self.store, EMCY_HEARTBEAT);
         }
     }
 
-    fn poll_timers_and_drive(&mut self, clocks: Clocks, drive: &mut impl Drive) {
+    fn timers_and_drive(&mut self, clocks: Clocks, drive: &mut impl Drive) {
         let now_us = clocks.app_us;
-        self.core.now_us = now_us;
-        self.core.comm_us = clocks.comm_us;
+        self.now_us = now_us;
+        self.comm_us = clocks.comm_us;
         let fb = drive.feedback();
         self.comm_timers_before(clocks.comm_us);
-        let c = &mut self.core;
+        let c = self;
         if c.nmt == NmtState::Initialising && !c.boot_keeps_app {
             drive.command(&crate::drive::DriveCommand {
                 setpoint: crate::drive::Setpoint::Disabled,
@@ -137,22 +173,20 @@ impl Node {
             c.comm_timers_after(clocks.comm_us);
         }
     }
-}
 
-impl Core {
     /// Event-driven TPDOs (with the values of the last CiA 402 cycle) and EMCYs held by their
     /// inhibit time, on the communication clock.
     fn comm_timers_after(&mut self, comm_us: u64) {
         if self.nmt == NmtState::Operational {
-            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
-            self.pdo
-                .poll_events(&self.store, comm_us, &mut |f| push(tx, overflows, f));
+            let (out, dropped) = (&mut self.out, &mut self.out_dropped);
+            self.pdo.poll_events(&self.store, comm_us, &mut |f| {
+                emit(out, dropped, CoreOutput::CanOnly(f))
+            });
         }
         if self.emcy_allowed() {
             let inhibit = self.store.u32(R_1015) as u16;
             while let Some(d) = self.emcy.next(comm_us, inhibit) {
-                let f = CanFrame::new(self.store.u32(R_1014) & 0x7FF, &d);
-                self.push(f);
+                self.emit(CoreOutput::Emcy(d));
             }
         }
     }

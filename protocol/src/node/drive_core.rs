@@ -1,9 +1,9 @@
-//! The drive core inside the node: the object dictionary's values and their writes (each
+//! The drive core's methods: the object dictionary's values and their writes (each
 //! through the write hook of the service that owns the object, [`super::writes`]), the
 //! EMCY bookkeeping, RPDO values, boot and reset of the dictionary. Nothing here decodes a
-//! received CAN frame (that is [`super::frames`]); what the core sends (the boot-up, SDO
-//! answers) it still queues as CAN frames (docs/decisions/0018). What a front end other than
-//! CAN calls is in [`super::access`].
+//! received CAN frame (that is [`super::frames`]); what the core sends it queues as
+//! [`CoreOutput`]s (the boot-up, a heartbeat, an EMCY; docs/decisions/0018). What a front end
+//! other than CAN calls is in [`super::access`].
 
 use super::*;
 
@@ -67,7 +67,7 @@ impl<D: Drive> ObjectAccess for Access<'_, D> {
     }
 }
 
-impl Core {
+impl DriveCore {
     pub(super) fn event(&mut self, e: NodeEvent) {
         if self.events.push_back(e).is_err() {
             self.events_dropped = self.events_dropped.wrapping_add(1);
@@ -156,8 +156,8 @@ impl Core {
         self.rpdo_value_condition(k, true);
     }
 
-    pub(super) fn push(&mut self, f: CanFrame) {
-        push(&mut self.tx, &mut self.tx_overflows, f);
+    pub(super) fn emit(&mut self, o: CoreOutput) {
+        emit(&mut self.out, &mut self.out_dropped, o);
     }
 
     /// A write to a stored object whose type and dictionary limits were checked, from an SDO
@@ -165,7 +165,7 @@ impl Core {
     /// checks it and applies its side effects; the value is stored unless the hook applied
     /// it itself. A refused write changes nothing.
     pub(crate) fn write_stored(&mut self, w: &ObjectWrite) -> Result<(), u32> {
-        if let Some(hook) = self.hooks.find(w.index) {
+        if let Some(hook) = self.hooks.for_row(w.row, w.index) {
             if hook(self, w)? == Verdict::Applied {
                 return Ok(());
             }
@@ -175,7 +175,7 @@ impl Core {
     }
 
     /// One value of a received RPDO for the store row `row`: the dictionary's limits, then
-    /// [`Core::write_stored`] as for an SDO write. Whether it was taken.
+    /// [`DriveCore::write_stored`] as for an SDO write. Whether it was taken.
     pub(super) fn rpdo_value(&mut self, row: usize, raw: u64) -> bool {
         let e = self.od.entry(Slot::at(row));
         if e.check_limits(raw).is_err() {
@@ -192,8 +192,8 @@ impl Core {
     }
 
     /// Apply received data to RPDO `k`'s mapped objects, each value through
-    /// [`Core::rpdo_value`]. Whether every value was taken (for
-    /// [`Core::rpdo_value_condition`]).
+    /// [`DriveCore::rpdo_value`]. Whether every value was taken (for
+    /// [`DriveCore::rpdo_value_condition`]).
     pub(super) fn apply_rpdo(&mut self, k: usize, data: &[u8]) -> bool {
         let (map, n, len) = self.pdo.rpdo[k].rx_map();
         let Some(data) = data.get(..len) else {
@@ -205,9 +205,9 @@ impl Core {
     /// An SDO answer to a request at `now_us`: sent now or after the vendor's delay.
     pub(super) fn sdo_answer(&mut self, f: CanFrame, now_us: u64) {
         match self.qs.sdo_answer(&self.quirks, f, now_us) {
-            SdoAnswer::Now(f) => self.push(f),
+            SdoAnswer::Now(f) => self.emit(CoreOutput::CanOnly(f)),
             SdoAnswer::Queued => {}
-            SdoAnswer::Dropped => self.tx_overflows = self.tx_overflows.wrapping_add(1),
+            SdoAnswer::Dropped => self.out_dropped = self.out_dropped.wrapping_add(1),
         }
     }
 
@@ -261,7 +261,7 @@ impl Core {
     pub(super) fn start_boot(&mut self, now_us: u64, keeps_app: bool, delay_us: u64) {
         self.qs.on_reset();
         if delay_us == 0 {
-            self.boot(now_us);
+            self.boot_now(now_us);
         } else {
             self.nmt = NmtState::Initialising;
             self.boot_due_us = Some(now_us.saturating_add(delay_us));
@@ -269,7 +269,7 @@ impl Core {
         }
     }
 
-    pub(super) fn boot(&mut self, now_us: u64) {
+    pub(super) fn boot_now(&mut self, now_us: u64) {
         self.boot_due_us = None;
         self.boot_keeps_app = false;
         if self.node_id == UNCONFIGURED_NODE_ID {
@@ -283,10 +283,7 @@ impl Core {
         self.pending_sync = None;
         self.hb_lost = false;
         self.hb.restart(now_us, self.store.u32(R_1017) as u16);
-        self.push(CanFrame::new(
-            cob::HEARTBEAT + self.node_id as u32,
-            &Heartbeat::BOOTUP.emit(),
-        ));
+        self.emit(CoreOutput::Bootup);
         self.qs.on_bootup(&self.quirks, now_us);
     }
 
@@ -300,19 +297,6 @@ impl Core {
         // The serial number (0x1018:4, $NODEID in the standard dictionary) is part of the
         // LSS address: it stays what it was at power-on when LSS changes the node-ID.
         self.store.set(R_SERIAL, serial);
-    }
-
-    /// An NMT reset: the LSS slave's node-ID for the reset (pending at reset communication,
-    /// stored at reset node) becomes the node's.
-    pub(super) fn take_lss_node_id(&mut self, reset_node: bool) {
-        let Some(lss) = self.lss.as_mut() else { return };
-        if reset_node {
-            lss.reset_node();
-            self.lss_store = None;
-        } else {
-            lss.reset_communication();
-        }
-        self.node_id = lss.active_node_id().unwrap_or(UNCONFIGURED_NODE_ID);
     }
 }
 

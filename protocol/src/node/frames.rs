@@ -8,12 +8,12 @@ impl Node {
     /// An NMT command for this node: a reset node resets the application and the whole
     /// dictionary, a reset communication the communication objects; the others change state.
     fn nmt_command(&mut self, cmd: NmtCommand, now_us: u64, drive: &mut impl Drive) {
-        let c = &mut self.core;
         match cmd {
             NmtCommand::ResetNode => {
                 // The application resets too: the drive re-initialises its axis.
                 drive.reset();
-                c.take_lss_node_id(true);
+                self.take_lss_node_id(true);
+                let c = &mut self.core;
                 c.restore_range(0x0000, 0xFFFF);
                 let f = Factor::from_info(&c.info).unwrap_or(Factor {
                     inc_per_uu: 1.0,
@@ -26,12 +26,13 @@ impl Node {
                 );
                 c.cw_latch = ControlwordLatch::default();
                 c.clear_all_emcy();
-                self.sdo.reset();
+                self.can.sdo.reset();
                 let delay = c.reset_node_delay_us;
                 c.start_boot(now_us, false, delay);
             }
             NmtCommand::ResetCommunication => {
-                c.take_lss_node_id(false);
+                self.take_lss_node_id(false);
+                let c = &mut self.core;
                 c.restore_range(0x1000, 0x1FFF);
                 // 0x1001 / 0x1003 keep what the drive is still in FAULT for
                 let before = c.emcy.active_codes();
@@ -41,11 +42,12 @@ impl Node {
                         c.event(NodeEvent::EmcyCleared { code });
                     }
                 }
-                self.sdo.reset();
+                self.can.sdo.reset();
                 let delay = c.reset_comm_delay_us;
                 c.start_boot(now_us, true, delay);
             }
             _ => {
+                let c = &mut self.core;
                 let next = nmt::next_state(cmd);
                 if next == NmtState::Operational && c.nmt != NmtState::Operational {
                     c.pdo.restart();
@@ -60,7 +62,7 @@ impl Node {
 
     fn sdo_reset_if_stopped(&mut self, next: NmtState) {
         if next == NmtState::Stopped {
-            self.sdo.reset();
+            self.can.sdo.reset();
         }
     }
 
@@ -92,10 +94,11 @@ impl Node {
         drive: &mut impl Drive,
     ) -> FrameEvent {
         let ev = self.handle_frame(frame, clocks, late_us, drive);
-        if let Some(t) = self.sdo.take_finished() {
+        if let Some(t) = self.can.sdo.take_finished() {
             self.core.event(NodeEvent::SdoTransfer(t));
         }
         self.core.observe();
+        self.flush();
         ev
     }
 
@@ -126,7 +129,7 @@ impl Node {
         let nmt = self.core.nmt;
         match rx {
             Rx::Nmt => self.nmt_frame(frame, now_us, drive),
-            Rx::Sync => self.core.on_sync(frame, clocks, late_us),
+            Rx::Sync => self.core.on_sync(frame.len, frame.data[0], clocks, late_us),
             Rx::Heartbeat(node) => {
                 self.heartbeat_in(node, now_us);
                 FrameEvent::Handled
@@ -145,7 +148,7 @@ impl Node {
         RxTable {
             sync: self.sync_cob(),
             sdo_rx: cob::SDO_RX + self.core.node_id as u32,
-            lss: self.core.boot_due_us.is_none() && self.core.lss.is_some(),
+            lss: self.core.boot_due_us.is_none() && self.can.lss.is_some(),
         }
     }
 
@@ -213,7 +216,7 @@ impl Node {
         if frame.rtr || frame.len != 8 {
             return FrameEvent::Ignored;
         }
-        let in_block = self.sdo.expects_block_segment();
+        let in_block = self.can.sdo.expects_block_segment();
         let c = &mut self.core;
         if c.qs.sdo_request(&c.quirks, &frame.data, in_block) == SdoGate::Drop {
             return FrameEvent::Handled;
@@ -223,9 +226,11 @@ impl Node {
             core: &mut self.core,
             drive,
         };
-        self.sdo.handle(&frame.data, now_us, &mut acc, &mut |f| {
-            let _ = outv.push(f);
-        });
+        self.can
+            .sdo
+            .handle(&frame.data, now_us, &mut acc, &mut |f| {
+                let _ = outv.push(f);
+            });
         let tx_cob = cob::SDO_TX + self.core.node_id as u32;
         for f in outv {
             self.core.sdo_answer(CanFrame::new(tx_cob, &f), now_us);
@@ -256,12 +261,13 @@ impl Node {
 
     /// A remote frame in operational: the TPDO configured on its COB-ID, if it may answer.
     fn rtr_frame(&mut self, frame: &CanFrame, now_us: u64) -> FrameEvent {
-        let c = &mut self.core;
-        if c.quirks.tpdo_rtr_unsupported.is_some() {
+        if self.core.quirks.tpdo_rtr_unsupported.is_some() {
             // no remote frames answered (docs/quirks.md 3.10)
             return FrameEvent::Ignored;
         }
-        let (tx, overflows) = (&mut c.tx, &mut c.tx_overflows);
+        self.flush();
+        let c = &mut self.core;
+        let (tx, overflows) = (&mut self.can.tx, &mut self.can.tx_overflows);
         if c.pdo
             .on_rtr(&c.store, frame, now_us, &mut |f| push(tx, overflows, f))
         {
@@ -278,12 +284,12 @@ impl Node {
     /// An LSS request (COB-ID 0x7E5), in every NMT state once booted (as Lely and
     /// CANopenNode) and while non-configured.
     fn lss_frame(&mut self, frame: &CanFrame, now_us: u64, drive: &mut impl Drive) -> FrameEvent {
-        let Some(lss) = self.core.lss.as_mut() else {
+        let Some(lss) = self.can.lss.as_mut() else {
             return FrameEvent::Ignored;
         };
         let out = lss.handle(frame);
         if let Some(f) = out.response {
-            self.core.push(f);
+            self.send(f);
         }
         match out.event {
             Some(LssEvent::ResetCommunication { .. }) => {
@@ -295,19 +301,19 @@ impl Node {
                 node_id,
                 bit_timing_index,
             }) => {
-                if self.core.lss_store_external {
-                    self.core.lss_store = Some(LssStore {
+                if self.can.lss_store_external {
+                    self.can.lss_store = Some(LssStore {
                         node_id,
                         bit_timing_index,
                     });
-                } else if let Some(f) = self.core.lss.as_mut().and_then(|l| l.store_done(true)) {
-                    self.core.push(f);
+                } else if let Some(f) = self.can.lss.as_mut().and_then(|l| l.store_done(true)) {
+                    self.send(f);
                 }
             }
             Some(LssEvent::ActivateBitTiming {
                 table_index,
                 switch_delay_ms,
-            }) => self.core.lss_bit_timing_activated = Some((table_index, switch_delay_ms)),
+            }) => self.can.lss_bit_timing_activated = Some((table_index, switch_delay_ms)),
             _ => {}
         }
         FrameEvent::Handled
@@ -326,11 +332,20 @@ impl Node {
     }
 }
 
-impl Core {
+impl DriveCore {
     /// A SYNC, handled `late_us` after it arrived (the runtime read it late). Synchronous TPDOs
     /// are sampled and queued now, unless the synchronous window (0x1007, non-zero) has
     /// already closed: then CiA 301 says they are not sent (counted in 0x2100).
-    pub(super) fn on_sync(&mut self, frame: &CanFrame, clocks: Clocks, late_us: u64) -> FrameEvent {
+    ///
+    /// The SYNC's data length and first byte (the counter) are what the consumer checks
+    /// (EMCY 0x8240 on a wrong length, 0x1019).
+    pub(super) fn on_sync(
+        &mut self,
+        sync_len: u8,
+        sync_byte0: u8,
+        clocks: Clocks,
+        late_us: u64,
+    ) -> FrameEvent {
         let now_us = clocks.app_us;
         let window_us = u64::from(self.store.u32(R_1007));
         let window_closed = window_us > 0 && late_us > window_us;
@@ -345,11 +360,9 @@ impl Core {
         }
         let (_, watched) = self.watchdog_period();
         self.qs.watchdog_sync(now_us, watched);
-        let s = self
-            .sync
-            .on_sync(now_us, frame.len, frame.data[0], overflow);
+        let s = self.sync.on_sync(now_us, sync_len, sync_byte0, overflow);
         if s.length_error && self.emcy_allowed() {
-            self.report(EMCY_SYNC_LENGTH, [frame.len, 0, 0, 0, 0]);
+            self.report(EMCY_SYNC_LENGTH, [sync_len, 0, 0, 0, 0]);
         }
         if s.recovered {
             // the supervision is satisfied again; a fault it caused stays until reset
@@ -363,11 +376,11 @@ impl Core {
                     self.rpdo_value_condition(k, ok);
                 }
             }
-            let (tx, overflows) = (&mut self.tx, &mut self.tx_overflows);
+            let (out, dropped) = (&mut self.out, &mut self.out_dropped);
             let missed = self
                 .pdo
                 .on_sync(&self.store, clocks.comm_us, window_closed, &mut |f| {
-                    push(tx, overflows, f)
+                    emit(out, dropped, CoreOutput::CanOnly(f))
                 });
             self.sync_window_missed = self.sync_window_missed.wrapping_add(missed);
         }

@@ -3,12 +3,15 @@
 //!
 //! Each service module registers its objects (an index range and one function) when the
 //! node is built ([`WriteHooks::standard`]); an SDO download and an RPDO value go through the
-//! same [`Core::write_stored`](super::Core::write_stored): the dictionary's type and limits
+//! same [`DriveCore::write_stored`](super::DriveCore::write_stored): the dictionary's type and limits
 //! first, then the hook of the object's range, if any. A hook refuses (a CiA 301 abort
-//! code), lets the value be stored, or applies it itself. The table is a fixed-size array:
-//! filling it does not allocate, and a lookup is a scan of a dozen ranges.
+//! code), lets the value be stored, or applies it itself. The table is a fixed-size array
+//! of ranges; when the node is built it is indexed by the dictionary's rows
+//! ([`WriteHooks::index_rows`], the one allocation), so a write finds its hook, or that it
+//! has none (0x607A, 0x60FF, ...), with one load instead of a scan of a dozen ranges.
 
-use super::Core;
+use super::DriveCore;
+use crate::od::ObjectDictionary;
 
 /// Ranges a node's table holds at most (a registration beyond it is a bug in this crate,
 /// caught by every test that builds a node).
@@ -49,7 +52,7 @@ pub(crate) enum Verdict {
 }
 
 /// A service's check-and-apply function for the objects it registered.
-pub(crate) type Hook = fn(&mut Core, &ObjectWrite) -> Result<Verdict, u32>;
+pub(crate) type Hook = fn(&mut DriveCore, &ObjectWrite) -> Result<Verdict, u32>;
 
 #[derive(Clone, Copy)]
 struct Range {
@@ -64,19 +67,49 @@ impl core::fmt::Debug for Range {
     }
 }
 
+/// In [`WriteHooks::by_row`]: the row's object has no hook.
+const NO_HOOK: u8 = 0xFF;
+/// In [`WriteHooks::by_row`]: the row was not indexed (a hidden entry): look its index up.
+const NOT_INDEXED: u8 = 0xFE;
+
 /// Index ranges and the hook that rules each.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub(crate) struct WriteHooks {
     ranges: [Option<Range>; MAX_HOOKS],
     n: usize,
+    /// By dictionary row: the position of its hook's range in `ranges`, [`NO_HOOK`] or
+    /// [`NOT_INDEXED`] (filled by [`WriteHooks::index_rows`]; empty before).
+    by_row: Box<[u8]>,
 }
 
 impl WriteHooks {
     /// An empty table.
-    pub(crate) const fn new() -> WriteHooks {
+    pub(crate) fn new() -> WriteHooks {
         WriteHooks {
             ranges: [None; MAX_HOOKS],
             n: 0,
+            by_row: Box::default(),
+        }
+    }
+
+    /// Index the table by the rows of `od` (the dictionary the node keeps; its rows do not
+    /// change after the node is built): [`WriteHooks::for_row`] is then one load.
+    pub(crate) fn index_rows(&mut self, od: &ObjectDictionary) {
+        let rows = od.iter().map(|(s, _)| s.get() + 1).max().unwrap_or(0);
+        let mut by_row = vec![NOT_INDEXED; rows];
+        for (slot, e) in od.iter() {
+            by_row[slot.get()] = self.position(e.index).map_or(NO_HOOK, |k| k as u8);
+        }
+        self.by_row = by_row.into_boxed_slice();
+    }
+
+    /// The hook ruling writes to the object in dictionary row `row` (index `index`).
+    #[inline]
+    pub(crate) fn for_row(&self, row: usize, index: u16) -> Option<Hook> {
+        match self.by_row.get(row).copied() {
+            Some(NO_HOOK) => None,
+            Some(k) if k != NOT_INDEXED => self.ranges[k as usize].map(|r| r.hook),
+            _ => self.find(index),
         }
     }
 
@@ -108,13 +141,17 @@ impl WriteHooks {
     }
 
     /// The hook ruling writes to `index`, if a service registered one.
-    #[inline]
     pub(crate) fn find(&self, index: u16) -> Option<Hook> {
+        self.position(index)
+            .and_then(|k| self.ranges[k])
+            .map(|r| r.hook)
+    }
+
+    /// The position in `ranges` of the range holding `index`.
+    fn position(&self, index: u16) -> Option<usize> {
         self.ranges[..self.n]
             .iter()
-            .flatten()
-            .find(|r| (r.lo..=r.hi).contains(&index))
-            .map(|r| r.hook)
+            .position(|r| r.is_some_and(|r| (r.lo..=r.hi).contains(&index)))
     }
 
     /// The registered ranges (tests and the decision record's table).
@@ -150,9 +187,43 @@ mod tests {
     }
 
     #[test]
+    fn the_row_index_finds_what_the_ranges_find() {
+        let info = crate::drive::DriveInfo {
+            encoder_increments_per_rev: 4096,
+            gear_motor_revs: 1,
+            gear_shaft_revs: 1,
+            feed_user_units: 1000,
+            feed_shaft_revs: 1,
+            rated_torque_mnm: 1000,
+            rated_current_ma: 1000,
+            max_motor_speed_rpm: 3000,
+            rotary: false,
+        };
+        let od = ObjectDictionary::standard(&info);
+        let mut t = WriteHooks::standard();
+        t.index_rows(&od);
+        let (mut hooked, mut plain) = (0, 0);
+        for (slot, e) in od.iter() {
+            let want = t.position(e.index);
+            let got = t.by_row[slot.get()];
+            assert_eq!(got, want.map_or(NO_HOOK, |k| k as u8), "0x{:04X}", e.index);
+            assert_eq!(t.for_row(slot.get(), e.index).is_some(), want.is_some());
+            if want.is_some() {
+                hooked += 1;
+            } else {
+                plain += 1;
+            }
+        }
+        assert!(hooked > 10 && plain > 10, "{hooked} {plain}");
+        // a row the index does not know is looked up by its index
+        assert!(t.for_row(usize::MAX, 0x6040).is_some());
+        assert!(t.for_row(usize::MAX, 0x607A).is_none());
+    }
+
+    #[test]
     #[should_panic(expected = "overlaps")]
     fn an_overlapping_registration_is_a_bug() {
-        fn keep(_: &mut Core, _: &ObjectWrite) -> Result<Verdict, u32> {
+        fn keep(_: &mut DriveCore, _: &ObjectWrite) -> Result<Verdict, u32> {
             Ok(Verdict::Store)
         }
         let mut t = WriteHooks::new();

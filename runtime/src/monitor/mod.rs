@@ -134,7 +134,7 @@ impl DetectResults {
 
     /// [`DetectResults::apply`] for axis `k` alone, its node and drive: for a loop other than
     /// the CAN [`Runtime`] (the EtherCAT front end's). Real-time safe.
-    pub fn apply_axis(&self, k: usize, node: &mut drive_protocol::Node, drive: &AxisDrive) {
+    pub fn apply_axis(&self, k: usize, node: &mut drive_protocol::DriveCore, drive: &AxisDrive) {
         let Some(q) = self.results.get(k) else {
             return;
         };

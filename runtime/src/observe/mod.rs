@@ -313,7 +313,7 @@ impl Observer {
         b.rx_overflows.store(st.rx_overflows, Ordering::Relaxed);
         b.lockstep_period_us
             .store(rt.lockstep_period_us, Ordering::Relaxed);
-        self.publish_axes(now, rt.axes.iter_mut().map(|a| (&mut a.node, &a.drive)));
+        self.publish_axes(now, rt.axes.iter_mut().map(|a| (&mut *a.node, &a.drive)));
     }
 
     /// The bus's link as the loop sees it now (a CAN interface that went down).
@@ -327,9 +327,9 @@ impl Observer {
     pub fn publish_axes<'a>(
         &mut self,
         now: u64,
-        axes: impl Iterator<Item = (&'a mut drive_protocol::Node, &'a AxisDrive)>,
+        axes: impl Iterator<Item = (&'a mut drive_protocol::DriveCore, &'a AxisDrive)>,
     ) {
-        let mut first: Option<(&'a mut drive_protocol::Node, &'a AxisDrive)> = None;
+        let mut first: Option<(&'a mut drive_protocol::DriveCore, &'a AxisDrive)> = None;
         for (((node, drive), w), evs) in axes.zip(&mut self.writers).zip(&mut self.events) {
             evs.clear();
             while let Some(e) = node.poll_event() {

@@ -4,14 +4,14 @@
 //! `run --trace` reads the observation bus (observe/trace.rs).
 
 use crate::samples::Sample;
-use drive_protocol::Node;
+use drive_protocol::DriveCore;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 /// What `node` reports at `now_us`: the values a master reads from its TPDOs (statusword,
 /// mode, positions, velocity, torque, current, following error) plus the drive's own
 /// set-points (0x6062 position demand, 0x606B velocity demand).
-pub fn node_sample(node: &Node, now_us: u64) -> Sample {
+pub fn node_sample(node: &DriveCore, now_us: u64) -> Sample {
     let raw = |i: u16, s: u8| node.object_raw(i, s).unwrap_or(0);
     Sample {
         t_s: Sample::t_s_of_us(now_us),

@@ -22,7 +22,7 @@ pub use mapping::{check_entry, compile, Mapped};
 
 use crate::frame::CanFrame;
 use crate::node::writes::{ObjectWrite, Verdict, WriteHooks};
-use crate::node::Core;
+use crate::node::DriveCore;
 use crate::od::{ObjectDictionary, Store};
 use layout::{PdoSlots, MAX_ENTRIES};
 
@@ -331,7 +331,7 @@ pub(crate) fn register_writes(t: &mut WriteHooks) {
     t.register(0x1400, 0x1BFF, write_parameter);
 }
 
-fn write_parameter(c: &mut Core, w: &ObjectWrite) -> Result<Verdict, u32> {
+fn write_parameter(c: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
     if let Some(k) = c.pdo.rpdo_of(w.index) {
         c.rpdo_conditions_reset(k);
     }
