@@ -548,7 +548,7 @@ fn docs_objects_md_is_current() {
     let intro =
         "Generated from the object dictionary of the default drive (`drive-emu run`: preset \
                  cnc1, node ID 5): the standard objects of `protocol/src/od/standard.rs` and the \
-                 emulator's own of `emulator/src/drive/objects.rs`. Do not edit; run \
+                 emulator's own of `runtime/src/drive/objects.rs`. Do not edit; run \
                  `UPDATE_OBJECTS_MD=1 cargo test -p drive-emu --test eds_truth`.";
     let mut buf = [0u8; 8];
     let mut value_of = |e: &Entry| match e.backing {
