@@ -3,7 +3,7 @@
 
 use std::collections::HashMap;
 
-use super::value::parse_plain_uint;
+use super::value::{clip, parse_plain_uint};
 use super::{EdsError, EdsWarning, MAX_SECTIONS, MAX_VALUE_BYTES};
 
 pub(super) struct Entry<'a> {
@@ -367,16 +367,6 @@ impl<'a> Lexer<'a> {
             &mut self.warnings,
         );
         Ok(())
-    }
-}
-
-pub(super) fn clip(s: &str) -> String {
-    if s.chars().count() > 40 {
-        let mut c: String = s.chars().take(40).collect();
-        c.push('…');
-        c
-    } else {
-        s.to_string()
     }
 }
 

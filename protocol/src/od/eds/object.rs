@@ -3,8 +3,8 @@
 
 use std::collections::HashSet;
 
-use super::lex::{clip, err, key_err, num_key, text_of, Ctx, Entry, Kind, Section};
-use super::value::{parse_plain_uint, strip_hash_comment, ValueExpr};
+use super::lex::{err, key_err, num_key, text_of, Ctx, Entry, Kind, Section};
+use super::value::{clip, parse_plain_uint, strip_hash_comment, ValueExpr};
 use super::{DataType, EdsError, EdsObject, EdsSub, ObjectCode};
 use crate::od::Access;
 

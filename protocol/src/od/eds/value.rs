@@ -1,6 +1,5 @@
 //! EDS values: numbers, `$NODEID` expressions, octet strings, and [`ValueExpr`] turned into wire bytes.
 
-use super::lex::clip;
 use super::{DataType, MAX_VALUE_BYTES};
 
 /// A value as the file writes it, before it is turned into wire bytes for a type and a node
@@ -434,6 +433,17 @@ pub(super) fn parse_plain_uint(t: &str) -> Result<u128, String> {
     let t = strip_hash_comment(t.trim());
     let body = t.strip_prefix('+').unwrap_or(t);
     parse_uint(body).map(|(v, _)| v)
+}
+
+/// A value quoted in a message: its first 40 characters.
+pub(super) fn clip(s: &str) -> String {
+    if s.chars().count() > 40 {
+        let mut c: String = s.chars().take(40).collect();
+        c.push('…');
+        c
+    } else {
+        s.to_string()
+    }
 }
 
 #[cfg(test)]
