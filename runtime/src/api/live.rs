@@ -38,9 +38,6 @@ use super::ApiError;
 use crate::analysis::detector::DetectorReport;
 use crate::bus::fault::FaultyBus;
 use crate::bus::inproc::InProcEndpoint;
-use crate::bus::live::LiveTransport;
-use crate::bus::socketcand::SocketcandBus;
-use crate::bus::{CanBus, CanFrame, RecvError, SendError};
 use crate::drive::axis_drive::AxisDrive;
 use crate::drive::machine::MachineFile;
 use crate::observe::trace::TraceSummary;
@@ -451,68 +448,7 @@ impl LiveRun {
 
 /// The transport under a live run's fault injector: the command line's (SocketCAN,
 /// socketcand), or an in-process endpoint.
-pub enum LiveCan {
-    Transport(LiveTransport),
-    InProcess(InProcEndpoint),
-}
+pub use crate::bus::live::LiveTransport as LiveCan;
 
 /// The live bus: the transport behind the scenario's fault injector.
 pub type LiveBus = FaultyBus<LiveCan>;
-
-/// `$bus.$call` on whichever transport this is.
-macro_rules! each {
-    ($self:expr, $b:ident => $e:expr) => {
-        match $self {
-            LiveCan::Transport($b) => $e,
-            LiveCan::InProcess($b) => $e,
-        }
-    };
-}
-
-impl LiveCan {
-    /// False while a SocketCAN interface is down; the others are always up.
-    pub fn link_up(&self) -> bool {
-        match self {
-            LiveCan::Transport(t) => t.link_up(),
-            LiveCan::InProcess(_) => true,
-        }
-    }
-
-    /// The socketcand server, if that is the transport.
-    pub fn socketcand(&self) -> Option<&SocketcandBus> {
-        match self {
-            LiveCan::Transport(t) => t.socketcand(),
-            LiveCan::InProcess(_) => None,
-        }
-    }
-}
-
-impl CanBus for LiveCan {
-    fn send(&mut self, frame: &CanFrame) -> Result<(), SendError> {
-        each!(self, b => b.send(frame))
-    }
-    fn send_batch(&mut self, frames: &[CanFrame]) -> (usize, Option<SendError>) {
-        each!(self, b => b.send_batch(frames))
-    }
-    fn recv(&mut self) -> Result<Option<CanFrame>, RecvError> {
-        each!(self, b => b.recv())
-    }
-    fn wait_readable(&mut self, timeout_us: u64) {
-        each!(self, b => b.wait_readable(timeout_us))
-    }
-    fn end_tick(&mut self) {
-        each!(self, b => b.end_tick())
-    }
-    fn rx_fd(&self) -> Option<std::os::fd::RawFd> {
-        each!(self, b => b.rx_fd())
-    }
-    fn last_rx_stamp_ns(&self) -> Option<i128> {
-        each!(self, b => b.last_rx_stamp_ns())
-    }
-    fn rx_overflows(&self) -> u64 {
-        each!(self, b => b.rx_overflows())
-    }
-    fn wait_writable(&mut self, timeout_us: u64) {
-        each!(self, b => b.wait_writable(timeout_us))
-    }
-}

@@ -1,6 +1,8 @@
 //! The bus of a live run (`drive-emu run`), chosen at start: a SocketCAN interface
-//! (`--iface`) or a socketcand server (`--socketcand`).
+//! (`--iface`), a socketcand server (`--socketcand`), or an in-process endpoint (the typed
+//! API's `LiveBusSpec::InProcess`, a test's master on the other end).
 
+use super::inproc::InProcEndpoint;
 use super::socketcand::SocketcandBus;
 use super::{CanBus, CanFrame, RecvError, SendError};
 
@@ -9,6 +11,7 @@ pub enum LiveTransport {
     #[cfg(feature = "socketcan")]
     SocketCan(super::socketcan::SocketCanBus),
     Socketcand(SocketcandBus),
+    InProcess(InProcEndpoint),
 }
 
 /// `$bus.$call` on whichever transport this is.
@@ -18,17 +21,18 @@ macro_rules! each {
             #[cfg(feature = "socketcan")]
             LiveTransport::SocketCan($b) => $e,
             LiveTransport::Socketcand($b) => $e,
+            LiveTransport::InProcess($b) => $e,
         }
     };
 }
 
 impl LiveTransport {
-    /// False while a SocketCAN interface is down; a socketcand server is always up.
+    /// False while a SocketCAN interface is down; the others are always up.
     pub fn link_up(&self) -> bool {
         match self {
             #[cfg(feature = "socketcan")]
             LiveTransport::SocketCan(b) => b.link_up(),
-            LiveTransport::Socketcand(_) => true,
+            LiveTransport::Socketcand(_) | LiveTransport::InProcess(_) => true,
         }
     }
 
@@ -36,7 +40,6 @@ impl LiveTransport {
     pub fn socketcand(&self) -> Option<&SocketcandBus> {
         match self {
             LiveTransport::Socketcand(b) => Some(b),
-            #[cfg(feature = "socketcan")]
             _ => None,
         }
     }

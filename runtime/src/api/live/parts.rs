@@ -42,15 +42,15 @@ fn open_transport(bus: LiveBusSpec) -> Result<LiveCan> {
                 a.port(),
                 crate::bus::socketcand::CHANNEL
             );
-            return Ok(LiveCan::Transport(LiveTransport::Socketcand(bus)));
+            return Ok(LiveTransport::Socketcand(bus));
         }
         LiveBusSpec::SocketCan(iface) => iface,
     };
     #[cfg(feature = "socketcan")]
     {
-        Ok(LiveCan::Transport(LiveTransport::SocketCan(
+        Ok(LiveTransport::SocketCan(
             crate::bus::socketcan::SocketCanBus::open(&iface)?,
-        )))
+        ))
     }
     #[cfg(not(feature = "socketcan"))]
     anyhow::bail!(
