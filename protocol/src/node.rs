@@ -270,10 +270,20 @@ impl core::fmt::Display for ConfigError {
 
 impl std::error::Error for ConfigError {}
 
-/// Queue a frame to send; a full queue drops it and counts.
-fn push(tx: &mut Deque<CanFrame, TX_QUEUE>, overflows: &mut u32, f: CanFrame) {
-    if tx.push_back(f).is_err() {
-        *overflows = overflows.wrapping_add(1);
+/// A core output as its CAN frame, on the node-ID and EMCY COB-ID (0x1014) given. Out of
+/// line: a TPDO's frame (the hot path) leaves [`Node::pop_tx`] as one copy.
+#[cold]
+#[inline(never)]
+fn frame(o: CoreOutput, node_id: u8, emcy_cob: u32) -> CanFrame {
+    match o {
+        CoreOutput::Bootup => {
+            CanFrame::new(cob::HEARTBEAT + node_id as u32, &Heartbeat::BOOTUP.emit())
+        }
+        CoreOutput::Heartbeat { state } => {
+            CanFrame::new(cob::HEARTBEAT + node_id as u32, &Heartbeat { state }.emit())
+        }
+        CoreOutput::Emcy(d) => CanFrame::new(emcy_cob & 0x7FF, &d),
+        CoreOutput::CanOnly(f) => f,
     }
 }
 
@@ -285,9 +295,16 @@ fn emit(out: &mut Deque<CoreOutput, TX_QUEUE>, dropped: &mut u32, o: CoreOutput)
 }
 
 /// What the drive core has to send, in order, for its front end to put on its bus
-/// ([`DriveCore::take_output`]; the CAN front end drains it after every call into its transmit
-/// queue). Nothing here knows a COB-ID but [`CoreOutput::CanOnly`].
+/// ([`DriveCore::take_output`]; the CAN front end's transmit queue is this queue: it frames
+/// each output when [`Node::pop_tx`] takes it). Nothing here knows a COB-ID but
+/// [`CoreOutput::CanOnly`].
+///
+/// `repr(C)`: a tag beside the payload (not in a niche of the frame's flags), so a
+/// [`CoreOutput::CanOnly`] frame leaves [`Node::pop_tx`] as one 16-byte copy; built from
+/// its pieces it was stored piecewise and read back whole, a stalled store-to-load forward
+/// that cost a SYNC with 4 TPDOs about 18 % (docs/decisions/0018, "Cost").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
 pub enum CoreOutput {
     /// The boot-up message is due (the core entered pre-operational after a reset).
     Bootup,
@@ -368,13 +385,11 @@ pub struct DriveCore {
     seen_nmt: NmtState,
 }
 
-/// The CANopen-over-CAN front end around a [`DriveCore`]: the SDO server's frame state, the
-/// transmit queue (the core's outputs framed on their COB-IDs), the LSS slave.
+/// The CANopen-over-CAN front end around a [`DriveCore`]: the SDO server's frame state and
+/// the LSS slave. Its transmit queue is the core's output queue, framed when taken.
 #[derive(Clone, Debug)]
 struct CanFrontEnd {
     sdo: SdoServer,
-    tx: Deque<CanFrame, TX_QUEUE>,
-    tx_overflows: u32,
     /// LSS slave (CiA 305); the core's node-ID is its active node-ID (0xFF: non-configured).
     lss: Option<LssSlave>,
     /// Store configuration is written by the application ([`LssConfig::store_external`]).
@@ -722,8 +737,6 @@ impl Node {
         sdo.timeout_us = sdo_timeout_us;
         let can = CanFrontEnd {
             sdo,
-            tx: Deque::new(),
-            tx_overflows: 0,
             lss: lss_slave,
             lss_store_external: lss.is_some_and(|l| l.store_external),
             lss_store: None,
@@ -752,40 +765,40 @@ impl Node {
     /// [`Node::boot`] with two clocks (the boot delay runs on the communication clock).
     pub fn boot_with(&mut self, clocks: Clocks) {
         self.core.boot_with(clocks);
-        self.flush();
     }
 
     /// Complete a pending boot now (a lock-step runtime whose simulated time stands still
     /// while the master waits for the boot-up lets the delay pass on the wall clock).
     pub fn finish_boot(&mut self, now_us: u64) {
         self.core.finish_boot(now_us);
-        self.flush();
     }
 
-    /// The core's outputs, framed on their COB-IDs, into the transmit queue (in order: every
-    /// frame the front end queues itself comes after what the core queued before it).
-    fn flush(&mut self) {
-        let c = &mut self.core;
-        while let Some(o) = c.out.pop_front() {
-            let f = match o {
-                CoreOutput::Bootup => {
-                    CanFrame::new(cob::HEARTBEAT + c.node_id as u32, &Heartbeat::BOOTUP.emit())
-                }
-                CoreOutput::Heartbeat { state } => CanFrame::new(
-                    cob::HEARTBEAT + c.node_id as u32,
-                    &Heartbeat { state }.emit(),
-                ),
-                CoreOutput::Emcy(d) => CanFrame::new(c.store.u32(R_1014) & 0x7FF, &d),
-                CoreOutput::CanOnly(f) => f,
-            };
-            push(&mut self.can.tx, &mut self.can.tx_overflows, f);
+    /// The core's output queue is the transmit queue: an output is framed on its COB-ID
+    /// when taken ([`Node::pop_tx`]), and a frame of the front end's own (an LSS answer, an
+    /// RTR's TPDO) is queued behind it as a [`CoreOutput::CanOnly`]. Before a frame that
+    /// may change the node-ID or the EMCY COB-ID (an SDO, NMT or LSS frame: everything but
+    /// SYNC and RPDO, the hot path) what is queued is framed in place, on the COB-IDs it
+    /// was queued under.
+    #[inline]
+    fn frame_queued(&mut self) {
+        if !self.core.out.is_empty() {
+            self.frame_queued_now();
+        }
+    }
+
+    /// [`Node::frame_queued`] when something is queued.
+    fn frame_queued_now(&mut self) {
+        let (node_id, emcy_cob) = (self.core.node_id, self.core.store.u32(R_1014));
+        for o in self.core.out.iter_mut() {
+            if !matches!(o, CoreOutput::CanOnly(_)) {
+                *o = CoreOutput::CanOnly(frame(*o, node_id, emcy_cob));
+            }
         }
     }
 
     /// Queue a frame of the front end's own (after the core's outputs so far).
     fn send(&mut self, f: CanFrame) {
-        self.flush();
-        push(&mut self.can.tx, &mut self.can.tx_overflows, f);
+        self.core.emit(CoreOutput::CanOnly(f));
     }
 
     /// A store configuration to write (once per request, with [`LssConfig::store_external`]);
@@ -820,18 +833,20 @@ impl Node {
 
     /// The next frame to send.
     pub fn pop_tx(&mut self) -> Option<CanFrame> {
-        self.flush();
-        self.can.tx.pop_front()
+        match self.core.out.pop_front()? {
+            CoreOutput::CanOnly(f) => Some(f),
+            o => Some(frame(o, self.core.node_id, self.core.store.u32(R_1014))),
+        }
     }
 
     /// Frames dropped because the TX queue was full.
     pub fn tx_overflows(&self) -> u32 {
-        self.can.tx_overflows.wrapping_add(self.core.out_dropped)
+        self.core.out_dropped
     }
 
     /// Frames waiting in the TX queue.
     pub fn tx_pending(&self) -> usize {
-        self.can.tx.len() + self.core.out.len()
+        self.core.out.len()
     }
 
     /// An NMT reset: the LSS slave's node-ID for the reset (pending at reset communication,

@@ -48,14 +48,12 @@ impl Node {
         }
     }
 
-    /// After a call: a finished SDO transfer and state changes as events, the core's outputs
-    /// into the transmit queue.
+    /// After a call: a finished SDO transfer and state changes as events.
     fn finish_call(&mut self) {
         if let Some(t) = self.can.sdo.take_finished() {
             self.core.event(NodeEvent::SdoTransfer(t));
         }
         self.core.observe();
-        self.flush();
     }
 }
 

@@ -98,7 +98,6 @@ impl Node {
             self.core.event(NodeEvent::SdoTransfer(t));
         }
         self.core.observe();
-        self.flush();
         ev
     }
 
@@ -120,8 +119,12 @@ impl Node {
         let rx = self.rx_table().classify(frame);
         match rx {
             Rx::Other => return FrameEvent::Ignored,
-            Rx::Lss => return self.lss_frame(frame, now_us, drive),
-            _ => {}
+            Rx::Sync | Rx::Rpdo => {}
+            // may change the node-ID or the EMCY COB-ID: what is queued is framed first
+            _ => self.frame_queued(),
+        }
+        if rx == Rx::Lss {
+            return self.lss_frame(frame, now_us, drive);
         }
         if let Some(ev) = self.hard_of_hearing(frame, now_us, drive) {
             return ev;
@@ -265,12 +268,11 @@ impl Node {
             // no remote frames answered (docs/quirks.md 3.10)
             return FrameEvent::Ignored;
         }
-        self.flush();
         let c = &mut self.core;
-        let (tx, overflows) = (&mut self.can.tx, &mut self.can.tx_overflows);
-        if c.pdo
-            .on_rtr(&c.store, frame, now_us, &mut |f| push(tx, overflows, f))
-        {
+        let (out, dropped) = (&mut c.out, &mut c.out_dropped);
+        if c.pdo.on_rtr(&c.store, frame, now_us, &mut |f| {
+            emit(out, dropped, CoreOutput::CanOnly(f))
+        }) {
             return FrameEvent::Handled;
         }
         FrameEvent::Ignored

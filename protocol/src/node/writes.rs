@@ -78,7 +78,8 @@ pub(crate) struct WriteHooks {
     ranges: [Option<Range>; MAX_HOOKS],
     n: usize,
     /// By dictionary row: the position of its hook's range in `ranges`, [`NO_HOOK`] or
-    /// [`NOT_INDEXED`] (filled by [`WriteHooks::index_rows`]; empty before).
+    /// [`NOT_INDEXED`] (filled by [`WriteHooks::index_rows`]; empty before: a row beyond it
+    /// is looked up by its index too).
     by_row: Box<[u8]>,
 }
 
@@ -93,12 +94,28 @@ impl WriteHooks {
     }
 
     /// Index the table by the rows of `od` (the dictionary the node keeps; its rows do not
-    /// change after the node is built): [`WriteHooks::for_row`] is then one load.
+    /// change after the node is built): [`WriteHooks::for_row`] is then one load. One walk
+    /// over the visible rows in index order beside the ranges in theirs (they do not
+    /// overlap), so building a node does not scan the ranges once per row; a hidden row
+    /// is left [`NOT_INDEXED`] (looked up by its index, if it is ever written).
     pub(crate) fn index_rows(&mut self, od: &ObjectDictionary) {
-        let rows = od.iter().map(|(s, _)| s.get() + 1).max().unwrap_or(0);
-        let mut by_row = vec![NOT_INDEXED; rows];
+        let mut sorted: heapless::Vec<(u16, u16, u8), MAX_HOOKS> = heapless::Vec::new();
+        for (k, r) in self.ranges[..self.n].iter().enumerate() {
+            if let Some(r) = r {
+                let _ = sorted.push((r.lo, r.hi, k as u8));
+            }
+        }
+        sorted.sort_unstable_by_key(|&(lo, _, _)| lo);
+        let mut by_row = vec![NOT_INDEXED; od.slot_count()];
+        let mut p = 0;
         for (slot, e) in od.iter() {
-            by_row[slot.get()] = self.position(e.index).map_or(NO_HOOK, |k| k as u8);
+            while sorted.get(p).is_some_and(|&(_, hi, _)| hi < e.index) {
+                p += 1;
+            }
+            by_row[slot.get()] = match sorted.get(p) {
+                Some(&(lo, _, k)) if lo <= e.index => k,
+                _ => NO_HOOK,
+            };
         }
         self.by_row = by_row.into_boxed_slice();
     }
