@@ -4,7 +4,8 @@
 Usage: vendor_drive.py IFACE NODE FILE
 Prints READY once connected; start `drive-emu run --eds FILE --node NODE --lockstep
 --sync-period-us 10000` after it (the script waits for the boot-up). Then, with python
-canopen's own reading of FILE (`canopen.import_od(FILE, NODE)`), as a master configured from
+canopen's own reading of FILE (`canopen.import_od(FILE, NODE)`; a [Comments] section it cannot
+read left out, od_read.py), as a master configured from
 the vendor's file would:
   1. identity: 0x1000 and 0x1018:1-3 read over SDO equal the file's defaults;
   2. every object of the file is served: a read gives its type's size (write-only ones abort
@@ -32,6 +33,8 @@ import traceback
 import canopen
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 from canopen.sdo.exceptions import SdoAbortedError
+
+from od_read import read_od
 
 IFACE, NODE, FILE = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 SYNC_PERIOD = 0.01
@@ -82,7 +85,7 @@ def main():
     network = canopen.Network()
     network.connect(interface="socketcan", channel=IFACE)
     # steps 1-4 as a plain RemoteNode (what load_configuration belongs to), step 5 BaseNode402
-    node = canopen.RemoteNode(NODE, FILE)
+    node = canopen.RemoteNode(NODE, read_od(FILE, NODE))
     network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = 2.0
     od = node.object_dictionary
@@ -218,7 +221,7 @@ def main():
 
     # 5. BaseNode402 moves the axis
     del network[NODE]
-    node = canopen.BaseNode402(NODE, FILE)
+    node = canopen.BaseNode402(NODE, read_od(FILE, NODE))
     network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = 2.0
     modes = node.sdo.upload(0x6502, 0)

@@ -43,6 +43,8 @@ import logging
 from canopen import lss
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 
+from od_read import read_od
+
 FACTOR_GROUP = ((0x608F, 1), (0x608F, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2))
 # the least speed in position user units per second of the PP and CSV moves, so that the
 # speed shows in whole user units where one is a motor revolution (the Nanotec N5 files)
@@ -66,7 +68,7 @@ def variables(od):
 
 
 def check(network, node_id, path):
-    node = canopen.RemoteNode(node_id, path)
+    node = canopen.RemoteNode(node_id, read_od(path, node_id))
     network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = 5.0
     uploads, bad = 0, []
@@ -152,7 +154,7 @@ def connect(a, port):
 def lss_fastscan(network, node_id, path):
     """The drive, non-configured (--node 255), found by fast_scan() with the file's identity,
     given `node_id` by LSS, and booted there."""
-    od = canopen.import_od(path, node_id)
+    od = read_od(path, node_id)
     ident = od.get(0x1018)
     lss.LssMaster.RESPONSE_TIMEOUT = 1.5
     found, lss_id = network.lss.fast_scan()
@@ -205,7 +207,7 @@ def pp_move(network, node_id, path, factor_before=None):
     master does, its own profile (0x6081/0x6083/0x6084 within the file's limits), then a move
     of one motor revolution in the file's own units (its factor group as served);
     reached = bit 10 set after the set-point was taken, within the position window."""
-    node = canopen.BaseNode402(node_id, path)
+    node = canopen.BaseNode402(node_id, read_od(path, node_id))
     network.add_node(node)
     od = node.object_dictionary
     need = [0x6040, 0x6041, 0x6060, 0x6061, 0x6064, 0x607A, 0x6081]
