@@ -46,3 +46,46 @@ def read_od(path, node_id):
     source = io.StringIO(text)
     source.name = path  # import_od takes the format from the name's suffix
     return canopen.import_od(source, node_id)
+
+
+def not_downloaded(path):
+    """The (index, sub) of `path` whose ObjFlags has bit 0 set: CiA 306 says the value is not
+    written to the device when the file is downloaded (maxon's EPOS4 DCFs set it on values read
+    from the drive that are no configuration: 0x1003:0, 0x1010:1, the identity). python
+    canopen 2.4.1 reads no ObjFlags: its load_configuration() writes them all (0x1010:1 = 1 is
+    refused 0x08000020 by a CiA 301 device, 0x1003:0 = 1 0x06090030)."""
+    eds = configparser.RawConfigParser(inline_comment_prefixes=(";",), strict=False)
+    eds.optionxform = str
+    with open(path) as f:
+        eds.read_file(f)
+    out = set()
+    for section in eds.sections():
+        name = section.upper()
+        index, _, sub = name.partition("SUB")
+        if len(index) != 4 or not eds.has_option(section, "ObjFlags"):
+            continue
+        try:
+            flags = int(eds.get(section, "ObjFlags"), 0)
+            key = (int(index, 16), int(sub, 16) if sub else 0)
+        except ValueError:
+            continue
+        if flags & 1:
+            out.add(key)
+    return out
+
+
+def honour_objflags(od, path):
+    """Before load_configuration(): the values `path` marks not to be downloaded (ObjFlags bit
+    0) taken out of `od` (python canopen's reading of it), as a master that honours CiA 306's
+    ObjFlags leaves them; PDO parameters stay (python canopen writes those through its PDO
+    maps). The (index, sub) taken out, sorted."""
+    taken = []
+    for index, sub in sorted(not_downloaded(path)):
+        if 0x1400 <= index < 0x1C00 or index not in od:
+            continue
+        obj = od[index]
+        var = obj if not hasattr(obj, "subindices") else obj.subindices.get(sub)
+        if var is not None and getattr(var, "value", None) is not None:
+            var.value = None
+            taken.append((index, sub))
+    return taken

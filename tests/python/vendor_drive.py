@@ -14,7 +14,8 @@ the vendor's file would:
      signature, not values; PDO parameters go through step 4);
   4. `RemoteNode.load_configuration()`: the PDOs as the file says (python canopen's
      read(from_od=True) + save(): invalidate, sub 0 = 0, entries, sub 0, validate) and every
-     ParameterValue of a DCF, with no abort; the maps read back equal the file's. A PDO
+     ParameterValue of a DCF (but those its ObjFlags bit 0 says not to download), with no
+     abort; the maps read back equal the file's. A PDO
      parameter the file leaves without any value (the Elmo Gold DCFs: 0x1601:0 and 0x1A01:0,
      entries 2..8) is read from the drive first, as a user of python canopen must: canopen
      2.4.1's own PdoMap.read(from_od=True) raises a TypeError on it (`range(1, None + 1)`)
@@ -34,7 +35,7 @@ import canopen
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 from canopen.sdo.exceptions import SdoAbortedError
 
-from od_read import read_od
+from od_read import honour_objflags, read_od
 
 IFACE, NODE, FILE = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 SYNC_PERIOD = 0.01
@@ -185,6 +186,12 @@ def main():
     if from_drive:
         step(f"PDO parameters without a value in the file taken from the drive "
              f"(python canopen cannot read them): {', '.join(from_drive)}")
+    # values the file marks not to be downloaded (CiA 306 ObjFlags bit 0; maxon's EPOS4 DCFs:
+    # 0x1003:0, 0x1010:1, 0x6040...) left out, as a master that reads ObjFlags does; python
+    # canopen 2.4.1 reads none and would write them (od_read.py)
+    kept_back = honour_objflags(od, FILE)
+    if kept_back:
+        step(f"{len(kept_back)} values with ObjFlags bit 0 not downloaded")
     try:
         node.load_configuration()
     except SdoAbortedError as e:
@@ -207,10 +214,15 @@ def main():
             continue
         if not mappable_by_python(obj):
             continue
+        count = obj.subindices.get(0)
+        count = None if count is None else (
+            count.value if count.value is not None else count.default)
         for var in obj.values():
-            # what load_configuration wrote: a DCF's ParameterValue, else the default
+            # what load_configuration wrote: a DCF's ParameterValue, else the default; entries
+            # past the count it gives are not written (maxon's EPOS4 DCFs: TPDO4 with 0
+            # entries, whose sub 1 and 2 keep what the device had) and mean nothing
             want = var.value if var.value is not None else var.default
-            if want is None:
+            if want is None or (count is not None and var.subindex > count):
                 continue
             got = node.sdo.upload(var.index, var.subindex)
             check(got == var.encode_raw(want),
