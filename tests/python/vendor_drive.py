@@ -11,7 +11,8 @@ the vendor's file would:
   2. every object of the file is served: a read gives its type's size (write-only ones abort
      0x06010001);
   3. every rw object takes its own default back (0x1010/0x1011 are commands with a
-     signature, not values; PDO parameters go through step 4);
+     signature, not values; PDO parameters go through step 4); a motion limit whose file
+     default 0 is a placeholder (0x607F, 0x60C5, ...) gets the drive's limit back after;
   4. `RemoteNode.load_configuration()`: the PDOs as the file says (python canopen's
      read(from_od=True) + save(): invalidate, sub 0 = 0, entries, sub 0, validate) and every
      ParameterValue of a DCF (but those its ObjFlags bit 0 says not to download), with no
@@ -40,6 +41,9 @@ from od_read import honour_objflags, read_od
 IFACE, NODE, FILE = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 SYNC_PERIOD = 0.01
 COMMANDS = (0x1010, 0x1011)
+# limits whose value 0 allows no motion (protocol/src/od/from_eds.rs PLACEHOLDERS): a file's
+# default 0 there is a placeholder the drive serves as the simulated axis's limit
+ZERO_STOPS_MOTION = (0x607F, 0x6080, 0x6072, 0x6073, 0x60C5, 0x60C6)
 # defaults of a vendor's file the drive refuses to take back, with the abort it gives
 # (protocol/tests/eds_node.rs KNOWN_REFUSALS, tests/eds/vendors/SOURCES.md): SEVCON's Gen4 as
 # SYNC producer (0x1005 bit 30), its EMCY COB-ID 0, its profile torque mode 0x6060 = 4
@@ -131,7 +135,7 @@ def main():
 
     # 3. rw objects take their own default
     n = unencodable = 0
-    refused = []
+    refused, restored = [], []
     for var in variables(od):
         sub = var.subindex if isinstance(var.parent, (ODRecord, ODArray)) else 0
         if (not var.writable or var.default is None or var.index in COMMANDS
@@ -144,8 +148,18 @@ def main():
             # (maxon writes 0xFFFF for an INTEGER16 -1): not a value a python master can send
             unencodable += 1
             continue
+        # a limit whose file default 0 is a placeholder (igus's 0x607F and 0x60C5 = 0): the
+        # drive serves the axis's limit and takes a written 0 as CiA 402 says (no speed, no
+        # acceleration), which would stop the move of step 5; the write is checked, then the
+        # limit the drive had is written back
+        before = (node.sdo.upload(var.index, sub)
+                  if var.index in ZERO_STOPS_MOTION and sub == 0 and var.default == 0
+                  and var.readable else None)
         try:
             node.sdo.download(var.index, sub, raw)
+            if before is not None and before != raw:
+                node.sdo.download(var.index, sub, before)
+                restored.append(f"0x{var.index:04X}")
         except SdoAbortedError as e:
             base = os.path.basename(FILE)
             known = next((k for f, k in KNOWN_REFUSALS.items() if base.startswith(f)), {})
@@ -156,7 +170,8 @@ def main():
                  f"abort {e.code:#010x}")
         n += 1
     step(f"rw objects take their default ({n} written, {unencodable} python cannot encode, "
-         f"known refusals: {', '.join(refused) or 'none'})")
+         f"known refusals: {', '.join(refused) or 'none'}, placeholder limits restored: "
+         f"{', '.join(restored) or 'none'})")
 
     # 4. load_configuration: PDOs as the file says, a DCF's ParameterValues. python canopen
     # 2.4.1 cannot read a PDO parameter without any value in the file (PdoMap.read(from_od=
