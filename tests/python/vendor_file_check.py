@@ -17,7 +17,9 @@ serving it (one drive-emu process per file, this one python process for all):
   many revolutions per second as make 30 uu/s) (its factor group, and
   its SI unit velocity 0x60A9 where that names revolutions per time or 0x60A8's unit per time)
   ends with bit 10 set within the position window ("pp": "reached" / "not reached" / "not
-  offered"), its speed 0x606C peaking within 20 % of the speed asked ("pp_speed_ok");
+  offered"), its speed 0x606C peaking within 20 % of the speed asked ("pp_speed_ok"; the
+  speed is measured from positions, or, where no factor group is served and 0x60A9 says
+  revolutions per time (maxon's EPOS4 files), read as 0x606C);
 - where 0x6502 offers no PP but profile velocity (SEVCON's Gen4): BaseNode402 enables the
   drive in PV at one motor revolution per second (4000 uu/s without a factor group) and
   0x606C comes within 20 % of it ("pv": "ran" / "failed" / "not offered");
