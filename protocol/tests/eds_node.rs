@@ -78,7 +78,17 @@ fn every_object_of_every_vendor_file_is_served_with_its_size() {
                         || (o.index < 0x2000 && o.index != 0x1001 && o.index != 0x1003)
                     {
                         let want = d.resolve(s.data_type, Some(ID)).unwrap();
-                        if o.index != 0x6502 {
+                        // a placeholder default 0 (igus's 0x60C5 = 0, max acceleration) is
+                        // served as the axis's value, which the report says
+                        let why = report
+                            .lines
+                            .iter()
+                            .find(|l| (l.index, l.sub) == (o.index, s.sub))
+                            .map_or("", |l| l.why.as_str());
+                        if why.contains("is a placeholder") {
+                            assert!(want.iter().all(|&x| x == 0), "{where_}: {why}");
+                            assert!(got.iter().any(|&x| x != 0), "{where_}: served 0: {why}");
+                        } else if o.index != 0x6502 {
                             assert_eq!(got, want, "{where_}: default");
                         }
                     }

@@ -278,3 +278,54 @@ fn a_placeholder_factor_group_written_back_runs_as_the_files_own() {
         b.drive.pos - m0
     );
 }
+
+/// AMD's Kria KD240 file makes every map's number of entries `const` and its entries `rw`: a
+/// fixed mapping. python canopen's `load_configuration()` writes the file's own map (count 0,
+/// refused 0x06010002 and passed over by python canopen, the entries, the count) and was
+/// refused with 0x06010000 at the first entry (CiA 301: entries only while the count is 0,
+/// which it never is here). The drive takes an entry written as it stands and refuses any
+/// other value, as before; a map whose count is writable still refuses any entry while the
+/// count is not 0.
+#[test]
+fn a_fixed_mapping_takes_its_entries_as_they_stand_only() {
+    let f = parse(&text("fixed-pdo-map.eds")).unwrap();
+    let (mut b, report) = bench(&f);
+    for index in [0x1600u16, 0x1A00] {
+        assert!(
+            report.notes.iter().any(
+                |n| n.starts_with(&format!("0x{index:04X}: ")) && n.contains("a fixed mapping")
+            ),
+            "{:?}",
+            report.notes
+        );
+    }
+    let rx = 0x200 + u32::from(ID);
+    let tx = 0x4000_0180 + u32::from(ID);
+    // python canopen's save(): the PDO off, count 0 (refused: const), the entry, the count
+    b.w32(0x1400, 1, rx | 0x8000_0000).unwrap();
+    b.w32(0x1800, 1, tx | 0x8000_0000).unwrap();
+    assert_eq!(b.w8(0x1600, 0, 0), Err(0x0601_0002));
+    b.w32(0x1600, 1, 0x6040_0010).unwrap();
+    b.w32(0x1A00, 1, 0x6041_0010).unwrap();
+    assert_eq!(b.w8(0x1600, 0, 1), Err(0x0601_0002));
+    // any other entry is refused and the map stays
+    assert_eq!(b.w32(0x1600, 1, 0x6060_0008), Err(0x0601_0000));
+    assert_eq!(b.w32(0x1A00, 1, 0x6064_0020), Err(0x0601_0000));
+    assert_eq!(b.w32(0x1600, 1, 0), Err(0x0601_0000));
+    assert_eq!(b.r32(0x1600, 1), 0x6040_0010);
+    assert_eq!(b.r32(0x1A00, 1), 0x6041_0010);
+    b.w32(0x1400, 1, rx).unwrap();
+    b.w32(0x1800, 1, tx).unwrap();
+    // a writable count: CiA 301 as before, no entry written while it is not 0
+    let rw = text("fixed-pdo-map.eds").replacen(
+        "[1600sub0]\nParameterName=Number of entries\nDataType=0x0005\nAccessType=const",
+        "[1600sub0]\nParameterName=Number of entries\nDataType=0x0005\nAccessType=rw",
+        1,
+    );
+    let (mut b, report) = bench(&parse(&rw).unwrap());
+    assert!(!report.notes.iter().any(|n| n.starts_with("0x1600: ")));
+    b.w32(0x1400, 1, rx | 0x8000_0000).unwrap();
+    assert_eq!(b.w32(0x1600, 1, 0x6040_0010), Err(0x0601_0000));
+    b.w8(0x1600, 0, 0).unwrap();
+    b.w32(0x1600, 1, 0x6060_0008).unwrap();
+}

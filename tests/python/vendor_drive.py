@@ -4,16 +4,19 @@
 Usage: vendor_drive.py IFACE NODE FILE
 Prints READY once connected; start `drive-emu run --eds FILE --node NODE --lockstep
 --sync-period-us 10000` after it (the script waits for the boot-up). Then, with python
-canopen's own reading of FILE (`canopen.import_od(FILE, NODE)`), as a master configured from
+canopen's own reading of FILE (`canopen.import_od(FILE, NODE)`; a [Comments] section it cannot
+read left out, od_read.py), as a master configured from
 the vendor's file would:
   1. identity: 0x1000 and 0x1018:1-3 read over SDO equal the file's defaults;
   2. every object of the file is served: a read gives its type's size (write-only ones abort
      0x06010001);
   3. every rw object takes its own default back (0x1010/0x1011 are commands with a
-     signature, not values; PDO parameters go through step 4);
+     signature, not values; PDO parameters go through step 4); a motion limit whose file
+     default 0 is a placeholder (0x607F, 0x60C5, ...) gets the drive's limit back after;
   4. `RemoteNode.load_configuration()`: the PDOs as the file says (python canopen's
      read(from_od=True) + save(): invalidate, sub 0 = 0, entries, sub 0, validate) and every
-     ParameterValue of a DCF, with no abort; the maps read back equal the file's. A PDO
+     ParameterValue of a DCF (but those its ObjFlags bit 0 says not to download), with no
+     abort; the maps read back equal the file's. A PDO
      parameter the file leaves without any value (the Elmo Gold DCFs: 0x1601:0 and 0x1A01:0,
      entries 2..8) is read from the drive first, as a user of python canopen must: canopen
      2.4.1's own PdoMap.read(from_od=True) raises a TypeError on it (`range(1, None + 1)`)
@@ -33,9 +36,14 @@ import canopen
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 from canopen.sdo.exceptions import SdoAbortedError
 
+from od_read import honour_objflags, read_od
+
 IFACE, NODE, FILE = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 SYNC_PERIOD = 0.01
 COMMANDS = (0x1010, 0x1011)
+# limits whose value 0 allows no motion (protocol/src/od/from_eds.rs PLACEHOLDERS): a file's
+# default 0 there is a placeholder the drive serves as the simulated axis's limit
+ZERO_STOPS_MOTION = (0x607F, 0x6080, 0x6072, 0x6073, 0x60C5, 0x60C6)
 # defaults of a vendor's file the drive refuses to take back, with the abort it gives
 # (protocol/tests/eds_node.rs KNOWN_REFUSALS, tests/eds/vendors/SOURCES.md): SEVCON's Gen4 as
 # SYNC producer (0x1005 bit 30), its EMCY COB-ID 0, its profile torque mode 0x6060 = 4
@@ -82,7 +90,7 @@ def main():
     network = canopen.Network()
     network.connect(interface="socketcan", channel=IFACE)
     # steps 1-4 as a plain RemoteNode (what load_configuration belongs to), step 5 BaseNode402
-    node = canopen.RemoteNode(NODE, FILE)
+    node = canopen.RemoteNode(NODE, read_od(FILE, NODE))
     network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = 2.0
     od = node.object_dictionary
@@ -127,7 +135,7 @@ def main():
 
     # 3. rw objects take their own default
     n = unencodable = 0
-    refused = []
+    refused, restored = [], []
     for var in variables(od):
         sub = var.subindex if isinstance(var.parent, (ODRecord, ODArray)) else 0
         if (not var.writable or var.default is None or var.index in COMMANDS
@@ -140,8 +148,18 @@ def main():
             # (maxon writes 0xFFFF for an INTEGER16 -1): not a value a python master can send
             unencodable += 1
             continue
+        # a limit whose file default 0 is a placeholder (igus's 0x607F and 0x60C5 = 0): the
+        # drive serves the axis's limit and takes a written 0 as CiA 402 says (no speed, no
+        # acceleration), which would stop the move of step 5; the write is checked, then the
+        # limit the drive had is written back
+        before = (node.sdo.upload(var.index, sub)
+                  if var.index in ZERO_STOPS_MOTION and sub == 0 and var.default == 0
+                  and var.readable else None)
         try:
             node.sdo.download(var.index, sub, raw)
+            if before is not None and before != raw:
+                node.sdo.download(var.index, sub, before)
+                restored.append(f"0x{var.index:04X}")
         except SdoAbortedError as e:
             base = os.path.basename(FILE)
             known = next((k for f, k in KNOWN_REFUSALS.items() if base.startswith(f)), {})
@@ -152,7 +170,8 @@ def main():
                  f"abort {e.code:#010x}")
         n += 1
     step(f"rw objects take their default ({n} written, {unencodable} python cannot encode, "
-         f"known refusals: {', '.join(refused) or 'none'})")
+         f"known refusals: {', '.join(refused) or 'none'}, placeholder limits restored: "
+         f"{', '.join(restored) or 'none'})")
 
     # 4. load_configuration: PDOs as the file says, a DCF's ParameterValues. python canopen
     # 2.4.1 cannot read a PDO parameter without any value in the file (PdoMap.read(from_od=
@@ -182,6 +201,12 @@ def main():
     if from_drive:
         step(f"PDO parameters without a value in the file taken from the drive "
              f"(python canopen cannot read them): {', '.join(from_drive)}")
+    # values the file marks not to be downloaded (CiA 306 ObjFlags bit 0; maxon's EPOS4 DCFs:
+    # 0x1003:0, 0x1010:1, 0x6040...) left out, as a master that reads ObjFlags does; python
+    # canopen 2.4.1 reads none and would write them (od_read.py)
+    kept_back = honour_objflags(od, FILE)
+    if kept_back:
+        step(f"{len(kept_back)} values with ObjFlags bit 0 not downloaded")
     try:
         node.load_configuration()
     except SdoAbortedError as e:
@@ -204,10 +229,15 @@ def main():
             continue
         if not mappable_by_python(obj):
             continue
+        count = obj.subindices.get(0)
+        count = None if count is None else (
+            count.value if count.value is not None else count.default)
         for var in obj.values():
-            # what load_configuration wrote: a DCF's ParameterValue, else the default
+            # what load_configuration wrote: a DCF's ParameterValue, else the default; entries
+            # past the count it gives are not written (maxon's EPOS4 DCFs: TPDO4 with 0
+            # entries, whose sub 1 and 2 keep what the device had) and mean nothing
             want = var.value if var.value is not None else var.default
-            if want is None:
+            if want is None or (count is not None and var.subindex > count):
                 continue
             got = node.sdo.upload(var.index, var.subindex)
             check(got == var.encode_raw(want),
@@ -218,7 +248,7 @@ def main():
 
     # 5. BaseNode402 moves the axis
     del network[NODE]
-    node = canopen.BaseNode402(NODE, FILE)
+    node = canopen.BaseNode402(NODE, read_od(FILE, NODE))
     network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = 2.0
     modes = node.sdo.upload(0x6502, 0)

@@ -5,7 +5,8 @@ serving it (one drive-emu process per file, this one python process for all):
 - every readable object of FILE (from 0x1000) uploads with its type's size (strings and
   domains: any size), no abort;
 - the identity 0x1018:1 is the file's;
-- load_configuration() writes every ParameterValue of a DCF (nothing refused);
+- load_configuration() writes every ParameterValue of a DCF (nothing refused), but those its
+  ObjFlags bit 0 says not to download (CiA 306);
 - the RPDO/TPDO maps read back as the file's defaults (or its ParameterValues once loaded);
 - where the file offers LSS (the drive started non-configured, --node 255): LssMaster's
   fast_scan() finds the drive by the file's identity, configure_node_id() gives it the node-ID
@@ -16,7 +17,9 @@ serving it (one drive-emu process per file, this one python process for all):
   many revolutions per second as make 30 uu/s) (its factor group, and
   its SI unit velocity 0x60A9 where that names revolutions per time or 0x60A8's unit per time)
   ends with bit 10 set within the position window ("pp": "reached" / "not reached" / "not
-  offered"), its speed 0x606C peaking within 20 % of the speed asked ("pp_speed_ok");
+  offered"), its speed 0x606C peaking within 20 % of the speed asked ("pp_speed_ok"; the
+  speed is measured from positions, or, where no factor group is served and 0x60A9 says
+  revolutions per time (maxon's EPOS4 files), read as 0x606C);
 - where 0x6502 offers no PP but profile velocity (SEVCON's Gen4): BaseNode402 enables the
   drive in PV at one motor revolution per second (4000 uu/s without a factor group) and
   0x606C comes within 20 % of it ("pv": "ran" / "failed" / "not offered");
@@ -43,6 +46,8 @@ import logging
 from canopen import lss
 from canopen.objectdictionary import ODArray, ODRecord, ODVariable
 
+from od_read import honour_objflags, read_od
+
 FACTOR_GROUP = ((0x608F, 1), (0x608F, 2), (0x6091, 1), (0x6091, 2), (0x6092, 1), (0x6092, 2))
 # the least speed in position user units per second of the PP and CSV moves, so that the
 # speed shows in whole user units where one is a motor revolution (the Nanotec N5 files)
@@ -66,7 +71,7 @@ def variables(od):
 
 
 def check(network, node_id, path):
-    node = canopen.RemoteNode(node_id, path)
+    node = canopen.RemoteNode(node_id, read_od(path, node_id))
     network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = 5.0
     uploads, bad = 0, []
@@ -115,6 +120,9 @@ def check(network, node_id, path):
         obj = od.get(index)
         if obj is not None and sub in getattr(obj, "subindices", {}):
             factor_before[(index, sub)] = sdo_u32(node, index, sub)
+    # values the file marks not to be downloaded (CiA 306 ObjFlags bit 0) left out, as a
+    # master that reads ObjFlags does (python canopen 2.4.1 reads none: od_read.py)
+    honour_objflags(od, path)
     try:
         node.load_configuration()  # raises on the first refused ParameterValue
         configured = True
@@ -126,11 +134,16 @@ def check(network, node_id, path):
             obj = node.object_dictionary.get(base + n)
             if obj is None:
                 continue
+            count = obj.subindices.get(0)
+            count = None if count is None else (
+                count.value if count.value is not None else count.default)
             for sub in obj.values():
                 if sub.subindex == 0:
                     continue
+                # entries past the count the file gives are not written (maxon's EPOS4 DCFs:
+                # TPDO4 with 0 entries) and mean nothing
                 want = sub.value if sub.value is not None else sub.default
-                if want is None:
+                if want is None or (count is not None and sub.subindex > count):
                     continue
                 got = struct.unpack("<I", node.sdo.upload(sub.index, sub.subindex))[0]
                 if got != want:
@@ -152,7 +165,7 @@ def connect(a, port):
 def lss_fastscan(network, node_id, path):
     """The drive, non-configured (--node 255), found by fast_scan() with the file's identity,
     given `node_id` by LSS, and booted there."""
-    od = canopen.import_od(path, node_id)
+    od = read_od(path, node_id)
     ident = od.get(0x1018)
     lss.LssMaster.RESPONSE_TIMEOUT = 1.5
     found, lss_id = network.lss.fast_scan()
@@ -171,6 +184,26 @@ def lss_fastscan(network, node_id, path):
         time.sleep(0.02)
     network.unsubscribe(0x700 + node_id)
     return "fastscan" if b"\x00" in booted else "no boot-up after configure_node_id"
+
+
+def velocity_in_revolutions(node, od):
+    """The SI unit velocity 0x60A9 names revolutions per time (0xB4 per s, min or h): a
+    velocity then says revolutions whatever a position user unit is."""
+    if od.get(0x60A9) is None:
+        return False
+    v = sdo_u32(node, 0x60A9, 0)
+    return (v >> 16) & 0xFF == 0xB4 and (v >> 8) & 0xFF in (0x03, 0x47, 0x48)
+
+
+def fastest_mean(samples, span_s):
+    """The highest mean of (time, value) samples over `span_s` seconds."""
+    best = 0.0
+    for i, (t0, _) in enumerate(samples):
+        window = [v for t, v in samples[i:] if t - t0 < span_s]
+        if samples[-1][0] - t0 < span_s:
+            break
+        best = max(best, sum(window) / len(window))
+    return best
 
 
 def velocity_per_rev_per_s(node, od, inc_per_rev, uu_per_rev):
@@ -205,7 +238,7 @@ def pp_move(network, node_id, path, factor_before=None):
     master does, its own profile (0x6081/0x6083/0x6084 within the file's limits), then a move
     of one motor revolution in the file's own units (its factor group as served);
     reached = bit 10 set after the set-point was taken, within the position window."""
-    node = canopen.BaseNode402(node_id, path)
+    node = canopen.BaseNode402(node_id, read_od(path, node_id))
     network.add_node(node)
     od = node.object_dictionary
     need = [0x6040, 0x6041, 0x6060, 0x6061, 0x6064, 0x607A, 0x6081]
@@ -229,10 +262,16 @@ def pp_move(network, node_id, path, factor_before=None):
     enc, enc_r = factor(0x608F, 1, 0), factor(0x608F, 2, 1)
     gm, gs = factor(0x6091, 1, 1), factor(0x6091, 2, 1)
     feed, feed_r = factor(0x6092, 1, 0), factor(0x6092, 2, 1)
-    if enc and feed and enc_r and gm and gs and feed_r:
+    factor_known = bool(enc and feed and enc_r and gm and gs and feed_r)
+    if factor_known:
         uu_per_motor_rev = (feed / feed_r) / (gm / gs)
     else:
         uu_per_motor_rev = 4000
+    # no factor group served (maxon's EPOS4 files) while velocities are in revolutions per
+    # time (0x60A9 rev/min): the master cannot tell a revolution in position user units, so
+    # a speed is not computed from positions but read as the drive's 0x606C, in that unit
+    by_606c = (not factor_known and od.get(0x606C) is not None
+               and velocity_in_revolutions(node, od))
     # the move a user of that drive asks: one motor revolution at one revolution per second
     # where a revolution is many user units; where it is few (the Nanotec N5 files: 1 uu = one
     # revolution), as many revolutions per second as make 30 uu/s, for two seconds, so that
@@ -274,16 +313,23 @@ def pp_move(network, node_id, path, factor_before=None):
         time.sleep(0.01)
     node.controlword = 0x0F
     reached = False
-    track = []
+    track, velocities = [], []
     while time.monotonic() < deadline:
         sw = sdo_u32(node, 0x6041, 0)
         if sw & (1 << 10):
             reached = True
             break
         track.append((time.monotonic(), struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]))
+        if by_606c:
+            velocities.append((time.monotonic(), struct.unpack(
+                "<i", node.sdo.upload(0x606C, 0)[:4].ljust(4, b"\0"))[0]))
     # the speed it moved at, in the velocity unit: the position's fastest 0.3 s (the cruise
-    # lasts 0.9 s; 0x606C of a coarse encoder jitters by an increment per sample)
-    speed = round(fastest(track, span_s) * vel / (uu_per_motor_rev * revs_per_s))
+    # lasts 0.9 s; 0x606C of a coarse encoder jitters by an increment per sample); without
+    # a factor group, 0x606C's fastest 0.15 s (the cruise of a 4000 uu move may be short)
+    if by_606c:
+        speed = round(fastest_mean(velocities, 0.15)) if len(velocities) > 2 else 0
+    else:
+        speed = round(fastest(track, span_s) * vel / (uu_per_motor_rev * revs_per_s))
     measure = len(track) > 2
     end = struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]
     inside = abs(end - target) <= window
@@ -292,7 +338,7 @@ def pp_move(network, node_id, path, factor_before=None):
            "pp_speed_asked": asked, "pp_speed": speed if measure else None,
            "pp_speed_ok": (None if not measure or not asked
                            else 0.8 * asked <= speed <= 1.2 * asked)}
-    out.update(csv_move(node, od, vel, uu_per_motor_rev * revs_per_s))
+    out.update(csv_move(node, od, vel, uu_per_motor_rev * revs_per_s, by_606c))
     node.nmt.state = "PRE-OPERATIONAL"
     network.nodes.pop(node_id, None)
     return out
@@ -355,10 +401,11 @@ def fastest(track, span_s):
     return best
 
 
-def csv_move(node, od, vel, uu_per_rev):
+def csv_move(node, od, vel, uu_per_rev, by_606c=False):
     """Cyclic synchronous velocity (where 0x6502 offers it, bit 8): 0x60FF = `vel` (the PP
     move's speed: `uu_per_rev` position user units per second) for 0.8 s; the speed over the
-    last 0.4 s within 20 % and the position advanced."""
+    last 0.4 s within 20 % and the position advanced. `by_606c`: the speed is the mean of
+    0x606C over the last 0.4 s (no factor group: positions say no revolutions)."""
     if od.get(0x60FF) is None or od.get(0x606C) is None or not sdo_u32(node, 0x6502, 0) & (1 << 8):
         return {"csv": "not offered"}
     want = round(vel)
@@ -367,16 +414,22 @@ def csv_move(node, od, vel, uu_per_rev):
     node.op_mode = "CYCLIC SYNCHRONOUS VELOCITY"
     start = struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]
     node.sdo.download(0x60FF, 0, struct.pack("<i", want))
-    track = []
+    track, velocities = [], []
     deadline = time.monotonic() + 0.8
     while time.monotonic() < deadline:
         track.append((time.monotonic(), struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]))
+        if by_606c:
+            velocities.append((time.monotonic(), struct.unpack(
+                "<i", node.sdo.upload(0x606C, 0)[:4].ljust(4, b"\0"))[0]))
     node.sdo.download(0x60FF, 0, struct.pack("<i", 0))
     end = struct.unpack("<i", node.sdo.upload(0x6064, 0))[0]
     # the mean speed over the last half, in the velocity unit
     half = [x for x in track if x[0] >= track[0][0] + 0.4]
     speed = 0
-    if len(half) > 1:
+    if by_606c:
+        late = [v for t, v in velocities if t >= track[0][0] + 0.4]
+        speed = round(sum(late) / len(late)) if late else 0
+    elif len(half) > 1:
         (t0, p0), (t1, p1) = half[0], half[-1]
         speed = round((p1 - p0) / (t1 - t0) * vel / uu_per_rev)
     ok = 0.8 * want <= speed <= 1.2 * want and end > start

@@ -300,6 +300,7 @@ impl ObjectDictionary {
         od.device = device_description(file, fe_window_zero, fixed_pdo_can_ids);
         od.device.shipped_short_entries = shipped_short_entries(file, &od, &mut report);
         od.device.shipped_read_only_rpdo_entries = shipped_read_only_rpdo_entries(&od, &mut report);
+        note_fixed_maps(&od, &mut report);
         report.lines.sort_by_key(|l| (l.index, l.sub));
         check_default_mappings(&od, &mut report);
         Ok((od, report))
@@ -1046,6 +1047,26 @@ fn shipped_short_entries(
 /// writable objects in an RPDO, but the device ships them (a scanned file shows what the
 /// device holds), so it takes them; the drive accepts them too, and ignores what is received
 /// for those objects.
+/// Mapping records whose count the file makes read-only (`const`, `ro`) while an entry is
+/// writable (AMD's Kria KD240 file): a fixed mapping, whose entries take a write that leaves
+/// them as they stand (`cia301::pdo::rules`); said in the report's notes.
+fn note_fixed_maps(od: &ObjectDictionary, report: &mut BuildReport) {
+    for index in (0x1600..0x1800u16).chain(0x1A00..0x1C00) {
+        let Some((_, count)) = od.get(index, 0) else {
+            continue;
+        };
+        let rw_entry =
+            (1..=8).any(|sub| od.get(index, sub).is_some_and(|(_, e)| e.access.writable()));
+        if !count.access.writable() && rw_entry {
+            report.notes.push(format!(
+                "0x{index:04X}: the file makes the number of mapped objects read-only and its \
+                 entries writable: a fixed mapping; an entry written as it stands is taken \
+                 (nothing changes), any other value refused with 0x06010000"
+            ));
+        }
+    }
+}
+
 fn shipped_read_only_rpdo_entries(od: &ObjectDictionary, report: &mut BuildReport) -> Vec<u32> {
     let mut v = Vec::new();
     for n in 0..512u16 {

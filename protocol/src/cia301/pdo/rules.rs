@@ -63,6 +63,9 @@ fn check_mapping_write(
         .count
         .map_or(0, |s| store.u32(s as usize) as usize);
     if count != 0 && !rules.lenient_remap {
+        if keeps_fixed_entry(od, store, pdo, param, sub, raw) {
+            return Ok(());
+        }
         return Err(abort::UNSUPPORTED_ACCESS);
     }
     if raw != 0 {
@@ -80,6 +83,31 @@ fn check_mapping_write(
         mapped_length_with(od, store, pdo, count, tx, sub, raw as u32, max_len)?;
     }
     Ok(())
+}
+
+/// A fixed mapping (its file makes the count `const` or `ro` and the entries `rw`: AMD's
+/// Kria KD240 `foc-mc.eds`): the count can never be 0, so CiA 301 would refuse every entry
+/// write; a write that leaves entry `sub` as it stands is taken (nothing changes), as a
+/// master that loads the file's own map (python canopen's `load_configuration()`) writes it.
+/// Any other value is still refused (0x06010000). Our reading of such a file, not checked on
+/// the device.
+fn keeps_fixed_entry(
+    od: &ObjectDictionary,
+    store: &Store,
+    pdo: &Pdo,
+    param: Param,
+    sub: u8,
+    raw: u64,
+) -> bool {
+    let map_index = comm_index(param) + 0x200;
+    let fixed = od
+        .get(map_index, 0)
+        .is_some_and(|(_, e)| !e.access.writable());
+    let current = usize::from(sub)
+        .checked_sub(1)
+        .and_then(|k| pdo.slots.entries.get(k).copied().flatten())
+        .map(|slot| store.u32(slot as usize));
+    fixed && current == Some(raw as u32) && raw <= u64::from(u32::MAX)
 }
 
 /// The length of `pdo`'s first `count` entries with entry `sub` replaced by `entry`.
