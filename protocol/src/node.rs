@@ -25,7 +25,7 @@ use crate::cia301::pdo::mapping;
 use crate::cia301::pdo::rpdo::RxOutcome;
 use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer};
-use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
+use crate::cia301::sync::{SyncConsumer, SyncProducer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
 use crate::cia305::{LssEvent, LssIdentity, LssSlave, LssState};
 use crate::cia402::factor::Factor;
 use crate::cia402::{objects as o402, Cia402, State};
@@ -328,6 +328,8 @@ pub struct DriveCore {
     nmt: NmtState,
     pub(crate) pdo: PdoEngine,
     sync: SyncConsumer,
+    /// The SYNC producer (0x1005 bit 30, 0x1006, 0x1019).
+    sync_producer: SyncProducer,
     pub(crate) hb: Producer,
     pub(crate) hbc: Consumer,
     pub(crate) hb_lost: bool,
@@ -486,6 +488,7 @@ impl DriveCore {
             nmt: NmtState::Initialising,
             pdo,
             sync: SyncConsumer::default(),
+            sync_producer: SyncProducer::default(),
             hb: Producer::default(),
             hbc: Consumer::default(),
             hb_lost: false,
