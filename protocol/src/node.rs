@@ -329,7 +329,7 @@ pub struct DriveCore {
     pub(crate) pdo: PdoEngine,
     sync: SyncConsumer,
     /// The SYNC producer (0x1005 bit 30, 0x1006, 0x1019).
-    sync_producer: SyncProducer,
+    pub(crate) sync_producer: SyncProducer,
     pub(crate) hb: Producer,
     pub(crate) hbc: Consumer,
     pub(crate) hb_lost: bool,
@@ -778,7 +778,7 @@ impl Node {
                     cob::HEARTBEAT + c.node_id as u32,
                     &Heartbeat { state }.emit(),
                 ),
-                CoreOutput::Emcy(d) => CanFrame::new(c.store.u32(R_1014) & 0x7FF, &d),
+                CoreOutput::Emcy(d) => CanFrame::new(c.emcy_can_id(), &d),
                 CoreOutput::CanOnly(f) => f,
             };
             push(&mut self.can.tx, &mut self.can.tx_overflows, f);

@@ -43,7 +43,11 @@ fn producer(can_id: u32, overflow: u8) -> Bench {
     b.w8(0x1019, 0, overflow).unwrap();
     b.w32(0x1006, 0, 5_000).unwrap();
     b.w32(0x1005, 0, 0x4000_0000 | can_id).unwrap();
-    assert_eq!(b.node.timers().get(Timer::SyncProducer), Some(b.now), "poll now");
+    assert_eq!(
+        b.node.timers().get(Timer::SyncProducer),
+        Some(b.now),
+        "poll now"
+    );
     b
 }
 
@@ -137,6 +141,27 @@ fn writes_follow_cia_301() {
     assert_eq!(b.w32(0x1005, 0, 0x0000_0081), Ok(()));
     assert_eq!(b.node.timers().get(Timer::SyncProducer), None, "stopped");
     assert_eq!(b.w32(0x1005, 0, 0x4000_0081), Ok(()));
+    // stopped and started again between two polls: the counter starts from 1 again
+    b.w32(0x1005, 0, 0x81).unwrap();
+    b.w32(0x1006, 0, 0).unwrap();
+    b.w8(0x1019, 0, 3).unwrap();
+    b.w32(0x1006, 0, 5_000).unwrap();
+    b.w32(0x1005, 0, 0x4000_0081).unwrap();
+    let t = b.now;
+    let s = syncs(&run_at_deadlines(&mut b, t + 20_000), 0x81);
+    assert_eq!(
+        s.iter().map(|(_, d)| d[0]).collect::<Vec<_>>(),
+        [1, 2, 3, 1]
+    );
+    b.w32(0x1005, 0, 0x81).unwrap();
+    b.w32(0x1005, 0, 0x4000_0081).unwrap();
+    let t = b.now;
+    let s = syncs(&run_at_deadlines(&mut b, t + 10_000), 0x81);
+    assert_eq!(
+        s.iter().map(|(_, d)| d[0]).collect::<Vec<_>>(),
+        [1, 2],
+        "restarted"
+    );
     // a restricted CAN-ID is refused with bit 30 as without
     assert_eq!(b.w32(0x1005, 0, 0x81), Ok(()));
     assert_eq!(b.w32(0x1005, 0, 0x4000_0701), Err(0x0609_0030));
@@ -145,7 +170,11 @@ fn writes_follow_cia_301() {
     b.w32(0x1006, 0, 0).unwrap();
     assert_eq!(b.node.timers().get(Timer::SyncProducer), None);
     assert_eq!(b.w8(0x1019, 0, 4), Ok(()));
-    assert_eq!(b.w8(0x1019, 0, 1), Err(0x0609_0030), "1 is no overflow value");
+    assert_eq!(
+        b.w8(0x1019, 0, 1),
+        Err(0x0609_0030),
+        "1 is no overflow value"
+    );
 }
 
 #[test]

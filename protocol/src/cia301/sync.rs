@@ -141,7 +141,9 @@ impl SyncProducer {
             return None;
         }
         let next = at.checked_add(p).filter(|&t| t > now_us);
-        self.armed = next.or_else(|| now_us.checked_add(p)).map(|t| (t, period_us));
+        self.armed = next
+            .or_else(|| now_us.checked_add(p))
+            .map(|t| (t, period_us));
         if overflow < 2 {
             return Some(None);
         }
@@ -180,6 +182,10 @@ fn write_cob_id(c: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
     let id_bits = 0x3FFF_FFFF;
     if old & GEN_BIT != 0 && new & GEN_BIT != 0 && (old ^ new) & id_bits != 0 {
         return Err(abort::VALUE_RANGE);
+    }
+    if (old ^ new) & GEN_BIT != 0 {
+        // started or stopped: a new start counts from 1 and waits a period
+        c.sync_producer = SyncProducer::default();
     }
     Ok(Verdict::Store)
 }

@@ -298,6 +298,8 @@ impl ObjectDictionary {
         }
         od.resort();
         od.device = device_description(file, fe_window_zero, fixed_pdo_can_ids);
+        od.device.emcy_cob_id_zero_predefined = emcy_cob_id_zero(file, &mut report);
+        add_mapped_members(file, &mut od, &mut report)?;
         od.device.shipped_short_entries = shipped_short_entries(file, &od, &mut report);
         od.device.shipped_read_only_rpdo_entries = shipped_read_only_rpdo_entries(&od, &mut report);
         report.lines.sort_by_key(|l| (l.index, l.sub));
@@ -574,8 +576,118 @@ fn device_description(
         shipped_short_entries: Vec::new(),
         following_error_window_zero_off: fe_window_zero,
         fixed_pdo_can_ids,
+        emcy_cob_id_zero_predefined: false,
         padding_entries: false,
     }
+}
+
+/// The file's EMCY COB-ID 0x1014 is 0 (its default, else a DCF's ParameterValue): CAN-ID 0 is
+/// NMT's, which CiA 301 does not allow for an EMCY, but the device takes its own file's 0
+/// (SEVCON's Gen4: its EDS default and the value a live controller reads back) as "EMCY on the
+/// predefined CAN-ID", $NODEID + 0x80. The drive does the same, and says so.
+fn emcy_cob_id_zero(file: &EdsFile, report: &mut BuildReport) -> bool {
+    let Some(s) = file.sub(0x1014, 0) else {
+        return false;
+    };
+    let zero = |v: &Option<ValueExpr>| {
+        v.as_ref().is_some_and(|v| {
+            v.resolve(s.data_type, Some(1))
+                .is_ok_and(|b| b.iter().all(|&x| x == 0))
+        })
+    };
+    let zero = match &s.default {
+        Some(_) => zero(&s.default),
+        None => zero(&s.parameter_value),
+    };
+    if zero {
+        report.notes.push(
+            "0x1014 (COB-ID EMCY): the file's value is 0, CAN-ID 0 (NMT's), which CiA 301 \
+             allows no EMCY: taken as the device takes it, EMCY on the predefined CAN-ID \
+             $NODEID+0x80; 0x1014 reads 0 and a master may write 0 back (any other \
+             dictionary refuses 0 with 0x06090030)"
+                .into(),
+        );
+    }
+    zero
+}
+
+/// Members the file's own default PDO maps name, of an object that lists fewer members than
+/// its sub 0 counts (SEVCON's Gen4 maps 0x6C11 sub 4 in RPDO1; its 0x6C11 lists subs 1..3 with
+/// sub 0 = 7): the device has them (its sub 0 says so, its map uses them), so the drive adds
+/// them, with the type, access and mapping of the members the file lists (which must agree),
+/// default 0; reported as added.
+fn add_mapped_members(
+    file: &EdsFile,
+    od: &mut ObjectDictionary,
+    report: &mut BuildReport,
+) -> Result<(), EdsBuildError> {
+    let maps = file
+        .objects
+        .iter()
+        .filter(|o| matches!(o.index, 0x1600..=0x17FF | 0x1A00..=0x1BFF));
+    for map in maps {
+        for s in map.subs.iter().filter(|s| s.sub >= 1) {
+            for expr in [&s.default, &s.parameter_value].into_iter().flatten() {
+                let Ok(b) = expr.resolve(DataType::U32, Some(1)) else {
+                    continue;
+                };
+                let value = decode(DataType::U32, &b) as u32;
+                let (index, sub) = ((value >> 16) as u16, (value >> 8) as u8);
+                if sub == 0 || od.get(index, sub).is_some() {
+                    continue;
+                }
+                let Some(e) = missing_member(od, index, sub) else {
+                    continue;
+                };
+                let why = format!(
+                    "named by the file's default map 0x{:04X} sub {} (0x{value:08X}), below \
+                     the {} members sub 0 counts: the device has it; added as its listed \
+                     members are ({}, {})",
+                    map.index,
+                    s.sub,
+                    od.get(index, 0).map_or(0, |(_, c)| c.default_raw(0)),
+                    e.dtype.name(),
+                    e.access.eds()
+                );
+                let name = e.name.to_string();
+                od.insert(e).map_err(|er| EdsBuildError {
+                    line: 0,
+                    object: Some((index, sub)),
+                    reason: er.to_string(),
+                })?;
+                report.notes.push(format!("0x{index:04X} sub {sub}: {why}"));
+                report.line(index, sub, &name, Fate::Added, why);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The entry of member `sub` of `index`, missing from the dictionary: when sub 0 counts it and
+/// the listed members agree on type, access and mapping.
+fn missing_member(od: &ObjectDictionary, index: u16, sub: u8) -> Option<Entry> {
+    let (_, count) = od.get(index, 0)?;
+    if !count.dtype.integer() || u64::from(sub) > count.default_raw(0) {
+        return None;
+    }
+    let members: Vec<&Entry> = od
+        .object(index)
+        .map(|(_, e)| e)
+        .filter(|e| e.sub >= 1)
+        .collect();
+    let first = *members.first()?;
+    let alike = members
+        .iter()
+        .all(|e| e.dtype == first.dtype && e.access == first.access && e.pdo == first.pdo);
+    if !alike || first.dtype.variable() {
+        return None;
+    }
+    let mut e = first.clone().with_default(DefaultValue::Value(0));
+    e.sub = sub;
+    e.name = format!("{} {sub}", first.parent).into();
+    e.low = None;
+    e.high = None;
+    Some(e)
 }
 
 /// The limits and windows whose default 0 is a placeholder: the value a real drive never runs
