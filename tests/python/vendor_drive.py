@@ -37,9 +37,9 @@ IFACE, NODE, FILE = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 SYNC_PERIOD = 0.01
 COMMANDS = (0x1010, 0x1011)
 # defaults of a vendor's file the drive refuses to take back, with the abort it gives
-# (protocol/tests/eds_node.rs KNOWN_REFUSALS, tests/eds/vendors/SOURCES.md): SEVCON's Gen4 as
-# SYNC producer (0x1005 bit 30), its EMCY COB-ID 0, its profile torque mode 0x6060 = 4
-KNOWN_REFUSALS = {"sevcon-gen4": {0x1005: 0x06090030, 0x1014: 0x06090030, 0x6060: 0x06090030}}
+# (protocol/tests/eds_node.rs KNOWN_REFUSALS, tests/eds/vendors/SOURCES.md): none now (SEVCON's
+# Gen4 as SYNC producer, its EMCY COB-ID 0 and its profile torque mode are taken)
+KNOWN_REFUSALS = {}
 
 
 def fail(msg):

@@ -29,12 +29,10 @@ fn vendor_files() -> Vec<std::path::PathBuf> {
 /// values from the drive first, as a user of python canopen must, and checks that the
 /// drive's count counts the entries the file gives. The Whistle's 0x608F:1 = 1 written back
 /// runs with the drive's encoder count (protocol/src/od/placeholders.rs). SEVCON's Gen4 EDS
-/// and DCF (a traction controller, PV and torque): the DCF's `load_configuration()` stops at
-/// 0x1005 = 0x40000080 (the Gen4 as SYNC producer, refused 0x06090030), the EDS's at its own
-/// RPDO1 map of 0x6C11 sub 4, which the file does not define (0x06040041); the steps before
-/// pass, the drive's refusals of 0x1005, 0x1014 = 0 and 0x6060 = 4 taken as known
-/// (vendor_drive.py KNOWN_REFUSALS). Not run in user-mode Linux by helper `vendor5`.
-const PENDING: [&str; 2] = ["sevcon-gen4.dcf", "sevcon-gen4.eds"];
+/// and DCF (a traction controller, PV and torque) pass since the drive produces SYNC (their
+/// 0x1005 = 0x40000080), takes their 0x1014 = 0 as EMCY on $NODEID+0x80, runs profile torque
+/// (0x6060 = 4) and adds the 0x6C11 sub 4 the EDS's RPDO1 maps; a Gen4 moves in PV.
+const PENDING: [&str; 0] = [];
 
 #[test]
 fn python_canopen_masters_the_drive_of_every_vendor_file() {

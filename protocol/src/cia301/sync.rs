@@ -85,9 +85,10 @@ impl SyncConsumer {
 /// The SYNC producer's state: when the next SYNC is due and what the last one counted.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SyncProducer {
-    /// The next SYNC's time (us, communication clock) and the period it was armed with;
-    /// `None`: not running (armed at the first poll that finds the producer configured).
-    armed: Option<(u64, u32)>,
+    /// The next SYNC's time (us, communication clock; `None` beyond the clock's range: never)
+    /// and the period it was armed with; `None`: not running (armed at the first poll that
+    /// finds the producer configured).
+    armed: Option<(Option<u64>, u32)>,
     /// The counter of the last SYNC sent (0: none since the producer started).
     counter: u8,
 }
@@ -109,7 +110,7 @@ impl SyncProducer {
             return None;
         }
         match self.armed {
-            Some((at, p)) if p == period_us => Some(at),
+            Some((at, p)) if p == period_us => at,
             _ => Some(now_us),
         }
     }
@@ -133,17 +134,19 @@ impl SyncProducer {
         let at = match self.armed {
             Some((at, armed_p)) if armed_p == period_us => at,
             _ => {
-                self.armed = now_us.checked_add(p).map(|t| (t, period_us));
+                self.armed = Some((now_us.checked_add(p), period_us));
                 return None;
             }
         };
-        if now_us < at {
+        // a SYNC whose time lies beyond the clock's range never comes
+        let Some(at) = at.filter(|&at| now_us >= at) else {
             return None;
-        }
-        let next = at.checked_add(p).filter(|&t| t > now_us);
-        self.armed = next
-            .or_else(|| now_us.checked_add(p))
-            .map(|t| (t, period_us));
+        };
+        let next = at
+            .checked_add(p)
+            .filter(|&t| t > now_us)
+            .or_else(|| now_us.checked_add(p));
+        self.armed = Some((next, period_us));
         if overflow < 2 {
             return Some(None);
         }
