@@ -367,3 +367,39 @@ fn a_member_the_files_default_map_names_is_added_below_sub_0s_count() {
         "RPDO1 carries it"
     );
 }
+
+/// SEVCON's Gen4 DCF (read from a live controller) has TPDOs on CAN-IDs CiA 301 restricts
+/// (0x120, 0x145, 0x178) and ParameterValues below the file's own LowLimit (0x1280 sub 3 = 0):
+/// the device holds them, so a master loading the DCF writes them and the drive takes them;
+/// another restricted CAN-ID, or that one on another PDO, is still refused.
+#[test]
+fn a_dcfs_own_restricted_pdo_can_id_and_values_below_its_limits_are_taken() {
+    let file = parse(&text("shipped-restricted-pdo-cob-id.dcf")).unwrap();
+    let (mut b, report) = bench(&file);
+    assert!(
+        report
+            .notes
+            .iter()
+            .any(|n| n.starts_with("0x1800 sub 1: the file gives the PDO CAN-ID 0x178")),
+        "{:?}",
+        report.notes
+    );
+    assert!(why(&report, 0x2001, 0).contains("ParameterValue is below its LowLimit"));
+    assert_eq!(b.w8(0x2001, 0, 0), Ok(()), "the DCF's 0");
+    assert_eq!(b.w32(0x1800, 1, 0x8000_0178), Ok(()));
+    assert_eq!(b.w32(0x1800, 1, 0x178), Ok(()), "valid on the DCF's CAN-ID");
+    assert_eq!(b.w32(0x1800, 1, 0x8000_0178), Ok(()));
+    assert_eq!(
+        b.w32(0x1800, 1, 0x177),
+        Err(0x0609_0030),
+        "another restricted one"
+    );
+    b.w32(0x1800, 1, 0x178).unwrap();
+    b.start();
+    b.sync();
+    assert_eq!(b.sent(0x178).len(), 1, "TPDO1 on 0x178");
+    let mut own = Bench::new();
+    own.w32(0x1800, 1, 0x8000_0000 | (0x180 + ID as u32))
+        .unwrap();
+    assert_eq!(own.w32(0x1800, 1, 0x178), Err(0x0609_0030), "our own drive");
+}

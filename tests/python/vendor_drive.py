@@ -182,6 +182,17 @@ def main():
     if from_drive:
         step(f"PDO parameters without a value in the file taken from the drive "
              f"(python canopen cannot read them): {', '.join(from_drive)}")
+    # 0x1010/0x1011 are commands: a DCF's ParameterValue there is what a read returned (the
+    # storage the device offers, 1), and written back it is a wrong signature, which CiA 301
+    # has a device refuse (0x08000020; SEVCON's Gen4 DCF has them): a user drops them
+    dropped = []
+    for index in COMMANDS:
+        for sub in getattr(od.get(index), "values", lambda: [])():
+            if sub.value is not None and sub.subindex > 0:
+                dropped.append(f"0x{index:04X}:{sub.subindex} = {sub.value}")
+                sub.value = None
+    if dropped:
+        step(f"command ParameterValues not written: {', '.join(dropped)}")
     try:
         node.load_configuration()
     except SdoAbortedError as e:

@@ -115,6 +115,13 @@ def check(network, node_id, path):
         obj = od.get(index)
         if obj is not None and sub in getattr(obj, "subindices", {}):
             factor_before[(index, sub)] = sdo_u32(node, index, sub)
+    # 0x1010/0x1011 are commands: a DCF's ParameterValue there is what a read returned (1,
+    # the storage offered); written back it is a wrong signature, refused 0x08000020 by CiA
+    # 301 (SEVCON's Gen4 DCF has them): dropped, as a user must
+    for index in (0x1010, 0x1011):
+        for sub in getattr(od.get(index), "values", lambda: [])():
+            if sub.subindex > 0:
+                sub.value = None
     try:
         node.load_configuration()  # raises on the first refused ParameterValue
         configured = True

@@ -299,6 +299,7 @@ impl ObjectDictionary {
         od.resort();
         od.device = device_description(file, fe_window_zero, fixed_pdo_can_ids);
         od.device.emcy_cob_id_zero_predefined = emcy_cob_id_zero(file, &mut report);
+        od.device.shipped_pdo_can_ids = shipped_pdo_can_ids(file, &mut report);
         add_mapped_members(file, &mut od, &mut report)?;
         od.device.shipped_short_entries = shipped_short_entries(file, &od, &mut report);
         od.device.shipped_read_only_rpdo_entries = shipped_read_only_rpdo_entries(&od, &mut report);
@@ -433,6 +434,28 @@ impl Builder {
         } else {
             Fate::Stored
         };
+        // a DCF's ParameterValue outside the file's limits is what the device held (read from
+        // it): a master loading the DCF writes it, and the device takes it
+        let pv_raw = s
+            .parameter_value
+            .as_ref()
+            .filter(|_| e.dtype.integer())
+            .and_then(|v| v.resolve(e.dtype, Some(1)).ok())
+            .map(|b| decode(e.dtype, &b));
+        let default_raw = match e.default {
+            DefaultValue::Value(v) => Some(v),
+            _ => None,
+        };
+        let outside = |v: Option<u64>| v.and_then(|v| e.check_limits(v).err());
+        if let (None, Some(high)) = (outside(default_raw), outside(pv_raw)) {
+            why = format!(
+                "the DCF's ParameterValue is {} its {}: limits not applied",
+                if high { "above" } else { "below" },
+                if high { "HighLimit" } else { "LowLimit" }
+            );
+            e.low = None;
+            e.high = None;
+        }
         if let DefaultValue::Value(v) = e.default {
             if let Err(high) = e.check_limits(v) {
                 // the file contradicts itself; a master that writes the default back
@@ -577,6 +600,7 @@ fn device_description(
         following_error_window_zero_off: fe_window_zero,
         fixed_pdo_can_ids,
         emcy_cob_id_zero_predefined: false,
+        shipped_pdo_can_ids: Vec::new(),
         padding_entries: false,
     }
 }
@@ -609,6 +633,39 @@ fn emcy_cob_id_zero(file: &EdsFile, report: &mut BuildReport) -> bool {
         );
     }
     zero
+}
+
+/// PDO COB-IDs the file gives (default or a DCF's ParameterValue) on a CAN-ID CiA 301
+/// restricts: the device holds them (SEVCON's Gen4 DCF, read from a live controller, has
+/// TPDOs on 0x120, 0x145 and 0x178, in 0x101..=0x180), so the drive takes them for that PDO;
+/// any other restricted CAN-ID is refused as before.
+fn shipped_pdo_can_ids(file: &EdsFile, report: &mut BuildReport) -> Vec<(u16, u32)> {
+    let mut v = Vec::new();
+    let records = file
+        .objects
+        .iter()
+        .filter(|o| matches!(o.index, 0x1400..=0x15FF | 0x1800..=0x19FF));
+    for obj in records {
+        let Some(s) = obj.subs.iter().find(|s| s.sub == 1) else {
+            continue;
+        };
+        for expr in [&s.default, &s.parameter_value].into_iter().flatten() {
+            let Ok(b) = expr.resolve(DataType::U32, Some(1)) else {
+                continue;
+            };
+            let can_id = decode(DataType::U32, &b) as u32 & 0x7FF;
+            if !crate::cia301::cob_id::restricted(can_id) || v.contains(&(obj.index, can_id)) {
+                continue;
+            }
+            v.push((obj.index, can_id));
+            report.notes.push(format!(
+                "0x{:04X} sub 1: the file gives the PDO CAN-ID 0x{can_id:03X}, in a range CiA 301 \
+                 restricts: taken as the device takes it, for this PDO (a master may write it)",
+                obj.index
+            ));
+        }
+    }
+    v
 }
 
 /// Members the file's own default PDO maps name, of an object that lists fewer members than

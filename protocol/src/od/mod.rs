@@ -374,6 +374,10 @@ pub struct DeviceDescription {
     /// reads back as 0 and sends EMCY there; a master may write 0 back. Elsewhere CiA 301's
     /// refusal of CAN-ID 0 (NMT's) holds.
     pub emcy_cob_id_zero_predefined: bool,
+    /// PDO CAN-IDs the device's own file gives (communication record index, CAN-ID) in a
+    /// range CiA 301 restricts (a Gen4 DCF's TPDOs on 0x120, 0x145, 0x178, read from a live
+    /// controller): taken as the device takes them, for that PDO.
+    pub shipped_pdo_can_ids: Vec<(u16, u32)>,
     /// Mapping entries of index 0, sub-index 0 are padding (an EtherCAT ESI's gap entries):
     /// a gap of whole bytes in an RPDO or TPDO, sent as zeros, skipped when received. Not on
     /// CAN (CiA 301 has dummy entries for that).
@@ -395,6 +399,7 @@ impl Default for DeviceDescription {
             following_error_window_zero_off: false,
             fixed_pdo_can_ids: Vec::new(),
             emcy_cob_id_zero_predefined: false,
+            shipped_pdo_can_ids: Vec::new(),
             padding_entries: false,
         }
     }
