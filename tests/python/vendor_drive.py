@@ -191,8 +191,18 @@ def main():
             if sub.value is not None and sub.subindex > 0:
                 dropped.append(f"0x{index:04X}:{sub.subindex} = {sub.value}")
                 sub.value = None
+    # a ParameterValue python canopen's own reading cannot encode in its type (the Gen4 DCF's
+    # INTEGER16 0x8001 read as 32769): encode_raw raises ValueError before any SDO, against
+    # any device; a user drops it
+    for var in variables(od):
+        if var.value is not None and not 0x1400 <= var.index < 0x1C00:
+            try:
+                var.encode_raw(var.value)
+            except (ValueError, TypeError):
+                dropped.append(f"0x{var.index:04X}:{var.subindex} = {var.value!r} (unencodable)")
+                var.value = None
     if dropped:
-        step(f"command ParameterValues not written: {', '.join(dropped)}")
+        step(f"ParameterValues not written: {', '.join(dropped)}")
     try:
         node.load_configuration()
     except SdoAbortedError as e:
@@ -215,7 +225,11 @@ def main():
             continue
         if not mappable_by_python(obj):
             continue
+        # the entries in use (1..count): python canopen's save() writes no others
+        count = obj[0].value if obj[0].value is not None else obj[0].default
         for var in obj.values():
+            if count is not None and var.subindex > count:
+                continue
             # what load_configuration wrote: a DCF's ParameterValue, else the default
             want = var.value if var.value is not None else var.default
             if want is None:

@@ -122,6 +122,14 @@ def check(network, node_id, path):
         for sub in getattr(od.get(index), "values", lambda: [])():
             if sub.subindex > 0:
                 sub.value = None
+    # a ParameterValue python canopen cannot encode in its own type (the Gen4 DCF's INTEGER16
+    # 0x8001 read as 32769) raises ValueError before any SDO, against any device: dropped
+    for var in variables(od):
+        if var.value is not None and not 0x1400 <= var.index < 0x1C00:
+            try:
+                var.encode_raw(var.value)
+            except (ValueError, TypeError):
+                var.value = None
     try:
         node.load_configuration()  # raises on the first refused ParameterValue
         configured = True
@@ -133,8 +141,10 @@ def check(network, node_id, path):
             obj = node.object_dictionary.get(base + n)
             if obj is None:
                 continue
+            # the entries in use (1..count): python canopen's save() writes no others
+            n = obj[0].value if obj[0].value is not None else obj[0].default
             for sub in obj.values():
-                if sub.subindex == 0:
+                if sub.subindex == 0 or (n is not None and sub.subindex > n):
                     continue
                 want = sub.value if sub.value is not None else sub.default
                 if want is None:
