@@ -139,9 +139,7 @@ impl SyncProducer {
             }
         };
         // a SYNC whose time lies beyond the clock's range never comes
-        let Some(at) = at.filter(|&at| now_us >= at) else {
-            return None;
-        };
+        let at = at.filter(|&at| now_us >= at)?;
         let next = at
             .checked_add(p)
             .filter(|&t| t > now_us)
