@@ -145,7 +145,7 @@ fn the_demand_follows_the_slope_and_the_axis_the_torques_sign() {
                 assert_eq!(b.i16_of(0x6074), 0, "{what}: halt");
                 let want = (f64::from(target.abs()) / (f64::from(slope) * 1e-3)).ceil() as i32;
                 assert!(
-                    (n as i32 - want).abs() <= 1,
+                    (n - want).abs() <= 1,
                     "{what}: halt took {n} ticks, the slope says {want}"
                 );
             }
