@@ -103,8 +103,6 @@ try:
 
     v1 = sdo(0x606C)
     node.sdo[0x6071].raw = -TORQUE
-    check(sdo(0x6041) & 0x400 == 0 or sdo(0x6074) == -TORQUE,
-          f"target reached while the demand ramps: {state_text()}")
     wait_for(lambda: sdo(0x6077) <= -TORQUE // 2, 30,
              lambda: f"actual torque following -{TORQUE}: {state_text()}")
     wait_for(lambda: sdo(0x606C) < v1 - 1000, 30,
