@@ -18,9 +18,12 @@ the vendor's file would:
      entries 2..8) is read from the drive first, as a user of python canopen must: canopen
      2.4.1's own PdoMap.read(from_od=True) raises a TypeError on it (`range(1, None + 1)`)
      before any SDO is sent, whatever the device; each one is said (STEP ... taken from the
-     drive) and a count so taken must count the entries the file gives;
+     drive) and a count so taken must count the entries the file gives. ParameterValues no
+     device takes are dropped first and said (STEP ParameterValues not written): 0x1010/0x1011
+     (commands) and values python canopen cannot encode in their own type;
   5. BaseNode402 with the file: NMT operational, SYNC every 10 ms, OPERATION ENABLED in a mode
-     of the file's 0x6502 the emulator runs (PP, else PV, else CSP), a move seen in 0x6064.
+     of the file's 0x6502 the emulator runs (PP, else PV, else CSP), a move seen in 0x6064
+     (in 0x606C for a PV drive without 0x6064, SEVCON's Gen4).
 Exits non-zero with a message starting with FAIL on the first failure; PASS at the end. No
 timing is asserted (user-mode Linux is slow): BaseNode402's timeouts are raised.
 """

@@ -5,8 +5,11 @@ serving it (one drive-emu process per file, this one python process for all):
 - every readable object of FILE (from 0x1000) uploads with its type's size (strings and
   domains: any size), no abort;
 - the identity 0x1018:1 is the file's;
-- load_configuration() writes every ParameterValue of a DCF (nothing refused);
-- the RPDO/TPDO maps read back as the file's defaults (or its ParameterValues once loaded);
+- load_configuration() writes every ParameterValue of a DCF (nothing refused) but those no
+  device takes, dropped first as a user must: 0x1010/0x1011 (commands) and values python
+  canopen cannot encode in their own type;
+- the RPDO/TPDO maps read back as the file's defaults (or its ParameterValues once loaded),
+  over the entries in use (1..count);
 - where the file offers LSS (the drive started non-configured, --node 255): LssMaster's
   fast_scan() finds the drive by the file's identity, configure_node_id() gives it the node-ID
   and it boots there ("lss": "fastscan" / "not offered" / what failed);
