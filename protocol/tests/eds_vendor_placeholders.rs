@@ -403,3 +403,46 @@ fn a_dcfs_own_restricted_pdo_can_id_and_values_below_its_limits_are_taken() {
         .unwrap();
     assert_eq!(own.w32(0x1800, 1, 0x178), Err(0x0609_0030), "our own drive");
 }
+
+/// SEVCON's Gen4 files themselves (issue 33): `eds --from` says what the drive takes and why,
+/// the SYNC producer with the file's period, the EMCY COB-ID 0, the added 0x6C11 sub 4 (EDS)
+/// and the TPDOs on restricted CAN-IDs (DCF); the drive runs PT, the Gen4's own mode.
+#[test]
+fn the_gen4_files_are_taken_and_the_report_says_how() {
+    let load = |name: &str| {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../tests/eds/vendors")
+            .join(name);
+        parse(&decode_text(&std::fs::read(&p).unwrap())).unwrap()
+    };
+    // the DCF's default is the EDS's 100 ms; its ParameterValue 20 ms is what a master writes
+    for (name, period) in [("sevcon-gen4.eds", 100_000), ("sevcon-gen4.dcf", 100_000)] {
+        let (mut b, report) = bench(&load(name));
+        let has = |s: &str| report.notes.iter().any(|n| n.contains(s));
+        assert!(
+            has(&format!(
+                "0x1005 = 0x40000080: the device is the SYNC producer (bit 30): the drive sends \
+                 SYNC on CAN-ID 0x080 every 0x1006 = {period} us at boot"
+            )),
+            "{name}: {:?}",
+            report.notes
+        );
+        assert!(has("0x1014 (COB-ID EMCY): the file's value is 0"), "{name}");
+        assert_eq!(b.r32(0x6502, 0) & 0xC, 0xC, "{name}: PV and PT");
+        assert_eq!(b.w8(0x6060, 0, 4), Ok(()), "{name}: PT");
+        if name.ends_with(".eds") {
+            assert_eq!(report.fate(0x6C11, 4), Some(Fate::Added), "{name}");
+        } else {
+            for id in [0x120, 0x145, 0x178] {
+                assert!(
+                    has(&format!("the PDO CAN-ID 0x{id:03X}")),
+                    "{name}: {id:#x}"
+                );
+            }
+            assert!(
+                !has("the PDO CAN-ID 0x000"),
+                "an invalid PDO's CAN-ID needs nothing"
+            );
+        }
+    }
+}

@@ -299,6 +299,7 @@ impl ObjectDictionary {
         od.resort();
         od.device = device_description(file, fe_window_zero, fixed_pdo_can_ids);
         od.device.emcy_cob_id_zero_predefined = emcy_cob_id_zero(file, &mut report);
+        sync_producer_note(file, &mut report);
         od.device.shipped_pdo_can_ids = shipped_pdo_can_ids(file, &mut report);
         add_mapped_members(file, &mut od, &mut report)?;
         od.device.shipped_short_entries = shipped_short_entries(file, &od, &mut report);
@@ -635,6 +636,22 @@ fn emcy_cob_id_zero(file: &EdsFile, report: &mut BuildReport) -> bool {
     zero
 }
 
+/// The file makes the device the SYNC producer (0x1005 bit 30, SEVCON's Gen4): say that the
+/// drive produces it, and at what period.
+fn sync_producer_note(file: &EdsFile, report: &mut BuildReport) {
+    let Some(cob) = file_u32(file, 0x1005, 0).filter(|c| c & crate::cia301::sync::GEN_BIT != 0)
+    else {
+        return;
+    };
+    let period_us = file_u32(file, 0x1006, 0).unwrap_or(0);
+    report.notes.push(format!(
+        "0x1005 = 0x{cob:08X}: the device is the SYNC producer (bit 30): the drive sends SYNC on \
+         CAN-ID 0x{:03X} every 0x1006 = {period_us} us at boot (none while 0x1006 is 0), in \
+         pre-operational and operational; its own synchronous PDOs act on it",
+        cob & 0x7FF
+    ));
+}
+
 /// PDO COB-IDs the file gives (default or a DCF's ParameterValue) on a CAN-ID CiA 301
 /// restricts: the device holds them (SEVCON's Gen4 DCF, read from a live controller, has
 /// TPDOs on 0x120, 0x145 and 0x178, in 0x101..=0x180), so the drive takes them for that PDO;
@@ -653,8 +670,13 @@ fn shipped_pdo_can_ids(file: &EdsFile, report: &mut BuildReport) -> Vec<(u16, u3
             let Ok(b) = expr.resolve(DataType::U32, Some(1)) else {
                 continue;
             };
-            let can_id = decode(DataType::U32, &b) as u32 & 0x7FF;
-            if !crate::cia301::cob_id::restricted(can_id) || v.contains(&(obj.index, can_id)) {
+            let raw = decode(DataType::U32, &b) as u32;
+            let can_id = raw & 0x7FF;
+            // an invalid PDO (bit 31) takes any CAN-ID anyway
+            if raw & 0x8000_0000 != 0
+                || !crate::cia301::cob_id::restricted(can_id)
+                || v.contains(&(obj.index, can_id))
+            {
                 continue;
             }
             v.push((obj.index, can_id));
