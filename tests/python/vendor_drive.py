@@ -284,7 +284,7 @@ def main():
             time.sleep(0.1)
         v = vel()
         check(v >= 500, f"{mode}: 0x606C = {v} for 0x60FF = 1000")
-        step(f"0x606C = {v} uu/s in {mode} (no 0x6064)")
+        step(f"moved: 0x606C = {v} uu/s in {mode} (no 0x6064)")
         network.sync.stop()
         network.disconnect()
         print("PASS", flush=True)
