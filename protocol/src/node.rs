@@ -25,7 +25,7 @@ use crate::cia301::pdo::mapping;
 use crate::cia301::pdo::rpdo::RxOutcome;
 use crate::cia301::pdo::PdoEngine;
 use crate::cia301::sdo::{abort, ObjectAccess, SdoServer};
-use crate::cia301::sync::{SyncConsumer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
+use crate::cia301::sync::{SyncConsumer, SyncProducer, EMCY_SYNC_LENGTH, EMCY_SYNC_LOSS};
 use crate::cia305::{LssEvent, LssIdentity, LssSlave, LssState};
 use crate::cia402::factor::Factor;
 use crate::cia402::{objects as o402, Cia402, State};
@@ -270,7 +270,7 @@ impl core::fmt::Display for ConfigError {
 
 impl std::error::Error for ConfigError {}
 
-/// A core output as its CAN frame, on the node-ID and EMCY COB-ID (0x1014) given. Out of
+/// A core output as its CAN frame, on the node-ID and EMCY CAN-ID (of 0x1014) given. Out of
 /// line: a TPDO's frame (the hot path) leaves [`Node::pop_tx`] as one copy.
 #[cold]
 #[inline(never)]
@@ -282,7 +282,7 @@ fn frame(o: CoreOutput, node_id: u8, emcy_cob: u32) -> CanFrame {
         CoreOutput::Heartbeat { state } => {
             CanFrame::new(cob::HEARTBEAT + node_id as u32, &Heartbeat { state }.emit())
         }
-        CoreOutput::Emcy(d) => CanFrame::new(emcy_cob & 0x7FF, &d),
+        CoreOutput::Emcy(d) => CanFrame::new(emcy_cob, &d),
         CoreOutput::CanOnly(f) => f,
     }
 }
@@ -345,6 +345,8 @@ pub struct DriveCore {
     nmt: NmtState,
     pub(crate) pdo: PdoEngine,
     sync: SyncConsumer,
+    /// The SYNC producer (0x1005 bit 30, 0x1006, 0x1019).
+    pub(crate) sync_producer: SyncProducer,
     pub(crate) hb: Producer,
     pub(crate) hbc: Consumer,
     pub(crate) hb_lost: bool,
@@ -501,6 +503,7 @@ impl DriveCore {
             nmt: NmtState::Initialising,
             pdo,
             sync: SyncConsumer::default(),
+            sync_producer: SyncProducer::default(),
             hb: Producer::default(),
             hbc: Consumer::default(),
             hb_lost: false,
@@ -788,7 +791,7 @@ impl Node {
 
     /// [`Node::frame_queued`] when something is queued.
     fn frame_queued_now(&mut self) {
-        let (node_id, emcy_cob) = (self.core.node_id, self.core.store.u32(R_1014));
+        let (node_id, emcy_cob) = (self.core.node_id, self.core.emcy_can_id());
         for o in self.core.out.iter_mut() {
             if !matches!(o, CoreOutput::CanOnly(_)) {
                 *o = CoreOutput::CanOnly(frame(*o, node_id, emcy_cob));
@@ -835,7 +838,7 @@ impl Node {
     pub fn pop_tx(&mut self) -> Option<CanFrame> {
         match self.core.out.pop_front()? {
             CoreOutput::CanOnly(f) => Some(f),
-            o => Some(frame(o, self.core.node_id, self.core.store.u32(R_1014))),
+            o => Some(frame(o, self.core.node_id, self.core.emcy_can_id())),
         }
     }
 

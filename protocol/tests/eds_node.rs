@@ -101,34 +101,10 @@ fn every_object_of_every_vendor_file_is_served_with_its_size() {
 }
 
 /// Defaults of a vendor's file the drive refuses to take back, each with its reason (issue 33;
-/// SOURCES.md): (file name prefix, index, sub-index, abort code, why).
-const KNOWN_REFUSALS: [(&str, u16, u8, u32, &str); 3] = [
-    (
-        "sevcon-gen4",
-        0x1005,
-        0,
-        0x0609_0030,
-        "0x40000080 makes the device the SYNC producer (bit 30; a Gen4 is its vehicle's \
-         master): the drive consumes SYNC only and refuses to produce it \
-         (protocol/src/cia301/sync.rs)",
-    ),
-    (
-        "sevcon-gen4",
-        0x1014,
-        0,
-        0x0609_0030,
-        "an EMCY COB-ID of 0 (SEVCON's default; CAN-ID 0 is NMT's) is not a COB-ID CiA 301 \
-         allows: refused (protocol/src/cia301/cob_id.rs); the drive keeps $NODEID+0x80",
-    ),
-    (
-        "sevcon-gen4",
-        0x6060,
-        0,
-        0x0609_0030,
-        "4, profile torque, the Gen4's own mode: the drive runs PP, PV, HM, IP, CSP, CSV and \
-         CST, not profile torque",
-    ),
-];
+/// SOURCES.md): (file name prefix, index, sub-index, abort code, why). None now: SEVCON's
+/// Gen4 ones (0x1005 = 0x40000080, the SYNC producer; 0x1014 = 0, its EMCY on the predefined
+/// CAN-ID; 0x6060 = 4, profile torque) are taken as the device takes them.
+const KNOWN_REFUSALS: [(&str, u16, u8, u32, &str); 0] = [];
 
 /// Writing a rw object's own default is accepted (what `load_configuration` and a concise
 /// DCF do for every object they carry), PDO parameters included while the PDO is invalid.

@@ -6,7 +6,7 @@
 mod common;
 use common::*;
 use drive_protocol::od::eds_parse::{decode_text, parse, EdsFile};
-use drive_protocol::od::{BuildReport, ObjectDictionary};
+use drive_protocol::od::{BuildReport, Fate, ObjectDictionary};
 use drive_protocol::NodeConfig;
 use std::path::Path;
 
@@ -328,4 +328,172 @@ fn a_fixed_mapping_takes_its_entries_as_they_stand_only() {
     assert_eq!(b.w32(0x1600, 1, 0x6040_0010), Err(0x0601_0000));
     b.w8(0x1600, 0, 0).unwrap();
     b.w32(0x1600, 1, 0x6060_0008).unwrap();
+}
+
+/// SEVCON's Gen4 has 0x1014 = 0 (issue 33): CAN-ID 0 is NMT's and CiA 301 allows no EMCY
+/// there, but the device takes its own file's 0 as "EMCY on the predefined CAN-ID". The drive
+/// serving such a file reads 0 back, takes 0 written back (`load_configuration`), sends EMCY
+/// on $NODEID + 0x80 and never on CAN-ID 0; the report says so. Our own drive still refuses 0.
+#[test]
+fn a_file_whose_emcy_cob_id_is_0_sends_emcy_on_the_predefined_can_id() {
+    let f = parse(&text("emcy-cob-id-zero.eds")).unwrap();
+    let (mut b, report) = bench(&f);
+    assert!(
+        report.notes.iter().any(
+            |n| n.starts_with("0x1014 (COB-ID EMCY): the file's value is 0")
+                && n.contains("$NODEID+0x80")
+        ),
+        "{:?}",
+        report.notes
+    );
+    assert_eq!(b.r32(0x1014, 0), 0, "the file's 0 reads back");
+    assert_eq!(b.w32(0x1014, 0, 0), Ok(()), "written back");
+    b.start();
+    b.drive.fault = Some(0x2310);
+    b.ticks(3);
+    assert_eq!(b.emcys(), vec![0x2310], "EMCY on 0x80 + node ID");
+    assert!(b.sent(0).is_empty(), "nothing on NMT's CAN-ID");
+    // another COB-ID works as on any drive, and 0 is this device's own value again
+    assert_eq!(b.w32(0x1014, 0, 0x90), Ok(()));
+    assert_eq!(b.w32(0x1014, 0, 0x7F), Err(0x0609_0030), "restricted");
+    assert_eq!(b.w32(0x1014, 0, 0), Ok(()));
+
+    let mut own = Bench::new();
+    assert_eq!(
+        own.w32(0x1014, 0, 0),
+        Err(0x0609_0030),
+        "CiA 301: a master's 0 on a drive whose file does not have it"
+    );
+    assert_eq!(own.r32(0x1014, 0), 0x80 + ID as u32);
+}
+
+/// SEVCON's Gen4 EDS maps 0x6C11 sub 4 in its default RPDO1 but lists 0x6C11 subs 1..3 only,
+/// with sub 0 = 7 (issue 33). The device has the member; the drive adds it (the listed
+/// members' type and access), so the default map is valid and a master writing it back
+/// (`load_configuration`) is not refused; members no map names, or above sub 0's count, are
+/// not invented.
+#[test]
+fn a_member_the_files_default_map_names_is_added_below_sub_0s_count() {
+    let file = parse(&text("mapped-member-missing.eds")).unwrap();
+    let (mut b, report) = bench(&file);
+    assert_eq!(
+        report.fate(0x2C11, 4),
+        Some(Fate::Added),
+        "{:?}",
+        report.lines
+    );
+    assert!(
+        why(&report, 0x2C11, 4).contains("named by the file's default map 0x1600 sub 2"),
+        "{}",
+        why(&report, 0x2C11, 4)
+    );
+    assert!(
+        !report.notes.iter().any(|n| n.contains("cannot be mapped")),
+        "{:?}",
+        report.notes
+    );
+    assert_eq!(b.sdo_read(0x2C11, 4).unwrap(), vec![0, 0], "INTEGER16, 0");
+    assert_eq!(
+        b.sdo_read(0x2C11, 5),
+        Err(0x0609_0011),
+        "not named by a map"
+    );
+    // load_configuration: invalidate, count 0, the entries, the count
+    b.w32(0x1400, 1, 0x8000_0200 + ID as u32).unwrap();
+    b.w8(0x1600, 0, 0).unwrap();
+    assert_eq!(b.w32(0x1600, 2, 0x2C11_0410), Ok(()));
+    assert_eq!(
+        b.w32(0x1600, 2, 0x2C11_0810),
+        Err(0x0604_0041),
+        "above sub 0's 7"
+    );
+    b.w32(0x1600, 2, 0x2C11_0410).unwrap();
+    b.w8(0x1600, 0, 2).unwrap();
+    b.w32(0x1400, 1, 0x200 + ID as u32).unwrap();
+    b.start();
+    b.send(f(0x200 + ID as u32, &[0x06, 0x00, 0x34, 0x12]));
+    assert_eq!(
+        b.sdo_read(0x2C11, 4).unwrap(),
+        vec![0x34, 0x12],
+        "RPDO1 carries it"
+    );
+}
+
+/// SEVCON's Gen4 DCF (read from a live controller) has TPDOs on CAN-IDs CiA 301 restricts
+/// (0x120, 0x145, 0x178) and ParameterValues below the file's own LowLimit (0x1280 sub 3 = 0):
+/// the device holds them, so a master loading the DCF writes them and the drive takes them;
+/// another restricted CAN-ID, or that one on another PDO, is still refused.
+#[test]
+fn a_dcfs_own_restricted_pdo_can_id_and_values_below_its_limits_are_taken() {
+    let file = parse(&text("shipped-restricted-pdo-cob-id.dcf")).unwrap();
+    let (mut b, report) = bench(&file);
+    assert!(
+        report
+            .notes
+            .iter()
+            .any(|n| n.starts_with("0x1800 sub 1: the file gives the PDO CAN-ID 0x178")),
+        "{:?}",
+        report.notes
+    );
+    assert!(why(&report, 0x2001, 0).contains("ParameterValue is below its LowLimit"));
+    assert_eq!(b.w8(0x2001, 0, 0), Ok(()), "the DCF's 0");
+    assert_eq!(b.w32(0x1800, 1, 0x8000_0178), Ok(()));
+    assert_eq!(b.w32(0x1800, 1, 0x178), Ok(()), "valid on the DCF's CAN-ID");
+    assert_eq!(b.w32(0x1800, 1, 0x8000_0178), Ok(()));
+    assert_eq!(
+        b.w32(0x1800, 1, 0x177),
+        Err(0x0609_0030),
+        "another restricted one"
+    );
+    b.w32(0x1800, 1, 0x178).unwrap();
+    b.start();
+    b.sync();
+    assert_eq!(b.sent(0x178).len(), 1, "TPDO1 on 0x178");
+    let mut own = Bench::new();
+    own.w32(0x1800, 1, 0x8000_0000 | (0x180 + ID as u32))
+        .unwrap();
+    assert_eq!(own.w32(0x1800, 1, 0x178), Err(0x0609_0030), "our own drive");
+}
+
+/// SEVCON's Gen4 files themselves (issue 33): `eds --from` says what the drive takes and why,
+/// the SYNC producer with the file's period, the EMCY COB-ID 0, the added 0x6C11 sub 4 (EDS)
+/// and the TPDOs on restricted CAN-IDs (DCF); the drive runs PT, the Gen4's own mode.
+#[test]
+fn the_gen4_files_are_taken_and_the_report_says_how() {
+    let load = |name: &str| {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../tests/eds/vendors")
+            .join(name);
+        parse(&decode_text(&std::fs::read(&p).unwrap())).unwrap()
+    };
+    // the DCF's default is the EDS's 100 ms; its ParameterValue 20 ms is what a master writes
+    for (name, period) in [("sevcon-gen4.eds", 100_000), ("sevcon-gen4.dcf", 100_000)] {
+        let (mut b, report) = bench(&load(name));
+        let has = |s: &str| report.notes.iter().any(|n| n.contains(s));
+        assert!(
+            has(&format!(
+                "0x1005 = 0x40000080: the device is the SYNC producer (bit 30): the drive sends \
+                 SYNC on CAN-ID 0x080 every 0x1006 = {period} us at boot"
+            )),
+            "{name}: {:?}",
+            report.notes
+        );
+        assert!(has("0x1014 (COB-ID EMCY): the file's value is 0"), "{name}");
+        assert_eq!(b.r32(0x6502, 0) & 0xC, 0xC, "{name}: PV and PT");
+        assert_eq!(b.w8(0x6060, 0, 4), Ok(()), "{name}: PT");
+        if name.ends_with(".eds") {
+            assert_eq!(report.fate(0x6C11, 4), Some(Fate::Added), "{name}");
+        } else {
+            for id in [0x120, 0x145, 0x178] {
+                assert!(
+                    has(&format!("the PDO CAN-ID 0x{id:03X}")),
+                    "{name}: {id:#x}"
+                );
+            }
+            assert!(
+                !has("the PDO CAN-ID 0x000"),
+                "an invalid PDO's CAN-ID needs nothing"
+            );
+        }
+    }
 }

@@ -405,7 +405,7 @@ fn rpdo_shorter_than_its_mapping_is_ignored_and_reported_again_after_an_nmt_rese
 
 #[test]
 fn rpdo_values_pass_the_checks_of_an_sdo_write() {
-    // 0x6060 = 2 (vl) or 4 (pt) is refused by SDO; through an RPDO it must be refused too:
+    // 0x6060 = 2 (vl) or 5 (reserved) is refused by SDO; through an RPDO it must be refused too:
     // the drive keeps its mode, 0x6061 does not show the value, EMCY 0x6320 tells the master.
     let mut b = Bench::new();
     assert_eq!(b.w8(0x6060, 0, 2), Err(0x0609_0030));
@@ -421,7 +421,7 @@ fn rpdo_values_pass_the_checks_of_an_sdo_write() {
     b.tick();
     b.take();
     assert_eq!(b.ri32(0x6061, 0), 1);
-    for bad in [2u8, 4, 0x80, 11] {
+    for bad in [2u8, 5, 0x80, 11] {
         b.take();
         b.send(f(0x300 + N, &[0x07, 0x00, bad]));
         b.tick();

@@ -21,11 +21,16 @@ fn sync_event_and_counter() {
     b.w32(0x1005, 0, 0x81).unwrap();
     assert_eq!(b.send(f(0x81, &[1])), FrameEvent::Sync { counter: Some(1) });
     assert_ne!(b.send(f(0x80, &[1])), FrameEvent::Sync { counter: Some(1) });
+    // bit 30 makes the node the producer (protocol/tests/sync_producer.rs); its CAN-ID then
+    // stays until it stops producing
+    assert_eq!(b.w32(0x1005, 0, 0x4000_0081), Ok(()));
     assert_eq!(
-        b.w32(0x1005, 0, 0x4000_0080),
+        b.w32(0x1005, 0, 0x4000_0082),
         Err(0x0609_0030),
-        "we do not produce SYNC"
+        "the CAN-ID of a running producer"
     );
+    assert_eq!(b.w32(0x1005, 0, 0x81), Ok(()));
+    assert_eq!(b.w32(0x1005, 0, 0x82), Ok(()));
 }
 
 #[test]

@@ -21,9 +21,12 @@ the vendor's file would:
      entries 2..8) is read from the drive first, as a user of python canopen must: canopen
      2.4.1's own PdoMap.read(from_od=True) raises a TypeError on it (`range(1, None + 1)`)
      before any SDO is sent, whatever the device; each one is said (STEP ... taken from the
-     drive) and a count so taken must count the entries the file gives;
+     drive) and a count so taken must count the entries the file gives. ParameterValues no
+     device takes are dropped first and said (STEP ParameterValues not written): 0x1010/0x1011
+     (commands) and values python canopen cannot encode in their own type;
   5. BaseNode402 with the file: NMT operational, SYNC every 10 ms, OPERATION ENABLED in a mode
-     of the file's 0x6502 the emulator runs (PP, else PV, else CSP), a move seen in 0x6064.
+     of the file's 0x6502 the emulator runs (PP, else PV, else CSP), a move seen in 0x6064
+     (in 0x606C for a PV drive without 0x6064, SEVCON's Gen4).
 Exits non-zero with a message starting with FAIL on the first failure; PASS at the end. No
 timing is asserted (user-mode Linux is slow): BaseNode402's timeouts are raised.
 """
@@ -45,9 +48,9 @@ COMMANDS = (0x1010, 0x1011)
 # default 0 there is a placeholder the drive serves as the simulated axis's limit
 ZERO_STOPS_MOTION = (0x607F, 0x6080, 0x6072, 0x6073, 0x60C5, 0x60C6)
 # defaults of a vendor's file the drive refuses to take back, with the abort it gives
-# (protocol/tests/eds_node.rs KNOWN_REFUSALS, tests/eds/vendors/SOURCES.md): SEVCON's Gen4 as
-# SYNC producer (0x1005 bit 30), its EMCY COB-ID 0, its profile torque mode 0x6060 = 4
-KNOWN_REFUSALS = {"sevcon-gen4": {0x1005: 0x06090030, 0x1014: 0x06090030, 0x6060: 0x06090030}}
+# (protocol/tests/eds_node.rs KNOWN_REFUSALS, tests/eds/vendors/SOURCES.md): none now (SEVCON's
+# Gen4 as SYNC producer, its EMCY COB-ID 0 and its profile torque mode are taken)
+KNOWN_REFUSALS = {}
 
 
 def fail(msg):
@@ -207,6 +210,27 @@ def main():
     kept_back = honour_objflags(od, FILE)
     if kept_back:
         step(f"{len(kept_back)} values with ObjFlags bit 0 not downloaded")
+    # 0x1010/0x1011 are commands: a DCF's ParameterValue there is what a read returned (the
+    # storage the device offers, 1), and written back it is a wrong signature, which CiA 301
+    # has a device refuse (0x08000020; SEVCON's Gen4 DCF has them): a user drops them
+    dropped = []
+    for index in COMMANDS:
+        for sub in getattr(od.get(index), "values", lambda: [])():
+            if sub.value is not None and sub.subindex > 0:
+                dropped.append(f"0x{index:04X}:{sub.subindex} = {sub.value}")
+                sub.value = None
+    # a ParameterValue python canopen's own reading cannot encode in its type (the Gen4 DCF's
+    # INTEGER16 0x8001 read as 32769): encode_raw raises ValueError before any SDO, against
+    # any device; a user drops it
+    for var in variables(od):
+        if var.value is not None and not 0x1400 <= var.index < 0x1C00:
+            try:
+                var.encode_raw(var.value)
+            except (ValueError, TypeError):
+                dropped.append(f"0x{var.index:04X}:{var.subindex} = {var.value!r} (unencodable)")
+                var.value = None
+    if dropped:
+        step(f"ParameterValues not written: {', '.join(dropped)}")
     try:
         node.load_configuration()
     except SdoAbortedError as e:
@@ -271,6 +295,26 @@ def main():
 
     def pos():
         return int.from_bytes(node.sdo.upload(0x6064, 0), "little", signed=True)
+
+    # a drive without a position (SEVCON's Gen4 has no 0x6064) shows its PV move in 0x606C
+    if 0x6064 not in od:
+        check(mode == "PROFILED VELOCITY", f"no 0x6064 to see a {mode} move in")
+        put_v = od[0x60FF]
+        node.sdo.download(0x60FF, 0, put_v.encode_raw(1000))
+
+        def vel():
+            return int.from_bytes(node.sdo.upload(0x606C, 0), "little", signed=True)
+
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and vel() < 500:
+            time.sleep(0.1)
+        v = vel()
+        check(v >= 500, f"{mode}: 0x606C = {v} for 0x60FF = 1000")
+        step(f"moved: 0x606C = {v} uu/s in {mode} (no 0x6064)")
+        network.sync.stop()
+        network.disconnect()
+        print("PASS", flush=True)
+        return
 
     p0 = pos()
 

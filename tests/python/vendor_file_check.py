@@ -5,9 +5,11 @@ serving it (one drive-emu process per file, this one python process for all):
 - every readable object of FILE (from 0x1000) uploads with its type's size (strings and
   domains: any size), no abort;
 - the identity 0x1018:1 is the file's;
-- load_configuration() writes every ParameterValue of a DCF (nothing refused), but those its
-  ObjFlags bit 0 says not to download (CiA 306);
-- the RPDO/TPDO maps read back as the file's defaults (or its ParameterValues once loaded);
+- load_configuration() writes every ParameterValue of a DCF (nothing refused) but those its
+  ObjFlags bit 0 says not to download (CiA 306) and those no device takes, dropped first as a
+  user must: 0x1010/0x1011 (commands) and values python canopen cannot encode in their own type;
+- the RPDO/TPDO maps read back as the file's defaults (or its ParameterValues once loaded),
+  over the entries in use (1..count);
 - where the file offers LSS (the drive started non-configured, --node 255): LssMaster's
   fast_scan() finds the drive by the file's identity, configure_node_id() gives it the node-ID
   and it boots there ("lss": "fastscan" / "not offered" / what failed);
@@ -123,6 +125,21 @@ def check(network, node_id, path):
     # values the file marks not to be downloaded (CiA 306 ObjFlags bit 0) left out, as a
     # master that reads ObjFlags does (python canopen 2.4.1 reads none: od_read.py)
     honour_objflags(od, path)
+    # 0x1010/0x1011 are commands: a DCF's ParameterValue there is what a read returned (1,
+    # the storage offered); written back it is a wrong signature, refused 0x08000020 by CiA
+    # 301 (SEVCON's Gen4 DCF has them): dropped, as a user must
+    for index in (0x1010, 0x1011):
+        for sub in getattr(od.get(index), "values", lambda: [])():
+            if sub.subindex > 0:
+                sub.value = None
+    # a ParameterValue python canopen cannot encode in its own type (the Gen4 DCF's INTEGER16
+    # 0x8001 read as 32769) raises ValueError before any SDO, against any device: dropped
+    for var in variables(od):
+        if var.value is not None and not 0x1400 <= var.index < 0x1C00:
+            try:
+                var.encode_raw(var.value)
+            except (ValueError, TypeError):
+                var.value = None
     try:
         node.load_configuration()  # raises on the first refused ParameterValue
         configured = True

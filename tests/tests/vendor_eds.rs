@@ -28,13 +28,15 @@ fn vendor_files() -> Vec<std::path::PathBuf> {
 /// `range(1, None + 1)`) before any SDO reached the drive; vendor_drive.py now reads such
 /// values from the drive first, as a user of python canopen must, and checks that the
 /// drive's count counts the entries the file gives. The Whistle's 0x608F:1 = 1 written back
-/// runs with the drive's encoder count (protocol/src/od/placeholders.rs). SEVCON's Gen4 EDS
-/// and DCF (a traction controller, PV and torque): the DCF's `load_configuration()` stops at
-/// 0x1005 = 0x40000080 (the Gen4 as SYNC producer, refused 0x06090030), the EDS's at its own
-/// RPDO1 map of 0x6C11 sub 4, which the file does not define (0x06040041); the steps before
-/// pass, the drive's refusals of 0x1005, 0x1014 = 0 and 0x6060 = 4 taken as known
-/// (vendor_drive.py KNOWN_REFUSALS). Not run in user-mode Linux by helper `vendor5`.
-const PENDING: [&str; 2] = ["sevcon-gen4.dcf", "sevcon-gen4.eds"];
+/// runs with the drive's encoder count (protocol/src/od/placeholders.rs). SEVCON's Gen4 DCF
+/// (a traction controller, PV and torque) passes since the drive produces SYNC (0x1005 =
+/// 0x40000080), takes the file's 0x1014 = 0 as EMCY on $NODEID+0x80, its TPDOs on CAN-IDs CiA
+/// 301 restricts (0x120, 0x145, 0x178) and ParameterValues below its own LowLimits, and runs
+/// profile torque (0x6060 = 4); a Gen4 moves in PV. SEVCON's Gen4 EDS: the drive adds the
+/// 0x6C11 sub 4 its RPDO1 maps, but its default RPDO2, RPDO5 and TPDO2 map BOOLEANs one bit
+/// each (0x21200001 ...), and the drive maps whole bytes only: `load_configuration()` stops
+/// at RPDO2 (0x06040041).
+const PENDING: [&str; 1] = ["sevcon-gen4.eds"];
 
 #[test]
 fn python_canopen_masters_the_drive_of_every_vendor_file() {

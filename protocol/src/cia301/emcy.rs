@@ -272,8 +272,13 @@ fn write_history(c: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
 }
 
 /// 0x1014: bit 31 set (EMCY not valid) takes any CAN-ID; bit 30 is reserved; a valid COB-ID
-/// must be an 11-bit CAN-ID outside the restricted ranges.
-fn write_cob_id(_: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
+/// must be an 11-bit CAN-ID outside the restricted ranges. 0 on a device whose own file has
+/// it (`DeviceDescription::emcy_cob_id_zero_predefined`: EMCY on $NODEID + 0x80) is its own
+/// value written back.
+fn write_cob_id(c: &mut DriveCore, w: &ObjectWrite) -> Result<Verdict, u32> {
+    if w.raw == 0 && c.od.device.emcy_cob_id_zero_predefined {
+        return Ok(Verdict::Store);
+    }
     let valid = w.raw & 0x8000_0000 == 0;
     if w.raw & 0x4000_0000 != 0 || !cob_id::acceptable(w.raw as u32, valid) {
         return Err(abort::VALUE_RANGE);

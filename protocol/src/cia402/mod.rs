@@ -16,6 +16,7 @@ pub mod mode;
 pub(crate) mod objects;
 mod pp;
 pub(crate) mod profile;
+mod pt;
 mod pv;
 pub(crate) mod state_machine;
 pub mod statusword;
@@ -191,6 +192,7 @@ pub(crate) struct Cia402 {
     factor: Factor,
     pp: pp::Pp,
     pv: pv::Pv,
+    pt: pt::Pt,
     hm: hm::Hm,
     csp: csp::Csp,
     ip: ip::Ip,
@@ -248,6 +250,7 @@ impl Cia402 {
             factor,
             pp: Default::default(),
             pv: Default::default(),
+            pt: Default::default(),
             hm: Default::default(),
             csp: Default::default(),
             ip: Default::default(),
@@ -336,6 +339,7 @@ impl Cia402 {
                 self.pp.enter(ctx)
             }
             mode::value::PV => self.pv.enter(),
+            mode::value::PT => self.pt.enter(ctx),
             mode::value::HM => {
                 ctx.axis.vel = 0.0;
                 self.hm.enter()
@@ -399,6 +403,8 @@ impl Cia402 {
         let fe_uu = self.monitor_following_error(&mut ctx, &mut mo, &input, now_us, &mut out);
         self.statusword = self.compose_statusword(&mo);
         self.publish_actual_values(ctx.store, fb, &input, ctx.axis.pos, fe_uu);
+        ctx.store
+            .set_i32(o::TORQUE_DEMAND, torque_demand_permille(&mo.setpoint, fb));
         self.axis = ctx.axis;
         self.prev_cw = input.cw;
         out.command.setpoint = mo.setpoint;
@@ -665,6 +671,7 @@ impl Cia402 {
         match self.mode_display {
             mode::value::PP => self.pp.step(ctx),
             mode::value::PV => self.pv.step(ctx),
+            mode::value::PT => self.pt.step(ctx),
             mode::value::HM => self.hm.step(ctx),
             mode::value::CSP => self.csp.step(ctx, sync_at, csp_period_us),
             mode::value::IP => self.ip.step(ctx, sync_at, csp_period_us),
@@ -861,6 +868,17 @@ struct TickInput {
     cw: u16,
     /// Its rising edges this tick (against the last tick's, and latched since).
     rising: u16,
+}
+
+/// 0x6074 torque demand: the mode's torque set-point (PT's ramp, CST's target), 0 while
+/// disabled, else the torque the drive's loops ask of the motor (its actual torque).
+fn torque_demand_permille(setpoint: &Setpoint, fb: &Feedback) -> i32 {
+    let t = match setpoint {
+        Setpoint::Torque { torque_permille } => *torque_permille,
+        Setpoint::Disabled => 0.0,
+        _ => fb.torque_permille,
+    };
+    sat_i32(t).clamp(-32768, 32767)
 }
 
 fn hold(a: &Axis) -> Setpoint {

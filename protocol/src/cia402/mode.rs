@@ -69,8 +69,8 @@ const fn row(
 }
 
 /// Every mode CiA 402 names, in 0x6060 order. `halt` follows what the emulator's modes do with
-/// bit 8 (PP, PV and HM decelerate and hold; the cyclic modes follow their set-point, whose
-/// master stops the axis).
+/// bit 8 (PP, PV and HM decelerate and hold, PT ramps its torque demand to 0; the cyclic
+/// modes follow their set-point, whose master stops the axis).
 #[rustfmt::skip]
 pub const MODES: [ModeInfo; 10] = [
     //    mode                          value abbrev  name                              0x6502   sim    halt
@@ -78,7 +78,7 @@ pub const MODES: [ModeInfo; 10] = [
     row(Mode::ProfilePosition,           1, "PP",   "profile position",               Some(0), true,  true),
     row(Mode::Velocity,                  2, "VL",   "velocity",                       Some(1), false, true),
     row(Mode::ProfileVelocity,           3, "PV",   "profile velocity",               Some(2), true,  true),
-    row(Mode::ProfileTorque,             4, "PT",   "profile torque",                 Some(3), false, true),
+    row(Mode::ProfileTorque,             4, "PT",   "profile torque",                 Some(3), true,  true),
     row(Mode::Homing,                    6, "HM",   "homing",                         Some(5), true,  true),
     row(Mode::InterpolatedPosition,      7, "IP",   "interpolated position",          Some(6), true,  true),
     row(Mode::CyclicSyncPosition,        8, "CSP",  "cyclic synchronous position",    Some(7), true,  false),
@@ -180,6 +180,8 @@ pub mod value {
     pub const PP: i8 = 1;
     /// Profile velocity mode.
     pub const PV: i8 = 3;
+    /// Profile torque mode.
+    pub const PT: i8 = 4;
     /// Homing mode.
     pub const HM: i8 = 6;
     /// Interpolated position mode.
@@ -206,8 +208,9 @@ mod tests {
         }
         assert_eq!(value::CSP, Mode::CyclicSyncPosition.value());
         assert_eq!(value::PV, Mode::ProfileVelocity.value());
-        // PP, PV, HM, IP, CSP, CSV, CST
-        assert_eq!(SIMULATED_MODES_MASK, 0x3E5);
+        // PP, PV, PT, HM, IP, CSP, CSV, CST
+        assert_eq!(SIMULATED_MODES_MASK, 0x3ED);
+        assert_eq!(value::PT, Mode::ProfileTorque.value());
     }
 
     #[test]

@@ -105,6 +105,7 @@ impl DriveCore {
                 state: self.nmt as u8,
             });
         }
+        self.sync_produce(comm_us);
         // heartbeat consumer: every producer whose time is up (one EMCY, for the first)
         let mut lost = None;
         while let Some(n) = self.hbc.poll(comm_us) {
@@ -115,6 +116,36 @@ impl DriveCore {
             self.raise_emcy(EMCY_HEARTBEAT, [n, 0, 0, 0, 0], Cause::Condition);
             self.cia.comm_loss(&self.store, EMCY_HEARTBEAT);
         }
+    }
+
+    /// Whether the node is the SYNC producer now: 0x1005 bit 30 with a period 0x1006, in
+    /// pre-operational or operational (CiA 301: no SYNC in stopped).
+    pub(super) fn sync_producing(&self) -> bool {
+        matches!(self.nmt, NmtState::PreOperational | NmtState::Operational)
+            && !self.qs.not_ready()
+            && crate::cia301::sync::produces(self.store.u32(R_1005), self.store.u32(R_1006))
+    }
+
+    /// The SYNC producer: a SYNC due at `comm_us` is sent (on 0x1005's CAN-ID, with its
+    /// counter), then acted on as a received one (synchronous RPDOs applied, synchronous
+    /// TPDOs sent after it), at the application time of the last cycle.
+    fn sync_produce(&mut self, comm_us: u64) {
+        let active = self.sync_producing();
+        let (period, overflow) = (self.store.u32(R_1006), self.store.u32(R_1019) as u8);
+        let Some(counter) = self.sync_producer.poll(active, comm_us, period, overflow) else {
+            return;
+        };
+        let can_id = self.store.u32(R_1005) & 0x7FF;
+        let data: &[u8] = match &counter {
+            Some(c) => core::slice::from_ref(c),
+            None => &[],
+        };
+        self.emit(CoreOutput::CanOnly(CanFrame::new(can_id, data)));
+        let clocks = Clocks {
+            app_us: self.now_us,
+            comm_us,
+        };
+        self.on_sync(data.len() as u8, counter.unwrap_or(0), clocks, 0);
     }
 
     fn timers_and_drive(&mut self, clocks: Clocks, drive: &mut impl Drive) {

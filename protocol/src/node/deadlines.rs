@@ -4,7 +4,7 @@
 
 use super::*;
 
-/// A service with a deadline: one slot of [`Timers`]. The first seven run on the
+/// A service with a deadline: one slot of [`Timers`]. The first eight run on the
 /// communication clock, the last three on the application clock ([`Clocks`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Timer {
@@ -22,6 +22,9 @@ pub enum Timer {
     Tpdo,
     /// The end of the EMCY inhibit time (0x1015) holding back an EMCY.
     Emcy,
+    /// The SYNC producer's next SYNC (0x1005 bit 30, 0x1006; pre-operational and
+    /// operational).
+    SyncProducer,
     /// A SYNC received and not yet processed (poll now).
     PendingSync,
     /// SYNC supervision: 1.5 communication cycles (0x1006) without a SYNC (operational).
@@ -31,7 +34,7 @@ pub enum Timer {
 }
 
 /// Slots in [`Timers`].
-const TIMERS: usize = 10;
+const TIMERS: usize = 11;
 
 impl Timer {
     /// Every timer, in slot order.
@@ -43,6 +46,7 @@ impl Timer {
         Timer::HeartbeatConsumer,
         Timer::Tpdo,
         Timer::Emcy,
+        Timer::SyncProducer,
         Timer::PendingSync,
         Timer::SyncSupervision,
         Timer::Watchdog,
@@ -190,6 +194,11 @@ impl DriveCore {
         if c.emcy_allowed() {
             t.set(Timer::Emcy, c.emcy.next_at_us(c.store.u32(R_1015) as u16));
         }
+        t.set(
+            Timer::SyncProducer,
+            c.sync_producer
+                .deadline_us(c.sync_producing(), c.store.u32(R_1006), c.comm_us),
+        );
         t.set(Timer::PendingSync, c.pending_sync);
         t.set(
             Timer::Watchdog,

@@ -241,6 +241,17 @@ impl DriveCore {
         }
     }
 
+    /// The CAN-ID EMCYs go out on: 0x1014's, or $NODEID + 0x80 for the 0 of a device whose
+    /// file means that by it (`DeviceDescription::emcy_cob_id_zero_predefined`).
+    pub(super) fn emcy_can_id(&self) -> u32 {
+        let id = self.store.u32(R_1014) & 0x7FF;
+        if id == 0 && self.od.device.emcy_cob_id_zero_predefined {
+            0x80 + u32::from(self.node_id)
+        } else {
+            id
+        }
+    }
+
     pub(super) fn emcy_allowed(&self) -> bool {
         matches!(self.nmt, NmtState::PreOperational | NmtState::Operational)
             && self.store.u32(R_1014) & 0x8000_0000 == 0
@@ -280,6 +291,7 @@ impl DriveCore {
         self.nmt = NmtState::PreOperational;
         self.refresh_all();
         self.sync = SyncConsumer::default();
+        self.sync_producer = Default::default();
         self.pending_sync = None;
         self.hb_lost = false;
         self.hb.restart(now_us, self.store.u32(R_1017) as u16);

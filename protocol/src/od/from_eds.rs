@@ -298,6 +298,10 @@ impl ObjectDictionary {
         }
         od.resort();
         od.device = device_description(file, fe_window_zero, fixed_pdo_can_ids);
+        od.device.emcy_cob_id_zero_predefined = emcy_cob_id_zero(file, &mut report);
+        sync_producer_note(file, &mut report);
+        od.device.shipped_pdo_can_ids = shipped_pdo_can_ids(file, &mut report);
+        add_mapped_members(file, &mut od, &mut report)?;
         od.device.shipped_short_entries = shipped_short_entries(file, &od, &mut report);
         od.device.shipped_read_only_rpdo_entries = shipped_read_only_rpdo_entries(&od, &mut report);
         note_fixed_maps(&od, &mut report);
@@ -432,6 +436,28 @@ impl Builder {
         } else {
             Fate::Stored
         };
+        // a DCF's ParameterValue outside the file's limits is what the device held (read from
+        // it): a master loading the DCF writes it, and the device takes it
+        let pv_raw = s
+            .parameter_value
+            .as_ref()
+            .filter(|_| e.dtype.integer())
+            .and_then(|v| v.resolve(e.dtype, Some(1)).ok())
+            .map(|b| decode(e.dtype, &b));
+        let default_raw = match e.default {
+            DefaultValue::Value(v) => Some(v),
+            _ => None,
+        };
+        let outside = |v: Option<u64>| v.and_then(|v| e.check_limits(v).err());
+        if let (None, Some(high)) = (outside(default_raw), outside(pv_raw)) {
+            why = format!(
+                "the DCF's ParameterValue is {} its {}: limits not applied",
+                if high { "above" } else { "below" },
+                if high { "HighLimit" } else { "LowLimit" }
+            );
+            e.low = None;
+            e.high = None;
+        }
         if let DefaultValue::Value(v) = e.default {
             if let Err(high) = e.check_limits(v) {
                 // the file contradicts itself; a master that writes the default back
@@ -575,8 +601,173 @@ fn device_description(
         shipped_short_entries: Vec::new(),
         following_error_window_zero_off: fe_window_zero,
         fixed_pdo_can_ids,
+        emcy_cob_id_zero_predefined: false,
+        shipped_pdo_can_ids: Vec::new(),
         padding_entries: false,
     }
+}
+
+/// The file's EMCY COB-ID 0x1014 is 0 (its default, else a DCF's ParameterValue): CAN-ID 0 is
+/// NMT's, which CiA 301 does not allow for an EMCY, but the device takes its own file's 0
+/// (SEVCON's Gen4: its EDS default and the value a live controller reads back) as "EMCY on the
+/// predefined CAN-ID", $NODEID + 0x80. The drive does the same, and says so.
+fn emcy_cob_id_zero(file: &EdsFile, report: &mut BuildReport) -> bool {
+    let Some(s) = file.sub(0x1014, 0) else {
+        return false;
+    };
+    let zero = |v: &Option<ValueExpr>| {
+        v.as_ref().is_some_and(|v| {
+            v.resolve(s.data_type, Some(1))
+                .is_ok_and(|b| b.iter().all(|&x| x == 0))
+        })
+    };
+    let zero = match &s.default {
+        Some(_) => zero(&s.default),
+        None => zero(&s.parameter_value),
+    };
+    if zero {
+        report.notes.push(
+            "0x1014 (COB-ID EMCY): the file's value is 0, CAN-ID 0 (NMT's), which CiA 301 \
+             allows no EMCY: taken as the device takes it, EMCY on the predefined CAN-ID \
+             $NODEID+0x80; 0x1014 reads 0 and a master may write 0 back (any other \
+             dictionary refuses 0 with 0x06090030)"
+                .into(),
+        );
+    }
+    zero
+}
+
+/// The file makes the device the SYNC producer (0x1005 bit 30, SEVCON's Gen4): say that the
+/// drive produces it, and at what period.
+fn sync_producer_note(file: &EdsFile, report: &mut BuildReport) {
+    let Some(cob) = file_u32(file, 0x1005, 0).filter(|c| c & crate::cia301::sync::GEN_BIT != 0)
+    else {
+        return;
+    };
+    let period_us = file_u32(file, 0x1006, 0).unwrap_or(0);
+    report.notes.push(format!(
+        "0x1005 = 0x{cob:08X}: the device is the SYNC producer (bit 30): the drive sends SYNC on \
+         CAN-ID 0x{:03X} every 0x1006 = {period_us} us at boot (none while 0x1006 is 0), in \
+         pre-operational and operational; its own synchronous PDOs act on it",
+        cob & 0x7FF
+    ));
+}
+
+/// PDO COB-IDs the file gives (default or a DCF's ParameterValue) on a CAN-ID CiA 301
+/// restricts: the device holds them (SEVCON's Gen4 DCF, read from a live controller, has
+/// TPDOs on 0x120, 0x145 and 0x178, in 0x101..=0x180), so the drive takes them for that PDO;
+/// any other restricted CAN-ID is refused as before.
+fn shipped_pdo_can_ids(file: &EdsFile, report: &mut BuildReport) -> Vec<(u16, u32)> {
+    let mut v = Vec::new();
+    let records = file
+        .objects
+        .iter()
+        .filter(|o| matches!(o.index, 0x1400..=0x15FF | 0x1800..=0x19FF));
+    for obj in records {
+        let Some(s) = obj.subs.iter().find(|s| s.sub == 1) else {
+            continue;
+        };
+        for expr in [&s.default, &s.parameter_value].into_iter().flatten() {
+            let Ok(b) = expr.resolve(DataType::U32, Some(1)) else {
+                continue;
+            };
+            let raw = decode(DataType::U32, &b) as u32;
+            let can_id = raw & 0x7FF;
+            // an invalid PDO (bit 31) takes any CAN-ID anyway
+            if raw & 0x8000_0000 != 0
+                || !crate::cia301::cob_id::restricted(can_id)
+                || v.contains(&(obj.index, can_id))
+            {
+                continue;
+            }
+            v.push((obj.index, can_id));
+            report.notes.push(format!(
+                "0x{:04X} sub 1: the file gives the PDO CAN-ID 0x{can_id:03X}, in a range CiA 301 \
+                 restricts: taken as the device takes it, for this PDO (a master may write it)",
+                obj.index
+            ));
+        }
+    }
+    v
+}
+
+/// Members the file's own default PDO maps name, of an object that lists fewer members than
+/// its sub 0 counts (SEVCON's Gen4 maps 0x6C11 sub 4 in RPDO1; its 0x6C11 lists subs 1..3 with
+/// sub 0 = 7): the device has them (its sub 0 says so, its map uses them), so the drive adds
+/// them, with the type, access and mapping of the members the file lists (which must agree),
+/// default 0; reported as added.
+fn add_mapped_members(
+    file: &EdsFile,
+    od: &mut ObjectDictionary,
+    report: &mut BuildReport,
+) -> Result<(), EdsBuildError> {
+    let maps = file
+        .objects
+        .iter()
+        .filter(|o| matches!(o.index, 0x1600..=0x17FF | 0x1A00..=0x1BFF));
+    for map in maps {
+        for s in map.subs.iter().filter(|s| s.sub >= 1) {
+            for expr in [&s.default, &s.parameter_value].into_iter().flatten() {
+                let Ok(b) = expr.resolve(DataType::U32, Some(1)) else {
+                    continue;
+                };
+                let value = decode(DataType::U32, &b) as u32;
+                let (index, sub) = ((value >> 16) as u16, (value >> 8) as u8);
+                if sub == 0 || od.get(index, sub).is_some() {
+                    continue;
+                }
+                let Some(e) = missing_member(od, index, sub) else {
+                    continue;
+                };
+                let why = format!(
+                    "named by the file's default map 0x{:04X} sub {} (0x{value:08X}), below \
+                     the {} members sub 0 counts: the device has it; added as its listed \
+                     members are ({}, {})",
+                    map.index,
+                    s.sub,
+                    od.get(index, 0).map_or(0, |(_, c)| c.default_raw(0)),
+                    e.dtype.name(),
+                    e.access.eds()
+                );
+                let name = e.name.to_string();
+                od.insert(e).map_err(|er| EdsBuildError {
+                    line: 0,
+                    object: Some((index, sub)),
+                    reason: er.to_string(),
+                })?;
+                report.notes.push(format!("0x{index:04X} sub {sub}: {why}"));
+                report.line(index, sub, &name, Fate::Added, why);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The entry of member `sub` of `index`, missing from the dictionary: when sub 0 counts it and
+/// the listed members agree on type, access and mapping.
+fn missing_member(od: &ObjectDictionary, index: u16, sub: u8) -> Option<Entry> {
+    let (_, count) = od.get(index, 0)?;
+    if !count.dtype.integer() || u64::from(sub) > count.default_raw(0) {
+        return None;
+    }
+    let members: Vec<&Entry> = od
+        .object(index)
+        .map(|(_, e)| e)
+        .filter(|e| e.sub >= 1)
+        .collect();
+    let first = *members.first()?;
+    let alike = members
+        .iter()
+        .all(|e| e.dtype == first.dtype && e.access == first.access && e.pdo == first.pdo);
+    if !alike || first.dtype.variable() {
+        return None;
+    }
+    let mut e = first.clone().with_default(DefaultValue::Value(0));
+    e.sub = sub;
+    e.name = format!("{} {sub}", first.parent).into();
+    e.low = None;
+    e.high = None;
+    Some(e)
 }
 
 /// The limits and windows whose default 0 is a placeholder: the value a real drive never runs

@@ -369,6 +369,15 @@ pub struct DeviceDescription {
     /// PDO communication records (0x1400.., 0x1800..) whose COB-ID the file marks read-only:
     /// served writable for bit 31 (valid) only (`placeholders::read_only_pdo_cob_id`).
     pub fixed_pdo_can_ids: Vec<u16>,
+    /// The file's EMCY COB-ID 0x1014 is 0 (its default or a DCF's ParameterValue; SEVCON's
+    /// Gen4): the device's "EMCY on the predefined CAN-ID", $NODEID + 0x80. A 0 in 0x1014
+    /// reads back as 0 and sends EMCY there; a master may write 0 back. Elsewhere CiA 301's
+    /// refusal of CAN-ID 0 (NMT's) holds.
+    pub emcy_cob_id_zero_predefined: bool,
+    /// PDO CAN-IDs the device's own file gives (communication record index, CAN-ID) in a
+    /// range CiA 301 restricts (a Gen4 DCF's TPDOs on 0x120, 0x145, 0x178, read from a live
+    /// controller): taken as the device takes them, for that PDO.
+    pub shipped_pdo_can_ids: Vec<(u16, u32)>,
     /// Mapping entries of index 0, sub-index 0 are padding (an EtherCAT ESI's gap entries):
     /// a gap of whole bytes in an RPDO or TPDO, sent as zeros, skipped when received. Not on
     /// CAN (CiA 301 has dummy entries for that).
@@ -389,6 +398,8 @@ impl Default for DeviceDescription {
             shipped_short_entries: Vec::new(),
             following_error_window_zero_off: false,
             fixed_pdo_can_ids: Vec::new(),
+            emcy_cob_id_zero_predefined: false,
+            shipped_pdo_can_ids: Vec::new(),
             padding_entries: false,
         }
     }

@@ -452,9 +452,12 @@ const fn pdo_rows() -> [Obj; N_PDO] {
     out
 }
 
+/// 0x6087's default: the rated torque in 0.1 s (per mille of 0x6076 per second).
+const DEFAULT_TORQUE_SLOPE_PERMILLE_PER_S: u32 = 10_000;
+
 // ----- CiA 402 profile objects -----
 #[rustfmt::skip]
-const PROFILE: [Obj; 70] = [
+const PROFILE: [Obj; 73] = [
     lim(var(0x6007, "Abort connection option code", I16, Rw, false, V(1)), 0, 3),
     var(0x603F, "Error code", U16, Ro, true, V(0)),
     var(0x6040, "Controlword", U16, Rww, true, V(0)),
@@ -482,6 +485,7 @@ const PROFILE: [Obj; 70] = [
     var(0x6070, "Velocity threshold time", U16, Rw, true, V(0)),
     var(0x6071, "Target torque", I16, Rww, true, V(0)),
     var(0x6072, "Max torque", U16, Rw, true, V(3000)),
+    var(0x6074, "Torque demand", I16, Ro, true, V(0)),
     var(0x6075, "Motor rated current", U32, Ro, false, Info(d_rated_i)),
     var(0x6076, "Motor rated torque", U32, Ro, false, Info(d_rated_t)),
     var(0x6077, "Torque actual value", I16, Ro, true, V(0)),
@@ -497,6 +501,8 @@ const PROFILE: [Obj; 70] = [
     var(0x6083, "Profile acceleration", U32, Rww, true, Info(d_acc)),
     var(0x6084, "Profile deceleration", U32, Rww, true, Info(d_acc)),
     var(0x6085, "Quick stop deceleration", U32, Rw, true, Info(d_qs_dec)),
+    var(0x6087, "Torque slope", U32, Rww, true, V(DEFAULT_TORQUE_SLOPE_PERMILLE_PER_S)),
+    lim(var(0x6088, "Torque profile type", I16, Rw, false, V(0)), 0, 0),
     arr(0x608F, 0, "Position encoder resolution", HSI, U8, Const, false, V(2)),
     lim(arr(0x608F, 1, "Position encoder resolution", "Encoder increments", U32, Rw, false, Info(d_enc)), 1, u32::MAX as i64),
     lim(arr(0x608F, 2, "Position encoder resolution", "Motor revolutions", U32, Rw, false, V(1)), 1, u32::MAX as i64),

@@ -166,6 +166,19 @@ fn check_comm_write(
         {
             Err(abort::READ_ONLY)
         }
+        // a CAN-ID the device's own file gives this PDO (default or a DCF's ParameterValue),
+        // restricted or not, is the device's own (`DeviceDescription::shipped_pdo_can_ids`)
+        1 if od
+            .device
+            .shipped_pdo_can_ids
+            .contains(&(comm_index(param), raw as u32 & 0x7FF))
+            && raw as u32 & COB_EXTENDED == 0
+            && !(valid
+                && raw as u32 & COB_INVALID == 0
+                && (raw as u32 ^ pdo.comm_value(store, layout::COB_ID)) & 0x7FF != 0) =>
+        {
+            Ok(())
+        }
         1 => check_cob_id(store, pdo, valid, raw),
         2 => {
             if raw > 0xFF || !TransmissionType::from_u8(raw as u8).allowed(param.dir) {
