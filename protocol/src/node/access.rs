@@ -103,7 +103,7 @@ impl DriveCore {
             .ok_or(abort::NO_OBJECT)?;
         let store: &Store = &self.store;
         let count = pdo.slots.count.map_or(0, |s| store.u32(s as usize)) as usize;
-        let (map, n, len) = compile(
+        let c = compile(
             &self.od,
             store,
             &pdo.slots,
@@ -112,9 +112,10 @@ impl DriveCore {
             self.pdo.max_len,
         )?;
         let mut p = *pdo;
-        p.map = map;
-        p.n = n;
-        p.len = len;
+        p.map = c.map;
+        p.n = c.n;
+        p.len = c.len;
+        p.bitwise = c.bitwise;
         Ok((p, k))
     }
 
@@ -171,7 +172,7 @@ impl DriveCore {
         }
         let c = self;
         let map = &p.map[..p.n as usize];
-        let ok = mapping::unpack(map, &data[..p.len as usize], |row, raw| {
+        let ok = mapping::unpack(map, p.bitwise, &data[..p.len as usize], |row, raw| {
             c.rpdo_value(row, raw)
         });
         c.rpdo_value_condition(k, ok);

@@ -195,11 +195,13 @@ impl DriveCore {
     /// [`DriveCore::rpdo_value`]. Whether every value was taken (for
     /// [`DriveCore::rpdo_value_condition`]).
     pub(super) fn apply_rpdo(&mut self, k: usize, data: &[u8]) -> bool {
-        let (map, n, len) = self.pdo.rpdo[k].rx_map();
+        let (map, n, len, bitwise) = self.pdo.rpdo[k].rx_map();
         let Some(data) = data.get(..len) else {
             return false;
         };
-        mapping::unpack(&map[..n], data, |row, raw| self.rpdo_value(row, raw))
+        mapping::unpack(&map[..n], bitwise, data, |row, raw| {
+            self.rpdo_value(row, raw)
+        })
     }
 
     /// An SDO answer to a request at `now_us`: sent now or after the vendor's delay.

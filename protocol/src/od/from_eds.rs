@@ -1175,9 +1175,11 @@ fn check_default_mappings(od: &ObjectDictionary, report: &mut BuildReport) {
     }
 }
 
-/// The mapping entries of the file's default PDO maps that map fewer whole bytes of an object
-/// than it has (a DCF mapping 32 bits of a 64-bit object): the device takes its own file's
-/// mapping, so the drive takes it too, carrying the value's low bytes.
+/// The mapping entries of the file's default PDO maps that map fewer bits of an object than
+/// it has (a DCF mapping 32 bits of a 64-bit object; SEVCON's Gen4 mapping BOOLEANs in 1 bit
+/// each, its `Granularity=64` notwithstanding): the device takes its own file's mapping, so the
+/// drive takes it too, carrying the value's low bits (at bit positions where they are not
+/// whole bytes, `cia301::pdo::mapping`).
 fn shipped_short_entries(
     file: &EdsFile,
     od: &ObjectDictionary,
@@ -1202,11 +1204,11 @@ fn shipped_short_entries(
                     continue;
                 };
                 let size_bits = target.dtype.size() * 8;
-                if !(target.pdo
-                    && bits.is_multiple_of(8)
-                    && bits > 0
-                    && bits < size_bits
-                    && size_bits <= 64)
+                // a 1-bit BOOLEAN on a device of granularity 1 maps by CiA 301's own rule
+                let bit_bool =
+                    od.device.granularity == 1 && target.dtype == DataType::Boolean && bits == 1;
+                if bit_bool
+                    || !(target.pdo && bits > 0 && bits < size_bits && size_bits <= 64)
                     || v.contains(&value)
                 {
                     continue;
@@ -1215,13 +1217,17 @@ fn shipped_short_entries(
                 report.notes.push(format!(
                     "{dir}{} (0x{:04X}): the file's mapping entry 0x{value:08X} maps {bits} of the \
                      {size_bits} bits of 0x{:04X}:{} ({}): taken as the device takes it, the \
-                     value's low {} bytes{}",
+                     value's low {}{}",
                     n + 1,
                     obj.index,
                     target.index,
                     target.sub,
                     target.dtype.name(),
-                    bits / 8,
+                    match bits {
+                        1 => "bit, at a bit position".to_string(),
+                        b if b.is_multiple_of(8) => format!("{} bytes", b / 8),
+                        b => format!("{b} bits, at a bit position"),
+                    },
                     if dir == "RPDO" {
                         " (a received value zero-extended)"
                     } else {

@@ -126,6 +126,9 @@ pub struct Pdo {
     pub n: u8,
     /// Data length in bytes.
     pub len: u8,
+    /// Some mapped entry is not whole bytes: the values sit at bit positions
+    /// ([`mapping::Compiled::bitwise`]).
+    pub bitwise: bool,
     // TPDO
     /// Data of the last transmission.
     pub last: [u8; 8],
@@ -155,9 +158,10 @@ impl Pdo {
     }
 
     /// The compiled mapping an RPDO's data is unpacked with (a copy: the writes it leads to
-    /// may reconfigure the PDO), and its length in bytes.
-    pub fn rx_map(&self) -> ([Mapped; MAX_ENTRIES], usize, usize) {
-        (self.map, self.n as usize, self.len as usize)
+    /// may reconfigure the PDO): the entries, how many, the length in bytes, and whether the
+    /// values sit at bit positions.
+    pub fn rx_map(&self) -> ([Mapped; MAX_ENTRIES], usize, usize, bool) {
+        (self.map, self.n as usize, self.len as usize, self.bitwise)
     }
 
     /// Whether the data to send differs from the last transmission (or none was sent).
@@ -253,15 +257,17 @@ impl PdoEngine {
         p.cob = cob;
         p.ttype = ttype;
         match compile(od, store, &p.slots, count, dir == Direction::Tx, max_len) {
-            Ok((map, n, len)) => {
-                p.map = map;
-                p.n = n;
-                p.len = len;
+            Ok(c) => {
+                p.map = c.map;
+                p.n = c.n;
+                p.len = c.len;
+                p.bitwise = c.bitwise;
                 p.valid = cob & COB_INVALID == 0;
             }
             Err(_) => {
                 p.n = 0;
                 p.len = 0;
+                p.bitwise = false;
                 p.valid = false;
             }
         }

@@ -110,7 +110,8 @@ fn keeps_fixed_entry(
     fixed && current == Some(raw as u32) && raw <= u64::from(u32::MAX)
 }
 
-/// The length of `pdo`'s first `count` entries with entry `sub` replaced by `entry`.
+/// The length in bytes of `pdo`'s first `count` entries with entry `sub` replaced by `entry`
+/// (their bits rounded up to whole bytes).
 #[allow(clippy::too_many_arguments)]
 fn mapped_length_with(
     od: &ObjectDictionary,
@@ -122,7 +123,7 @@ fn mapped_length_with(
     entry: u32,
     max_len: usize,
 ) -> Result<usize, u32> {
-    let mut len = 0;
+    let mut bits = 0;
     for k in 0..count {
         let value = if k + 1 == usize::from(sub) {
             entry
@@ -130,8 +131,9 @@ fn mapped_length_with(
             let slot = pdo.slots.entries[k].ok_or(abort::NOT_MAPPABLE)?;
             store.u32(slot as usize)
         };
-        len += check_entry(od, value, tx)?.bytes();
+        bits += check_entry(od, value, tx)?.bits();
     }
+    let len = bits.div_ceil(8);
     if len > max_len {
         return Err(abort::PDO_LENGTH);
     }
