@@ -483,6 +483,22 @@ fn the_gen4_files_are_taken_and_the_report_says_how() {
         assert_eq!(b.w8(0x6060, 0, 4), Ok(()), "{name}: PT");
         if name.ends_with(".eds") {
             assert_eq!(report.fate(0x6C11, 4), Some(Fate::Added), "{name}");
+            // RPDO2, RPDO5 and TPDO2 map BOOLEANs in 1 bit each: taken, and said
+            for entry in [0x2120_0001u32, 0x2127_0001, 0x2140_0001, 0x2320_0001] {
+                assert!(
+                    has(&format!("0x{entry:08X} maps 1 of the 8 bits")),
+                    "{entry:08X}"
+                );
+            }
+            assert!(!has("cannot be mapped"), "{:?}", report.notes);
+            // RPDO2 (0x282, event-driven): bit k of its one byte is 0x2120 + k
+            b.w32(0x1401, 1, 0x282).unwrap();
+            b.start();
+            b.send(common::f(0x282, &[0b1000_0101]));
+            b.tick();
+            for (index, want) in [(0x2120u16, 1u8), (0x2121, 0), (0x2122, 1), (0x2127, 1)] {
+                assert_eq!(b.sdo_read(index, 0).unwrap(), vec![want], "{index:04X}");
+            }
         } else {
             for id in [0x120, 0x145, 0x178] {
                 assert!(

@@ -173,7 +173,6 @@ pub fn compile(
 /// mapping longer than `out` is cut at the last whole value). A mapping of whole bytes copies
 /// bytes; one with an entry of fewer (`Pdo::bitwise`) puts each value's low bits at the
 /// running bit position, LSB first (CiA 301), the bits after the last value 0.
-#[inline]
 pub fn pack(p: &Pdo, store: &Store, out: &mut [u8]) -> usize {
     let map = &p.map[..p.n as usize];
     if p.bitwise {
@@ -229,7 +228,7 @@ fn low_mask(n: usize) -> u64 {
 
 /// Put the low `n` bits of `value` at bit `pos` of `out` (bit 0: the LSB of byte 0), the
 /// other bits kept. `out` holds `pos + n` bits.
-pub fn put_bits(out: &mut [u8], mut pos: usize, mut n: usize, mut value: u64) {
+fn put_bits(out: &mut [u8], mut pos: usize, mut n: usize, mut value: u64) {
     while n > 0 {
         let shift = pos % 8;
         let take = (8 - shift).min(n);
@@ -244,7 +243,7 @@ pub fn put_bits(out: &mut [u8], mut pos: usize, mut n: usize, mut value: u64) {
 
 /// The `n` bits at bit `pos` of `data` (bit 0: the LSB of byte 0), zero-extended. `data`
 /// holds `pos + n` bits.
-pub fn get_bits(data: &[u8], mut pos: usize, n: usize) -> u64 {
+fn get_bits(data: &[u8], mut pos: usize, n: usize) -> u64 {
     let mut value = 0u64;
     let mut got = 0;
     while got < n {
@@ -266,7 +265,6 @@ pub fn get_bits(data: &[u8], mut pos: usize, n: usize) -> u64 {
 /// ships in its default mapping are skipped. With `bitwise` (the mapping's
 /// [`Compiled::bitwise`]) the values sit at bit positions. Returns false if any value was
 /// refused.
-#[inline]
 pub fn unpack(
     map: &[Mapped],
     bitwise: bool,
