@@ -591,3 +591,62 @@ pub fn sdo_u32(sock: &CanSocket, node: u8, index: u16, sub: u8) -> u32 {
     b[..d.len().min(4)].copy_from_slice(&d[..d.len().min(4)]);
     u32::from_le_bytes(b)
 }
+
+/// A python master script of tests/python/ against the drive as `run` serves node `node`
+/// with the `cnc1` preset, in lock-step with a 10 ms SYNC period: the script gets the bus, the
+/// node and the drive's own EDS (`drive-emu eds`), prints READY when it listens (the drive
+/// starts then, so that the script sees its boot-up), `STEP ...` lines and PASS. Every one
+/// of `steps` must be among its lines.
+pub fn python_master_passes(script: &str, node: u8, steps: &[&str]) {
+    let ifname = iface(0);
+    let id = node.to_string();
+    let eds = Command::new(drive_emu_bin())
+        .args(["eds", "--preset", "cnc1", "--node", &id])
+        .output()
+        .expect("run drive-emu eds");
+    assert!(
+        eds.status.success(),
+        "drive-emu eds failed: {}",
+        String::from_utf8_lossy(&eds.stderr)
+    );
+    let eds_path = temp_file(
+        &format!("node{node}.eds"),
+        &String::from_utf8_lossy(&eds.stdout),
+    );
+    let mut cmd = Command::new(python());
+    cmd.arg(repo_root().join("tests/python").join(script))
+        .args([&ifname, &id])
+        .arg(&eds_path)
+        .env("PYTHONUNBUFFERED", "1");
+    let mut peer = Peer::spawn(script, cmd);
+    peer.wait_line("READY", PEER_TIMEOUT).unwrap_or_else(|| {
+        panic!(
+            "{script} did not start (pip install -r tests/requirements.txt?):\n{}",
+            peer.output()
+        )
+    });
+    let emu = Emu::spawn(&[
+        "--iface",
+        &ifname,
+        "--node",
+        &id,
+        "--preset",
+        "cnc1",
+        "--lockstep",
+        "--sync-period-us",
+        "10000",
+    ]);
+    let verdict = peer.wait_line("PASS", 4 * PEER_TIMEOUT);
+    let out = peer.output();
+    let status = peer.finish(PEER_TIMEOUT);
+    let exit = emu.stop_clean();
+    eprintln!("{script} output:\n{out}");
+    assert!(
+        verdict.is_some() && status.success(),
+        "{script} failed ({status}); its output:\n{out}\n\ndrive-emu stderr:\n{}",
+        exit.stderr
+    );
+    for step in steps {
+        assert!(out.contains(step), "no `{step}` in the output:\n{out}");
+    }
+}
