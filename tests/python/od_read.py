@@ -7,7 +7,7 @@ missing (AMD's Kria KD240 `foc-mc.eds` writes `Lines1=`..`Lines4=`). `[Comments]
 text that describes no object, so such a file is read without that section, as a user of
 python canopen must edit it to load it at all; that is said on stderr. Any other error of
 python canopen's is raised as it is. Our own reader reads the file as it is (with a warning:
-protocol/src/od/eds). A copy of this function is in protocol/tests/python/compare_eds.py.
+protocol/src/od/eds). protocol/tests/python/compare_eds.py imports it too.
 """
 import configparser
 import io

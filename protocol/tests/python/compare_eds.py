@@ -24,11 +24,10 @@ Known python canopen 2.4.1 differences (canopen/objectdictionary/eds.py):
 A file whose [Comments] python canopen cannot read at all (read_od) is compared as python
 canopen reads it without that section.
 """
-import configparser
-import io
 import json
 import sys
 from collections import Counter
+from pathlib import Path
 
 try:
     import canopen
@@ -38,36 +37,10 @@ except ImportError as e:  # pragma: no cover
     sys.exit(2)
 
 
-def without_comments(text):
-    """The file's text without its [Comments] section (every other line as it is)."""
-    out, skip = [], False
-    for line in text.splitlines(keepends=True):
-        s = line.strip()
-        if s.startswith("[") and s.endswith("]"):
-            skip = s.lower() == "[comments]"
-        if not skip:
-            out.append(line)
-    return "".join(out)
-
-
-def read_od(path, node_id):
-    """canopen.import_od(path, node_id); a file whose [Comments] python canopen cannot read
-    (it reads Line1..LineN of Lines=N and raises NoOptionError on a missing one: AMD's
-    foc-mc.eds writes Lines1=..) is read without that section, which describes no object, and
-    said on stderr. A copy of tests/python/od_read.py (the vendor drive checks use that one)."""
-    try:
-        return canopen.import_od(path, node_id)
-    except configparser.NoOptionError as e:
-        if e.section != "Comments":
-            raise
-        missing = e.option
-    with open(path) as f:
-        text = without_comments(f.read())
-    print(f"{path}: python canopen cannot read its [Comments] (no key {missing!r}): "
-          "read without that section", file=sys.stderr)
-    source = io.StringIO(text)
-    source.name = path  # import_od takes the format from the name's suffix
-    return canopen.import_od(source, node_id)
+# python canopen's reading of a file, with the [Comments] fallback: the vendor drive checks
+# module (tests/python/od_read.py), one copy
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "tests" / "python"))
+from od_read import read_od  # noqa: E402
 
 
 def main():
